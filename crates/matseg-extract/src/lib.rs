@@ -1,0 +1,10 @@
+//! From photos to material placements: the soft maps of SPEC section 1 (and,
+//! in later stages, uniform textures and PBR materials).
+
+pub mod soft_maps;
+
+pub use soft_maps::{
+    random_placement,
+    combine_maps, draw_channel_map, make_soft_maps, CombineRecord, MapNormalisation, MapRecord, SoftMapError,
+    SoftMapRecipe, SoftMaps,
+};

@@ -1,0 +1,368 @@
+//! Soft maps (SPEC section 1): a random photo channel through a random ramp
+//! gives a map with natural-image shapes; K of them become material weights.
+
+use matseg_image::{gaussian_blur, Channel, LibraryError, Photo, PhotoLibrary, Placement, Plane, Ramp};
+use rand::Rng;
+use serde::{Deserialize, Serialize};
+
+/// Every probability and limit of map drawing, with the SPEC's values as defaults.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SoftMapRecipe {
+    /// Probability of shrinking the source photo by r ~ U(1, largest ratio that
+    /// still covers the scene) before cropping; otherwise it is used at native
+    /// resolution (upscaled only as far as needed to cover the scene).
+    pub p_downscale: f64,
+    /// Probability that the channel is one of H, S, V (otherwise R, G, B).
+    pub p_hsv_channel: f64,
+    /// Probability of dividing the channel by its maximum (otherwise it keeps
+    /// its full range, 0..1).
+    pub p_normalise_by_max: f64,
+    /// Draws of the high threshold before giving up on the photo.
+    pub high_threshold_tries: u32,
+    /// Each side of a threshold must hold more than this fraction of pixels.
+    pub min_side_fraction: f64,
+    /// Probability of a binary map (t_lo = t_hi) in a soft scene.
+    pub p_binary: f64,
+    /// Draws of the low threshold before falling back to a binary map.
+    pub low_threshold_tries: u32,
+    /// The ramp band must hold fewer pixels than this ratio times the smaller
+    /// of the two sides (the check the original code meant to make).
+    pub max_band_to_side_ratio: f64,
+    /// A map whose sum (pixel-equivalents) is below this is redrawn.
+    pub min_map_mass: f64,
+    /// Redraws of one map before the scene fails (sources all flat, say).
+    pub max_map_draws: u32,
+    /// Probability of blurring all maps of a scene with one Gaussian kernel.
+    pub p_blur: f64,
+    /// Kernel sizes the blur draws from.
+    pub blur_kernels: Vec<usize>,
+    /// Probability of normalising maps to sum to 1 wherever any is non-zero
+    /// (otherwise priority order: each map takes what the earlier ones left).
+    pub p_sum_normalise: f64,
+    /// In hard scenes a pixel whose top weight is below this is background.
+    pub hard_min_weight: f32,
+}
+
+impl Default for SoftMapRecipe {
+    fn default() -> Self {
+        Self {
+            p_downscale: 0.3,
+            p_hsv_channel: 0.3,
+            p_normalise_by_max: 0.5,
+            high_threshold_tries: 20,
+            min_side_fraction: 0.01,
+            p_binary: 0.5,
+            low_threshold_tries: 20,
+            max_band_to_side_ratio: 1.0 / 3.0,
+            min_map_mass: 100.0,
+            max_map_draws: 500,
+            p_blur: 0.5,
+            blur_kernels: vec![3, 5, 7, 9],
+            p_sum_normalise: 0.25,
+            hard_min_weight: 0.1,
+        }
+    }
+}
+
+impl SoftMapRecipe {
+    /// Checks ranges; the message names the offending field.
+    pub fn validate(&self) -> Result<(), String> {
+        for (name, p) in [
+            ("p_downscale", self.p_downscale),
+            ("p_hsv_channel", self.p_hsv_channel),
+            ("p_normalise_by_max", self.p_normalise_by_max),
+            ("min_side_fraction", self.min_side_fraction),
+            ("p_binary", self.p_binary),
+            ("p_blur", self.p_blur),
+            ("p_sum_normalise", self.p_sum_normalise),
+        ] {
+            if !(0.0..=1.0).contains(&p) {
+                return Err(format!("{name} = {p} is not a probability in [0, 1]"));
+            }
+        }
+        if self.high_threshold_tries == 0 || self.low_threshold_tries == 0 || self.max_map_draws == 0 {
+            return Err("threshold tries and max_map_draws must be at least 1".into());
+        }
+        if self.blur_kernels.is_empty() || self.blur_kernels.iter().any(|k| k % 2 == 0) {
+            return Err("blur_kernels must be a non-empty list of odd sizes".into());
+        }
+        if !(0.0..=1.0).contains(&self.hard_min_weight) || self.max_band_to_side_ratio < 0.0 || self.min_map_mass < 0.0 {
+            return Err("hard_min_weight must be in [0, 1]; max_band_to_side_ratio and min_map_mass >= 0".into());
+        }
+        Ok(())
+    }
+}
+
+/// How one map was drawn: enough to redraw it from the same photo.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MapRecord {
+    /// Index of the source photo in the library.
+    pub photo: usize,
+    /// How the photo was resized and cropped.
+    pub placement: Placement,
+    /// The channel used.
+    pub channel: Channel,
+    /// Whether the channel was divided by its maximum.
+    pub normalised_by_max: bool,
+    /// The thresholds.
+    pub ramp: Ramp,
+}
+
+/// How a scene's maps were combined into weights.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MapNormalisation {
+    /// Maps divided by their sum wherever any is non-zero.
+    Sum,
+    /// Each map multiplied by what the earlier maps left.
+    Priority,
+}
+
+/// The scene-level part of combining maps.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CombineRecord {
+    /// Gaussian kernel applied to every map, if any.
+    pub blur_kernel: Option<usize>,
+    /// How the maps were normalised.
+    pub normalisation: MapNormalisation,
+    /// Whether the weights were made one-hot.
+    pub hard: bool,
+}
+
+/// K material weight maps and the background weight: per pixel they sum to 1.
+#[derive(Clone, Debug)]
+pub struct SoftMaps {
+    /// One weight map per material.
+    pub weights: Vec<Plane>,
+    /// Background weight, `1 - sum(weights)`.
+    pub background: Plane,
+    /// How each map was drawn.
+    pub maps: Vec<MapRecord>,
+    /// How they were combined.
+    pub combine: CombineRecord,
+}
+
+/// Failure to draw maps.
+#[derive(Debug, thiserror::Error)]
+pub enum SoftMapError {
+    /// The photo library failed.
+    #[error(transparent)]
+    Library(#[from] LibraryError),
+    /// No acceptable map after the allowed number of draws.
+    #[error("no usable soft map after {0} draws from the sources (are the photos flat?)")]
+    Exhausted(u32),
+}
+
+/// Resizes-and-crops `photo` for a `w x h` window: upscaled only as far as
+/// needed to cover it; otherwise, with probability `p_downscale`, shrunk by
+/// r ~ U(1, largest covering ratio), else kept at native resolution; or, with
+/// `fit_by_default`, shrunk until its short side fits. The crop is uniform.
+pub fn random_placement<R: Rng + ?Sized>(
+    rng: &mut R,
+    photo: &Photo,
+    w: usize,
+    h: usize,
+    p_downscale: f64,
+    fit_by_default: bool,
+) -> Placement {
+    let (pw, ph) = (photo.pyramid.width(), photo.pyramid.height());
+    let cover = Placement::cover_scale(pw, ph, w, h);
+    let scale = if cover >= 1.0 {
+        cover
+    } else if rng.random_bool(p_downscale) {
+        1.0 / rng.random_range(1.0..=1.0 / cover)
+    } else if fit_by_default {
+        cover
+    } else {
+        1.0
+    };
+    let (rw, rh) = Placement::resized_size(pw, ph, scale, w, h);
+    Placement {
+        resized_w: rw,
+        resized_h: rh,
+        x0: rng.random_range(0..=rw - w as u32),
+        y0: rng.random_range(0..=rh - h as u32),
+    }
+}
+
+/// One attempt at a map from one photo: `None` when the photo gives no
+/// acceptable threshold (the caller draws another photo).
+fn try_map_from_photo<R: Rng + ?Sized>(
+    rng: &mut R,
+    photo: &Photo,
+    w: usize,
+    h: usize,
+    max_occupancy: f64,
+    hard: bool,
+    recipe: &SoftMapRecipe,
+) -> Option<(Plane, MapRecord)> {
+    let placement = random_placement(rng, photo, w, h, recipe.p_downscale, false);
+    let channels = if rng.random_bool(recipe.p_hsv_channel) {
+        Channel::HSV
+    } else {
+        Channel::RGB
+    };
+    let channel = channels[rng.random_range(0..3)];
+    let mut plane = photo.pyramid.sample_channel(&placement, w, h, channel);
+    let normalised_by_max = rng.random_bool(recipe.p_normalise_by_max);
+    if normalised_by_max {
+        let max = plane.max();
+        if max > 0.0 {
+            plane.scale(1.0 / max);
+        }
+    }
+
+    let n = plane.len() as f64;
+    let min_side = recipe.min_side_fraction * n;
+    let mut accepted = None;
+    for _ in 0..recipe.high_threshold_tries {
+        let t: f32 = rng.random();
+        let above = plane.count_above(t) as f64;
+        if above > min_side && above <= max_occupancy * n {
+            accepted = Some((t, above));
+            break;
+        }
+    }
+    let (high, above) = accepted?;
+
+    let mut low = high;
+    if !hard && !rng.random_bool(recipe.p_binary) {
+        for _ in 0..recipe.low_threshold_tries {
+            let t = rng.random::<f32>() * high;
+            let below = plane.count_at_or_below(t) as f64;
+            let band = n - above - below;
+            if below > min_side && band < recipe.max_band_to_side_ratio * above.min(below) {
+                low = t;
+                break;
+            }
+        }
+    }
+    let ramp = Ramp { low, high };
+    plane.data.iter_mut().for_each(|v| *v = ramp.apply(*v));
+    if plane.sum() < recipe.min_map_mass {
+        return None;
+    }
+    let record = MapRecord {
+        photo: photo.index,
+        placement,
+        channel,
+        normalised_by_max,
+        ramp,
+    };
+    Some((plane, record))
+}
+
+/// Draws one soft map of size `w x h` (SPEC 1, steps 1-5), redrawing photos
+/// until one gives an acceptable map.
+pub fn draw_channel_map<R: Rng + ?Sized>(
+    rng: &mut R,
+    library: &PhotoLibrary,
+    w: usize,
+    h: usize,
+    max_occupancy: f64,
+    hard: bool,
+    recipe: &SoftMapRecipe,
+) -> Result<(Plane, MapRecord), SoftMapError> {
+    for _ in 0..recipe.max_map_draws {
+        let photo = library.pick(|n| rng.random_range(0..n))?;
+        if let Some(found) = try_map_from_photo(rng, &photo, w, h, max_occupancy, hard, recipe) {
+            return Ok(found);
+        }
+    }
+    Err(SoftMapError::Exhausted(recipe.max_map_draws))
+}
+
+/// Combines raw maps into material weights (SPEC 1, step 6): optional blur,
+/// sum or priority normalisation, one-hot for hard scenes; returns the weights,
+/// the background weight and the record of what was drawn.
+pub fn combine_maps<R: Rng + ?Sized>(
+    rng: &mut R,
+    mut maps: Vec<Plane>,
+    hard: bool,
+    recipe: &SoftMapRecipe,
+) -> (Vec<Plane>, Plane, CombineRecord) {
+    let (w, h) = (maps[0].width, maps[0].height);
+    let blur_kernel = rng
+        .random_bool(recipe.p_blur)
+        .then(|| recipe.blur_kernels[rng.random_range(0..recipe.blur_kernels.len())]);
+    if let Some(k) = blur_kernel {
+        maps = maps.iter().map(|m| gaussian_blur(m, k)).collect();
+    }
+    let normalisation = if rng.random_bool(recipe.p_sum_normalise) {
+        MapNormalisation::Sum
+    } else {
+        MapNormalisation::Priority
+    };
+    match normalisation {
+        MapNormalisation::Sum => {
+            for i in 0..w * h {
+                let total: f32 = maps.iter().map(|m| m.data[i]).sum();
+                if total > 0.0 {
+                    maps.iter_mut().for_each(|m| m.data[i] /= total);
+                }
+            }
+        }
+        MapNormalisation::Priority => {
+            let mut remaining = vec![1.0f32; w * h];
+            for m in maps.iter_mut() {
+                for (v, r) in m.data.iter_mut().zip(remaining.iter_mut()) {
+                    *v *= *r;
+                    *r = (*r - *v).max(0.0);
+                }
+            }
+        }
+    }
+    if hard {
+        for i in 0..w * h {
+            let (best, top) = maps
+                .iter()
+                .enumerate()
+                .fold((0, f32::MIN), |acc, (k, m)| if m.data[i] > acc.1 { (k, m.data[i]) } else { acc });
+            for (k, m) in maps.iter_mut().enumerate() {
+                m.data[i] = if k == best && top >= recipe.hard_min_weight { 1.0 } else { 0.0 };
+            }
+        }
+    }
+    let mut background = Plane::new(w, h, 1.0);
+    for m in &maps {
+        for (b, v) in background.data.iter_mut().zip(&m.data) {
+            *b -= v;
+        }
+    }
+    background.data.iter_mut().for_each(|b| *b = b.clamp(0.0, 1.0));
+    let record = CombineRecord {
+        blur_kernel,
+        normalisation,
+        hard,
+    };
+    (maps, background, record)
+}
+
+/// Draws `k` soft maps for a `w x h` scene and combines them (all of SPEC 1).
+#[allow(clippy::too_many_arguments)]
+pub fn make_soft_maps<R: Rng + ?Sized>(
+    rng: &mut R,
+    library: &PhotoLibrary,
+    w: usize,
+    h: usize,
+    k: usize,
+    hard: bool,
+    max_occupancy: f64,
+    recipe: &SoftMapRecipe,
+) -> Result<SoftMaps, SoftMapError> {
+    let mut planes = Vec::with_capacity(k);
+    let mut maps = Vec::with_capacity(k);
+    for _ in 0..k {
+        let (plane, record) = draw_channel_map(rng, library, w, h, max_occupancy, hard, recipe)?;
+        planes.push(plane);
+        maps.push(record);
+    }
+    let (weights, background, combine) = combine_maps(rng, planes, hard, recipe);
+    Ok(SoftMaps {
+        weights,
+        background,
+        maps,
+        combine,
+    })
+}

@@ -1,0 +1,153 @@
+//! Reading and writing images, with errors that name the file.
+
+use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+use image::{ExtendedColorType, GrayImage, ImageEncoder, ImageReader, RgbImage};
+use std::io::Cursor;
+use std::path::{Path, PathBuf};
+
+/// An image that could not be read or decoded, with the file it came from.
+#[derive(Debug, thiserror::Error)]
+#[error("{}: {message}", path.display())]
+pub struct ImageIoError {
+    /// The file (or archive member) concerned.
+    pub path: PathBuf,
+    /// What went wrong.
+    pub message: String,
+}
+
+impl ImageIoError {
+    /// An error about `path`.
+    pub fn new(path: impl Into<PathBuf>, message: impl ToString) -> Self {
+        Self {
+            path: path.into(),
+            message: message.to_string(),
+        }
+    }
+}
+
+/// File extensions read as images (lower case).
+pub const IMAGE_EXTENSIONS: [&str; 3] = ["jpg", "jpeg", "png"];
+
+/// True when the path has one of [`IMAGE_EXTENSIONS`].
+pub fn has_image_extension(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .map(|e| IMAGE_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
+        .unwrap_or(false)
+}
+
+/// Width and height from the file header, without decoding the pixels.
+pub fn read_dimensions(path: &Path) -> Result<(u32, u32), ImageIoError> {
+    ImageReader::open(path)
+        .map_err(|e| ImageIoError::new(path, e))?
+        .with_guessed_format()
+        .map_err(|e| ImageIoError::new(path, e))?
+        .into_dimensions()
+        .map_err(|e| ImageIoError::new(path, e))
+}
+
+/// Decodes an image file to 8-bit RGB (grey images are expanded).
+pub fn read_rgb(path: &Path) -> Result<RgbImage, ImageIoError> {
+    let bytes = std::fs::read(path).map_err(|e| ImageIoError::new(path, e))?;
+    decode_rgb(&bytes, path)
+}
+
+/// Decodes in-memory image bytes to 8-bit RGB; `name` is used in errors.
+pub fn decode_rgb(bytes: &[u8], name: &Path) -> Result<RgbImage, ImageIoError> {
+    let img = ImageReader::new(Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| ImageIoError::new(name, e))?
+        .decode()
+        .map_err(|e| ImageIoError::new(name, e))?;
+    Ok(img.to_rgb8())
+}
+
+/// Decodes in-memory image bytes to 8-bit grey; `name` is used in errors.
+pub fn decode_gray(bytes: &[u8], name: &Path) -> Result<GrayImage, ImageIoError> {
+    let img = ImageReader::new(Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| ImageIoError::new(name, e))?
+        .decode()
+        .map_err(|e| ImageIoError::new(name, e))?;
+    Ok(img.to_luma8())
+}
+
+/// Baseline JPEG bytes of an RGB image at `quality` (1..=100).
+pub fn encode_jpeg(img: &RgbImage, quality: u8) -> Vec<u8> {
+    let mut out = Vec::new();
+    jpeg_encoder::Encoder::new(&mut out, quality)
+        .encode(
+            img.as_raw(),
+            img.width() as u16,
+            img.height() as u16,
+            jpeg_encoder::ColorType::Rgb,
+        )
+        .expect("encoding to memory cannot fail for a valid image");
+    out
+}
+
+fn encode_png(data: &[u8], w: u32, h: u32, color: ExtendedColorType) -> Vec<u8> {
+    let mut out = Vec::new();
+    PngEncoder::new_with_quality(&mut out, CompressionType::Fast, FilterType::Adaptive)
+        .write_image(data, w, h, color)
+        .expect("encoding to memory cannot fail for a valid image");
+    out
+}
+
+/// PNG bytes of an 8-bit grey image given as raw row-major pixels.
+pub fn encode_png_gray(w: u32, h: u32, data: &[u8]) -> Vec<u8> {
+    encode_png(data, w, h, ExtendedColorType::L8)
+}
+
+/// PNG bytes of an 8-bit RGB image.
+pub fn encode_png_rgb(img: &RgbImage) -> Vec<u8> {
+    encode_png(
+        img.as_raw(),
+        img.width(),
+        img.height(),
+        ExtendedColorType::Rgb8,
+    )
+}
+
+/// Writes `bytes` to `path` through a temporary sibling renamed into place, so
+/// a reader never sees a half-written file.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".tmp");
+    let tmp = PathBuf::from(tmp);
+    std::fs::write(&tmp, bytes)?;
+    std::fs::rename(&tmp, path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn png_round_trips_exactly_and_jpeg_approximately() {
+        let img = RgbImage::from_fn(33, 17, |x, y| image::Rgb([x as u8 * 7, y as u8 * 13, 90]));
+        let png = encode_png_rgb(&img);
+        assert_eq!(decode_rgb(&png, Path::new("mem.png")).unwrap(), img);
+
+        let gray: Vec<u8> = (0..33 * 17).map(|i| (i % 256) as u8).collect();
+        let back = decode_gray(&encode_png_gray(33, 17, &gray), Path::new("g.png")).unwrap();
+        assert_eq!(back.as_raw(), &gray);
+
+        let jpg = encode_jpeg(&img, 95);
+        let back = decode_rgb(&jpg, Path::new("mem.jpg")).unwrap();
+        let err: f64 = back
+            .as_raw()
+            .iter()
+            .zip(img.as_raw())
+            .map(|(a, b)| (*a as f64 - *b as f64).abs())
+            .sum::<f64>()
+            / img.as_raw().len() as f64;
+        assert!(err < 3.0, "mean JPEG error {err}");
+    }
+
+    #[test]
+    fn garbage_is_an_error_naming_the_file() {
+        let err = decode_rgb(b"not an image", Path::new("broken.jpg")).unwrap_err();
+        assert!(err.to_string().starts_with("broken.jpg: "), "{err}");
+    }
+}

@@ -1,0 +1,22 @@
+//! Pixels for matseg: float planes and RGB images, colour channels (RGB/HSV),
+//! threshold ramps, Gaussian blur, mip-pyramid resampling, image I/O and the
+//! bounded, decode-once photo library every generator draws from.
+
+pub mod blur;
+pub mod channel;
+pub mod color;
+pub mod io;
+pub mod library;
+pub mod plane;
+pub mod ramp;
+pub mod resample;
+pub mod rgb;
+
+pub use blur::gaussian_blur;
+pub use channel::Channel;
+pub use io::ImageIoError;
+pub use library::{LibraryError, Photo, PhotoLibrary, ScanReport, SkippedFile};
+pub use plane::Plane;
+pub use ramp::Ramp;
+pub use resample::{Placement, Pyramid};
+pub use rgb::RgbF32;

@@ -1,0 +1,391 @@
+//! A library of source photos: listed once, decoded on first use, kept in a
+//! memory-bounded cache shared by all worker threads.
+
+use crate::io::{has_image_extension, read_dimensions, read_rgb};
+use crate::resample::Pyramid;
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+
+/// File in a folder that maps file names to licences (`"*"` is the default).
+pub const LICENSES_FILE: &str = "licenses.json";
+
+/// Licence recorded for files no `licenses.json` mentions.
+pub const UNKNOWN_LICENCE: &str = "unknown";
+
+/// Problems with the folders a library is built from.
+#[derive(Debug, thiserror::Error)]
+pub enum LibraryError {
+    /// A named source does not exist.
+    #[error("{}: no such file or folder", .0.display())]
+    Missing(PathBuf),
+    /// A folder could not be listed.
+    #[error("{}: cannot list folder: {reason}", path.display())]
+    Unlistable {
+        /// The folder.
+        path: PathBuf,
+        /// Why listing failed.
+        reason: String,
+    },
+    /// A `licenses.json` is not a JSON object of strings.
+    #[error("{}: invalid licence list: {reason}", path.display())]
+    BadLicences {
+        /// The licence file.
+        path: PathBuf,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// No readable image in any of the sources.
+    #[error("{0}: no readable images (jpg, jpeg, png)")]
+    Empty(String),
+    /// Every image failed to decode when drawn.
+    #[error("{0}: every image failed to decode")]
+    AllFailed(String),
+}
+
+/// One listed photo.
+#[derive(Clone, Debug)]
+pub struct PhotoEntry {
+    /// Where it is on disk.
+    pub path: PathBuf,
+    /// Path relative to the source folder it was found in (for sidecars).
+    pub name: String,
+    /// Licence from the folder's `licenses.json`, or [`UNKNOWN_LICENCE`].
+    pub licence: String,
+    /// Width from the header.
+    pub width: u32,
+    /// Height from the header.
+    pub height: u32,
+}
+
+/// A decoded photo, ready for resampling.
+#[derive(Debug)]
+pub struct Photo {
+    /// Its index in the library.
+    pub index: usize,
+    /// Its pixels and downscaled levels.
+    pub pyramid: Pyramid,
+}
+
+/// A file left out of the library, and why.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SkippedFile {
+    /// The file.
+    pub path: PathBuf,
+    /// Why it was left out.
+    pub reason: String,
+}
+
+/// What scanning the sources left out.
+#[derive(Clone, Debug, Default)]
+pub struct ScanReport {
+    /// Files with an image extension whose header could not be read.
+    pub skipped: Vec<SkippedFile>,
+}
+
+#[derive(Default)]
+struct Cache {
+    photos: HashMap<usize, (Arc<Photo>, u64)>,
+    bytes: usize,
+    clock: u64,
+}
+
+/// Source photos with a decode-once, least-recently-used cache bounded in bytes.
+pub struct PhotoLibrary {
+    label: String,
+    entries: Vec<PhotoEntry>,
+    budget_bytes: usize,
+    cache: Mutex<Cache>,
+    failed: Mutex<BTreeMap<usize, String>>,
+}
+
+impl std::fmt::Debug for PhotoLibrary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PhotoLibrary")
+            .field("label", &self.label)
+            .field("photos", &self.entries.len())
+            .field("budget_bytes", &self.budget_bytes)
+            .finish()
+    }
+}
+
+impl PhotoLibrary {
+    /// Lists every image under `sources` (folders are walked recursively in
+    /// sorted order; files are taken as they are). Unreadable images are
+    /// skipped and reported; a missing source or no image at all is an error.
+    /// `budget_bytes` bounds the memory of decoded photos (one photo is always
+    /// kept, however large).
+    pub fn scan(
+        sources: &[PathBuf],
+        budget_bytes: usize,
+    ) -> Result<(Self, ScanReport), LibraryError> {
+        let mut entries = Vec::new();
+        let mut report = ScanReport::default();
+        for source in sources {
+            if source.is_file() {
+                let licences = read_licences(source.parent().unwrap_or(Path::new(".")))?;
+                add_file(source, Path::new(""), &licences, &mut entries, &mut report);
+            } else if source.is_dir() {
+                walk(source, source, &mut entries, &mut report)?;
+            } else {
+                return Err(LibraryError::Missing(source.clone()));
+            }
+        }
+        let label = sources
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ");
+        if entries.is_empty() {
+            return Err(LibraryError::Empty(label));
+        }
+        let lib = Self {
+            label,
+            entries,
+            budget_bytes,
+            cache: Mutex::new(Cache::default()),
+            failed: Mutex::new(BTreeMap::new()),
+        };
+        Ok((lib, report))
+    }
+
+    /// The listed photos, in draw order.
+    pub fn entries(&self) -> &[PhotoEntry] {
+        &self.entries
+    }
+
+    /// Number of listed photos.
+    pub fn len(&self) -> usize {
+        self.entries.len()
+    }
+
+    /// True when nothing is listed (never, for a scanned library).
+    pub fn is_empty(&self) -> bool {
+        self.entries.is_empty()
+    }
+
+    /// The decoded photo `index`, from the cache or decoded now.
+    pub fn get(&self, index: usize) -> Result<Arc<Photo>, String> {
+        if let Some(reason) = self.failed.lock().expect("lock").get(&index) {
+            return Err(reason.clone());
+        }
+        {
+            let mut cache = self.cache.lock().expect("lock");
+            cache.clock += 1;
+            let now = cache.clock;
+            if let Some((photo, used)) = cache.photos.get_mut(&index) {
+                *used = now;
+                return Ok(photo.clone());
+            }
+        }
+        // Decode outside the lock; two threads may rarely decode the same photo.
+        let entry = &self.entries[index];
+        let img = match read_rgb(&entry.path) {
+            Ok(img) => img,
+            Err(e) => {
+                self.failed
+                    .lock()
+                    .expect("lock")
+                    .insert(index, e.message.clone());
+                return Err(e.message);
+            }
+        };
+        let photo = Arc::new(Photo {
+            index,
+            pyramid: Pyramid::new(img),
+        });
+        let mut cache = self.cache.lock().expect("lock");
+        cache.clock += 1;
+        let now = cache.clock;
+        if cache.photos.insert(index, (photo.clone(), now)).is_none() {
+            cache.bytes += photo.pyramid.bytes();
+        }
+        while cache.bytes > self.budget_bytes && cache.photos.len() > 1 {
+            let oldest = cache
+                .photos
+                .iter()
+                .min_by_key(|(_, (_, used))| *used)
+                .map(|(&k, _)| k)
+                .expect("non-empty cache");
+            if let Some((old, _)) = cache.photos.remove(&oldest) {
+                cache.bytes -= old.pyramid.bytes();
+            }
+        }
+        Ok(photo)
+    }
+
+    /// Draws photos with `draw(n)` (an index below `n`) until one decodes.
+    /// Photos that fail are remembered and reported by [`Self::failures`]; the
+    /// outcome depends only on the draws, so it stays deterministic.
+    pub fn pick(&self, mut draw: impl FnMut(usize) -> usize) -> Result<Arc<Photo>, LibraryError> {
+        loop {
+            if self.failed.lock().expect("lock").len() == self.entries.len() {
+                return Err(LibraryError::AllFailed(self.label.clone()));
+            }
+            if let Ok(photo) = self.get(draw(self.entries.len())) {
+                return Ok(photo);
+            }
+        }
+    }
+
+    /// Photos that failed to decode so far.
+    pub fn failures(&self) -> Vec<SkippedFile> {
+        self.failed
+            .lock()
+            .expect("lock")
+            .iter()
+            .map(|(&i, reason)| SkippedFile {
+                path: self.entries[i].path.clone(),
+                reason: reason.clone(),
+            })
+            .collect()
+    }
+
+    /// Bytes of decoded photos held now.
+    pub fn cached_bytes(&self) -> usize {
+        self.cache.lock().expect("lock").bytes
+    }
+}
+
+fn read_licences(dir: &Path) -> Result<BTreeMap<String, String>, LibraryError> {
+    let path = dir.join(LICENSES_FILE);
+    if !path.is_file() {
+        return Ok(BTreeMap::new());
+    }
+    let text = std::fs::read_to_string(&path).map_err(|e| LibraryError::BadLicences {
+        path: path.clone(),
+        reason: e.to_string(),
+    })?;
+    serde_json::from_str(&text).map_err(|e| LibraryError::BadLicences {
+        path,
+        reason: e.to_string(),
+    })
+}
+
+fn add_file(
+    path: &Path,
+    root: &Path,
+    licences: &BTreeMap<String, String>,
+    entries: &mut Vec<PhotoEntry>,
+    report: &mut ScanReport,
+) {
+    let file_name = path
+        .file_name()
+        .and_then(|n| n.to_str())
+        .unwrap_or_default();
+    let name = path
+        .strip_prefix(root)
+        .unwrap_or(path)
+        .to_string_lossy()
+        .into_owned();
+    let licence = licences
+        .get(file_name)
+        .or_else(|| licences.get("*"))
+        .cloned()
+        .unwrap_or_else(|| UNKNOWN_LICENCE.to_string());
+    match read_dimensions(path) {
+        Ok((width, height)) if width > 0 && height > 0 => entries.push(PhotoEntry {
+            path: path.to_path_buf(),
+            name,
+            licence,
+            width,
+            height,
+        }),
+        Ok(_) => report.skipped.push(SkippedFile {
+            path: path.to_path_buf(),
+            reason: "image has no pixels".into(),
+        }),
+        Err(e) => report.skipped.push(SkippedFile {
+            path: path.to_path_buf(),
+            reason: e.message,
+        }),
+    }
+}
+
+fn walk(
+    dir: &Path,
+    root: &Path,
+    entries: &mut Vec<PhotoEntry>,
+    report: &mut ScanReport,
+) -> Result<(), LibraryError> {
+    let listing = std::fs::read_dir(dir).map_err(|e| LibraryError::Unlistable {
+        path: dir.to_path_buf(),
+        reason: e.to_string(),
+    })?;
+    let mut paths: Vec<PathBuf> = listing.filter_map(|e| e.ok().map(|e| e.path())).collect();
+    paths.sort();
+    let licences = read_licences(dir)?;
+    for path in paths {
+        if path.is_dir() {
+            walk(&path, root, entries, report)?;
+        } else if has_image_extension(&path) {
+            add_file(&path, root, &licences, entries, report);
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use image::RgbImage;
+
+    fn write_png(path: &Path, w: u32, h: u32) {
+        RgbImage::from_pixel(w, h, image::Rgb([10, 20, 30]))
+            .save(path)
+            .unwrap();
+    }
+
+    #[test]
+    fn scan_lists_sorted_skips_corrupt_and_reads_licences() {
+        let dir = tempfile::tempdir().unwrap();
+        write_png(&dir.path().join("b.png"), 64, 64);
+        std::fs::create_dir(dir.path().join("sub")).unwrap();
+        write_png(&dir.path().join("sub/a.png"), 64, 48);
+        std::fs::write(dir.path().join("c.jpg"), b"definitely not a jpeg").unwrap();
+        std::fs::write(dir.path().join("notes.txt"), b"ignored").unwrap();
+        std::fs::write(dir.path().join(LICENSES_FILE), r#"{"b.png": "CC0-1.0"}"#).unwrap();
+
+        let (lib, report) = PhotoLibrary::scan(&[dir.path().to_path_buf()], 1 << 30).unwrap();
+        let names: Vec<_> = lib.entries().iter().map(|e| e.name.as_str()).collect();
+        assert_eq!(names, vec!["b.png", "sub/a.png"]);
+        assert_eq!(lib.entries()[0].licence, "CC0-1.0");
+        assert_eq!(lib.entries()[1].licence, UNKNOWN_LICENCE);
+        assert_eq!(report.skipped.len(), 1);
+        assert!(report.skipped[0].path.ends_with("c.jpg"));
+    }
+
+    #[test]
+    fn empty_and_missing_sources_are_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let err = PhotoLibrary::scan(&[dir.path().to_path_buf()], 1).unwrap_err();
+        assert!(matches!(err, LibraryError::Empty(_)), "{err}");
+        let err = PhotoLibrary::scan(&[dir.path().join("nope")], 1).unwrap_err();
+        assert!(
+            err.to_string().ends_with("nope: no such file or folder"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn cache_stays_within_budget_and_pick_skips_broken_files() {
+        let dir = tempfile::tempdir().unwrap();
+        for i in 0..4 {
+            write_png(&dir.path().join(format!("{i}.png")), 64, 64);
+        }
+        let (lib, _) =
+            PhotoLibrary::scan(&[dir.path().to_path_buf()], 64 * 64 * 3 * 2 + 10).unwrap();
+        // Corrupt one file after the scan: it is found at decode time.
+        std::fs::write(dir.path().join("0.png"), b"truncated").unwrap();
+        for i in 1..4 {
+            lib.get(i).unwrap();
+            assert!(lib.cached_bytes() <= 64 * 64 * 3 * 2 + 10);
+        }
+        let mut draws = [0usize, 0, 2].into_iter();
+        let photo = lib.pick(|_| draws.next().unwrap()).unwrap();
+        assert_eq!(photo.index, 2);
+        let failures = lib.failures();
+        assert_eq!(failures.len(), 1);
+        assert!(failures[0].path.ends_with("0.png"));
+    }
+}

@@ -1,0 +1,242 @@
+//! Resampling through a mip pyramid: "resize to W'xH', then crop a window" done
+//! in one pass that only computes the output pixels.
+
+use crate::channel::Channel;
+use crate::plane::Plane;
+use crate::rgb::RgbF32;
+use image::RgbImage;
+use serde::{Deserialize, Serialize};
+
+/// Levels stop once the next one would have a side shorter than this.
+const MIN_LEVEL_SIDE: u32 = 32;
+
+/// An 8-bit RGB image and its successive 2x2 box-averaged halvings, so that
+/// strong downscaling reads a level close to the target scale (no aliasing).
+#[derive(Clone, Debug)]
+pub struct Pyramid {
+    levels: Vec<RgbImage>,
+}
+
+impl Pyramid {
+    /// Builds the pyramid of `img` (level 0 is `img` itself).
+    pub fn new(img: RgbImage) -> Self {
+        let mut levels = vec![img];
+        loop {
+            let last = levels.last().expect("at least one level");
+            let (w, h) = (last.width() / 2, last.height() / 2);
+            if w.min(h) < MIN_LEVEL_SIDE {
+                break;
+            }
+            let next = RgbImage::from_fn(w, h, |x, y| {
+                let mut px = [0u8; 3];
+                for (c, out) in px.iter_mut().enumerate() {
+                    let sum: u32 = [(0, 0), (1, 0), (0, 1), (1, 1)]
+                        .iter()
+                        .map(|&(dx, dy)| last.get_pixel(2 * x + dx, 2 * y + dy)[c] as u32)
+                        .sum();
+                    *out = ((sum + 2) / 4) as u8;
+                }
+                image::Rgb(px)
+            });
+            levels.push(next);
+        }
+        Self { levels }
+    }
+
+    /// The full-resolution image.
+    pub fn base(&self) -> &RgbImage {
+        &self.levels[0]
+    }
+
+    /// Width of the full-resolution image.
+    pub fn width(&self) -> u32 {
+        self.levels[0].width()
+    }
+
+    /// Height of the full-resolution image.
+    pub fn height(&self) -> u32 {
+        self.levels[0].height()
+    }
+
+    /// Bytes held by all levels.
+    pub fn bytes(&self) -> usize {
+        self.levels.iter().map(|l| l.as_raw().len()).sum()
+    }
+
+    /// Samples the window `placement` selects, `out_w x out_h` pixels, mapping
+    /// each bilinearly interpolated RGB (0..255) pixel through `f`.
+    pub fn sample_with<T>(
+        &self,
+        placement: &Placement,
+        out_w: usize,
+        out_h: usize,
+        f: impl Fn([f32; 3]) -> T,
+    ) -> Vec<T> {
+        let fx = self.width() as f64 / placement.resized_w as f64;
+        let fy = self.height() as f64 / placement.resized_h as f64;
+        let shrink = fx.min(fy);
+        let level = if shrink >= 2.0 {
+            (shrink.log2().floor() as usize).min(self.levels.len() - 1)
+        } else {
+            0
+        };
+        let img = &self.levels[level];
+        let step = (1u64 << level) as f64;
+        let cols = axis_taps(out_w, placement.x0, fx / step, img.width());
+        let rows = axis_taps(out_h, placement.y0, fy / step, img.height());
+        let raw = img.as_raw();
+        let stride = img.width() as usize * 3;
+        let mut out = Vec::with_capacity(out_w * out_h);
+        for &(y0, y1, wy) in &rows {
+            let r0 = &raw[y0 * stride..(y0 + 1) * stride];
+            let r1 = &raw[y1 * stride..(y1 + 1) * stride];
+            for &(x0, x1, wx) in &cols {
+                let mut px = [0.0f32; 3];
+                for (c, p) in px.iter_mut().enumerate() {
+                    let a = r0[x0 * 3 + c] as f32 * (1.0 - wx) + r0[x1 * 3 + c] as f32 * wx;
+                    let b = r1[x0 * 3 + c] as f32 * (1.0 - wx) + r1[x1 * 3 + c] as f32 * wx;
+                    *p = a * (1.0 - wy) + b * wy;
+                }
+                out.push(f(px));
+            }
+        }
+        out
+    }
+
+    /// The selected window as a float RGB image.
+    pub fn sample_rgb(&self, placement: &Placement, out_w: usize, out_h: usize) -> RgbF32 {
+        RgbF32 {
+            width: out_w,
+            height: out_h,
+            data: self.sample_with(placement, out_w, out_h, |p| p),
+        }
+    }
+
+    /// One channel of the selected window, on the channel's full range `[0, 1]`.
+    pub fn sample_channel(
+        &self,
+        placement: &Placement,
+        out_w: usize,
+        out_h: usize,
+        channel: Channel,
+    ) -> Plane {
+        Plane::from_vec(
+            out_w,
+            out_h,
+            self.sample_with(placement, out_w, out_h, |p| channel.value(p)),
+        )
+    }
+
+    /// The whole image resized to `w x h`.
+    pub fn resize_rgb(&self, w: usize, h: usize) -> RgbF32 {
+        let whole = Placement {
+            resized_w: w as u32,
+            resized_h: h as u32,
+            x0: 0,
+            y0: 0,
+        };
+        self.sample_rgb(&whole, w, h)
+    }
+}
+
+/// For each output index along one axis: the two source indices and the
+/// weight of the second, for a source sampled at `step` pixels per output pixel.
+fn axis_taps(n: usize, offset: u32, step: f64, src_len: u32) -> Vec<(usize, usize, f32)> {
+    let last = src_len as i64 - 1;
+    (0..n)
+        .map(|i| {
+            let u = ((i as f64 + offset as f64 + 0.5) * step - 0.5).max(0.0);
+            let i0 = (u.floor() as i64).min(last);
+            let i1 = (i0 + 1).min(last);
+            (
+                i0 as usize,
+                i1 as usize,
+                (u - i0 as f64).clamp(0.0, 1.0) as f32,
+            )
+        })
+        .collect()
+}
+
+/// Where a scene-sized window comes from: resize the source to
+/// `resized_w x resized_h`, then crop at `(x0, y0)` in resized pixels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Placement {
+    /// Width the source is resized to.
+    pub resized_w: u32,
+    /// Height the source is resized to.
+    pub resized_h: u32,
+    /// Left of the crop window, in resized pixels.
+    pub x0: u32,
+    /// Top of the crop window, in resized pixels.
+    pub y0: u32,
+}
+
+impl Placement {
+    /// The smallest uniform scale at which a `src` image covers an `out` window.
+    pub fn cover_scale(src_w: u32, src_h: u32, out_w: usize, out_h: usize) -> f64 {
+        (out_w as f64 / src_w as f64).max(out_h as f64 / src_h as f64)
+    }
+
+    /// The resized size for `scale`, never smaller than the window.
+    pub fn resized_size(
+        src_w: u32,
+        src_h: u32,
+        scale: f64,
+        out_w: usize,
+        out_h: usize,
+    ) -> (u32, u32) {
+        let w = ((src_w as f64 * scale).round() as u32).max(out_w as u32);
+        let h = ((src_h as f64 * scale).round() as u32).max(out_h as u32);
+        (w, h)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn gradient(w: u32, h: u32) -> RgbImage {
+        RgbImage::from_fn(w, h, |x, y| image::Rgb([x as u8, y as u8, 100]))
+    }
+
+    #[test]
+    fn identity_placement_reproduces_the_image() {
+        let img = gradient(40, 30);
+        let p = Pyramid::new(img.clone());
+        let place = Placement {
+            resized_w: 40,
+            resized_h: 30,
+            x0: 5,
+            y0: 7,
+        };
+        let out = p.sample_rgb(&place, 10, 8);
+        for y in 0..8 {
+            for x in 0..10 {
+                let src = img.get_pixel(x as u32 + 5, y as u32 + 7);
+                let got = out.data[y * 10 + x];
+                for c in 0..3 {
+                    assert!((got[c] - src[c] as f32).abs() < 1e-4);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn pyramid_levels_halve_and_average() {
+        let img = RgbImage::from_fn(128, 64, |x, _| image::Rgb([(x % 2) as u8 * 200, 0, 0]));
+        let p = Pyramid::new(img);
+        assert_eq!(p.levels.len(), 2);
+        assert_eq!(p.levels[1].dimensions(), (64, 32));
+        assert!(p.levels[1].pixels().all(|px| px[0] == 100));
+        // A 4x downscale reads the averaged level, not aliased columns.
+        let out = p.resize_rgb(32, 16);
+        assert!(out.data.iter().all(|px| (px[0] - 100.0).abs() < 1e-3));
+    }
+
+    #[test]
+    fn cover_scale_covers_the_window() {
+        let s = Placement::cover_scale(300, 200, 600, 600);
+        assert_eq!(s, 3.0);
+        assert_eq!(Placement::resized_size(300, 200, s, 600, 600), (900, 600));
+    }
+}
