@@ -4,7 +4,6 @@
 pub mod soft_maps;
 
 pub use soft_maps::{
-    random_placement,
-    combine_maps, draw_channel_map, make_soft_maps, CombineRecord, MapNormalisation, MapRecord, SoftMapError,
-    SoftMapRecipe, SoftMaps,
+    combine_maps, draw_channel_map, make_soft_maps, random_placement, CombineRecord,
+    MapNormalisation, MapRecord, SoftMapError, SoftMapRecipe, SoftMaps,
 };

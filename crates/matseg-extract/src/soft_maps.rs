@@ -1,7 +1,9 @@
 //! Soft maps (SPEC section 1): a random photo channel through a random ramp
 //! gives a map with natural-image shapes; K of them become material weights.
 
-use matseg_image::{gaussian_blur, Channel, LibraryError, Photo, PhotoLibrary, Placement, Plane, Ramp};
+use matseg_image::{
+    gaussian_blur, Channel, LibraryError, Photo, PhotoLibrary, Placement, Plane, Ramp,
+};
 use rand::Rng;
 use serde::{Deserialize, Serialize};
 
@@ -81,14 +83,23 @@ impl SoftMapRecipe {
                 return Err(format!("{name} = {p} is not a probability in [0, 1]"));
             }
         }
-        if self.high_threshold_tries == 0 || self.low_threshold_tries == 0 || self.max_map_draws == 0 {
+        if self.high_threshold_tries == 0
+            || self.low_threshold_tries == 0
+            || self.max_map_draws == 0
+        {
             return Err("threshold tries and max_map_draws must be at least 1".into());
         }
         if self.blur_kernels.is_empty() || self.blur_kernels.iter().any(|k| k % 2 == 0) {
             return Err("blur_kernels must be a non-empty list of odd sizes".into());
         }
-        if !(0.0..=1.0).contains(&self.hard_min_weight) || self.max_band_to_side_ratio < 0.0 || self.min_map_mass < 0.0 {
-            return Err("hard_min_weight must be in [0, 1]; max_band_to_side_ratio and min_map_mass >= 0".into());
+        if !(0.0..=1.0).contains(&self.hard_min_weight)
+            || self.max_band_to_side_ratio < 0.0
+            || self.min_map_mass < 0.0
+        {
+            return Err(
+                "hard_min_weight must be in [0, 1]; max_band_to_side_ratio and min_map_mass >= 0"
+                    .into(),
+            );
         }
         Ok(())
     }
@@ -315,12 +326,19 @@ pub fn combine_maps<R: Rng + ?Sized>(
     }
     if hard {
         for i in 0..w * h {
-            let (best, top) = maps
-                .iter()
-                .enumerate()
-                .fold((0, f32::MIN), |acc, (k, m)| if m.data[i] > acc.1 { (k, m.data[i]) } else { acc });
+            let (best, top) = maps.iter().enumerate().fold((0, f32::MIN), |acc, (k, m)| {
+                if m.data[i] > acc.1 {
+                    (k, m.data[i])
+                } else {
+                    acc
+                }
+            });
             for (k, m) in maps.iter_mut().enumerate() {
-                m.data[i] = if k == best && top >= recipe.hard_min_weight { 1.0 } else { 0.0 };
+                m.data[i] = if k == best && top >= recipe.hard_min_weight {
+                    1.0
+                } else {
+                    0.0
+                };
             }
         }
     }
@@ -330,7 +348,10 @@ pub fn combine_maps<R: Rng + ?Sized>(
             *b -= v;
         }
     }
-    background.data.iter_mut().for_each(|b| *b = b.clamp(0.0, 1.0));
+    background
+        .data
+        .iter_mut()
+        .for_each(|b| *b = b.clamp(0.0, 1.0));
     let record = CombineRecord {
         blur_kernel,
         normalisation,
