@@ -1,0 +1,187 @@
+//! The 2D scene (SPEC 2): background photo and K material layers mixed by the
+//! soft maps of SPEC 1; the weights are the exact annotation.
+
+use crate::material::{draw_material, MaterialRecord};
+use crate::recipe::Recipe2d;
+use matseg_extract::{make_soft_maps, random_placement, CombineRecord, MapRecord, SoftMapError};
+use matseg_image::{LibraryError, PhotoLibrary, Placement, Plane};
+use rand::Rng;
+use serde::{Deserialize, Serialize};
+
+/// The libraries a scene draws from.
+#[derive(Clone, Copy, Debug)]
+pub struct Sources<'a> {
+    /// Natural photos: map sources, backgrounds, shading.
+    pub photos: &'a PhotoLibrary,
+    /// Uniform textures: material appearance.
+    pub textures: &'a PhotoLibrary,
+}
+
+/// Where the background came from.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BackgroundRecord {
+    /// Index in the photo library.
+    pub photo: usize,
+    /// Resize and crop.
+    pub placement: Placement,
+}
+
+/// Every drawn parameter of a 2D scene: with the sources, enough to redraw it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SceneRecord {
+    /// Scene width.
+    pub width: usize,
+    /// Scene height.
+    pub height: usize,
+    /// Whether the annotation is one-hot.
+    pub hard: bool,
+    /// Largest fraction of the scene one map's top side may cover.
+    pub max_occupancy: f64,
+    /// One record per material map.
+    pub maps: Vec<MapRecord>,
+    /// How the maps were combined.
+    pub combine: CombineRecord,
+    /// The background.
+    pub background: BackgroundRecord,
+    /// One record per material layer.
+    pub materials: Vec<MaterialRecord>,
+}
+
+/// A generated 2D scene with its exact soft annotation.
+#[derive(Clone, Debug)]
+pub struct Scene2d {
+    /// The composed image.
+    pub image: image::RgbImage,
+    /// One weight map per material, in [0, 1].
+    pub weights: Vec<Plane>,
+    /// Background weight; with the material weights it sums to 1 per pixel.
+    pub background: Plane,
+    /// What was drawn.
+    pub record: SceneRecord,
+}
+
+/// Failure to generate a scene.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// A source library failed.
+    #[error(transparent)]
+    Library(#[from] LibraryError),
+    /// Maps could not be drawn.
+    #[error(transparent)]
+    Maps(#[from] SoftMapError),
+}
+
+/// Generates one 2D scene from `rng` (SPEC 1 and 2).
+pub fn generate_2d<R: Rng + ?Sized>(
+    rng: &mut R,
+    recipe: &Recipe2d,
+    sources: Sources<'_>,
+) -> Result<Scene2d, SceneError> {
+    let s = &recipe.scene;
+    let width = rng.random_range(s.size_min..=s.size_max);
+    let height = rng.random_range(s.size_min..=s.size_max);
+    let k = rng.random_range(s.materials_min..=s.materials_max);
+    let hard = rng.random_bool(s.p_hard);
+    let max_occupancy = s.draw_max_occupancy(rng);
+    let maps = make_soft_maps(
+        rng,
+        sources.photos,
+        width,
+        height,
+        k,
+        hard,
+        max_occupancy,
+        &recipe.maps,
+    )?;
+
+    let photo = sources.photos.pick(|n| rng.random_range(0..n))?;
+    let placement = random_placement(
+        rng,
+        &photo,
+        width,
+        height,
+        recipe.composition.p_background_downscale,
+        true,
+    );
+    let mut acc = photo.pyramid.sample_rgb(&placement, width, height);
+    for (px, &wb) in acc.data.iter_mut().zip(&maps.background.data) {
+        px.iter_mut().for_each(|c| *c *= wb);
+    }
+    let mut materials = Vec::with_capacity(k);
+    for weight in &maps.weights {
+        let (layer, record) = draw_material(
+            rng,
+            &recipe.composition,
+            sources.photos,
+            sources.textures,
+            width,
+            height,
+        )?;
+        for ((px, lp), &wk) in acc.data.iter_mut().zip(&layer.data).zip(&weight.data) {
+            for c in 0..3 {
+                px[c] += lp[c] * wk;
+            }
+        }
+        materials.push(record);
+    }
+    let record = SceneRecord {
+        width,
+        height,
+        hard,
+        max_occupancy,
+        maps: maps.maps,
+        combine: maps.combine,
+        background: BackgroundRecord {
+            photo: photo.index,
+            placement,
+        },
+        materials,
+    };
+    Ok(Scene2d {
+        image: acc.to_rgb8(),
+        weights: maps.weights,
+        background: maps.background,
+        record,
+    })
+}
+
+/// A source file a scene used, for sidecars and licence audits.
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+pub struct SourceRef {
+    /// What it was used for: `map`, `background`, `texture` or `shading`.
+    pub role: String,
+    /// Path relative to its source folder.
+    pub file: String,
+    /// Its licence.
+    pub licence: String,
+}
+
+impl SceneRecord {
+    /// Every source file the scene used, in drawing order.
+    pub fn source_refs(&self, sources: Sources<'_>) -> Vec<SourceRef> {
+        let photo = |role: &str, i: usize| {
+            let e = &sources.photos.entries()[i];
+            SourceRef {
+                role: role.into(),
+                file: e.name.clone(),
+                licence: e.licence.clone(),
+            }
+        };
+        let mut refs: Vec<SourceRef> = self.maps.iter().map(|m| photo("map", m.photo)).collect();
+        refs.push(photo("background", self.background.photo));
+        for m in &self.materials {
+            if let crate::material::MaterialSource::Texture { texture, .. } = &m.source {
+                let e = &sources.textures.entries()[*texture];
+                refs.push(SourceRef {
+                    role: "texture".into(),
+                    file: e.name.clone(),
+                    licence: e.licence.clone(),
+                });
+            }
+            if let Some(s) = &m.shading {
+                refs.push(photo("shading", s.photo));
+            }
+        }
+        refs
+    }
+}

@@ -1,0 +1,313 @@
+//! The 2D recipe: every probability and range of SPEC sections 1 and 2 as a
+//! named field with the SPEC's value as default, overridable from TOML.
+
+use matseg_extract::SoftMapRecipe;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Scene-level draws (SPEC 1, last paragraph).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SceneDraws {
+    /// Smallest scene side; width and height are drawn independently.
+    pub size_min: usize,
+    /// Largest scene side (inclusive).
+    pub size_max: usize,
+    /// Fewest materials per scene.
+    pub materials_min: usize,
+    /// Most materials per scene (inclusive).
+    pub materials_max: usize,
+    /// Probability of a hard (one-hot) scene.
+    pub p_hard: f64,
+    /// `max_occupancy = occupancy_base + occupancy_span * U * U` ...
+    pub occupancy_base: f64,
+    /// ... (see `occupancy_base`).
+    pub occupancy_span: f64,
+    /// ... except, with this probability, `max_occupancy = fixed_occupancy`.
+    pub p_fixed_occupancy: f64,
+    /// See `p_fixed_occupancy`.
+    pub fixed_occupancy: f64,
+}
+
+impl SceneDraws {
+    /// Draws a scene's `max_occupancy`: the largest fraction of the scene
+    /// the top side of one map may cover.
+    pub fn draw_max_occupancy<R: rand::Rng + ?Sized>(&self, rng: &mut R) -> f64 {
+        let drawn =
+            self.occupancy_base + self.occupancy_span * rng.random::<f64>() * rng.random::<f64>();
+        if rng.random_bool(self.p_fixed_occupancy) {
+            self.fixed_occupancy
+        } else {
+            drawn
+        }
+    }
+}
+
+impl Default for SceneDraws {
+    fn default() -> Self {
+        Self {
+            size_min: 400,
+            size_max: 999,
+            materials_min: 1,
+            materials_max: 10,
+            p_hard: 0.55,
+            occupancy_base: 0.04,
+            occupancy_span: 0.5,
+            p_fixed_occupancy: 0.1,
+            fixed_occupancy: 0.1,
+        }
+    }
+}
+
+/// How materials and the background are drawn and composed (SPEC 2).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CompositionRecipe {
+    /// Probability of shrinking the background photo by a random ratio
+    /// (otherwise it is scaled so its short side fits the scene).
+    pub p_background_downscale: f64,
+    /// Probability that a material is a texture (otherwise a flat colour).
+    pub p_texture: f64,
+    /// Probability of rotating a texture by 90 degrees.
+    pub p_rot90: f64,
+    /// Probability of mirroring a texture left-right.
+    pub p_flip_x: f64,
+    /// Probability of mirroring a texture top-bottom.
+    pub p_flip_y: f64,
+    /// Probability of tiling a texture (otherwise it is stretched over the
+    /// scene, keeping its aspect ratio, and cropped).
+    pub p_tile: f64,
+    /// Probability of shrinking a tiled texture first, by r ~ U(1, min side / `min_tile_side`).
+    pub p_tile_shrink: f64,
+    /// Smallest tile side that shrinking may produce.
+    pub min_tile_side: f64,
+    /// Probability of rotating a texture's hue by a random angle.
+    pub p_hue_shift: f64,
+    /// Probability of shadow-like shading on a material.
+    pub p_shading: f64,
+    /// Probability that the shading channel is H, S or V (otherwise R, G or B).
+    pub p_shading_hsv: f64,
+    /// Probability of shrinking the shading photo before cropping.
+    pub p_shading_downscale: f64,
+    /// Gaussian kernel sizes for the shading blur.
+    pub shading_kernels: Vec<usize>,
+    /// Probability of full-strength shading (otherwise strength ~ U(0, 1)).
+    pub p_shading_full_strength: f64,
+}
+
+impl Default for CompositionRecipe {
+    fn default() -> Self {
+        Self {
+            p_background_downscale: 0.5,
+            p_texture: 0.91,
+            p_rot90: 0.5,
+            p_flip_x: 0.5,
+            p_flip_y: 0.5,
+            p_tile: 0.75,
+            p_tile_shrink: 0.6,
+            min_tile_side: 100.0,
+            p_hue_shift: 0.12,
+            p_shading: 0.75,
+            p_shading_hsv: 0.4,
+            p_shading_downscale: 0.3,
+            shading_kernels: (5..=21).step_by(2).collect(),
+            p_shading_full_strength: 0.5,
+        }
+    }
+}
+
+/// Everything that decides a 2D scene, besides the seed and the sources.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Recipe2d {
+    /// Scene size, material count, hardness, occupancy.
+    pub scene: SceneDraws,
+    /// Soft map drawing (SPEC 1).
+    pub maps: SoftMapRecipe,
+    /// Background, textures and shading (SPEC 2).
+    pub composition: CompositionRecipe,
+}
+
+/// A recipe file that cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum RecipeError {
+    /// Unreadable file.
+    #[error("{}: cannot read: {reason}", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        reason: String,
+    },
+    /// Not valid TOML for a recipe (unknown key, wrong type...).
+    #[error("{}: invalid recipe: {reason}", path.display())]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// The parser's message, on one line.
+        reason: String,
+    },
+    /// Values out of range.
+    #[error("{origin}: invalid recipe: {reason}")]
+    Invalid {
+        /// Where the recipe came from.
+        origin: String,
+        /// What is wrong.
+        reason: String,
+    },
+}
+
+/// Largest scene side accepted (memory per scene grows with its area).
+pub const MAX_SCENE_SIDE: usize = 8192;
+
+impl Recipe2d {
+    /// Reads a TOML recipe; keys left out keep their defaults.
+    pub fn from_toml_file(path: &Path) -> Result<Self, RecipeError> {
+        let text = std::fs::read_to_string(path).map_err(|e| RecipeError::Read {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        })?;
+        let recipe: Self = toml::from_str(&text).map_err(|e| RecipeError::Parse {
+            path: path.to_path_buf(),
+            reason: e.message().replace('\n', " "),
+        })?;
+        recipe.validate(&path.display().to_string())?;
+        Ok(recipe)
+    }
+
+    /// Checks every range; `origin` names the recipe in the error.
+    pub fn validate(&self, origin: &str) -> Result<(), RecipeError> {
+        let invalid = |reason: String| RecipeError::Invalid {
+            origin: origin.to_string(),
+            reason,
+        };
+        let s = &self.scene;
+        if s.size_min < 16 || s.size_min > s.size_max || s.size_max > MAX_SCENE_SIDE {
+            return Err(invalid(format!(
+                "scene size range {}..{} must satisfy 16 <= min <= max <= {MAX_SCENE_SIDE}",
+                s.size_min, s.size_max
+            )));
+        }
+        if s.materials_min < 1
+            || s.materials_min > s.materials_max
+            || s.materials_max > PALETTE_LIMIT
+        {
+            return Err(invalid(format!(
+                "material count range {}..{} must satisfy 1 <= min <= max <= {PALETTE_LIMIT}",
+                s.materials_min, s.materials_max
+            )));
+        }
+        let c = &self.composition;
+        for (name, p) in [
+            ("scene.p_hard", s.p_hard),
+            ("scene.p_fixed_occupancy", s.p_fixed_occupancy),
+            (
+                "composition.p_background_downscale",
+                c.p_background_downscale,
+            ),
+            ("composition.p_texture", c.p_texture),
+            ("composition.p_rot90", c.p_rot90),
+            ("composition.p_flip_x", c.p_flip_x),
+            ("composition.p_flip_y", c.p_flip_y),
+            ("composition.p_tile", c.p_tile),
+            ("composition.p_tile_shrink", c.p_tile_shrink),
+            ("composition.p_hue_shift", c.p_hue_shift),
+            ("composition.p_shading", c.p_shading),
+            ("composition.p_shading_hsv", c.p_shading_hsv),
+            ("composition.p_shading_downscale", c.p_shading_downscale),
+            (
+                "composition.p_shading_full_strength",
+                c.p_shading_full_strength,
+            ),
+        ] {
+            if !(0.0..=1.0).contains(&p) {
+                return Err(invalid(format!(
+                    "{name} = {p} is not a probability in [0, 1]"
+                )));
+            }
+        }
+        let occ_max = s.occupancy_base + s.occupancy_span;
+        if s.occupancy_base <= 0.0
+            || s.occupancy_span < 0.0
+            || occ_max > 1.0
+            || !(0.0..=1.0).contains(&s.fixed_occupancy)
+        {
+            return Err(invalid("occupancy must stay within (0, 1]".into()));
+        }
+        if c.min_tile_side < 1.0 {
+            return Err(invalid(
+                "composition.min_tile_side must be at least 1".into(),
+            ));
+        }
+        if c.shading_kernels.is_empty() || c.shading_kernels.iter().any(|k| k % 2 == 0) {
+            return Err(invalid(
+                "composition.shading_kernels must be a non-empty list of odd sizes".into(),
+            ));
+        }
+        self.maps
+            .validate()
+            .map_err(|reason| invalid(format!("maps: {reason}")))
+    }
+}
+
+/// Most materials a scene may have (one palette colour each in previews).
+pub const PALETTE_LIMIT: usize = crate::annotation::PALETTE.len();
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_are_the_spec_values_and_valid() {
+        let r = Recipe2d::default();
+        r.validate("default").unwrap();
+        assert_eq!((r.scene.size_min, r.scene.size_max), (400, 999));
+        assert_eq!((r.scene.materials_min, r.scene.materials_max), (1, 10));
+        assert_eq!(r.scene.p_hard, 0.55);
+        assert_eq!(
+            r.composition.shading_kernels,
+            vec![5, 7, 9, 11, 13, 15, 17, 19, 21]
+        );
+        assert_eq!(r.maps.blur_kernels, vec![3, 5, 7, 9]);
+    }
+
+    #[test]
+    fn toml_overrides_keep_other_defaults_and_errors_name_the_file() {
+        let dir = tempdir();
+        let ok = dir.join("ok.toml");
+        std::fs::write(
+            &ok,
+            "[scene]\nsize_min = 64\nsize_max = 128\n[maps]\np_blur = 0.0\n",
+        )
+        .unwrap();
+        let r = Recipe2d::from_toml_file(&ok).unwrap();
+        assert_eq!(
+            (r.scene.size_min, r.scene.size_max, r.maps.p_blur),
+            (64, 128, 0.0)
+        );
+        assert_eq!(r.scene.p_hard, 0.55);
+
+        let bad = dir.join("bad.toml");
+        std::fs::write(&bad, "[scene]\nsize_mni = 64\n").unwrap();
+        let err = Recipe2d::from_toml_file(&bad).unwrap_err().to_string();
+        assert!(
+            err.starts_with(&format!("{}: invalid recipe: unknown field", bad.display())),
+            "{err}"
+        );
+        assert!(!err.contains('\n'));
+
+        let range = dir.join("range.toml");
+        std::fs::write(&range, "[composition]\np_tile = 1.5\n").unwrap();
+        let err = Recipe2d::from_toml_file(&range).unwrap_err().to_string();
+        assert!(
+            err.contains("composition.p_tile = 1.5 is not a probability"),
+            "{err}"
+        );
+    }
+
+    fn tempdir() -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("matseg-recipe-test-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+}
