@@ -1,0 +1,321 @@
+//! Writing a dataset: N samples, in parallel, resumable, and byte-identical
+//! whatever the thread count or the split into jobs.
+
+use crate::encode::{encode_scene, EncodedSample};
+use crate::folders;
+use crate::seed::sample_rng;
+use crate::wds::{shard_path, ShardWriter};
+use matseg_scene::{generate_2d, Recipe2d, SceneError, Sources};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// On-disk layout of a dataset.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Format {
+    /// One MatSeg folder per sample.
+    Folders,
+    /// WebDataset tar shards.
+    Wds,
+}
+
+/// Which part of the work this process does: job `index` of `count` takes the
+/// work units (samples for folders, shards for WebDataset) `u` with
+/// `u % count == index`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct JobSlice {
+    /// Number of jobs.
+    pub count: u64,
+    /// This job, `0..count`.
+    pub index: u64,
+}
+
+impl JobSlice {
+    /// The whole dataset in one job.
+    pub const ALL: JobSlice = JobSlice { count: 1, index: 0 };
+
+    /// The job index from `SLURM_ARRAY_TASK_ID` or `JOB_COMPLETION_INDEX`
+    /// (Kubernetes indexed jobs), if either is set.
+    pub fn index_from_env() -> Result<Option<u64>, String> {
+        for var in ["SLURM_ARRAY_TASK_ID", "JOB_COMPLETION_INDEX"] {
+            if let Ok(v) = std::env::var(var) {
+                return v
+                    .trim()
+                    .parse()
+                    .map(Some)
+                    .map_err(|_| format!("{var}={v} is not a job index"));
+            }
+        }
+        Ok(None)
+    }
+
+    /// Checks `index < count` and `count >= 1`.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.count == 0 || self.index >= self.count {
+            return Err(format!(
+                "shard index {} is not below the number of shards {}",
+                self.index, self.count
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// What to write.
+#[derive(Clone, Debug)]
+pub struct GenerateOptions {
+    /// Output folder.
+    pub out: PathBuf,
+    /// Number of samples in the whole dataset.
+    pub n: u64,
+    /// Dataset seed.
+    pub seed: u64,
+    /// Layout.
+    pub format: Format,
+    /// Samples per tar shard (WebDataset only).
+    pub shard_size: u64,
+    /// This process's part of the work.
+    pub job: JobSlice,
+}
+
+/// The settings a dataset was made with, stored as `dataset.json`; a resumed
+/// run must match them.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DatasetManifest {
+    /// Scene kind.
+    pub kind: String,
+    /// Layout.
+    pub format: Format,
+    /// Number of samples.
+    pub n: u64,
+    /// Seed.
+    pub seed: u64,
+    /// Samples per shard (WebDataset only).
+    pub shard_size: Option<u64>,
+    /// Fingerprint of the source files (names and sizes).
+    pub sources_fingerprint: String,
+    /// The recipe.
+    pub recipe: Recipe2d,
+}
+
+/// Name of the manifest file.
+pub const MANIFEST_FILE: &str = "dataset.json";
+
+/// What a run did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GenerateReport {
+    /// Samples generated now.
+    pub generated: u64,
+    /// Samples found complete and skipped.
+    pub skipped: u64,
+    /// Bytes of sample files written now.
+    pub bytes: u64,
+}
+
+/// Failure while writing a dataset.
+#[derive(Debug, thiserror::Error)]
+pub enum GenerateError {
+    /// A file could not be written.
+    #[error("{}: {reason}", path.display())]
+    Io {
+        /// The file or folder.
+        path: PathBuf,
+        /// Why.
+        reason: String,
+    },
+    /// A scene could not be generated.
+    #[error("sample {index}: {source}")]
+    Scene {
+        /// Sample index.
+        index: u64,
+        /// Why.
+        source: SceneError,
+    },
+    /// The output folder holds a dataset made with other settings.
+    #[error("{}: holds a dataset made with other settings ({reason}); choose another --out", path.display())]
+    Mismatch {
+        /// The manifest.
+        path: PathBuf,
+        /// What differs.
+        reason: String,
+    },
+    /// Bad options.
+    #[error("{0}")]
+    Options(String),
+}
+
+fn io_err(path: &Path) -> impl Fn(std::io::Error) -> GenerateError + '_ {
+    move |e| GenerateError::Io {
+        path: path.to_path_buf(),
+        reason: e.to_string(),
+    }
+}
+
+/// FNV-1a fingerprint of the source lists (names and sizes), so a resumed run
+/// notices changed sources.
+pub fn sources_fingerprint(sources: Sources<'_>) -> String {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for lib in [sources.photos, sources.textures] {
+        for e in lib.entries() {
+            for b in e
+                .name
+                .bytes()
+                .chain(e.width.to_le_bytes())
+                .chain(e.height.to_le_bytes())
+            {
+                h = (h ^ b as u64).wrapping_mul(0x0100_0000_01b3);
+            }
+        }
+        h = (h ^ 0xff).wrapping_mul(0x0100_0000_01b3);
+    }
+    format!("{h:016x}")
+}
+
+fn check_manifest(path: &Path, want: &DatasetManifest) -> Result<(), GenerateError> {
+    if path.is_file() {
+        let text = std::fs::read_to_string(path).map_err(io_err(path))?;
+        let have: DatasetManifest =
+            serde_json::from_str(&text).map_err(|e| GenerateError::Mismatch {
+                path: path.to_path_buf(),
+                reason: format!("unreadable manifest: {e}"),
+            })?;
+        let differs = |what: &str| {
+            Err(GenerateError::Mismatch {
+                path: path.to_path_buf(),
+                reason: format!("{what} differs"),
+            })
+        };
+        if have.kind != want.kind || have.format != want.format {
+            return differs("kind or format");
+        }
+        if have.n != want.n || have.shard_size != want.shard_size {
+            return differs("sample count or shard size");
+        }
+        if have.seed != want.seed {
+            return differs("seed");
+        }
+        if have.sources_fingerprint != want.sources_fingerprint {
+            return differs("source files");
+        }
+        if have.recipe != want.recipe {
+            return differs("recipe");
+        }
+        return Ok(());
+    }
+    let json = serde_json::to_vec_pretty(want).expect("manifest serialises");
+    matseg_image::io::write_atomic(path, &json).map_err(io_err(path))
+}
+
+fn make_sample(
+    recipe: &Recipe2d,
+    sources: Sources<'_>,
+    seed: u64,
+    index: u64,
+) -> Result<EncodedSample, GenerateError> {
+    let mut rng = sample_rng(seed, index);
+    let scene = generate_2d(&mut rng, recipe, sources)
+        .map_err(|source| GenerateError::Scene { index, source })?;
+    Ok(encode_scene(&scene, seed, index, sources))
+}
+
+/// Writes the samples of `opts.job`'s slice of the dataset, skipping complete
+/// ones, on the current rayon pool. `progress(k)` is called as `k` more samples
+/// are done (skipped ones included).
+pub fn generate_dataset(
+    opts: &GenerateOptions,
+    recipe: &Recipe2d,
+    sources: Sources<'_>,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<GenerateReport, GenerateError> {
+    opts.job.validate().map_err(GenerateError::Options)?;
+    if opts.format == Format::Wds && opts.shard_size == 0 {
+        return Err(GenerateError::Options(
+            "--shard-size must be at least 1".into(),
+        ));
+    }
+    std::fs::create_dir_all(&opts.out).map_err(io_err(&opts.out))?;
+    let manifest = DatasetManifest {
+        kind: "2d".into(),
+        format: opts.format,
+        n: opts.n,
+        seed: opts.seed,
+        shard_size: (opts.format == Format::Wds).then_some(opts.shard_size),
+        sources_fingerprint: sources_fingerprint(sources),
+        recipe: recipe.clone(),
+    };
+    check_manifest(&opts.out.join(MANIFEST_FILE), &manifest)?;
+    let mine = |unit: u64| unit % opts.job.count == opts.job.index;
+    match opts.format {
+        Format::Folders => generate_folders(opts, recipe, sources, progress, &mine),
+        Format::Wds => generate_shards(opts, recipe, sources, progress, &mine),
+    }
+}
+
+fn generate_folders(
+    opts: &GenerateOptions,
+    recipe: &Recipe2d,
+    sources: Sources<'_>,
+    progress: &(dyn Fn(u64) + Sync),
+    mine: &(dyn Fn(u64) -> bool + Sync),
+) -> Result<GenerateReport, GenerateError> {
+    let (done, pending): (Vec<u64>, Vec<u64>) = (0..opts.n)
+        .filter(|&i| mine(i))
+        .partition(|&i| folders::is_complete(&opts.out, i));
+    progress(done.len() as u64);
+    let bytes = pending
+        .par_iter()
+        .map(|&index| {
+            let sample = make_sample(recipe, sources, opts.seed, index)?;
+            folders::write_sample(&opts.out, &sample)
+                .map_err(io_err(&folders::sample_dir(&opts.out, index)))?;
+            progress(1);
+            Ok(sample.bytes() as u64)
+        })
+        .try_reduce(|| 0, |a, b| Ok(a + b))?;
+    Ok(GenerateReport {
+        generated: pending.len() as u64,
+        skipped: done.len() as u64,
+        bytes,
+    })
+}
+
+fn generate_shards(
+    opts: &GenerateOptions,
+    recipe: &Recipe2d,
+    sources: Sources<'_>,
+    progress: &(dyn Fn(u64) + Sync),
+    mine: &(dyn Fn(u64) -> bool + Sync),
+) -> Result<GenerateReport, GenerateError> {
+    let shards = opts.n.div_ceil(opts.shard_size);
+    let chunk = (rayon::current_num_threads() * 4) as u64;
+    let mut report = GenerateReport::default();
+    for shard in (0..shards).filter(|&s| mine(s)) {
+        let start = shard * opts.shard_size;
+        let end = (start + opts.shard_size).min(opts.n);
+        let path = shard_path(&opts.out, shard);
+        if path.is_file() {
+            report.skipped += end - start;
+            progress(end - start);
+            continue;
+        }
+        let mut writer = ShardWriter::create(path.clone()).map_err(io_err(&path))?;
+        let mut first = start;
+        while first < end {
+            let last = (first + chunk).min(end);
+            let samples: Vec<EncodedSample> = (first..last)
+                .into_par_iter()
+                .map(|index| make_sample(recipe, sources, opts.seed, index))
+                .collect::<Result<_, _>>()?;
+            for sample in &samples {
+                writer.append(sample).map_err(io_err(&path))?;
+                report.bytes += sample.bytes() as u64;
+            }
+            progress(last - first);
+            first = last;
+        }
+        writer.finish().map_err(io_err(&path))?;
+        report.generated += end - start;
+    }
+    Ok(report)
+}

@@ -1,0 +1,392 @@
+//! Reading datasets back: MatSeg folders (ours and the original's, including
+//! the 3D set's `mask001.png` naming) and WebDataset shards, with random access.
+
+use crate::folders::{FINISHED_FILE, IMAGE_FILE, META_FILE, ROI_FILE};
+use image::{GrayImage, RgbImage};
+use matseg_image::io::{decode_gray, decode_rgb};
+use matseg_image::{ImageIoError, Plane};
+use std::io::{Read, Seek, SeekFrom};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// One sample as stored.
+#[derive(Clone, Debug)]
+pub struct Sample {
+    /// Folder name or shard key.
+    pub key: String,
+    /// The image.
+    pub image: RgbImage,
+    /// The 8-bit soft masks, in material order.
+    pub masks: Vec<GrayImage>,
+    /// The ROI mask, when stored.
+    pub roi: Option<GrayImage>,
+    /// The sidecar, when stored.
+    pub meta: Option<serde_json::Value>,
+}
+
+/// What training reads from a sample (SPEC 7.1): `s = sum of masks`,
+/// ROI = `s >= 10`, weight_k = `mask_k / s`.
+#[derive(Clone, Debug)]
+pub struct TrainingTargets {
+    /// Per-material weights, summing to 1 inside the ROI.
+    pub weights: Vec<Plane>,
+    /// 1 inside the ROI, 0 outside.
+    pub roi: Plane,
+}
+
+/// Mask sums below this are outside the ROI for training.
+pub const ROI_MIN_MASK_SUM: u32 = 10;
+
+impl Sample {
+    /// The training interpretation of the masks.
+    pub fn targets(&self) -> TrainingTargets {
+        let (w, h) = self.image.dimensions();
+        let n = (w * h) as usize;
+        let mut sums = vec![0u32; n];
+        for m in &self.masks {
+            for (s, &v) in sums.iter_mut().zip(m.as_raw()) {
+                *s += v as u32;
+            }
+        }
+        let weights = self
+            .masks
+            .iter()
+            .map(|m| {
+                let data = m
+                    .as_raw()
+                    .iter()
+                    .zip(&sums)
+                    .map(|(&v, &s)| if s > 0 { v as f32 / s as f32 } else { 0.0 })
+                    .collect();
+                Plane::from_vec(w as usize, h as usize, data)
+            })
+            .collect();
+        let roi = sums
+            .iter()
+            .map(|&s| if s >= ROI_MIN_MASK_SUM { 1.0 } else { 0.0 })
+            .collect();
+        TrainingTargets {
+            weights,
+            roi: Plane::from_vec(w as usize, h as usize, roi),
+        }
+    }
+}
+
+/// A dataset that cannot be read.
+#[derive(Debug, thiserror::Error)]
+pub enum ReadError {
+    /// File system error.
+    #[error("{}: {reason}", path.display())]
+    Io {
+        /// The file or folder.
+        path: PathBuf,
+        /// Why.
+        reason: String,
+    },
+    /// An image member failed to decode.
+    #[error(transparent)]
+    Image(#[from] ImageIoError),
+    /// The layout is wrong.
+    #[error("{}: {reason}", path.display())]
+    Format {
+        /// The file or folder.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
+}
+
+fn io_err(path: &Path) -> impl Fn(std::io::Error) -> ReadError + '_ {
+    move |e| ReadError::Io {
+        path: path.to_path_buf(),
+        reason: e.to_string(),
+    }
+}
+
+#[derive(Clone, Debug)]
+struct Member {
+    suffix: String,
+    offset: u64,
+    size: u64,
+}
+
+#[derive(Clone, Debug)]
+enum Location {
+    Folder(PathBuf),
+    Shard {
+        path: Arc<PathBuf>,
+        key: String,
+        members: Vec<Member>,
+    },
+}
+
+/// An opened dataset: the list of complete samples, read on demand.
+#[derive(Clone, Debug)]
+pub struct Dataset {
+    samples: Vec<Location>,
+    incomplete: usize,
+}
+
+impl Dataset {
+    /// Opens a folder of sample folders and/or `.tar` shards, or one shard.
+    /// Sample folders without `Finished.txt` and `.tmp` shards are left out.
+    pub fn open(root: &Path) -> Result<Self, ReadError> {
+        let mut ds = Dataset {
+            samples: Vec::new(),
+            incomplete: 0,
+        };
+        if root.is_file() {
+            ds.samples.extend(index_shard(root)?);
+            return Ok(ds);
+        }
+        let listing = std::fs::read_dir(root).map_err(io_err(root))?;
+        let mut paths: Vec<PathBuf> = listing.filter_map(|e| e.ok().map(|e| e.path())).collect();
+        paths.sort();
+        for path in paths {
+            if path.is_dir() {
+                if path.join(FINISHED_FILE).is_file() {
+                    ds.samples.push(Location::Folder(path));
+                } else if path.join(IMAGE_FILE).exists()
+                    || path.extension().is_some_and(|e| e == "partial")
+                {
+                    ds.incomplete += 1;
+                }
+            } else if path.extension().is_some_and(|e| e == "tar") {
+                ds.samples.extend(index_shard(&path)?);
+            }
+        }
+        if ds.samples.is_empty() {
+            return Err(ReadError::Format {
+                path: root.to_path_buf(),
+                reason: "no complete samples (MatSeg folders with Finished.txt, or .tar shards)"
+                    .into(),
+            });
+        }
+        Ok(ds)
+    }
+
+    /// Number of complete samples.
+    pub fn len(&self) -> usize {
+        self.samples.len()
+    }
+
+    /// True when there are no samples.
+    pub fn is_empty(&self) -> bool {
+        self.samples.is_empty()
+    }
+
+    /// Sample folders left out because they are incomplete.
+    pub fn incomplete(&self) -> usize {
+        self.incomplete
+    }
+
+    /// Reads sample `i`.
+    pub fn get(&self, i: usize) -> Result<Sample, ReadError> {
+        match &self.samples[i] {
+            Location::Folder(dir) => read_folder_sample(dir),
+            Location::Shard { path, key, members } => read_shard_sample(path, key, members),
+        }
+    }
+
+    /// Reads every sample in order.
+    pub fn iter(&self) -> impl Iterator<Item = Result<Sample, ReadError>> + '_ {
+        (0..self.len()).map(|i| self.get(i))
+    }
+}
+
+/// The mask index in `mask0.png` / `mask001.png`, if the name is a mask.
+fn mask_index(name: &str) -> Option<u32> {
+    name.strip_prefix("mask")?
+        .strip_suffix(".png")?
+        .parse()
+        .ok()
+}
+
+/// Reads one MatSeg sample folder.
+pub fn read_folder_sample(dir: &Path) -> Result<Sample, ReadError> {
+    let read = |name: &str| {
+        let p = dir.join(name);
+        std::fs::read(&p).map_err(|e| ReadError::Io {
+            path: p.clone(),
+            reason: e.to_string(),
+        })
+    };
+    let image = decode_rgb(&read(IMAGE_FILE)?, &dir.join(IMAGE_FILE))?;
+    let mut masks: Vec<(u32, PathBuf)> = std::fs::read_dir(dir)
+        .map_err(io_err(dir))?
+        .filter_map(|e| e.ok())
+        .filter_map(|e| {
+            let name = e.file_name().to_string_lossy().into_owned();
+            mask_index(&name).map(|k| (k, e.path()))
+        })
+        .collect();
+    masks.sort();
+    let masks = masks
+        .iter()
+        .map(|(_, p)| {
+            let bytes = std::fs::read(p).map_err(io_err(p))?;
+            let m = decode_gray(&bytes, p)?;
+            check_size(p, m.dimensions(), image.dimensions())?;
+            Ok(m)
+        })
+        .collect::<Result<Vec<_>, ReadError>>()?;
+    let roi = if dir.join(ROI_FILE).is_file() {
+        Some(decode_gray(&read(ROI_FILE)?, &dir.join(ROI_FILE))?)
+    } else {
+        None
+    };
+    let meta = if dir.join(META_FILE).is_file() {
+        let p = dir.join(META_FILE);
+        Some(
+            serde_json::from_slice(&read(META_FILE)?).map_err(|e| ReadError::Format {
+                path: p,
+                reason: e.to_string(),
+            })?,
+        )
+    } else {
+        None
+    };
+    Ok(Sample {
+        key: dir
+            .file_name()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .into_owned(),
+        image,
+        masks,
+        roi,
+        meta,
+    })
+}
+
+fn check_size(path: &Path, got: (u32, u32), want: (u32, u32)) -> Result<(), ReadError> {
+    if got != want {
+        return Err(ReadError::Format {
+            path: path.to_path_buf(),
+            reason: format!("is {}x{}, the image is {}x{}", got.0, got.1, want.0, want.1),
+        });
+    }
+    Ok(())
+}
+
+fn index_shard(path: &Path) -> Result<Vec<Location>, ReadError> {
+    let file = std::fs::File::open(path).map_err(io_err(path))?;
+    let mut archive = tar::Archive::new(file);
+    let shared = Arc::new(path.to_path_buf());
+    let mut out: Vec<Location> = Vec::new();
+    for entry in archive.entries().map_err(io_err(path))? {
+        let entry = entry.map_err(io_err(path))?;
+        let name = entry
+            .path()
+            .map_err(io_err(path))?
+            .to_string_lossy()
+            .into_owned();
+        let Some((key, suffix)) = name.split_once('.') else {
+            continue;
+        };
+        let member = Member {
+            suffix: suffix.to_string(),
+            offset: entry.raw_file_position(),
+            size: entry.size(),
+        };
+        match out.last_mut() {
+            Some(Location::Shard {
+                key: k, members, ..
+            }) if k == key => members.push(member),
+            _ => out.push(Location::Shard {
+                path: shared.clone(),
+                key: key.to_string(),
+                members: vec![member],
+            }),
+        }
+    }
+    Ok(out)
+}
+
+fn read_shard_sample(path: &Path, key: &str, members: &[Member]) -> Result<Sample, ReadError> {
+    let mut file = std::fs::File::open(path).map_err(io_err(path))?;
+    let mut image = None;
+    let mut masks: Vec<(u32, GrayImage)> = Vec::new();
+    let mut roi = None;
+    let mut meta = None;
+    for m in members {
+        let mut bytes = vec![0u8; m.size as usize];
+        file.seek(SeekFrom::Start(m.offset)).map_err(io_err(path))?;
+        file.read_exact(&mut bytes).map_err(io_err(path))?;
+        let name = path.join(format!("{key}.{}", m.suffix));
+        match m.suffix.as_str() {
+            "jpg" | "jpeg" | "png" => image = Some(decode_rgb(&bytes, &name)?),
+            "roi.png" => roi = Some(decode_gray(&bytes, &name)?),
+            "json" => {
+                meta = Some(
+                    serde_json::from_slice(&bytes).map_err(|e| ReadError::Format {
+                        path: name.clone(),
+                        reason: e.to_string(),
+                    })?,
+                )
+            }
+            s => {
+                if let Some(k) = s
+                    .strip_prefix("mask_")
+                    .and_then(|r| r.strip_suffix(".png"))
+                    .and_then(|k| k.parse().ok())
+                {
+                    masks.push((k, decode_gray(&bytes, &name)?));
+                }
+            }
+        }
+    }
+    let image = image.ok_or_else(|| ReadError::Format {
+        path: path.to_path_buf(),
+        reason: format!("sample {key} has no image member"),
+    })?;
+    masks.sort_by_key(|(k, _)| *k);
+    for (k, m) in &masks {
+        check_size(
+            &path.join(format!("{key}.mask_{k:02}.png")),
+            m.dimensions(),
+            image.dimensions(),
+        )?;
+    }
+    Ok(Sample {
+        key: key.to_string(),
+        image,
+        masks: masks.into_iter().map(|(_, m)| m).collect(),
+        roi,
+        meta,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mask_names_of_both_layouts() {
+        assert_eq!(mask_index("mask0.png"), Some(0));
+        assert_eq!(mask_index("mask12.png"), Some(12));
+        assert_eq!(mask_index("mask001.png"), Some(1));
+        assert_eq!(mask_index("maskX.png"), None);
+        assert_eq!(mask_index("mask0.jpg"), None);
+    }
+
+    #[test]
+    fn targets_follow_the_training_interpretation() {
+        let image = RgbImage::new(3, 1);
+        let a = GrayImage::from_raw(3, 1, vec![200, 5, 0]).unwrap();
+        let b = GrayImage::from_raw(3, 1, vec![50, 4, 0]).unwrap();
+        let s = Sample {
+            key: "x".into(),
+            image,
+            masks: vec![a, b],
+            roi: None,
+            meta: None,
+        };
+        let t = s.targets();
+        assert_eq!(t.roi.data, vec![1.0, 0.0, 0.0]);
+        assert!((t.weights[0].data[0] - 0.8).abs() < 1e-6);
+        assert!((t.weights[1].data[0] - 0.2).abs() < 1e-6);
+        assert!((t.weights[0].data[1] - 5.0 / 9.0).abs() < 1e-6);
+        assert_eq!(t.weights[0].data[2], 0.0);
+    }
+}
