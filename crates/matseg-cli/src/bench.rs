@@ -1,0 +1,145 @@
+//! `matseg bench`: generator throughput at the SPEC's scene-size distribution.
+
+use crate::common::{Libraries, DEFAULT_CACHE_MB};
+use anyhow::Result;
+use matseg_data::{encode_scene, generate_dataset, sample_rng, Format, GenerateOptions, JobSlice};
+use matseg_scene::{generate_2d, Recipe2d};
+use std::time::Instant;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Scenes per measurement.
+    #[arg(long, default_value_t = 40)]
+    scenes: u64,
+    /// Threads for the parallel measurement (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Seed of the scenes.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+struct Row {
+    name: String,
+    threads: usize,
+    scenes: u64,
+    seconds: f64,
+    bytes: u64,
+}
+
+pub fn run(args: Args) -> Result<()> {
+    anyhow::ensure!(args.scenes >= 1, "--scenes must be at least 1");
+    let libs = Libraries::load(&[], &[], DEFAULT_CACHE_MB)?;
+    let recipe = Recipe2d::default();
+    let sources = libs.sources();
+    let threads = args.threads.unwrap_or_else(num_threads);
+
+    // Warm the photo cache so every row measures steady-state generation.
+    for i in 0..8 {
+        generate_2d(&mut sample_rng(args.seed ^ 0xdead, i), &recipe, sources)?;
+    }
+
+    let mut rows = Vec::new();
+    let (mut gen_s, mut enc_s, mut pixels, mut materials, mut bytes) = (0.0, 0.0, 0u64, 0u64, 0u64);
+    for i in 0..args.scenes {
+        let t = Instant::now();
+        let scene = generate_2d(&mut sample_rng(args.seed, i), &recipe, sources)?;
+        gen_s += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let encoded = encode_scene(&scene, args.seed, i, sources);
+        enc_s += t.elapsed().as_secs_f64();
+        pixels += (scene.image.width() * scene.image.height()) as u64;
+        materials += scene.weights.len() as u64;
+        bytes += encoded.bytes() as u64;
+    }
+    rows.push(Row {
+        name: "generate in memory (no encoding)".into(),
+        threads: 1,
+        scenes: args.scenes,
+        seconds: gen_s,
+        bytes: 0,
+    });
+    rows.push(Row {
+        name: "encode only (JPEG + PNG masks + JSON)".into(),
+        threads: 1,
+        scenes: args.scenes,
+        seconds: enc_s,
+        bytes,
+    });
+
+    for (t, format) in [
+        (1, Format::Folders),
+        (threads, Format::Folders),
+        (threads, Format::Wds),
+    ] {
+        let dir = std::env::temp_dir().join(format!(
+            "matseg-bench-{}-{t}-{format:?}",
+            std::process::id()
+        ));
+        let opts = GenerateOptions {
+            out: dir.clone(),
+            n: args.scenes,
+            seed: args.seed,
+            format,
+            shard_size: args.scenes,
+            job: JobSlice::ALL,
+        };
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build()?;
+        let start = Instant::now();
+        let report = pool.install(|| generate_dataset(&opts, &recipe, sources, &|_| {}))?;
+        let seconds = start.elapsed().as_secs_f64();
+        let _ = std::fs::remove_dir_all(&dir);
+        rows.push(Row {
+            name: format!(
+                "end to end, {} to disk",
+                if format == Format::Wds {
+                    "wds shard"
+                } else {
+                    "folders"
+                }
+            ),
+            threads: t,
+            scenes: args.scenes,
+            seconds,
+            bytes: report.bytes,
+        });
+    }
+
+    println!(
+        "scenes: {} per row, mean {:.2} MP, mean {:.1} materials (SPEC 2D distribution, bundled assets)",
+        args.scenes,
+        pixels as f64 / args.scenes as f64 / 1e6,
+        materials as f64 / args.scenes as f64
+    );
+    println!(
+        "| {:<40} | {:>7} | {:>9} | {:>13} | {:>13} | {:>8} |",
+        "measure", "threads", "seconds", "CPU s / scene", "scenes/s/core", "MB/s"
+    );
+    println!(
+        "|{:-<42}|{:->9}|{:->11}|{:->15}|{:->15}|{:->10}|",
+        "", "", "", "", "", ""
+    );
+    for r in &rows {
+        let per_core = r.scenes as f64 / r.seconds / r.threads as f64;
+        println!(
+            "| {:<40} | {:>7} | {:>9.2} | {:>13.4} | {:>13.1} | {:>8} |",
+            r.name,
+            r.threads,
+            r.seconds,
+            1.0 / per_core,
+            per_core,
+            if r.bytes > 0 {
+                format!("{:.1}", r.bytes as f64 / 1e6 / r.seconds)
+            } else {
+                "-".into()
+            }
+        );
+    }
+    Ok(())
+}
+
+fn num_threads() -> usize {
+    std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1)
+}

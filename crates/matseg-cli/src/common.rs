@@ -1,0 +1,154 @@
+//! Pieces shared by the commands: sources, recipes, progress bars, warnings.
+
+use anyhow::{bail, Context, Result};
+use indicatif::{ProgressBar, ProgressStyle};
+use matseg_image::{PhotoLibrary, SkippedFile};
+use matseg_scene::Recipe2d;
+use std::path::{Path, PathBuf};
+
+/// Default bound on decoded source photos held in memory, per process.
+pub const DEFAULT_CACHE_MB: usize = 2048;
+
+/// The bundled sample assets: `$MATSEG_ASSETS`, else the repository's `assets/`.
+pub fn assets_dir() -> PathBuf {
+    std::env::var_os("MATSEG_ASSETS")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets"))
+}
+
+/// Photo and texture libraries from the given folders, or the bundled ones.
+pub struct Libraries {
+    pub photos: PhotoLibrary,
+    pub textures: PhotoLibrary,
+    scan_skipped: Vec<SkippedFile>,
+}
+
+impl Libraries {
+    /// Scans `photos` and `textures` (bundled assets when empty), printing a
+    /// warning for each unreadable file.
+    pub fn load(photos: &[PathBuf], textures: &[PathBuf], cache_mb: usize) -> Result<Self> {
+        let bundled = assets_dir();
+        let pick = |given: &[PathBuf], sub: &str| {
+            if given.is_empty() {
+                vec![bundled.join(sub)]
+            } else {
+                given.to_vec()
+            }
+        };
+        let budget = cache_mb.saturating_mul(1 << 20);
+        let (photos, r1) = PhotoLibrary::scan(&pick(photos, "photos"), budget / 2)?;
+        let (textures, r2) = PhotoLibrary::scan(&pick(textures, "textures"), budget / 2)?;
+        let scan_skipped: Vec<SkippedFile> = r1.skipped.into_iter().chain(r2.skipped).collect();
+        for s in &scan_skipped {
+            eprintln!("warning: skipped {}: {}", s.path.display(), s.reason);
+        }
+        Ok(Self {
+            photos,
+            textures,
+            scan_skipped,
+        })
+    }
+
+    /// The scene sources.
+    pub fn sources(&self) -> matseg_scene::Sources<'_> {
+        matseg_scene::Sources {
+            photos: &self.photos,
+            textures: &self.textures,
+        }
+    }
+
+    /// Prints files that failed to decode during the run and the total count.
+    pub fn report_skipped(&self) {
+        let late: Vec<SkippedFile> = self
+            .photos
+            .failures()
+            .into_iter()
+            .chain(self.textures.failures())
+            .collect();
+        for s in &late {
+            eprintln!("warning: skipped {}: {}", s.path.display(), s.reason);
+        }
+        let total = self.scan_skipped.len() + late.len();
+        if total > 0 {
+            eprintln!("warning: {total} unreadable source file(s) skipped");
+        }
+    }
+}
+
+/// The recipe from `--config` (defaults otherwise), with an optional size range.
+pub fn load_recipe(config: Option<&Path>, size_range: Option<&str>) -> Result<Recipe2d> {
+    let mut recipe = match config {
+        Some(path) => Recipe2d::from_toml_file(path)?,
+        None => Recipe2d::default(),
+    };
+    if let Some(range) = size_range {
+        let (lo, hi) = parse_range(range).with_context(|| format!("--size-range {range}"))?;
+        recipe.scene.size_min = lo;
+        recipe.scene.size_max = hi;
+        recipe.validate(&format!("--size-range {range}"))?;
+    }
+    Ok(recipe)
+}
+
+/// Parses `LO..HI` (inclusive) or a single `N`.
+pub fn parse_range(text: &str) -> Result<(usize, usize)> {
+    let parse = |s: &str| {
+        s.trim()
+            .parse::<usize>()
+            .with_context(|| format!("'{s}' is not a whole number"))
+    };
+    match text.split_once("..") {
+        Some((lo, hi)) => {
+            let hi = hi.strip_prefix('=').unwrap_or(hi);
+            let (lo, hi) = (parse(lo)?, parse(hi)?);
+            if lo > hi {
+                bail!("empty range: {lo} > {hi}");
+            }
+            Ok((lo, hi))
+        }
+        None => {
+            let n = parse(text)?;
+            Ok((n, n))
+        }
+    }
+}
+
+/// A progress bar with rate and ETA on stderr (hidden when not a terminal).
+pub fn progress_bar(len: u64, what: &str) -> ProgressBar {
+    let bar = ProgressBar::new(len);
+    bar.set_style(
+        ProgressStyle::with_template(&format!(
+            "{{elapsed_precise}} [{{bar:40}}] {{pos}}/{{len}} {what} ({{per_sec}}, ETA {{eta}})"
+        ))
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    bar
+}
+
+/// Sets the global rayon thread count when given.
+pub fn init_threads(threads: Option<usize>) -> Result<()> {
+    if let Some(t) = threads {
+        if t == 0 {
+            bail!("--threads must be at least 1");
+        }
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(t)
+            .build_global()?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ranges_parse_and_reject_nonsense() {
+        assert_eq!(parse_range("400..999").unwrap(), (400, 999));
+        assert_eq!(parse_range("400..=999").unwrap(), (400, 999));
+        assert_eq!(parse_range("512").unwrap(), (512, 512));
+        assert!(parse_range("999..400").is_err());
+        assert!(parse_range("a..b").is_err());
+    }
+}
