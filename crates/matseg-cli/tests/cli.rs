@@ -1,0 +1,207 @@
+//! The `matseg` binary end to end: outputs and one-line errors.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn matseg(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_matseg"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+fn assets(sub: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../assets")
+        .join(sub)
+        .display()
+        .to_string()
+}
+
+/// Asserts failure with exactly one line on stderr that contains `needle`.
+fn assert_one_line_error(out: &Output, needle: &str) {
+    let err = stderr(out);
+    assert!(!out.status.success(), "expected failure, got: {err}");
+    assert_eq!(err.lines().count(), 1, "not one line: {err}");
+    assert!(err.starts_with("error: ") && err.contains(needle), "{err}");
+}
+
+#[test]
+fn generate_writes_samples_and_skips_corrupt_sources_with_warnings() {
+    let dir = tempfile::tempdir().unwrap();
+    let photos = dir.path().join("photos");
+    std::fs::create_dir(&photos).unwrap();
+    for name in ["coffee.jpg", "rocket.jpg", "chelsea.jpg"] {
+        std::fs::copy(Path::new(&assets("photos")).join(name), photos.join(name)).unwrap();
+    }
+    std::fs::write(photos.join("broken.jpg"), b"\xff\xd8 not really a jpeg").unwrap();
+    let out_dir = dir.path().join("out");
+    let out = matseg(&[
+        "generate",
+        "--out",
+        out_dir.to_str().unwrap(),
+        "-n",
+        "3",
+        "--size-range",
+        "64..96",
+        "--sources",
+        photos.to_str().unwrap(),
+        "--format",
+        "wds",
+    ]);
+    let err = stderr(&out);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains(&format!(
+            "warning: skipped {}",
+            photos.join("broken.jpg").display()
+        )),
+        "{err}"
+    );
+    assert!(
+        err.contains("warning: 1 unreadable source file(s) skipped"),
+        "{err}"
+    );
+    assert!(out_dir.join("shard-000000.tar").is_file());
+    assert!(out_dir.join("dataset.json").is_file());
+}
+
+#[test]
+fn bad_inputs_are_one_line_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("out");
+    let out_s = out_dir.to_str().unwrap();
+    let missing = dir.path().join("missing");
+    let out = matseg(&[
+        "generate",
+        "--out",
+        out_s,
+        "-n",
+        "1",
+        "--sources",
+        missing.to_str().unwrap(),
+    ]);
+    assert_one_line_error(
+        &out,
+        &format!("{}: no such file or folder", missing.display()),
+    );
+
+    let empty = dir.path().join("empty");
+    std::fs::create_dir(&empty).unwrap();
+    let out = matseg(&[
+        "generate",
+        "--out",
+        out_s,
+        "-n",
+        "1",
+        "--textures",
+        empty.to_str().unwrap(),
+    ]);
+    assert_one_line_error(&out, &format!("{}: no readable images", empty.display()));
+
+    let out = matseg(&[
+        "generate",
+        "--out",
+        out_s,
+        "-n",
+        "1",
+        "--size-range",
+        "900..400",
+    ]);
+    assert_one_line_error(&out, "--size-range 900..400: empty range: 900 > 400");
+    let out = matseg(&[
+        "generate",
+        "--out",
+        out_s,
+        "-n",
+        "1",
+        "--size-range",
+        "4..8",
+    ]);
+    assert_one_line_error(&out, "scene size range 4..8 must satisfy 16 <= min <= max");
+
+    let config = dir.path().join("recipe.toml");
+    std::fs::write(&config, "[scene]\np_hard = 2.0\n").unwrap();
+    let out = matseg(&[
+        "generate",
+        "--out",
+        out_s,
+        "-n",
+        "1",
+        "--config",
+        config.to_str().unwrap(),
+    ]);
+    assert_one_line_error(
+        &out,
+        &format!(
+            "{}: invalid recipe: scene.p_hard = 2 is not a probability",
+            config.display()
+        ),
+    );
+    std::fs::write(&config, "[scene\n").unwrap();
+    let out = matseg(&[
+        "generate",
+        "--out",
+        out_s,
+        "-n",
+        "1",
+        "--config",
+        config.to_str().unwrap(),
+    ]);
+    assert_one_line_error(&out, &format!("{}: invalid recipe:", config.display()));
+
+    let out = matseg(&[
+        "generate",
+        "--out",
+        out_s,
+        "-n",
+        "1",
+        "--num-shards",
+        "2",
+        "--shard-index",
+        "5",
+    ]);
+    assert_one_line_error(&out, "shard index 5 is not below the number of shards 2");
+
+    let bad = dir.path().join("bad.png");
+    std::fs::write(&bad, b"nope").unwrap();
+    let out = matseg(&["maps", bad.to_str().unwrap(), "--out", out_s]);
+    assert_one_line_error(&out, &format!("{}:", bad.display()));
+    assert!(!out_dir.exists(), "nothing is written on error");
+}
+
+#[test]
+fn maps_writes_raw_and_combined_maps() {
+    let dir = tempfile::tempdir().unwrap();
+    let photo = Path::new(&assets("photos")).join("coffee.jpg");
+    let out = matseg(&[
+        "maps",
+        photo.to_str().unwrap(),
+        "--out",
+        dir.path().to_str().unwrap(),
+        "-n",
+        "3",
+        "--max-side",
+        "200",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    for name in [
+        "raw_00.png",
+        "raw_02.png",
+        "weight_02.png",
+        "background.png",
+        "colour.png",
+        "maps.json",
+    ] {
+        assert!(dir.path().join(name).is_file(), "{name} missing");
+    }
+    let img = image::open(dir.path().join("weight_00.png")).unwrap();
+    assert_eq!((img.width(), img.height()), (200, 133));
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("maps.json")).unwrap()).unwrap();
+    assert_eq!(json["maps"].as_array().unwrap().len(), 3);
+}

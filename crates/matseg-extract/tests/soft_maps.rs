@@ -1,0 +1,109 @@
+//! Soft-map invariants over many seeds, on the bundled photos.
+
+use matseg_extract::{combine_maps, draw_channel_map, MapNormalisation, SoftMapRecipe};
+use matseg_image::{PhotoLibrary, Plane};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use std::path::Path;
+
+fn photos() -> PhotoLibrary {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/photos");
+    PhotoLibrary::scan(&[dir], 1 << 30).unwrap().0
+}
+
+#[test]
+fn maps_match_their_record_and_acceptance_rules() {
+    let lib = photos();
+    let recipe = SoftMapRecipe::default();
+    let mut ramps = 0;
+    for seed in 0..60u64 {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let (w, h) = (96 + (seed as usize % 5) * 17, 80 + (seed as usize % 3) * 23);
+        let max_occupancy = 0.04 + 0.5 * (seed % 7) as f64 / 7.0;
+        let hard = seed % 3 == 0;
+        let (map, rec) =
+            draw_channel_map(&mut rng, &lib, w, h, max_occupancy, hard, &recipe).unwrap();
+        assert_eq!((map.width, map.height), (w, h));
+
+        // Re-derive the channel from the record: the map must be the ramp of it.
+        let photo = lib.get(rec.photo).unwrap();
+        let mut channel = photo
+            .pyramid
+            .sample_channel(&rec.placement, w, h, rec.channel);
+        if rec.normalised_by_max {
+            let m = channel.max();
+            channel.scale(1.0 / m);
+        }
+        let (lo, hi) = (rec.ramp.low, rec.ramp.high);
+        assert!((0.0..=1.0).contains(&lo) && lo <= hi && hi <= 1.0);
+        for (&c, &m) in channel.data.iter().zip(&map.data) {
+            if c > hi {
+                assert_eq!(m, 1.0);
+            } else if c <= lo {
+                assert_eq!(m, 0.0);
+            } else {
+                assert!((m - (c - lo) / (hi - lo)).abs() < 1e-5);
+            }
+        }
+
+        // Acceptance: the top side holds (1%, max_occupancy] of the pixels;
+        // a ramp has > 1% below it and a band under a third of either side.
+        let n = channel.len() as f64;
+        let above = channel.count_above(hi) as f64;
+        assert!(
+            above > 0.01 * n && above <= max_occupancy * n,
+            "seed {seed}: {above} of {n}"
+        );
+        if lo < hi {
+            ramps += 1;
+            assert!(!hard, "hard scenes use binary maps");
+            let below = channel.count_at_or_below(lo) as f64;
+            let band = n - above - below;
+            assert!(below > 0.01 * n);
+            assert!(band < above.min(below) / 3.0);
+        }
+        assert!(map.sum() >= recipe.min_map_mass);
+    }
+    assert!(ramps > 5, "soft ramps should occur ({ramps})");
+}
+
+fn plane(w: usize, h: usize, f: impl Fn(usize) -> f32) -> Plane {
+    Plane::from_vec(w, h, (0..w * h).map(f).collect())
+}
+
+#[test]
+fn combined_weights_sum_to_one_and_hard_is_one_hot() {
+    let (w, h) = (40, 30);
+    let maps = vec![
+        plane(w, h, |i| (i % 7) as f32 / 6.0),
+        plane(w, h, |i| ((i / 3) % 5) as f32 / 4.0),
+        plane(w, h, |i| if i % 11 == 0 { 1.0 } else { 0.0 }),
+    ];
+    let mut seen = [false; 2];
+    for seed in 0..40u64 {
+        for hard in [false, true] {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let (weights, bg, rec) =
+                combine_maps(&mut rng, maps.clone(), hard, &SoftMapRecipe::default());
+            seen[(rec.normalisation == MapNormalisation::Sum) as usize] = true;
+            assert_eq!(weights.len(), 3);
+            for i in 0..w * h {
+                let total: f32 = weights.iter().map(|m| m.data[i]).sum::<f32>() + bg.data[i];
+                assert!((total - 1.0).abs() < 1e-5, "pixel {i} sums to {total}");
+                assert!(weights.iter().all(|m| (0.0..=1.0).contains(&m.data[i])));
+                if hard {
+                    let ones = weights.iter().filter(|m| m.data[i] == 1.0).count();
+                    let zeros = weights.iter().filter(|m| m.data[i] == 0.0).count();
+                    assert_eq!(ones + zeros, 3);
+                    assert!(ones <= 1);
+                }
+            }
+            if !hard && rec.normalisation == MapNormalisation::Priority && rec.blur_kernel.is_none()
+            {
+                // Priority: the first map keeps its raw values.
+                assert_eq!(weights[0].data, maps[0].data);
+            }
+        }
+    }
+    assert!(seen[0] && seen[1], "both normalisations should be drawn");
+}
