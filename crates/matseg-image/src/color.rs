@@ -9,24 +9,31 @@ pub fn rgb_to_hsv(rgb: [f32; 3]) -> [f32; 3] {
     let delta = max - min;
     let v = max / 255.0;
     let s = if max > 0.0 { delta / max } else { 0.0 };
+    // Sextant in [0, 6), computed without a floating-point modulo.
     let h = if delta <= 0.0 {
         0.0
     } else if max == r {
-        ((g - b) / delta).rem_euclid(6.0)
+        let h = (g - b) / delta;
+        if h < 0.0 {
+            h + 6.0
+        } else {
+            h
+        }
     } else if max == g {
         (b - r) / delta + 2.0
     } else {
         (r - g) / delta + 4.0
     };
-    [(h / 6.0).rem_euclid(1.0), s, v]
+    let h = h / 6.0;
+    [if h >= 1.0 { h - 1.0 } else { h }, s, v]
 }
 
 /// RGB on the 0..255 scale from HSV with all components in `[0, 1]`.
 pub fn hsv_to_rgb(hsv: [f32; 3]) -> [f32; 3] {
     let [h, s, v] = hsv;
     let c = v * s;
-    let hp = h.rem_euclid(1.0) * 6.0;
-    let x = c * (1.0 - ((hp % 2.0) - 1.0).abs());
+    let hp = (h - h.floor()) * 6.0;
+    let x = c * (1.0 - ((hp - 2.0 * (hp * 0.5).floor()) - 1.0).abs());
     let (r, g, b) = match hp as u32 {
         0 => (c, x, 0.0),
         1 => (x, c, 0.0),
@@ -42,7 +49,8 @@ pub fn hsv_to_rgb(hsv: [f32; 3]) -> [f32; 3] {
 /// Rotates the hue of an RGB (0..255) pixel by `degrees`, wrapping modulo 360°.
 pub fn rotate_hue(rgb: [f32; 3], degrees: f32) -> [f32; 3] {
     let [h, s, v] = rgb_to_hsv(rgb);
-    hsv_to_rgb([(h + degrees / 360.0).rem_euclid(1.0), s, v])
+    let turned = h + degrees / 360.0;
+    hsv_to_rgb([turned - turned.floor(), s, v])
 }
 
 #[cfg(test)]

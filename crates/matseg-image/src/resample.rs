@@ -74,6 +74,22 @@ impl Pyramid {
     ) -> Vec<T> {
         let fx = self.width() as f64 / placement.resized_w as f64;
         let fy = self.height() as f64 / placement.resized_h as f64;
+        let mut out = Vec::with_capacity(out_w * out_h);
+        if fx == 1.0 && fy == 1.0 {
+            // Native resolution: a plain crop, no interpolation.
+            let img = &self.levels[0];
+            let stride = img.width() as usize * 3;
+            let raw = img.as_raw();
+            for y in 0..out_h {
+                let row = (y + placement.y0 as usize) * stride + placement.x0 as usize * 3;
+                out.extend(
+                    raw[row..row + out_w * 3]
+                        .chunks_exact(3)
+                        .map(|p| f([p[0] as f32, p[1] as f32, p[2] as f32])),
+                );
+            }
+            return out;
+        }
         let shrink = fx.min(fy);
         let level = if shrink >= 2.0 {
             (shrink.log2().floor() as usize).min(self.levels.len() - 1)
@@ -84,21 +100,32 @@ impl Pyramid {
         let step = (1u64 << level) as f64;
         let cols = axis_taps(out_w, placement.x0, fx / step, img.width());
         let rows = axis_taps(out_h, placement.y0, fy / step, img.height());
+        // Source columns the window touches; rows are blended over this span only.
+        let first = cols.first().map_or(0, |c| c.0);
+        let last = cols.last().map_or(0, |c| c.1);
         let raw = img.as_raw();
         let stride = img.width() as usize * 3;
-        let mut out = Vec::with_capacity(out_w * out_h);
+        let mut blended = vec![[0f32; 3]; last - first + 1];
         for &(y0, y1, wy) in &rows {
-            let r0 = &raw[y0 * stride..(y0 + 1) * stride];
-            let r1 = &raw[y1 * stride..(y1 + 1) * stride];
-            for &(x0, x1, wx) in &cols {
-                let mut px = [0.0f32; 3];
-                for (c, p) in px.iter_mut().enumerate() {
-                    let a = r0[x0 * 3 + c] as f32 * (1.0 - wx) + r0[x1 * 3 + c] as f32 * wx;
-                    let b = r1[x0 * 3 + c] as f32 * (1.0 - wx) + r1[x1 * 3 + c] as f32 * wx;
-                    *p = a * (1.0 - wy) + b * wy;
+            let r0 = &raw[y0 * stride + first * 3..y0 * stride + (last + 1) * 3];
+            let r1 = &raw[y1 * stride + first * 3..y1 * stride + (last + 1) * 3];
+            for ((b, a), c) in blended
+                .iter_mut()
+                .zip(r0.chunks_exact(3))
+                .zip(r1.chunks_exact(3))
+            {
+                for ch in 0..3 {
+                    b[ch] = a[ch] as f32 + (c[ch] as f32 - a[ch] as f32) * wy;
                 }
-                out.push(f(px));
             }
+            out.extend(cols.iter().map(|&(x0, x1, wx)| {
+                let (a, b) = (blended[x0 - first], blended[x1 - first]);
+                f([
+                    a[0] + (b[0] - a[0]) * wx,
+                    a[1] + (b[1] - a[1]) * wx,
+                    a[2] + (b[2] - a[2]) * wx,
+                ])
+            }));
         }
         out
     }
@@ -120,11 +147,16 @@ impl Pyramid {
         out_h: usize,
         channel: Channel,
     ) -> Plane {
-        Plane::from_vec(
-            out_w,
-            out_h,
-            self.sample_with(placement, out_w, out_h, |p| channel.value(p)),
-        )
+        // One closure per channel, so each loop is specialised.
+        let data = match channel {
+            Channel::R => self.sample_with(placement, out_w, out_h, |p| Channel::R.value(p)),
+            Channel::G => self.sample_with(placement, out_w, out_h, |p| Channel::G.value(p)),
+            Channel::B => self.sample_with(placement, out_w, out_h, |p| Channel::B.value(p)),
+            Channel::H => self.sample_with(placement, out_w, out_h, |p| Channel::H.value(p)),
+            Channel::S => self.sample_with(placement, out_w, out_h, |p| Channel::S.value(p)),
+            Channel::V => self.sample_with(placement, out_w, out_h, |p| Channel::V.value(p)),
+        };
+        Plane::from_vec(out_w, out_h, data)
     }
 
     /// The whole image resized to `w x h`.

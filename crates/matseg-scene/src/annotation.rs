@@ -21,30 +21,36 @@ pub fn quantise_weights(weights: &[Plane], background: &Plane) -> QuantisedAnnot
     let k = weights.len();
     let mut masks = vec![vec![0u8; n]; k];
     let mut bg = vec![0u8; n];
+    // Per pixel: [background, material 0, ...] scaled to 0..255, then floored.
     let mut scaled = vec![0f32; k + 1];
-    let mut order: Vec<usize> = (0..=k).collect();
+    let mut values = vec![0u32; k + 1];
     for i in 0..n {
         scaled[0] = background.data[i] * 255.0;
         for (j, w) in weights.iter().enumerate() {
             scaled[j + 1] = w.data[i] * 255.0;
         }
-        let floors: Vec<u32> = scaled
-            .iter()
-            .map(|v| v.clamp(0.0, 255.0).floor() as u32)
-            .collect();
-        let deficit = 255u32.saturating_sub(floors.iter().sum::<u32>()) as usize;
-        order.sort_by(|&a, &b| {
-            let fa = scaled[a] - floors[a] as f32;
-            let fb = scaled[b] - floors[b] as f32;
-            fb.total_cmp(&fa).then(a.cmp(&b))
-        });
-        let mut values = floors;
-        for &j in order.iter().take(deficit.min(k + 1)) {
-            values[j] += 1;
+        let mut total = 0;
+        for (v, s) in values.iter_mut().zip(&scaled) {
+            *v = s.clamp(0.0, 255.0) as u32;
+            total += *v;
         }
-        bg[i] = values[0].min(255) as u8;
+        // Hand the missing units to the largest remainders (first on ties);
+        // the deficit is at most k + 1 and usually 0 or 1.
+        for _ in 0..255u32.saturating_sub(total) {
+            let mut best = 0;
+            let mut best_rem = f32::NEG_INFINITY;
+            for (j, (s, &v)) in scaled.iter().zip(&values).enumerate() {
+                let rem = s - v as f32;
+                if rem > best_rem && v < 255 {
+                    best = j;
+                    best_rem = rem;
+                }
+            }
+            values[best] += 1;
+        }
+        bg[i] = values[0] as u8;
         for j in 0..k {
-            masks[j][i] = values[j + 1].min(255) as u8;
+            masks[j][i] = values[j + 1] as u8;
         }
     }
     let roi = bg.iter().map(|&b| 255 - b).collect();
@@ -116,14 +122,15 @@ mod tests {
                 assert!((plane.data[i] * 255.0 - mask[i] as f32).abs() < 1.0);
             }
         }
-        // 85 + 85 + 85 = 255 exactly; 127.5 + 63.75 + 63.75 rounds by remainder.
+        // 85 + 85 + 85 = 255 exactly. 127.5 + 63.75 + 63.75 floors to 253; the
+        // two missing units go to the largest remainders (the two .75s).
         assert_eq!(
             (q.masks[0][0], q.masks[1][0], q.background[0]),
             (85, 85, 85)
         );
         assert_eq!(
             (q.masks[0][2], q.masks[1][2], q.background[2]),
-            (128, 64, 63)
+            (127, 64, 64)
         );
     }
 
