@@ -251,7 +251,7 @@ fn try_map_from_photo<R: Rng + ?Sized>(
     }
     let ramp = Ramp { low, high };
     plane.data.iter_mut().for_each(|v| *v = ramp.apply(*v));
-    if plane.sum() < recipe.min_map_mass {
+    if !plane.mass_at_least(recipe.min_map_mass) {
         return None;
     }
     let record = MapRecord {

@@ -38,6 +38,22 @@ fn reflect101(i: isize, n: usize) -> usize {
     j as usize
 }
 
+/// `out[x] = k0 * centre[x] + sum over pairs (k, a, b) of k * (a[x] + b[x])`,
+/// written over equal-length slices so the compiler vectorises it.
+fn symmetric_taps(out: &mut [f32], centre: &[f32], k0: f32, pairs: &[(f32, &[f32], &[f32])]) {
+    let n = out.len();
+    let centre = &centre[..n];
+    for x in 0..n {
+        out[x] = k0 * centre[x];
+    }
+    for &(k, a, b) in pairs {
+        let (a, b) = (&a[..n], &b[..n]);
+        for x in 0..n {
+            out[x] += k * (a[x] + b[x]);
+        }
+    }
+}
+
 /// Blurs a plane with an odd Gaussian kernel of size `ksize` (1 = copy).
 pub fn gaussian_blur(src: &Plane, ksize: usize) -> Plane {
     if ksize <= 1 || src.is_empty() {
@@ -47,33 +63,45 @@ pub fn gaussian_blur(src: &Plane, ksize: usize) -> Plane {
     let r = ksize / 2;
     let (w, h) = (src.width, src.height);
 
-    // Horizontal pass: pad each row by reflection, then accumulate tap by tap
-    // over whole rows so the inner loop is a vectorisable multiply-add.
+    // Horizontal pass: pad each row by reflection, then add mirrored taps in
+    // pairs (the kernel is symmetric) over whole rows.
     let mut horiz = vec![0.0f32; w * h];
     let mut padded = vec![0.0f32; w + 2 * r];
     for y in 0..h {
         let row = &src.data[y * w..(y + 1) * w];
-        for (i, p) in padded.iter_mut().enumerate() {
-            *p = row[reflect101(i as isize - r as isize, w)];
+        padded[r..r + w].copy_from_slice(row);
+        for i in 0..r {
+            padded[i] = row[reflect101(i as isize - r as isize, w)];
+            padded[r + w + i] = row[reflect101((w + i) as isize, w)];
         }
-        let out = &mut horiz[y * w..(y + 1) * w];
-        for (t, &k) in taps.iter().enumerate() {
-            for (o, &v) in out.iter_mut().zip(&padded[t..t + w]) {
-                *o += k * v;
-            }
-        }
+        let pairs: Vec<_> = (0..r)
+            .map(|t| (taps[t], &padded[t..], &padded[2 * r - t..]))
+            .collect();
+        symmetric_taps(
+            &mut horiz[y * w..(y + 1) * w],
+            &padded[r..r + w],
+            taps[r],
+            &pairs,
+        );
     }
 
     // Vertical pass: each output row is a weighted sum of whole input rows.
     let mut out = vec![0.0f32; w * h];
+    let row = |y: isize| &horiz[reflect101(y, h) * w..];
     for y in 0..h {
-        let dst = &mut out[y * w..(y + 1) * w];
-        for (t, &k) in taps.iter().enumerate() {
-            let sy = reflect101(y as isize + t as isize - r as isize, h);
-            for (o, &v) in dst.iter_mut().zip(&horiz[sy * w..(sy + 1) * w]) {
-                *o += k * v;
-            }
-        }
+        let yi = y as isize;
+        let pairs: Vec<_> = (0..r)
+            .map(|t| {
+                let d = (r - t) as isize;
+                (taps[t], row(yi - d), row(yi + d))
+            })
+            .collect();
+        symmetric_taps(
+            &mut out[y * w..(y + 1) * w],
+            &horiz[y * w..(y + 1) * w],
+            taps[r],
+            &pairs,
+        );
     }
     Plane::from_vec(w, h, out)
 }

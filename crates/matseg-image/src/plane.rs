@@ -45,6 +45,18 @@ impl Plane {
         self.data.iter().map(|&v| v as f64).sum()
     }
 
+    /// True when the sum of all values reaches `mass` (stops as soon as it does).
+    pub fn mass_at_least(&self, mass: f64) -> bool {
+        let mut total = 0.0f64;
+        for chunk in self.data.chunks(4096) {
+            total += chunk.iter().map(|&v| v as f64).sum::<f64>();
+            if total >= mass {
+                return true;
+            }
+        }
+        total >= mass
+    }
+
     /// The largest value (`0` for an empty plane).
     pub fn max(&self) -> f32 {
         self.data.iter().copied().fold(0.0, f32::max)
@@ -98,5 +110,7 @@ mod tests {
         assert_eq!(p.max(), 0.9);
         assert!((p.sum() - 2.0).abs() < 1e-6);
         assert_eq!(p.to_u8(), vec![26, 128, 128, 230]);
+        assert!(p.mass_at_least(2.0 - 1e-6));
+        assert!(!p.mass_at_least(2.1));
     }
 }

@@ -18,39 +18,43 @@ pub struct QuantisedAnnotation {
 /// plus masks sum to exactly 255 and each value is within 1 of `255 * weight`.
 pub fn quantise_weights(weights: &[Plane], background: &Plane) -> QuantisedAnnotation {
     let n = background.len();
-    let k = weights.len();
-    let mut masks = vec![vec![0u8; n]; k];
-    let mut bg = vec![0u8; n];
-    // Per pixel: [background, material 0, ...] scaled to 0..255, then floored.
-    let mut scaled = vec![0f32; k + 1];
-    let mut values = vec![0u32; k + 1];
+    let floor = |p: &Plane| -> Vec<u8> {
+        p.data
+            .iter()
+            .map(|&v| (v * 255.0).clamp(0.0, 255.0) as u8)
+            .collect()
+    };
+    // Floor every plane (vectorisable), then hand the units the floors lost to
+    // the largest remainders, only on the pixels that lost any.
+    let mut bg = floor(background);
+    let mut masks: Vec<Vec<u8>> = weights.iter().map(floor).collect();
+    let mut totals: Vec<u32> = bg.iter().map(|&v| v as u32).collect();
+    for m in &masks {
+        for (t, &v) in totals.iter_mut().zip(m) {
+            *t += v as u32;
+        }
+    }
     for i in 0..n {
-        scaled[0] = background.data[i] * 255.0;
-        for (j, w) in weights.iter().enumerate() {
-            scaled[j + 1] = w.data[i] * 255.0;
-        }
-        let mut total = 0;
-        for (v, s) in values.iter_mut().zip(&scaled) {
-            *v = s.clamp(0.0, 255.0) as u32;
-            total += *v;
-        }
-        // Hand the missing units to the largest remainders (first on ties);
-        // the deficit is at most k + 1 and usually 0 or 1.
-        for _ in 0..255u32.saturating_sub(total) {
-            let mut best = 0;
-            let mut best_rem = f32::NEG_INFINITY;
-            for (j, (s, &v)) in scaled.iter().zip(&values).enumerate() {
-                let rem = s - v as f32;
-                if rem > best_rem && v < 255 {
-                    best = j;
-                    best_rem = rem;
+        for _ in 0..255u32.saturating_sub(totals[i]) {
+            // Candidate j = 0 is the background, j > 0 material j - 1; first wins ties.
+            let remainder = |plane: &Plane, q: u8| {
+                if q < 255 {
+                    plane.data[i] * 255.0 - q as f32
+                } else {
+                    f32::NEG_INFINITY
+                }
+            };
+            let mut best = (remainder(background, bg[i]), 0);
+            for (j, (w, m)) in weights.iter().zip(&masks).enumerate() {
+                let r = remainder(w, m[i]);
+                if r > best.0 {
+                    best = (r, j + 1);
                 }
             }
-            values[best] += 1;
-        }
-        bg[i] = values[0] as u8;
-        for j in 0..k {
-            masks[j][i] = values[j + 1] as u8;
+            match best.1 {
+                0 => bg[i] += 1,
+                j => masks[j - 1][i] += 1,
+            }
         }
     }
     let roi = bg.iter().map(|&b| 255 - b).collect();

@@ -1,7 +1,7 @@
 //! The 2D scene (SPEC 2): background photo and K material layers mixed by the
 //! soft maps of SPEC 1; the weights are the exact annotation.
 
-use crate::material::{draw_material, MaterialRecord};
+use crate::material::{add_material, MaterialRecord};
 use crate::recipe::Recipe2d;
 use matseg_extract::{make_soft_maps, random_placement, CombineRecord, MapRecord, SoftMapError};
 use matseg_image::{LibraryError, PhotoLibrary, Placement, Plane};
@@ -109,20 +109,14 @@ pub fn generate_2d<R: Rng + ?Sized>(
     }
     let mut materials = Vec::with_capacity(k);
     for weight in &maps.weights {
-        let (layer, record) = draw_material(
+        materials.push(add_material(
             rng,
             &recipe.composition,
             sources.photos,
             sources.textures,
-            width,
-            height,
-        )?;
-        for ((px, lp), &wk) in acc.data.iter_mut().zip(&layer.data).zip(&weight.data) {
-            for c in 0..3 {
-                px[c] += lp[c] * wk;
-            }
-        }
-        materials.push(record);
+            weight,
+            &mut acc,
+        )?);
     }
     let record = SceneRecord {
         width,

@@ -5,7 +5,7 @@ use crate::recipe::CompositionRecipe;
 use matseg_extract::random_placement;
 use matseg_image::color::rotate_hue;
 use matseg_image::{
-    gaussian_blur, Channel, LibraryError, PhotoLibrary, Placement, Pyramid, RgbF32,
+    gaussian_blur, Channel, LibraryError, PhotoLibrary, Placement, Plane, Pyramid, RgbF32,
 };
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -86,31 +86,55 @@ pub struct MaterialRecord {
     pub shading: Option<ShadingRecord>,
 }
 
-/// Draws one material layer of size `w x h`.
-pub fn draw_material<R: Rng + ?Sized>(
+/// Draws one material and adds it, weighted by `weight`, into `acc`. Hue
+/// shift, shading and blending touch only the pixels where `weight > 0`.
+pub fn add_material<R: Rng + ?Sized>(
     rng: &mut R,
     recipe: &CompositionRecipe,
     photos: &PhotoLibrary,
     textures: &PhotoLibrary,
-    w: usize,
-    h: usize,
-) -> Result<(RgbF32, MaterialRecord), LibraryError> {
-    let (mut layer, source) = if rng.random_bool(recipe.p_texture) {
-        draw_texture(rng, recipe, textures, w, h)?
+    weight: &Plane,
+    acc: &mut RgbF32,
+) -> Result<MaterialRecord, LibraryError> {
+    let (w, h) = (weight.width, weight.height);
+    let (layer, source) = if rng.random_bool(recipe.p_texture) {
+        let (layer, source) = draw_texture(rng, recipe, textures, w, h)?;
+        (Some(layer), source)
     } else {
         let rgb = [rng.random::<u8>(), rng.random::<u8>(), rng.random::<u8>()];
-        let color = [rgb[0] as f32, rgb[1] as f32, rgb[2] as f32];
-        (
-            RgbF32::filled(w, h, color),
-            MaterialSource::FlatColour { rgb },
-        )
+        (None, MaterialSource::FlatColour { rgb })
     };
     let shading = if rng.random_bool(recipe.p_shading) {
-        Some(apply_shading(rng, recipe, photos, &mut layer)?)
+        Some(draw_shading(rng, recipe, photos, w, h)?)
     } else {
         None
     };
-    Ok((layer, MaterialRecord { source, shading }))
+
+    let (flat, hue) = match &source {
+        MaterialSource::FlatColour { rgb } => ([rgb[0] as f32, rgb[1] as f32, rgb[2] as f32], None),
+        MaterialSource::Texture {
+            hue_shift_degrees, ..
+        } => ([0.0; 3], *hue_shift_degrees),
+    };
+    for (i, &wk) in weight.data.iter().enumerate() {
+        if wk <= 0.0 {
+            continue;
+        }
+        let mut px = layer.as_ref().map_or(flat, |l| l.data[i]);
+        if let Some(deg) = hue {
+            px = rotate_hue(px, deg);
+        }
+        let factor = shading.as_ref().map_or(1.0, |(shade, s)| {
+            (1.0 - s.strength) + s.strength * shade.data[i]
+        });
+        for (a, p) in acc.data[i].iter_mut().zip(px) {
+            *a += p * factor * wk;
+        }
+    }
+    Ok(MaterialRecord {
+        source,
+        shading: shading.map(|(_, record)| record),
+    })
 }
 
 fn draw_texture<R: Rng + ?Sized>(
@@ -143,7 +167,7 @@ fn draw_texture<R: Rng + ?Sized>(
     };
 
     let (tw, th) = (pyramid.width(), pyramid.height());
-    let (mut layer, fill) = if rng.random_bool(recipe.p_tile) {
+    let (layer, fill) = if rng.random_bool(recipe.p_tile) {
         let max_shrink = (tw.min(th) as f64 / recipe.min_tile_side).max(1.0);
         let shrink = if rng.random_bool(recipe.p_tile_shrink) {
             rng.random_range(1.0..=max_shrink)
@@ -194,12 +218,6 @@ fn draw_texture<R: Rng + ?Sized>(
     let hue_shift_degrees = rng
         .random_bool(recipe.p_hue_shift)
         .then(|| rng.random_range(0.0..360.0f32));
-    if let Some(deg) = hue_shift_degrees {
-        layer
-            .data
-            .iter_mut()
-            .for_each(|px| *px = rotate_hue(*px, deg));
-    }
     let source = MaterialSource::Texture {
         texture: texture.index,
         rot90,
@@ -211,13 +229,15 @@ fn draw_texture<R: Rng + ?Sized>(
     Ok((layer, source))
 }
 
-fn apply_shading<R: Rng + ?Sized>(
+/// Draws the shading of one material: the blurred, max-normalised photo
+/// channel, and its record (which holds the strength).
+fn draw_shading<R: Rng + ?Sized>(
     rng: &mut R,
     recipe: &CompositionRecipe,
     photos: &PhotoLibrary,
-    layer: &mut RgbF32,
-) -> Result<ShadingRecord, LibraryError> {
-    let (w, h) = (layer.width, layer.height);
+    w: usize,
+    h: usize,
+) -> Result<(Plane, ShadingRecord), LibraryError> {
     let photo = photos.pick(|n| rng.random_range(0..n))?;
     let placement = random_placement(rng, &photo, w, h, recipe.p_shading_downscale, false);
     let channels = if rng.random_bool(recipe.p_shading_hsv) {
@@ -238,15 +258,12 @@ fn apply_shading<R: Rng + ?Sized>(
     } else {
         rng.random::<f32>()
     };
-    for (px, &s) in layer.data.iter_mut().zip(&shade.data) {
-        let factor = (1.0 - strength) + strength * s;
-        px.iter_mut().for_each(|c| *c *= factor);
-    }
-    Ok(ShadingRecord {
+    let record = ShadingRecord {
         photo: photo.index,
         placement,
         channel,
         kernel,
         strength,
-    })
+    };
+    Ok((shade, record))
 }
