@@ -6,6 +6,7 @@ mod common;
 mod demo;
 mod generate;
 mod maps;
+mod recipe;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -31,6 +32,8 @@ enum Command {
     Demo(demo::Args),
     /// Measure generator throughput and print a table.
     Bench(bench::Args),
+    /// Print the default 2D recipe as TOML (edit it and pass it as --config).
+    Recipe,
 }
 
 fn main() -> ExitCode {
@@ -40,6 +43,7 @@ fn main() -> ExitCode {
         Command::Maps(args) => maps::run(args),
         Command::Demo(args) => demo::run(args),
         Command::Bench(args) => bench::run(args),
+        Command::Recipe => recipe::run(),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -205,3 +205,31 @@ fn maps_writes_raw_and_combined_maps() {
         serde_json::from_slice(&std::fs::read(dir.path().join("maps.json")).unwrap()).unwrap();
     assert_eq!(json["maps"].as_array().unwrap().len(), 3);
 }
+
+#[test]
+fn printed_recipe_round_trips_through_config() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = matseg(&["recipe"]);
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    let parsed: matseg_scene::Recipe2d = toml::from_str(&text).unwrap();
+    assert_eq!(parsed, matseg_scene::Recipe2d::default());
+    assert!(text.contains("hard_min_weight = 0.1\n"), "{text}");
+
+    let config = dir.path().join("recipe.toml");
+    std::fs::write(&config, &text).unwrap();
+    let out_dir = dir.path().join("out");
+    let out = matseg(&[
+        "generate",
+        "--out",
+        out_dir.to_str().unwrap(),
+        "-n",
+        "1",
+        "--size-range",
+        "48..64",
+        "--config",
+        config.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(out_dir.join("00000000/Finished.txt").is_file());
+}

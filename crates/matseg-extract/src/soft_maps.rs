@@ -43,7 +43,7 @@ pub struct SoftMapRecipe {
     /// (otherwise priority order: each map takes what the earlier ones left).
     pub p_sum_normalise: f64,
     /// In hard scenes a pixel whose top weight is below this is background.
-    pub hard_min_weight: f32,
+    pub hard_min_weight: f64,
 }
 
 impl Default for SoftMapRecipe {
@@ -334,7 +334,7 @@ pub fn combine_maps<R: Rng + ?Sized>(
                 }
             });
             for (k, m) in maps.iter_mut().enumerate() {
-                m.data[i] = if k == best && top >= recipe.hard_min_weight {
+                m.data[i] = if k == best && top as f64 >= recipe.hard_min_weight {
                     1.0
                 } else {
                     0.0

@@ -1,0 +1,17 @@
+# The two entry points a newcomer needs (see README.md). Later set-up steps
+# (e.g. the project-local torch venv for the net) go behind these targets.
+
+CARGO ?= cargo
+DEMO_OUT ?= demo-out
+
+.PHONY: demo test
+
+## Run the whole pipeline on the bundled assets; open $(DEMO_OUT)/index.html.
+demo:
+	$(CARGO) run --release -p matseg-cli -- demo --out $(DEMO_OUT)
+
+## Formatting, lints and the whole test suite (what CI runs).
+test:
+	$(CARGO) fmt --all -- --check
+	$(CARGO) clippy --workspace --all-targets --locked -- -D warnings
+	$(CARGO) test --workspace --locked

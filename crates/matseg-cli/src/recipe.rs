@@ -1,0 +1,9 @@
+//! `matseg recipe`: the default 2D recipe as TOML, a starting point for `--config`.
+
+use anyhow::Result;
+use matseg_scene::Recipe2d;
+
+pub fn run() -> Result<()> {
+    print!("{}", toml::to_string_pretty(&Recipe2d::default())?);
+    Ok(())
+}
