@@ -250,7 +250,7 @@ fn try_map_from_photo<R: Rng + ?Sized>(
         }
     }
     let ramp = Ramp { low, high };
-    plane.data.iter_mut().for_each(|v| *v = ramp.apply(*v));
+    ramp.apply_all(&mut plane.data);
     if !plane.mass_at_least(recipe.min_map_mass) {
         return None;
     }
@@ -305,12 +305,16 @@ pub fn combine_maps<R: Rng + ?Sized>(
     } else {
         MapNormalisation::Priority
     };
+    // Every loop below runs over whole planes, so it vectorises.
     match normalisation {
         MapNormalisation::Sum => {
-            for i in 0..w * h {
-                let total: f32 = maps.iter().map(|m| m.data[i]).sum();
-                if total > 0.0 {
-                    maps.iter_mut().for_each(|m| m.data[i] /= total);
+            let mut total = vec![0.0f32; w * h];
+            for m in &maps {
+                total.iter_mut().zip(&m.data).for_each(|(t, v)| *t += v);
+            }
+            for m in maps.iter_mut() {
+                for (v, &t) in m.data.iter_mut().zip(&total) {
+                    *v = if t > 0.0 { *v / t } else { *v };
                 }
             }
         }
@@ -325,16 +329,21 @@ pub fn combine_maps<R: Rng + ?Sized>(
         }
     }
     if hard {
-        for i in 0..w * h {
-            let (best, top) = maps.iter().enumerate().fold((0, f32::MIN), |acc, (k, m)| {
-                if m.data[i] > acc.1 {
-                    (k, m.data[i])
-                } else {
-                    acc
+        // Arg-max per pixel (the first map wins ties), then one-hot.
+        let mut top = vec![f32::MIN; w * h];
+        let mut best = vec![0u8; w * h];
+        for (k, m) in maps.iter().enumerate() {
+            for ((t, b), &v) in top.iter_mut().zip(best.iter_mut()).zip(&m.data) {
+                if v > *t {
+                    *t = v;
+                    *b = k as u8;
                 }
-            });
-            for (k, m) in maps.iter_mut().enumerate() {
-                m.data[i] = if k == best && top as f64 >= recipe.hard_min_weight {
+            }
+        }
+        let min = recipe.hard_min_weight as f32;
+        for (k, m) in maps.iter_mut().enumerate() {
+            for ((v, &b), &t) in m.data.iter_mut().zip(&best).zip(&top) {
+                *v = if b as usize == k && t >= min {
                     1.0
                 } else {
                     0.0

@@ -72,6 +72,25 @@ impl Pyramid {
         out_h: usize,
         f: impl Fn([f32; 3]) -> T,
     ) -> Vec<T> {
+        self.sample_lanes(
+            placement,
+            out_w,
+            out_h,
+            |p| [p[0] as f32, p[1] as f32, p[2] as f32],
+            f,
+        )
+    }
+
+    /// The sampling core: `pick` takes the `N` lanes to interpolate from an
+    /// RGB8 pixel (one colour channel, or all three), `f` maps the result.
+    fn sample_lanes<const N: usize, T>(
+        &self,
+        placement: &Placement,
+        out_w: usize,
+        out_h: usize,
+        pick: impl Fn(&[u8]) -> [f32; N],
+        f: impl Fn([f32; N]) -> T,
+    ) -> Vec<T> {
         let fx = self.width() as f64 / placement.resized_w as f64;
         let fy = self.height() as f64 / placement.resized_h as f64;
         let mut out = Vec::with_capacity(out_w * out_h);
@@ -85,7 +104,7 @@ impl Pyramid {
                 out.extend(
                     raw[row..row + out_w * 3]
                         .chunks_exact(3)
-                        .map(|p| f([p[0] as f32, p[1] as f32, p[2] as f32])),
+                        .map(|p| f(pick(p))),
                 );
             }
             return out;
@@ -105,7 +124,7 @@ impl Pyramid {
         let last = cols.last().map_or(0, |c| c.1);
         let raw = img.as_raw();
         let stride = img.width() as usize * 3;
-        let mut blended = vec![[0f32; 3]; last - first + 1];
+        let mut blended = vec![[0f32; N]; last - first + 1];
         for &(y0, y1, wy) in &rows {
             let r0 = &raw[y0 * stride + first * 3..y0 * stride + (last + 1) * 3];
             let r1 = &raw[y1 * stride + first * 3..y1 * stride + (last + 1) * 3];
@@ -114,17 +133,16 @@ impl Pyramid {
                 .zip(r0.chunks_exact(3))
                 .zip(r1.chunks_exact(3))
             {
-                for ch in 0..3 {
-                    b[ch] = a[ch] as f32 + (c[ch] as f32 - a[ch] as f32) * wy;
+                let (a, c) = (pick(a), pick(c));
+                for lane in 0..N {
+                    b[lane] = a[lane] + (c[lane] - a[lane]) * wy;
                 }
             }
             out.extend(cols.iter().map(|&(x0, x1, wx)| {
                 let (a, b) = (blended[x0 - first], blended[x1 - first]);
-                f([
-                    a[0] + (b[0] - a[0]) * wx,
-                    a[1] + (b[1] - a[1]) * wx,
-                    a[2] + (b[2] - a[2]) * wx,
-                ])
+                f(std::array::from_fn(|lane| {
+                    a[lane] + (b[lane] - a[lane]) * wx
+                }))
             }));
         }
         out
@@ -147,11 +165,14 @@ impl Pyramid {
         out_h: usize,
         channel: Channel,
     ) -> Plane {
-        // One closure per channel, so each loop is specialised.
+        // Colour channels interpolate one lane; HSV needs all three. One
+        // closure per channel, so each loop is specialised.
+        let one = |lane: usize| move |p: &[u8]| [p[lane] as f32];
+        let unit = |v: [f32; 1]| v[0] / 255.0;
         let data = match channel {
-            Channel::R => self.sample_with(placement, out_w, out_h, |p| Channel::R.value(p)),
-            Channel::G => self.sample_with(placement, out_w, out_h, |p| Channel::G.value(p)),
-            Channel::B => self.sample_with(placement, out_w, out_h, |p| Channel::B.value(p)),
+            Channel::R => self.sample_lanes(placement, out_w, out_h, one(0), unit),
+            Channel::G => self.sample_lanes(placement, out_w, out_h, one(1), unit),
+            Channel::B => self.sample_lanes(placement, out_w, out_h, one(2), unit),
             Channel::H => self.sample_with(placement, out_w, out_h, |p| Channel::H.value(p)),
             Channel::S => self.sample_with(placement, out_w, out_h, |p| Channel::S.value(p)),
             Channel::V => self.sample_with(placement, out_w, out_h, |p| Channel::V.value(p)),

@@ -2,7 +2,7 @@
 //! soft maps of SPEC 1; the weights are the exact annotation.
 
 use crate::material::{add_material, MaterialRecord};
-use crate::recipe::Recipe2d;
+use crate::recipe::{Recipe2d, SceneShape};
 use matseg_extract::{make_soft_maps, random_placement, CombineRecord, MapRecord, SoftMapError};
 use matseg_image::{LibraryError, PhotoLibrary, Placement, Plane};
 use rand::Rng;
@@ -77,12 +77,13 @@ pub fn generate_2d<R: Rng + ?Sized>(
     recipe: &Recipe2d,
     sources: Sources<'_>,
 ) -> Result<Scene2d, SceneError> {
-    let s = &recipe.scene;
-    let width = rng.random_range(s.size_min..=s.size_max);
-    let height = rng.random_range(s.size_min..=s.size_max);
-    let k = rng.random_range(s.materials_min..=s.materials_max);
-    let hard = rng.random_bool(s.p_hard);
-    let max_occupancy = s.draw_max_occupancy(rng);
+    let SceneShape {
+        width,
+        height,
+        materials: k,
+        hard,
+        max_occupancy,
+    } = recipe.scene.draw(rng);
     let maps = make_soft_maps(
         rng,
         sources.photos,

@@ -10,4 +10,4 @@ pub use compose2d::{
     generate_2d, BackgroundRecord, Scene2d, SceneError, SceneRecord, SourceRef, Sources,
 };
 pub use material::{Fill, MaterialRecord, MaterialSource, ShadingRecord};
-pub use recipe::{CompositionRecipe, Recipe2d, RecipeError, SceneDraws};
+pub use recipe::{CompositionRecipe, Recipe2d, RecipeError, SceneDraws, SceneShape};

@@ -29,7 +29,38 @@ pub struct SceneDraws {
     pub fixed_occupancy: f64,
 }
 
+/// The scene-level draws of one 2D scene.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SceneShape {
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+    /// Number of materials, K.
+    pub materials: usize,
+    /// One-hot annotation.
+    pub hard: bool,
+    /// Largest fraction of the scene one map's top side may cover.
+    pub max_occupancy: f64,
+}
+
 impl SceneDraws {
+    /// Draws size, K, hardness and occupancy, in that order.
+    pub fn draw<R: rand::Rng + ?Sized>(&self, rng: &mut R) -> SceneShape {
+        let width = rng.random_range(self.size_min..=self.size_max);
+        let height = rng.random_range(self.size_min..=self.size_max);
+        let materials = rng.random_range(self.materials_min..=self.materials_max);
+        let hard = rng.random_bool(self.p_hard);
+        let max_occupancy = self.draw_max_occupancy(rng);
+        SceneShape {
+            width,
+            height,
+            materials,
+            hard,
+            max_occupancy,
+        }
+    }
+
     /// Draws a scene's `max_occupancy`: the largest fraction of the scene
     /// the top side of one map may cover.
     pub fn draw_max_occupancy<R: rand::Rng + ?Sized>(&self, rng: &mut R) -> f64 {
