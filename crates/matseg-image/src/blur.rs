@@ -56,18 +56,80 @@ fn symmetric_taps(out: &mut [f32], centre: &[f32], k0: f32, pairs: &[(f32, &[f32
 
 /// Blurs a plane with an odd Gaussian kernel of size `ksize` (1 = copy).
 pub fn gaussian_blur(src: &Plane, ksize: usize) -> Plane {
+    gaussian_blur_region(src, ksize, Region::whole(src))
+}
+
+/// A rectangle of a plane: columns `x0..x1`, rows `y0..y1`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Region {
+    /// First column.
+    pub x0: usize,
+    /// One past the last column.
+    pub x1: usize,
+    /// First row.
+    pub y0: usize,
+    /// One past the last row.
+    pub y1: usize,
+}
+
+impl Region {
+    /// All of `plane`.
+    pub fn whole(plane: &Plane) -> Self {
+        Region {
+            x0: 0,
+            x1: plane.width,
+            y0: 0,
+            y1: plane.height,
+        }
+    }
+
+    /// The bounding box of the pixels where `plane > 0`, if any.
+    pub fn support(plane: &Plane) -> Option<Self> {
+        let w = plane.width;
+        let mut rows = plane
+            .data
+            .chunks_exact(w)
+            .enumerate()
+            .filter(|(_, r)| r.iter().any(|&v| v > 0.0));
+        let (first, _) = rows.next()?;
+        let mut region = Region {
+            x0: w,
+            x1: 0,
+            y0: first,
+            y1: first + 1,
+        };
+        for (y, row) in
+            std::iter::once((first, &plane.data[first * w..(first + 1) * w])).chain(rows)
+        {
+            region.y1 = y + 1;
+            if let Some(x) = row.iter().position(|&v| v > 0.0) {
+                region.x0 = region.x0.min(x);
+            }
+            if let Some(x) = row.iter().rposition(|&v| v > 0.0) {
+                region.x1 = region.x1.max(x + 1);
+            }
+        }
+        Some(region)
+    }
+}
+
+/// Like [`gaussian_blur`], but only the pixels inside `region` are computed
+/// (exactly as the whole blur would); the rest of the result is 0.
+pub fn gaussian_blur_region(src: &Plane, ksize: usize, region: Region) -> Plane {
     if ksize <= 1 || src.is_empty() {
         return src.clone();
     }
     let taps = gaussian_kernel(ksize);
     let r = ksize / 2;
     let (w, h) = (src.width, src.height);
+    let Region { x0, x1, y0, y1 } = region;
+    let span = x1 - x0;
 
-    // Horizontal pass: pad each row by reflection, then add mirrored taps in
-    // pairs (the kernel is symmetric) over whole rows.
+    // Horizontal pass over the rows the vertical pass will read: pad each row
+    // by reflection, then add mirrored taps in pairs (the kernel is symmetric).
     let mut horiz = vec![0.0f32; w * h];
     let mut padded = vec![0.0f32; w + 2 * r];
-    for y in 0..h {
+    for y in y0.saturating_sub(r)..(y1 + r).min(h) {
         let row = &src.data[y * w..(y + 1) * w];
         padded[r..r + w].copy_from_slice(row);
         for i in 0..r {
@@ -75,20 +137,20 @@ pub fn gaussian_blur(src: &Plane, ksize: usize) -> Plane {
             padded[r + w + i] = row[reflect101((w + i) as isize, w)];
         }
         let pairs: Vec<_> = (0..r)
-            .map(|t| (taps[t], &padded[t..], &padded[2 * r - t..]))
+            .map(|t| (taps[t], &padded[x0 + t..], &padded[x0 + 2 * r - t..]))
             .collect();
         symmetric_taps(
-            &mut horiz[y * w..(y + 1) * w],
-            &padded[r..r + w],
+            &mut horiz[y * w + x0..y * w + x1],
+            &padded[x0 + r..x0 + r + span],
             taps[r],
             &pairs,
         );
     }
 
-    // Vertical pass: each output row is a weighted sum of whole input rows.
+    // Vertical pass: each output row is a weighted sum of input rows.
     let mut out = vec![0.0f32; w * h];
-    let row = |y: isize| &horiz[reflect101(y, h) * w..];
-    for y in 0..h {
+    let row = |y: isize| &horiz[reflect101(y, h) * w + x0..];
+    for y in y0..y1 {
         let yi = y as isize;
         let pairs: Vec<_> = (0..r)
             .map(|t| {
@@ -97,8 +159,8 @@ pub fn gaussian_blur(src: &Plane, ksize: usize) -> Plane {
             })
             .collect();
         symmetric_taps(
-            &mut out[y * w..(y + 1) * w],
-            &horiz[y * w..(y + 1) * w],
+            &mut out[y * w + x0..y * w + x1],
+            &horiz[y * w + x0..y * w + x1],
             taps[r],
             &pairs,
         );
@@ -126,6 +188,67 @@ mod tests {
                 assert!((taps[i] - taps[k - 1 - i]).abs() < 1e-7);
             }
         }
+    }
+
+    #[test]
+    fn region_blur_equals_the_whole_blur_inside_the_region() {
+        let src = Plane::from_vec(
+            23,
+            17,
+            (0..23 * 17)
+                .map(|i| ((i * 37) % 101) as f32 / 100.0)
+                .collect(),
+        );
+        for k in [3, 9, 21] {
+            let whole = gaussian_blur(&src, k);
+            for region in [
+                Region {
+                    x0: 0,
+                    x1: 5,
+                    y0: 0,
+                    y1: 4,
+                },
+                Region {
+                    x0: 7,
+                    x1: 16,
+                    y0: 5,
+                    y1: 12,
+                },
+                Region {
+                    x0: 18,
+                    x1: 23,
+                    y0: 13,
+                    y1: 17,
+                },
+            ] {
+                let part = gaussian_blur_region(&src, k, region);
+                for y in 0..17 {
+                    for x in 0..23 {
+                        let inside = (region.x0..region.x1).contains(&x)
+                            && (region.y0..region.y1).contains(&y);
+                        let want = if inside { whole.get(x, y) } else { 0.0 };
+                        assert_eq!(part.get(x, y), want, "k {k} {region:?} ({x}, {y})");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn support_is_the_bounding_box_of_positive_values() {
+        let mut p = Plane::new(10, 8, 0.0);
+        assert_eq!(Region::support(&p), None);
+        p.data[2 * 10 + 7] = 0.5;
+        p.data[5 * 10 + 3] = 1.0;
+        assert_eq!(
+            Region::support(&p),
+            Some(Region {
+                x0: 3,
+                x1: 8,
+                y0: 2,
+                y1: 6
+            })
+        );
     }
 
     #[test]

@@ -12,11 +12,11 @@ pub mod ramp;
 pub mod resample;
 pub mod rgb;
 
-pub use blur::gaussian_blur;
+pub use blur::{gaussian_blur, gaussian_blur_region, Region};
 pub use channel::Channel;
 pub use io::ImageIoError;
 pub use library::{LibraryError, Photo, PhotoLibrary, ScanReport, SkippedFile};
 pub use plane::Plane;
 pub use ramp::Ramp;
-pub use resample::{Placement, Pyramid};
+pub use resample::{Placement, PointSampler, Pyramid};
 pub use rgb::RgbF32;

@@ -109,16 +109,7 @@ impl Pyramid {
             }
             return out;
         }
-        let shrink = fx.min(fy);
-        let level = if shrink >= 2.0 {
-            (shrink.log2().floor() as usize).min(self.levels.len() - 1)
-        } else {
-            0
-        };
-        let img = &self.levels[level];
-        let step = (1u64 << level) as f64;
-        let cols = axis_taps(out_w, placement.x0, fx / step, img.width());
-        let rows = axis_taps(out_h, placement.y0, fy / step, img.height());
+        let (img, cols, rows) = self.grid(placement, out_w, out_h);
         // Source columns the window touches; rows are blended over this span only.
         let first = cols.first().map_or(0, |c| c.0);
         let last = cols.last().map_or(0, |c| c.1);
@@ -146,6 +137,41 @@ impl Pyramid {
             }));
         }
         out
+    }
+
+    /// The pyramid level to read for `placement` and the bilinear taps of
+    /// every output column and row on it.
+    fn grid(
+        &self,
+        placement: &Placement,
+        out_w: usize,
+        out_h: usize,
+    ) -> (&RgbImage, Vec<Tap>, Vec<Tap>) {
+        let fx = self.width() as f64 / placement.resized_w as f64;
+        let fy = self.height() as f64 / placement.resized_h as f64;
+        let shrink = fx.min(fy);
+        let level = if shrink >= 2.0 {
+            (shrink.log2().floor() as usize).min(self.levels.len() - 1)
+        } else {
+            0
+        };
+        let img = &self.levels[level];
+        let step = (1u64 << level) as f64;
+        let cols = axis_taps(out_w, placement.x0, fx / step, img.width());
+        let rows = axis_taps(out_h, placement.y0, fy / step, img.height());
+        (img, cols, rows)
+    }
+
+    /// A sampler for single pixels of the window `placement` selects, for
+    /// callers that need only some of them.
+    pub fn point_sampler(
+        &self,
+        placement: &Placement,
+        out_w: usize,
+        out_h: usize,
+    ) -> PointSampler<'_> {
+        let (img, cols, rows) = self.grid(placement, out_w, out_h);
+        PointSampler { img, cols, rows }
     }
 
     /// The selected window as a float RGB image.
@@ -192,9 +218,37 @@ impl Pyramid {
     }
 }
 
+/// Two source indices and the weight of the second.
+type Tap = (usize, usize, f32);
+
+/// Bilinear samples of single pixels of a placed window (see
+/// [`Pyramid::point_sampler`]); equal to the same pixels of [`Pyramid::sample_rgb`].
+pub struct PointSampler<'a> {
+    img: &'a RgbImage,
+    cols: Vec<Tap>,
+    rows: Vec<Tap>,
+}
+
+impl PointSampler<'_> {
+    /// The RGB (0..255) value of window pixel `(x, y)`.
+    #[inline]
+    pub fn rgb(&self, x: usize, y: usize) -> [f32; 3] {
+        let (x0, x1, wx) = self.cols[x];
+        let (y0, y1, wy) = self.rows[y];
+        let raw = self.img.as_raw();
+        let stride = self.img.width() as usize * 3;
+        let px = |xx: usize, yy: usize, c: usize| raw[yy * stride + xx * 3 + c] as f32;
+        std::array::from_fn(|c| {
+            let a = px(x0, y0, c) + (px(x0, y1, c) - px(x0, y0, c)) * wy;
+            let b = px(x1, y0, c) + (px(x1, y1, c) - px(x1, y0, c)) * wy;
+            a + (b - a) * wx
+        })
+    }
+}
+
 /// For each output index along one axis: the two source indices and the
 /// weight of the second, for a source sampled at `step` pixels per output pixel.
-fn axis_taps(n: usize, offset: u32, step: f64, src_len: u32) -> Vec<(usize, usize, f32)> {
+fn axis_taps(n: usize, offset: u32, step: f64, src_len: u32) -> Vec<Tap> {
     let last = src_len as i64 - 1;
     (0..n)
         .map(|i| {
@@ -269,6 +323,43 @@ mod tests {
                 let got = out.data[y * 10 + x];
                 for c in 0..3 {
                     assert!((got[c] - src[c] as f32).abs() < 1e-4);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn point_sampler_matches_the_whole_window() {
+        let p = Pyramid::new(gradient(90, 70));
+        for place in [
+            Placement {
+                resized_w: 200,
+                resized_h: 156,
+                x0: 13,
+                y0: 40,
+            },
+            Placement {
+                resized_w: 90,
+                resized_h: 70,
+                x0: 3,
+                y0: 2,
+            },
+            Placement {
+                resized_w: 30,
+                resized_h: 23,
+                x0: 1,
+                y0: 0,
+            },
+        ] {
+            let whole = p.sample_rgb(&place, 25, 20);
+            let points = p.point_sampler(&place, 25, 20);
+            for y in 0..20 {
+                for x in 0..25 {
+                    let (a, b) = (whole.data[y * 25 + x], points.rgb(x, y));
+                    assert!(
+                        (0..3).all(|c| (a[c] - b[c]).abs() < 1e-3),
+                        "{place:?} ({x}, {y}): {a:?} vs {b:?}"
+                    );
                 }
             }
         }

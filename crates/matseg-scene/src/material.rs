@@ -5,10 +5,12 @@ use crate::recipe::CompositionRecipe;
 use matseg_extract::random_placement;
 use matseg_image::color::rotate_hue;
 use matseg_image::{
-    gaussian_blur, Channel, LibraryError, PhotoLibrary, Placement, Plane, Pyramid, RgbF32,
+    gaussian_blur_region, Channel, LibraryError, Photo, PhotoLibrary, Placement, Plane,
+    PointSampler, Pyramid, Region, RgbF32,
 };
 use rand::Rng;
 use serde::{Deserialize, Serialize};
+use std::sync::Arc;
 
 /// How a texture covers the scene.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -97,38 +99,51 @@ pub fn add_material<R: Rng + ?Sized>(
     acc: &mut RgbF32,
 ) -> Result<MaterialRecord, LibraryError> {
     let (w, h) = (weight.width, weight.height);
-    let (layer, source) = if rng.random_bool(recipe.p_texture) {
-        let (layer, source) = draw_texture(rng, recipe, textures, w, h)?;
-        (Some(layer), source)
+    let (pixels, source) = if rng.random_bool(recipe.p_texture) {
+        let (pixels, source) = draw_texture(rng, recipe, textures, w, h)?;
+        (Some(pixels), source)
     } else {
         let rgb = [rng.random::<u8>(), rng.random::<u8>(), rng.random::<u8>()];
         (None, MaterialSource::FlatColour { rgb })
     };
+    // Pixels outside the weight's support are never read, so the shading
+    // blur and the blending skip them.
+    let support = Region::support(weight).unwrap_or(Region {
+        x0: 0,
+        x1: 0,
+        y0: 0,
+        y1: 0,
+    });
     let shading = if rng.random_bool(recipe.p_shading) {
-        Some(draw_shading(rng, recipe, photos, w, h)?)
+        Some(draw_shading(rng, recipe, photos, support, w, h)?)
     } else {
         None
     };
 
-    let (flat, hue) = match &source {
-        MaterialSource::FlatColour { rgb } => ([rgb[0] as f32, rgb[1] as f32, rgb[2] as f32], None),
+    let colour = Colour::new(&source, pixels.as_ref(), w, h);
+    let hue = match &source {
         MaterialSource::Texture {
             hue_shift_degrees, ..
-        } => ([0.0; 3], *hue_shift_degrees),
+        } => *hue_shift_degrees,
+        MaterialSource::FlatColour { .. } => None,
     };
-    for (i, &wk) in weight.data.iter().enumerate() {
-        if wk <= 0.0 {
-            continue;
-        }
-        let mut px = layer.as_ref().map_or(flat, |l| l.data[i]);
-        if let Some(deg) = hue {
-            px = rotate_hue(px, deg);
-        }
-        let factor = shading.as_ref().map_or(1.0, |(shade, s)| {
-            (1.0 - s.strength) + s.strength * shade.data[i]
-        });
-        for (a, p) in acc.data[i].iter_mut().zip(px) {
-            *a += p * factor * wk;
+    for y in support.y0..support.y1 {
+        for x in support.x0..support.x1 {
+            let i = y * w + x;
+            let wk = weight.data[i];
+            if wk <= 0.0 {
+                continue;
+            }
+            let mut px = colour.at(x, y);
+            if let Some(deg) = hue {
+                px = rotate_hue(px, deg);
+            }
+            let factor = shading.as_ref().map_or(1.0, |(shade, s)| {
+                (1.0 - s.strength) + s.strength * shade.data[i]
+            });
+            for (a, p) in acc.data[i].iter_mut().zip(px) {
+                *a += p * factor * wk;
+            }
         }
     }
     Ok(MaterialRecord {
@@ -137,19 +152,38 @@ pub fn add_material<R: Rng + ?Sized>(
     })
 }
 
+/// A texture's pixels after its rotation and flips.
+enum TexturePixels {
+    /// Untransformed: the library's cached pyramid.
+    Shared(Arc<Photo>),
+    /// Rotated or flipped copy.
+    Owned(Pyramid),
+}
+
+impl TexturePixels {
+    fn pyramid(&self) -> &Pyramid {
+        match self {
+            TexturePixels::Shared(photo) => &photo.pyramid,
+            TexturePixels::Owned(pyramid) => pyramid,
+        }
+    }
+}
+
+/// Draws a texture's placement (SPEC 2); the pixels are rendered later, only
+/// where the material is visible (see [`Colour`]).
 fn draw_texture<R: Rng + ?Sized>(
     rng: &mut R,
     recipe: &CompositionRecipe,
     textures: &PhotoLibrary,
     w: usize,
     h: usize,
-) -> Result<(RgbF32, MaterialSource), LibraryError> {
+) -> Result<(TexturePixels, MaterialSource), LibraryError> {
     let texture = textures.pick(|n| rng.random_range(0..n))?;
     let rot90 = rng.random_bool(recipe.p_rot90);
     let flip_x = rng.random_bool(recipe.p_flip_x);
     let flip_y = rng.random_bool(recipe.p_flip_y);
-    let transformed;
-    let pyramid = if rot90 || flip_x || flip_y {
+    let index = texture.index;
+    let pixels = if rot90 || flip_x || flip_y {
         let mut img = texture.pyramid.base().clone();
         if rot90 {
             img = image::imageops::rotate270(&img);
@@ -160,14 +194,13 @@ fn draw_texture<R: Rng + ?Sized>(
         if flip_y {
             image::imageops::flip_vertical_in_place(&mut img);
         }
-        transformed = Pyramid::new(img);
-        &transformed
+        TexturePixels::Owned(Pyramid::new(img))
     } else {
-        &texture.pyramid
+        TexturePixels::Shared(texture)
     };
 
-    let (tw, th) = (pyramid.width(), pyramid.height());
-    let (layer, fill) = if rng.random_bool(recipe.p_tile) {
+    let (tw, th) = (pixels.pyramid().width(), pixels.pyramid().height());
+    let fill = if rng.random_bool(recipe.p_tile) {
         let max_shrink = (tw.min(th) as f64 / recipe.min_tile_side).max(1.0);
         let shrink = if rng.random_bool(recipe.p_tile_shrink) {
             rng.random_range(1.0..=max_shrink)
@@ -176,65 +209,102 @@ fn draw_texture<R: Rng + ?Sized>(
         };
         let tile_w = ((tw as f64 / shrink).round() as u32).max(1);
         let tile_h = ((th as f64 / shrink).round() as u32).max(1);
-        let tile = pyramid.resize_rgb(tile_w as usize, tile_h as usize);
-        let offset_x = rng.random_range(0..tile_w);
-        let offset_y = rng.random_range(0..tile_h);
-        let mut data = Vec::with_capacity(w * h);
-        for y in 0..h {
-            let ty = (y + offset_y as usize) % tile_h as usize;
-            let row = &tile.data[ty * tile_w as usize..(ty + 1) * tile_w as usize];
-            data.extend((0..w).map(|x| row[(x + offset_x as usize) % tile_w as usize]));
-        }
-        let fill = Fill::Tile {
+        Fill::Tile {
             shrink,
             tile_w,
             tile_h,
-            offset_x,
-            offset_y,
-        };
-        (
-            RgbF32 {
-                width: w,
-                height: h,
-                data,
-            },
-            fill,
-        )
+            offset_x: rng.random_range(0..tile_w),
+            offset_y: rng.random_range(0..tile_h),
+        }
     } else {
         let scale = Placement::cover_scale(tw, th, w, h);
         let (rw, rh) = Placement::resized_size(tw, th, scale, w, h);
-        let placement = Placement {
-            resized_w: rw,
-            resized_h: rh,
-            x0: rng.random_range(0..=rw - w as u32),
-            y0: rng.random_range(0..=rh - h as u32),
-        };
-        (
-            pyramid.sample_rgb(&placement, w, h),
-            Fill::Stretch { placement },
-        )
+        Fill::Stretch {
+            placement: Placement {
+                resized_w: rw,
+                resized_h: rh,
+                x0: rng.random_range(0..=rw - w as u32),
+                y0: rng.random_range(0..=rh - h as u32),
+            },
+        }
     };
 
     let hue_shift_degrees = rng
         .random_bool(recipe.p_hue_shift)
         .then(|| rng.random_range(0.0..360.0f32));
     let source = MaterialSource::Texture {
-        texture: texture.index,
+        texture: index,
         rot90,
         flip_x,
         flip_y,
         fill,
         hue_shift_degrees,
     };
-    Ok((layer, source))
+    Ok((pixels, source))
 }
 
-/// Draws the shading of one material: the blurred, max-normalised photo
-/// channel, and its record (which holds the strength).
+/// A material's colour before shading, evaluated pixel by pixel.
+enum Colour<'a> {
+    /// One colour everywhere.
+    Flat([f32; 3]),
+    /// A tile repeated from a phase: tile row and column of each scene row and column.
+    Tile {
+        tile: RgbF32,
+        rows: Vec<usize>,
+        cols: Vec<usize>,
+    },
+    /// A stretched texture.
+    Stretch(PointSampler<'a>),
+}
+
+impl<'a> Colour<'a> {
+    /// The colour of a material from its record, for a `w x h` scene;
+    /// `pixels` are the texture's (rotated, flipped) pixels for a texture.
+    fn new(source: &MaterialSource, pixels: Option<&'a TexturePixels>, w: usize, h: usize) -> Self {
+        let fill = match source {
+            MaterialSource::FlatColour { rgb } => return Colour::Flat(rgb.map(f32::from)),
+            MaterialSource::Texture { fill, .. } => fill,
+        };
+        let pyramid = pixels
+            .expect("a texture is drawn with its pixels")
+            .pyramid();
+        match *fill {
+            Fill::Tile {
+                tile_w,
+                tile_h,
+                offset_x,
+                offset_y,
+                ..
+            } => {
+                let (tw, th) = (tile_w as usize, tile_h as usize);
+                Colour::Tile {
+                    tile: pyramid.resize_rgb(tw, th),
+                    rows: (0..h).map(|y| (y + offset_y as usize) % th).collect(),
+                    cols: (0..w).map(|x| (x + offset_x as usize) % tw).collect(),
+                }
+            }
+            Fill::Stretch { placement } => Colour::Stretch(pyramid.point_sampler(&placement, w, h)),
+        }
+    }
+
+    /// The colour at scene pixel `(x, y)`.
+    #[inline]
+    fn at(&self, x: usize, y: usize) -> [f32; 3] {
+        match self {
+            Colour::Flat(c) => *c,
+            Colour::Tile { tile, rows, cols } => tile.data[rows[y] * tile.width + cols[x]],
+            Colour::Stretch(sampler) => sampler.rgb(x, y),
+        }
+    }
+}
+
+/// Draws the shading of one material: the max-normalised photo channel,
+/// blurred inside `support` (elsewhere 0), and its record (which holds the strength).
 fn draw_shading<R: Rng + ?Sized>(
     rng: &mut R,
     recipe: &CompositionRecipe,
     photos: &PhotoLibrary,
+    support: Region,
     w: usize,
     h: usize,
 ) -> Result<(Plane, ShadingRecord), LibraryError> {
@@ -252,7 +322,7 @@ fn draw_shading<R: Rng + ?Sized>(
         shade.scale(1.0 / max);
     }
     let kernel = recipe.shading_kernels[rng.random_range(0..recipe.shading_kernels.len())];
-    let shade = gaussian_blur(&shade, kernel);
+    let shade = gaussian_blur_region(&shade, kernel, support);
     let strength = if rng.random_bool(recipe.p_shading_full_strength) {
         1.0
     } else {
