@@ -4,6 +4,7 @@
 pub mod soft_maps;
 
 pub use soft_maps::{
-    combine_maps, draw_channel_map, make_soft_maps, random_placement, CombineRecord,
-    MapNormalisation, MapRecord, SoftMapError, SoftMapRecipe, SoftMaps,
+    check_probabilities, combine_maps, draw_channel_map, make_soft_maps, random_photo_channel,
+    random_placement, CombineRecord, MapNormalisation, MapRecord, SoftMapError, SoftMapRecipe,
+    SoftMaps,
 };

@@ -67,10 +67,19 @@ impl Default for SoftMapRecipe {
     }
 }
 
+/// Checks that each named value is a probability; the error names the first
+/// that is not.
+pub fn check_probabilities(values: &[(&str, f64)]) -> Result<(), String> {
+    match values.iter().find(|(_, p)| !(0.0..=1.0).contains(p)) {
+        Some((name, p)) => Err(format!("{name} = {p} is not a probability in [0, 1]")),
+        None => Ok(()),
+    }
+}
+
 impl SoftMapRecipe {
     /// Checks ranges; the message names the offending field.
     pub fn validate(&self) -> Result<(), String> {
-        for (name, p) in [
+        check_probabilities(&[
             ("p_downscale", self.p_downscale),
             ("p_hsv_channel", self.p_hsv_channel),
             ("p_normalise_by_max", self.p_normalise_by_max),
@@ -78,11 +87,7 @@ impl SoftMapRecipe {
             ("p_binary", self.p_binary),
             ("p_blur", self.p_blur),
             ("p_sum_normalise", self.p_sum_normalise),
-        ] {
-            if !(0.0..=1.0).contains(&p) {
-                return Err(format!("{name} = {p} is not a probability in [0, 1]"));
-            }
-        }
+        ])?;
         if self.high_threshold_tries == 0
             || self.low_threshold_tries == 0
             || self.max_map_draws == 0
@@ -197,6 +202,31 @@ pub fn random_placement<R: Rng + ?Sized>(
     }
 }
 
+/// A `w x h` window of one channel of `photo`: placed by [`random_placement`]
+/// (native resolution by default), the channel one of H, S, V with
+/// probability `p_hsv`, else one of R, G, B.
+pub fn random_photo_channel<R: Rng + ?Sized>(
+    rng: &mut R,
+    photo: &Photo,
+    w: usize,
+    h: usize,
+    p_downscale: f64,
+    p_hsv: f64,
+) -> (Plane, Placement, Channel) {
+    let placement = random_placement(rng, photo, w, h, p_downscale, false);
+    let channels = if rng.random_bool(p_hsv) {
+        Channel::HSV
+    } else {
+        Channel::RGB
+    };
+    let channel = channels[rng.random_range(0..3)];
+    (
+        photo.pyramid.sample_channel(&placement, w, h, channel),
+        placement,
+        channel,
+    )
+}
+
 /// One attempt at a map from one photo: `None` when the photo gives no
 /// acceptable threshold (the caller draws another photo).
 fn try_map_from_photo<R: Rng + ?Sized>(
@@ -208,20 +238,11 @@ fn try_map_from_photo<R: Rng + ?Sized>(
     hard: bool,
     recipe: &SoftMapRecipe,
 ) -> Option<(Plane, MapRecord)> {
-    let placement = random_placement(rng, photo, w, h, recipe.p_downscale, false);
-    let channels = if rng.random_bool(recipe.p_hsv_channel) {
-        Channel::HSV
-    } else {
-        Channel::RGB
-    };
-    let channel = channels[rng.random_range(0..3)];
-    let mut plane = photo.pyramid.sample_channel(&placement, w, h, channel);
+    let (mut plane, placement, channel) =
+        random_photo_channel(rng, photo, w, h, recipe.p_downscale, recipe.p_hsv_channel);
     let normalised_by_max = rng.random_bool(recipe.p_normalise_by_max);
     if normalised_by_max {
-        let max = plane.max();
-        if max > 0.0 {
-            plane.scale(1.0 / max);
-        }
+        plane.normalise_by_max();
     }
 
     let n = plane.len() as f64;

@@ -87,6 +87,14 @@ impl Plane {
         self.data.iter_mut().for_each(|v| *v *= k);
     }
 
+    /// Divides every value by the largest one (no change when it is 0).
+    pub fn normalise_by_max(&mut self) {
+        let max = self.max();
+        if max > 0.0 {
+            self.scale(1.0 / max);
+        }
+    }
+
     /// Values in `[0, 1]` to 8-bit, rounded and clamped.
     pub fn to_u8(&self) -> Vec<u8> {
         self.data.iter().map(|&v| unit_to_u8(v)).collect()
@@ -112,5 +120,9 @@ mod tests {
         assert_eq!(p.to_u8(), vec![26, 128, 128, 230]);
         assert!(p.mass_at_least(2.0 - 1e-6));
         assert!(!p.mass_at_least(2.1));
+        let mut q = p.clone();
+        q.normalise_by_max();
+        assert_eq!(q.max(), 1.0);
+        assert!((q.data[0] - 0.1 / 0.9).abs() < 1e-6);
     }
 }

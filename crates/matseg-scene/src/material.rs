@@ -2,7 +2,7 @@
 //! rotated, mirrored, hue-shifted) or a flat colour, with optional shading.
 
 use crate::recipe::CompositionRecipe;
-use matseg_extract::random_placement;
+use matseg_extract::random_photo_channel;
 use matseg_image::color::rotate_hue;
 use matseg_image::{
     gaussian_blur_region, Channel, LibraryError, Photo, PhotoLibrary, Placement, Plane,
@@ -309,18 +309,15 @@ fn draw_shading<R: Rng + ?Sized>(
     h: usize,
 ) -> Result<(Plane, ShadingRecord), LibraryError> {
     let photo = photos.pick(|n| rng.random_range(0..n))?;
-    let placement = random_placement(rng, &photo, w, h, recipe.p_shading_downscale, false);
-    let channels = if rng.random_bool(recipe.p_shading_hsv) {
-        Channel::HSV
-    } else {
-        Channel::RGB
-    };
-    let channel = channels[rng.random_range(0..3)];
-    let mut shade = photo.pyramid.sample_channel(&placement, w, h, channel);
-    let max = shade.max();
-    if max > 0.0 {
-        shade.scale(1.0 / max);
-    }
+    let (mut shade, placement, channel) = random_photo_channel(
+        rng,
+        &photo,
+        w,
+        h,
+        recipe.p_shading_downscale,
+        recipe.p_shading_hsv,
+    );
+    shade.normalise_by_max();
     let kernel = recipe.shading_kernels[rng.random_range(0..recipe.shading_kernels.len())];
     let shade = gaussian_blur_region(&shade, kernel, support);
     let strength = if rng.random_bool(recipe.p_shading_full_strength) {

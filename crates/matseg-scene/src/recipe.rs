@@ -1,7 +1,7 @@
 //! The 2D recipe: every probability and range of SPEC sections 1 and 2 as a
 //! named field with the SPEC's value as default, overridable from TOML.
 
-use matseg_extract::SoftMapRecipe;
+use matseg_extract::{check_probabilities, SoftMapRecipe};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -229,7 +229,7 @@ impl Recipe2d {
             )));
         }
         let c = &self.composition;
-        for (name, p) in [
+        check_probabilities(&[
             ("scene.p_hard", s.p_hard),
             ("scene.p_fixed_occupancy", s.p_fixed_occupancy),
             (
@@ -250,13 +250,8 @@ impl Recipe2d {
                 "composition.p_shading_full_strength",
                 c.p_shading_full_strength,
             ),
-        ] {
-            if !(0.0..=1.0).contains(&p) {
-                return Err(invalid(format!(
-                    "{name} = {p} is not a probability in [0, 1]"
-                )));
-            }
-        }
+        ])
+        .map_err(invalid)?;
         let occ_max = s.occupancy_base + s.occupancy_span;
         if s.occupancy_base <= 0.0
             || s.occupancy_span < 0.0
