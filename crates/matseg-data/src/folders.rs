@@ -25,12 +25,16 @@ pub fn is_complete(root: &Path, index: u64) -> bool {
     sample_dir(root, index).join(FINISHED_FILE).is_file()
 }
 
-/// Writes a sample: files go to a temporary folder that is renamed into place
-/// after `Finished.txt`, so a reader never takes a partial sample as complete.
-/// A stale partial folder from an interrupted run is replaced.
+/// Suffix of the folder a sample is written into before it is renamed.
+pub const PARTIAL_SUFFIX: &str = ".partial";
+
+/// Writes a sample: files go to `NNNNNNNN.partial/`, which is renamed into
+/// place, and `Finished.txt` is written last, into the final folder. A reader
+/// therefore never sees a complete-looking partial sample, and a crash at any
+/// point leaves a folder without `Finished.txt`, which the next run replaces.
 pub fn write_sample(root: &Path, sample: &EncodedSample) -> io::Result<()> {
     let dir = sample_dir(root, sample.index);
-    let tmp = root.join(format!("{:08}.partial", sample.index));
+    let tmp = root.join(format!("{:08}{PARTIAL_SUFFIX}", sample.index));
     if tmp.exists() {
         std::fs::remove_dir_all(&tmp)?;
     }
@@ -41,9 +45,30 @@ pub fn write_sample(root: &Path, sample: &EncodedSample) -> io::Result<()> {
     }
     std::fs::write(tmp.join(ROI_FILE), &sample.roi)?;
     std::fs::write(tmp.join(META_FILE), &sample.json)?;
-    std::fs::write(tmp.join(FINISHED_FILE), b"")?;
     if dir.exists() {
         std::fs::remove_dir_all(&dir)?;
     }
-    std::fs::rename(&tmp, &dir)
+    std::fs::rename(&tmp, &dir)?;
+    std::fs::write(dir.join(FINISHED_FILE), b"")
+}
+
+/// Removes leftover `NNNNNNNN.partial/` folders of interrupted runs whose
+/// index `mine` accepts.
+pub fn remove_stale_partials(root: &Path, mine: &dyn Fn(u64) -> bool) -> io::Result<()> {
+    for entry in std::fs::read_dir(root)? {
+        let path = entry?.path();
+        let name = path
+            .file_name()
+            .and_then(|n| n.to_str())
+            .unwrap_or_default();
+        if let Some(index) = name
+            .strip_suffix(PARTIAL_SUFFIX)
+            .and_then(|i| i.parse().ok())
+        {
+            if mine(index) {
+                std::fs::remove_dir_all(&path)?;
+            }
+        }
+    }
+    Ok(())
 }

@@ -259,6 +259,7 @@ fn generate_folders(
     progress: &(dyn Fn(u64) + Sync),
     mine: &(dyn Fn(u64) -> bool + Sync),
 ) -> Result<GenerateReport, GenerateError> {
+    folders::remove_stale_partials(&opts.out, mine).map_err(io_err(&opts.out))?;
     let (done, pending): (Vec<u64>, Vec<u64>) = (0..opts.n)
         .filter(|&i| mine(i))
         .partition(|&i| folders::is_complete(&opts.out, i));

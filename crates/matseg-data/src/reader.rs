@@ -1,7 +1,7 @@
 //! Reading datasets back: MatSeg folders (ours and the original's, including
 //! the 3D set's `mask001.png` naming) and WebDataset shards, with random access.
 
-use crate::folders::{FINISHED_FILE, IMAGE_FILE, META_FILE, ROI_FILE};
+use crate::folders::{FINISHED_FILE, IMAGE_FILE, META_FILE, PARTIAL_SUFFIX, ROI_FILE};
 use image::{GrayImage, RgbImage};
 use matseg_image::io::{decode_gray, decode_rgb};
 use matseg_image::{ImageIoError, Plane};
@@ -144,11 +144,10 @@ impl Dataset {
         paths.sort();
         for path in paths {
             if path.is_dir() {
-                if path.join(FINISHED_FILE).is_file() {
+                let partial = path.to_string_lossy().ends_with(PARTIAL_SUFFIX);
+                if !partial && path.join(FINISHED_FILE).is_file() {
                     ds.samples.push(Location::Folder(path));
-                } else if path.join(IMAGE_FILE).exists()
-                    || path.extension().is_some_and(|e| e == "partial")
-                {
+                } else if partial || path.join(IMAGE_FILE).exists() {
                     ds.incomplete += 1;
                 }
             } else if path.extension().is_some_and(|e| e == "tar") {

@@ -165,15 +165,24 @@ fn rerun_skips_complete_samples_and_redoes_interrupted_ones() {
 
     // Simulate an interruption: one sample lost its marker, one left a partial folder.
     std::fs::remove_file(dir.path().join("00000002/Finished.txt")).unwrap();
-    std::fs::create_dir(dir.path().join("00000003.partial")).unwrap();
-    std::fs::write(dir.path().join("00000003.partial/RGB__RGB.jpg"), b"half").unwrap();
+    // A crash just before the rename leaves a partial folder that looks whole.
+    let partial = dir.path().join("00000003.partial");
+    std::fs::create_dir(&partial).unwrap();
+    for name in [
+        "RGB__RGB.jpg",
+        "mask0.png",
+        "ObjectMaskOcluded.png",
+        "Finished.txt",
+    ] {
+        std::fs::copy(dir.path().join("00000003").join(name), partial.join(name)).unwrap();
+    }
     let ds = Dataset::open(dir.path()).unwrap();
     assert_eq!(ds.len(), 3, "an unfinished sample is not read as complete");
     assert_eq!(ds.incomplete(), 2);
 
     let report = run(&opts, 2);
     assert_eq!((report.generated, report.skipped), (1, 3));
-    std::fs::remove_dir_all(dir.path().join("00000003.partial")).unwrap();
+    assert!(!partial.exists(), "the rerun removes leftovers");
     assert!(
         tree(dir.path()) == before,
         "regenerated sample is byte-identical"
