@@ -5,6 +5,7 @@ use anyhow::Result;
 use matseg_data::{encode_scene, generate_dataset, sample_rng, Format, GenerateOptions, JobSlice};
 use matseg_extract::make_soft_maps;
 use matseg_scene::{generate_2d, Recipe2d};
+use std::path::PathBuf;
 use std::time::Instant;
 
 #[derive(clap::Args)]
@@ -18,6 +19,15 @@ pub struct Args {
     /// Seed of the scenes.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Folders of natural photos to measure with; default: bundled assets.
+    #[arg(long, num_args = 1..)]
+    sources: Vec<PathBuf>,
+    /// Folders of textures to measure with; default: bundled assets.
+    #[arg(long, num_args = 1..)]
+    textures: Vec<PathBuf>,
+    /// Memory bound for decoded source photos, in MiB.
+    #[arg(long, default_value_t = DEFAULT_CACHE_MB)]
+    cache_mb: usize,
 }
 
 struct Row {
@@ -30,13 +40,13 @@ struct Row {
 
 pub fn run(args: Args) -> Result<()> {
     anyhow::ensure!(args.scenes >= 1, "--scenes must be at least 1");
-    let libs = Libraries::load(&[], &[], DEFAULT_CACHE_MB)?;
+    let libs = Libraries::load(&args.sources, &args.textures, args.cache_mb)?;
     let recipe = Recipe2d::default();
     let sources = libs.sources();
     let threads = args.threads.unwrap_or_else(num_threads);
 
     // Warm the photo cache so every row measures steady-state generation.
-    for i in 0..8 {
+    for i in 0..8.max(libs.photos.len() as u64 / 4) {
         generate_2d(&mut sample_rng(args.seed ^ 0xdead, i), &recipe, sources)?;
     }
 
@@ -129,10 +139,12 @@ pub fn run(args: Args) -> Result<()> {
     }
 
     println!(
-        "scenes: {} per row, mean {:.2} MP, mean {:.1} materials (SPEC 2D distribution, bundled assets)",
+        "scenes: {} per row, mean {:.2} MP, mean {:.1} materials (SPEC 2D distribution); {} photos, {} textures",
         args.scenes,
         pixels as f64 / args.scenes as f64 / 1e6,
-        materials as f64 / args.scenes as f64
+        materials as f64 / args.scenes as f64,
+        libs.photos.len(),
+        libs.textures.len()
     );
     println!(
         "| {:<40} | {:>7} | {:>9} | {:>13} | {:>13} | {:>8} |",
