@@ -1,6 +1,6 @@
 //! The six image channels a soft map can be cut from.
 
-use crate::color::rgb_to_hsv;
+use crate::color::{hue, saturation, value};
 use serde::{Deserialize, Serialize};
 
 /// One scalar property of a pixel: a colour channel or an HSV component.
@@ -33,9 +33,9 @@ impl Channel {
             Channel::R => rgb[0] / 255.0,
             Channel::G => rgb[1] / 255.0,
             Channel::B => rgb[2] / 255.0,
-            Channel::H => rgb_to_hsv(rgb)[0],
-            Channel::S => rgb_to_hsv(rgb)[1],
-            Channel::V => rgb[0].max(rgb[1]).max(rgb[2]) / 255.0,
+            Channel::H => hue(rgb),
+            Channel::S => saturation(rgb),
+            Channel::V => value(rgb),
         }
     }
 }

@@ -3,16 +3,20 @@
 /// HSV of an RGB pixel on the 0..255 scale: hue in `[0, 1)` (fraction of a turn),
 /// saturation and value in `[0, 1]`.
 pub fn rgb_to_hsv(rgb: [f32; 3]) -> [f32; 3] {
+    [hue(rgb), saturation(rgb), value(rgb)]
+}
+
+/// Hue of an RGB (0..255) pixel as a fraction of a turn, in `[0, 1)`; 0 for greys.
+#[inline]
+pub fn hue(rgb: [f32; 3]) -> f32 {
     let [r, g, b] = rgb;
     let max = r.max(g).max(b);
-    let min = r.min(g).min(b);
-    let delta = max - min;
-    let v = max / 255.0;
-    let s = if max > 0.0 { delta / max } else { 0.0 };
+    let delta = max - r.min(g).min(b);
+    if delta <= 0.0 {
+        return 0.0;
+    }
     // Sextant in [0, 6), computed without a floating-point modulo.
-    let h = if delta <= 0.0 {
-        0.0
-    } else if max == r {
+    let sextant = if max == r {
         let h = (g - b) / delta;
         if h < 0.0 {
             h + 6.0
@@ -24,8 +28,29 @@ pub fn rgb_to_hsv(rgb: [f32; 3]) -> [f32; 3] {
     } else {
         (r - g) / delta + 4.0
     };
-    let h = h / 6.0;
-    [if h >= 1.0 { h - 1.0 } else { h }, s, v]
+    let h = sextant / 6.0;
+    if h >= 1.0 {
+        h - 1.0
+    } else {
+        h
+    }
+}
+
+/// Saturation of an RGB (0..255) pixel, `(max - min) / max`, in `[0, 1]`.
+#[inline]
+pub fn saturation(rgb: [f32; 3]) -> f32 {
+    let max = rgb[0].max(rgb[1]).max(rgb[2]);
+    if max > 0.0 {
+        (max - rgb[0].min(rgb[1]).min(rgb[2])) / max
+    } else {
+        0.0
+    }
+}
+
+/// Value of an RGB (0..255) pixel, `max / 255`, in `[0, 1]`.
+#[inline]
+pub fn value(rgb: [f32; 3]) -> f32 {
+    rgb[0].max(rgb[1]).max(rgb[2]) / 255.0
 }
 
 /// RGB on the 0..255 scale from HSV with all components in `[0, 1]`.
