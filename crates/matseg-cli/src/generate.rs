@@ -51,7 +51,8 @@ pub struct Args {
     /// Split the work into this many jobs (e.g. a job array).
     #[arg(long, default_value_t = 1)]
     num_shards: u64,
-    /// This job's index; default: SLURM_ARRAY_TASK_ID or JOB_COMPLETION_INDEX, else 0.
+    /// This job's index; default (when --num-shards > 1): SLURM_ARRAY_TASK_ID
+    /// or JOB_COMPLETION_INDEX, else 0.
     #[arg(long)]
     shard_index: Option<u64>,
     /// Scene side range LO..HI (inclusive), overriding the recipe.
@@ -72,11 +73,13 @@ pub fn run(args: Args) -> Result<()> {
     let Kind::TwoD = args.kind;
     init_threads(args.threads)?;
     let recipe = load_recipe(args.config.as_deref(), args.size_range.as_deref())?;
+    // The job index comes from the job array only when the work is split.
     let index = match args.shard_index {
         Some(i) => i,
-        None => JobSlice::index_from_env()
+        None if args.num_shards > 1 => JobSlice::index_from_env()
             .map_err(anyhow::Error::msg)?
             .unwrap_or(0),
+        None => 0,
     };
     let job = JobSlice {
         count: args.num_shards,

@@ -233,3 +233,41 @@ fn printed_recipe_round_trips_through_config() {
     assert!(out.status.success(), "{}", stderr(&out));
     assert!(out_dir.join("00000000/Finished.txt").is_file());
 }
+
+#[test]
+fn job_index_comes_from_the_array_environment_only_when_splitting() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("out");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "generate",
+            "--out",
+            out_dir.to_str().unwrap(),
+            "-n",
+            "4",
+            "--size-range",
+            "48..56",
+        ];
+        args.extend_from_slice(extra);
+        Command::new(env!("CARGO_BIN_EXE_matseg"))
+            .args(&args)
+            .env("SLURM_ARRAY_TASK_ID", "1")
+            .output()
+            .unwrap()
+    };
+    let out = run(&["--num-shards", "2"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let done: Vec<bool> = (0..4)
+        .map(|i| out_dir.join(format!("{i:08}/Finished.txt")).is_file())
+        .collect();
+    assert_eq!(
+        done,
+        vec![false, true, false, true],
+        "job 1 of 2 writes the odd samples"
+    );
+
+    // Not split: the array index is ignored and everything is written.
+    let out = run(&[]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!((0..4).all(|i| out_dir.join(format!("{i:08}/Finished.txt")).is_file()));
+}

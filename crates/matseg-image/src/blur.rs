@@ -73,6 +73,14 @@ pub struct Region {
 }
 
 impl Region {
+    /// No pixel at all.
+    pub const EMPTY: Region = Region {
+        x0: 0,
+        x1: 0,
+        y0: 0,
+        y1: 0,
+    };
+
     /// All of `plane`.
     pub fn whole(plane: &Plane) -> Self {
         Region {

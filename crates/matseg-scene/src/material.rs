@@ -108,12 +108,7 @@ pub fn add_material<R: Rng + ?Sized>(
     };
     // Pixels outside the weight's support are never read, so the shading
     // blur and the blending skip them.
-    let support = Region::support(weight).unwrap_or(Region {
-        x0: 0,
-        x1: 0,
-        y0: 0,
-        y1: 0,
-    });
+    let support = Region::support(weight).unwrap_or(Region::EMPTY);
     let shading = if rng.random_bool(recipe.p_shading) {
         Some(draw_shading(rng, recipe, photos, support, w, h)?)
     } else {
