@@ -10,8 +10,6 @@ DEMO_OUT ?= demo-out
 demo:
 	$(CARGO) run --release -p matseg-cli -- demo --out $(DEMO_OUT)
 
-## Formatting, lints and the whole test suite (what CI runs).
+## Formatting, lints and the whole test suite: exactly what CI runs.
 test:
-	$(CARGO) fmt --all -- --check
-	$(CARGO) clippy --workspace --all-targets --locked -- -D warnings
-	$(CARGO) test --workspace --locked
+	bash .ci/run
