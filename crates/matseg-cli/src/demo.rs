@@ -14,7 +14,7 @@ pub struct Args {
     #[arg(long, default_value = "demo-out")]
     out: PathBuf,
     /// Number of 2D samples.
-    #[arg(short = 'n', long, default_value_t = 36)]
+    #[arg(short = 'n', long = "samples", value_name = "N", default_value_t = 36)]
     n: u64,
     /// Seed.
     #[arg(long, default_value_t = 0)]

@@ -31,7 +31,7 @@ pub struct Args {
     #[arg(long)]
     out: PathBuf,
     /// Number of samples in the whole dataset.
-    #[arg(short = 'n', long)]
+    #[arg(short = 'n', long = "samples", value_name = "N")]
     n: u64,
     /// Dataset seed: sample i depends only on (seed, i).
     #[arg(long, default_value_t = 0)]

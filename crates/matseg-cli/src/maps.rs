@@ -18,7 +18,7 @@ pub struct Args {
     #[arg(long)]
     out: PathBuf,
     /// Number of maps.
-    #[arg(short = 'n', long, default_value_t = 4)]
+    #[arg(short = 'n', long = "maps", value_name = "K", default_value_t = 4)]
     n: usize,
     /// Seed.
     #[arg(long, default_value_t = 0)]
