@@ -271,3 +271,45 @@ fn job_index_comes_from_the_array_environment_only_when_splitting() {
     assert!(out.status.success(), "{}", stderr(&out));
     assert!((0..4).all(|i| out_dir.join(format!("{i:08}/Finished.txt")).is_file()));
 }
+
+#[test]
+fn flat_photos_are_a_one_line_error_and_leave_the_folder_reusable() {
+    let dir = tempfile::tempdir().unwrap();
+    let flat = dir.path().join("flat");
+    std::fs::create_dir(&flat).unwrap();
+    image::RgbImage::from_pixel(120, 80, image::Rgb([90, 90, 90]))
+        .save(flat.join("grey.png"))
+        .unwrap();
+    let out_dir = dir.path().join("out");
+    let generate = |sources: &str| {
+        matseg(&[
+            "generate",
+            "--out",
+            out_dir.to_str().unwrap(),
+            "-n",
+            "2",
+            "--size-range",
+            "48..64",
+            "--sources",
+            sources,
+        ])
+    };
+    let out = generate(flat.to_str().unwrap());
+    assert_one_line_error(
+        &out,
+        &format!(
+            "sample 0: {}: no usable soft map after 500 draws (are the photos flat?)",
+            flat.display()
+        ),
+    );
+    assert_eq!(
+        stderr(&out).matches("no usable soft map").count(),
+        1,
+        "said once"
+    );
+
+    // Nothing was written but the manifest: other sources may use the folder.
+    let out = generate(&assets("photos"));
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(out_dir.join("00000001/Finished.txt").is_file());
+}

@@ -125,12 +125,12 @@ pub enum GenerateError {
         reason: String,
     },
     /// A scene could not be generated.
-    #[error("sample {index}: {source}")]
+    #[error("sample {index}: {error}")]
     Scene {
         /// Sample index.
         index: u64,
-        /// Why.
-        source: SceneError,
+        /// Why (not a `source`: the message already says it, once).
+        error: SceneError,
     },
     /// The output folder holds a dataset made with other settings.
     #[error("{}: holds a dataset made with other settings ({reason}); choose another --out", path.display())]
@@ -172,8 +172,21 @@ pub fn sources_fingerprint(sources: Sources<'_>) -> String {
     format!("{h:016x}")
 }
 
+/// True when `dir` holds anything besides the manifest (samples, shards or
+/// their leftovers).
+fn holds_samples(dir: &Path) -> Result<bool, GenerateError> {
+    let listing = std::fs::read_dir(dir).map_err(io_err(dir))?;
+    Ok(listing
+        .filter_map(|e| e.ok())
+        .any(|e| e.file_name() != MANIFEST_FILE))
+}
+
+/// Checks the manifest of a folder against this run's settings, or writes
+/// it. A folder with a manifest but no samples (a run that failed before
+/// its first sample) takes the new settings.
 fn check_manifest(path: &Path, want: &DatasetManifest) -> Result<(), GenerateError> {
-    if path.is_file() {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    if path.is_file() && holds_samples(dir)? {
         let text = std::fs::read_to_string(path).map_err(io_err(path))?;
         let have: DatasetManifest =
             serde_json::from_str(&text).map_err(|e| GenerateError::Mismatch {
@@ -215,7 +228,7 @@ fn make_sample(
 ) -> Result<EncodedSample, GenerateError> {
     let mut rng = sample_rng(seed, index);
     let scene = generate_2d(&mut rng, recipe, sources)
-        .map_err(|source| GenerateError::Scene { index, source })?;
+        .map_err(|error| GenerateError::Scene { index, error })?;
     Ok(encode_scene(&scene, seed, index, sources))
 }
 

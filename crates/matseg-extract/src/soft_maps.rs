@@ -166,8 +166,13 @@ pub enum SoftMapError {
     #[error(transparent)]
     Library(#[from] LibraryError),
     /// No acceptable map after the allowed number of draws.
-    #[error("no usable soft map after {0} draws from the sources (are the photos flat?)")]
-    Exhausted(u32),
+    #[error("{sources}: no usable soft map after {draws} draws (are the photos flat?)")]
+    Exhausted {
+        /// The photo sources.
+        sources: String,
+        /// Draws made.
+        draws: u32,
+    },
 }
 
 /// Resizes-and-crops `photo` for a `w x h` window: upscaled only as far as
@@ -302,7 +307,10 @@ pub fn draw_channel_map<R: Rng + ?Sized>(
             return Ok(found);
         }
     }
-    Err(SoftMapError::Exhausted(recipe.max_map_draws))
+    Err(SoftMapError::Exhausted {
+        sources: library.label().to_string(),
+        draws: recipe.max_map_draws,
+    })
 }
 
 /// Combines raw maps into material weights (SPEC 1, step 6): optional blur,

@@ -149,6 +149,11 @@ impl PhotoLibrary {
         Ok((lib, report))
     }
 
+    /// The sources the library was scanned from, for messages.
+    pub fn label(&self) -> &str {
+        &self.label
+    }
+
     /// The listed photos, in draw order.
     pub fn entries(&self) -> &[PhotoEntry] {
         &self.entries
