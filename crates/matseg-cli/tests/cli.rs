@@ -313,3 +313,23 @@ fn flat_photos_are_a_one_line_error_and_leave_the_folder_reusable() {
     assert!(out.status.success(), "{}", stderr(&out));
     assert!(out_dir.join("00000001/Finished.txt").is_file());
 }
+
+#[test]
+fn demo_writes_a_page_showing_each_sample_and_its_annotation() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = matseg(&["demo", "--out", dir.path().to_str().unwrap(), "-n", "2"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let html = std::fs::read_to_string(dir.path().join("index.html")).unwrap();
+    for key in ["00000000", "00000001"] {
+        let image = format!("samples-2d/{key}/RGB__RGB.jpg");
+        let annotation = format!("previews/{key}_annotation.png");
+        assert!(
+            html.contains(&image) && html.contains(&annotation),
+            "{key} missing from the page"
+        );
+        let img = image::open(dir.path().join(&image)).unwrap();
+        let ann = image::open(dir.path().join(&annotation)).unwrap();
+        assert_eq!((img.width(), img.height()), (ann.width(), ann.height()));
+    }
+    assert!(!html.contains("00000002"));
+}
