@@ -8,6 +8,7 @@ use matseg_scene::{generate_2d, Recipe2d};
 use std::path::PathBuf;
 use std::time::Instant;
 
+/// Arguments of `matseg bench`.
 #[derive(clap::Args)]
 pub struct Args {
     /// Scenes per measurement.
@@ -38,6 +39,7 @@ struct Row {
     bytes: u64,
 }
 
+/// Runs `matseg bench`: measures each row and prints the table.
 pub fn run(args: Args) -> Result<()> {
     anyhow::ensure!(args.scenes >= 1, "--scenes must be at least 1");
     let libs = Libraries::load(&args.sources, &args.textures, args.cache_mb)?;

@@ -8,6 +8,7 @@ use matseg_scene::{colorize, Recipe2d};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
+/// Arguments of `matseg demo`.
 #[derive(clap::Args)]
 pub struct Args {
     /// Output folder for the samples and `index.html`.
@@ -24,6 +25,7 @@ pub struct Args {
     threads: Option<usize>,
 }
 
+/// Runs `matseg demo`: generates samples from the bundled assets and writes the HTML report.
 pub fn run(args: Args) -> Result<()> {
     init_threads(args.threads)?;
     let libs = Libraries::load(&[], &[], DEFAULT_CACHE_MB)?;

@@ -7,6 +7,7 @@ use matseg_data::{generate_dataset, Format, GenerateOptions, JobSlice};
 use std::path::PathBuf;
 use std::time::Instant;
 
+/// Scene kinds `generate` can make.
 #[derive(Clone, Copy, ValueEnum)]
 pub enum Kind {
     /// Textures mixed by soft maps over a photo background (SPEC section 2).
@@ -14,6 +15,7 @@ pub enum Kind {
     TwoD,
 }
 
+/// Output layouts, as command-line values.
 #[derive(Clone, Copy, ValueEnum)]
 pub enum FormatArg {
     /// One MatSeg folder per sample (RGB__RGB.jpg, mask0.png, ..., Finished.txt).
@@ -22,6 +24,7 @@ pub enum FormatArg {
     Wds,
 }
 
+/// Arguments of `matseg generate`.
 #[derive(clap::Args)]
 pub struct Args {
     /// Scene kind.
@@ -69,6 +72,7 @@ pub struct Args {
     cache_mb: usize,
 }
 
+/// Runs `matseg generate` with the parsed arguments.
 pub fn run(args: Args) -> Result<()> {
     let Kind::TwoD = args.kind;
     init_threads(args.threads)?;

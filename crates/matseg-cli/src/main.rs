@@ -1,6 +1,8 @@
 //! `matseg`: zero-shot material-state segmentation data engine. This binary
 //! only parses arguments and wires the library crates together.
 
+#![warn(missing_docs)]
+
 mod bench;
 mod common;
 mod demo;

@@ -10,6 +10,7 @@ use rand::Rng;
 use serde::Serialize;
 use std::path::PathBuf;
 
+/// Arguments of `matseg maps`.
 #[derive(clap::Args)]
 pub struct Args {
     /// The photo to cut maps from.
@@ -45,6 +46,7 @@ struct MapsFile {
     combine: matseg_extract::CombineRecord,
 }
 
+/// Runs `matseg maps`: draws the maps of one photo and writes them.
 pub fn run(args: Args) -> Result<()> {
     anyhow::ensure!(args.n >= 1, "-n must be at least 1");
     anyhow::ensure!(args.max_side >= 16, "--max-side must be at least 16");

@@ -1,6 +1,8 @@
 //! Datasets on disk: per-sample seeds, sidecars, the MatSeg folder layout,
 //! WebDataset tar shards, the resumable parallel writer and the reader.
 
+#![warn(missing_docs)]
+
 pub mod encode;
 pub mod folders;
 pub mod generate;

@@ -1,6 +1,8 @@
 //! From photos to material placements: the soft maps of SPEC section 1 (and,
 //! in later stages, uniform textures and PBR materials).
 
+#![warn(missing_docs)]
+
 pub mod soft_maps;
 
 pub use soft_maps::{

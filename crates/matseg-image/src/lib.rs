@@ -2,6 +2,8 @@
 //! threshold ramps, Gaussian blur, mip-pyramid resampling, image I/O and the
 //! bounded, decode-once photo library every generator draws from.
 
+#![warn(missing_docs)]
+
 pub mod blur;
 pub mod channel;
 pub mod color;

@@ -1,5 +1,7 @@
 //! Scene recipes: the 2D composer of SPEC section 2 with exact soft annotations.
 
+#![warn(missing_docs)]
+
 pub mod annotation;
 pub mod compose2d;
 pub mod material;
