@@ -322,7 +322,6 @@ pub fn combine_maps<R: Rng + ?Sized>(
     hard: bool,
     recipe: &SoftMapRecipe,
 ) -> (Vec<Plane>, Plane, CombineRecord) {
-    let (w, h) = (maps[0].width, maps[0].height);
     let blur_kernel = rng
         .random_bool(recipe.p_blur)
         .then(|| recipe.blur_kernels[rng.random_range(0..recipe.blur_kernels.len())]);
@@ -334,54 +333,78 @@ pub fn combine_maps<R: Rng + ?Sized>(
     } else {
         MapNormalisation::Priority
     };
-    // Every loop below runs over whole planes, so it vectorises.
     match normalisation {
-        MapNormalisation::Sum => {
-            let mut total = vec![0.0f32; w * h];
-            for m in &maps {
-                total.iter_mut().zip(&m.data).for_each(|(t, v)| *t += v);
-            }
-            for m in maps.iter_mut() {
-                for (v, &t) in m.data.iter_mut().zip(&total) {
-                    *v = if t > 0.0 { *v / t } else { *v };
-                }
-            }
-        }
-        MapNormalisation::Priority => {
-            let mut remaining = vec![1.0f32; w * h];
-            for m in maps.iter_mut() {
-                for (v, r) in m.data.iter_mut().zip(remaining.iter_mut()) {
-                    *v *= *r;
-                    *r = (*r - *v).max(0.0);
-                }
-            }
-        }
+        MapNormalisation::Sum => normalise_by_sum(&mut maps),
+        MapNormalisation::Priority => normalise_by_priority(&mut maps),
     }
     if hard {
-        // Arg-max per pixel (the first map wins ties), then one-hot.
-        let mut top = vec![f32::MIN; w * h];
-        let mut best = vec![0u8; w * h];
-        for (k, m) in maps.iter().enumerate() {
-            for ((t, b), &v) in top.iter_mut().zip(best.iter_mut()).zip(&m.data) {
-                if v > *t {
-                    *t = v;
-                    *b = k as u8;
-                }
-            }
+        make_one_hot(&mut maps, recipe.hard_min_weight as f32);
+    }
+    let background = background_weight(&maps);
+    let record = CombineRecord {
+        blur_kernel,
+        normalisation,
+        hard,
+    };
+    (maps, background, record)
+}
+
+// The plane-wise loops of combine_maps. Each runs over whole planes, so it
+// vectorises.
+
+/// Divides the maps by their sum wherever it is positive.
+fn normalise_by_sum(maps: &mut [Plane]) {
+    let mut total = vec![0.0f32; maps[0].len()];
+    for m in maps.iter() {
+        total.iter_mut().zip(&m.data).for_each(|(t, v)| *t += v);
+    }
+    for m in maps.iter_mut() {
+        for (v, &t) in m.data.iter_mut().zip(&total) {
+            *v = if t > 0.0 { *v / t } else { *v };
         }
-        let min = recipe.hard_min_weight as f32;
-        for (k, m) in maps.iter_mut().enumerate() {
-            for ((v, &b), &t) in m.data.iter_mut().zip(&best).zip(&top) {
-                *v = if b as usize == k && t >= min {
-                    1.0
-                } else {
-                    0.0
-                };
+    }
+}
+
+/// Each map keeps its share of what the earlier maps left.
+fn normalise_by_priority(maps: &mut [Plane]) {
+    let mut remaining = vec![1.0f32; maps[0].len()];
+    for m in maps.iter_mut() {
+        for (v, r) in m.data.iter_mut().zip(remaining.iter_mut()) {
+            *v *= *r;
+            *r = (*r - *v).max(0.0);
+        }
+    }
+}
+
+/// One-hot of the per-pixel arg-max (the first map wins ties); pixels whose
+/// top weight is below `min` become background.
+fn make_one_hot(maps: &mut [Plane], min: f32) {
+    let n = maps[0].len();
+    let mut top = vec![f32::MIN; n];
+    let mut best = vec![0u8; n];
+    for (k, m) in maps.iter().enumerate() {
+        for ((t, b), &v) in top.iter_mut().zip(best.iter_mut()).zip(&m.data) {
+            if v > *t {
+                *t = v;
+                *b = k as u8;
             }
         }
     }
-    let mut background = Plane::new(w, h, 1.0);
-    for m in &maps {
+    for (k, m) in maps.iter_mut().enumerate() {
+        for ((v, &b), &t) in m.data.iter_mut().zip(&best).zip(&top) {
+            *v = if b as usize == k && t >= min {
+                1.0
+            } else {
+                0.0
+            };
+        }
+    }
+}
+
+/// `1 - sum(maps)`, clamped to `[0, 1]`.
+fn background_weight(maps: &[Plane]) -> Plane {
+    let mut background = Plane::new(maps[0].width, maps[0].height, 1.0);
+    for m in maps {
         for (b, v) in background.data.iter_mut().zip(&m.data) {
             *b -= v;
         }
@@ -390,12 +413,7 @@ pub fn combine_maps<R: Rng + ?Sized>(
         .data
         .iter_mut()
         .for_each(|b| *b = b.clamp(0.0, 1.0));
-    let record = CombineRecord {
-        blur_kernel,
-        normalisation,
-        hard,
-    };
-    (maps, background, record)
+    background
 }
 
 /// Draws `k` soft maps for a `w x h` scene and combines them (all of SPEC 1).

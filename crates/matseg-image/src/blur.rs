@@ -39,7 +39,9 @@ fn reflect101(i: isize, n: usize) -> usize {
 }
 
 /// `out[x] = k0 * centre[x] + sum over pairs (k, a, b) of k * (a[x] + b[x])`,
-/// written over equal-length slices so the compiler vectorises it.
+/// written over equal-length slices so the compiler vectorises it; also
+/// compiled for AVX2, picked at run time when the CPU has it.
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
 fn symmetric_taps(out: &mut [f32], centre: &[f32], k0: f32, pairs: &[(f32, &[f32], &[f32])]) {
     let n = out.len();
     let centre = &centre[..n];

@@ -64,7 +64,7 @@ impl Plane {
 
     /// Count of values strictly greater than `t`.
     pub fn count_above(&self, t: f32) -> usize {
-        self.data.iter().filter(|&&v| v > t).count()
+        count_above(&self.data, t)
     }
 
     /// Count of values less than or equal to `t`.
@@ -99,6 +99,12 @@ impl Plane {
     pub fn to_u8(&self) -> Vec<u8> {
         self.data.iter().map(|&v| unit_to_u8(v)).collect()
     }
+}
+
+/// Count of `values` strictly greater than `t` (AVX2 when the CPU has it).
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+fn count_above(values: &[f32], t: f32) -> usize {
+    values.iter().filter(|&&v| v > t).count()
 }
 
 /// Maps a value in `[0, 1]` to `0..=255`, rounding to nearest and clamping.
