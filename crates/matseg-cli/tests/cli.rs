@@ -10,6 +10,13 @@ fn matseg(args: &[&str]) -> Output {
         .unwrap()
 }
 
+/// `matseg generate --out OUT -n 1 EXTRA...`.
+fn generate_one(out: &str, extra: &[&str]) -> Output {
+    let mut args = vec!["generate", "--out", out, "-n", "1"];
+    args.extend_from_slice(extra);
+    matseg(&args)
+}
+
 fn stderr(out: &Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
@@ -76,15 +83,7 @@ fn bad_inputs_are_one_line_errors() {
     let out_dir = dir.path().join("out");
     let out_s = out_dir.to_str().unwrap();
     let missing = dir.path().join("missing");
-    let out = matseg(&[
-        "generate",
-        "--out",
-        out_s,
-        "-n",
-        "1",
-        "--sources",
-        missing.to_str().unwrap(),
-    ]);
+    let out = generate_one(out_s, &["--sources", missing.to_str().unwrap()]);
     assert_one_line_error(
         &out,
         &format!("{}: no such file or folder", missing.display()),
@@ -92,49 +91,17 @@ fn bad_inputs_are_one_line_errors() {
 
     let empty = dir.path().join("empty");
     std::fs::create_dir(&empty).unwrap();
-    let out = matseg(&[
-        "generate",
-        "--out",
-        out_s,
-        "-n",
-        "1",
-        "--textures",
-        empty.to_str().unwrap(),
-    ]);
+    let out = generate_one(out_s, &["--textures", empty.to_str().unwrap()]);
     assert_one_line_error(&out, &format!("{}: no readable images", empty.display()));
 
-    let out = matseg(&[
-        "generate",
-        "--out",
-        out_s,
-        "-n",
-        "1",
-        "--size-range",
-        "900..400",
-    ]);
+    let out = generate_one(out_s, &["--size-range", "900..400"]);
     assert_one_line_error(&out, "--size-range 900..400: empty range: 900 > 400");
-    let out = matseg(&[
-        "generate",
-        "--out",
-        out_s,
-        "-n",
-        "1",
-        "--size-range",
-        "4..8",
-    ]);
+    let out = generate_one(out_s, &["--size-range", "4..8"]);
     assert_one_line_error(&out, "scene size range 4..8 must satisfy 16 <= min <= max");
 
     let config = dir.path().join("recipe.toml");
     std::fs::write(&config, "[scene]\np_hard = 2.0\n").unwrap();
-    let out = matseg(&[
-        "generate",
-        "--out",
-        out_s,
-        "-n",
-        "1",
-        "--config",
-        config.to_str().unwrap(),
-    ]);
+    let out = generate_one(out_s, &["--config", config.to_str().unwrap()]);
     assert_one_line_error(
         &out,
         &format!(
@@ -143,28 +110,10 @@ fn bad_inputs_are_one_line_errors() {
         ),
     );
     std::fs::write(&config, "[scene\n").unwrap();
-    let out = matseg(&[
-        "generate",
-        "--out",
-        out_s,
-        "-n",
-        "1",
-        "--config",
-        config.to_str().unwrap(),
-    ]);
+    let out = generate_one(out_s, &["--config", config.to_str().unwrap()]);
     assert_one_line_error(&out, &format!("{}: invalid recipe:", config.display()));
 
-    let out = matseg(&[
-        "generate",
-        "--out",
-        out_s,
-        "-n",
-        "1",
-        "--num-shards",
-        "2",
-        "--shard-index",
-        "5",
-    ]);
+    let out = generate_one(out_s, &["--num-shards", "2", "--shard-index", "5"]);
     assert_one_line_error(&out, "shard index 5 is not below the number of shards 2");
 
     let bad = dir.path().join("bad.png");
