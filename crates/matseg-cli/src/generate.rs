@@ -104,13 +104,7 @@ pub fn run(args: Args) -> Result<()> {
         shard_size: args.shard_size,
         job,
     };
-    let mine = match opts.format {
-        Format::Folders => (0..opts.n).filter(|i| i % job.count == job.index).count() as u64,
-        Format::Wds => (0..opts.n)
-            .filter(|i| (i / opts.shard_size.max(1)) % job.count == job.index)
-            .count() as u64,
-    };
-    let bar = progress_bar(mine, "samples");
+    let bar = progress_bar(opts.samples_in_job(), "samples");
     let start = Instant::now();
     let report = generate_dataset(&opts, &recipe, libs.sources(), &|k| bar.inc(k))?;
     bar.finish_and_clear();

@@ -79,6 +79,29 @@ pub struct GenerateOptions {
     pub job: JobSlice,
 }
 
+impl GenerateOptions {
+    /// The work unit of sample `index`: the sample itself for folders, its
+    /// shard for WebDataset.
+    fn unit_of(&self, index: u64) -> u64 {
+        match self.format {
+            Format::Folders => index,
+            Format::Wds => index / self.shard_size.max(1),
+        }
+    }
+
+    /// Whether this job does work unit `unit`.
+    fn owns_unit(&self, unit: u64) -> bool {
+        unit % self.job.count == self.job.index
+    }
+
+    /// Number of samples this job writes (or finds complete).
+    pub fn samples_in_job(&self) -> u64 {
+        (0..self.n)
+            .filter(|&i| self.owns_unit(self.unit_of(i)))
+            .count() as u64
+    }
+}
+
 /// The settings a dataset was made with, stored as `dataset.json`; a resumed
 /// run must match them.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -258,7 +281,7 @@ pub fn generate_dataset(
         recipe: recipe.clone(),
     };
     check_manifest(&opts.out.join(MANIFEST_FILE), &manifest)?;
-    let mine = |unit: u64| unit % opts.job.count == opts.job.index;
+    let mine = |unit: u64| opts.owns_unit(unit);
     match opts.format {
         Format::Folders => generate_folders(opts, recipe, sources, progress, &mine),
         Format::Wds => generate_shards(opts, recipe, sources, progress, &mine),

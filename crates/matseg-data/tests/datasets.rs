@@ -244,3 +244,22 @@ fn reading_a_folder_without_samples_is_an_error() {
         "{err}"
     );
 }
+
+#[test]
+fn a_job_counts_the_samples_of_its_own_units() {
+    let dir = tempfile::tempdir().unwrap();
+    let folders = options(
+        dir.path(),
+        5,
+        Format::Folders,
+        JobSlice { count: 2, index: 1 },
+    );
+    assert_eq!(folders.samples_in_job(), 2, "samples 1 and 3");
+    // Shards of 3: job 0 of 2 owns shards 0 and 2, i.e. samples 0-2 and 6.
+    let shards = options(dir.path(), 7, Format::Wds, JobSlice { count: 2, index: 0 });
+    assert_eq!(shards.samples_in_job(), 4);
+    assert_eq!(
+        options(dir.path(), 7, Format::Wds, JobSlice::ALL).samples_in_job(),
+        7
+    );
+}
