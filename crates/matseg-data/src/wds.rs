@@ -3,6 +3,7 @@
 //! name and renamed when complete.
 
 use crate::encode::EncodedSample;
+use matseg_image::io::temporary_path;
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
@@ -51,9 +52,7 @@ pub struct ShardWriter {
 impl ShardWriter {
     /// Starts shard file `path` (written as `path.tmp` until finished).
     pub fn create(path: PathBuf) -> io::Result<Self> {
-        let mut tmp = path.clone().into_os_string();
-        tmp.push(".tmp");
-        let tmp = PathBuf::from(tmp);
+        let tmp = temporary_path(&path);
         let file = std::fs::File::create(&tmp)?;
         let mut tar = tar::Builder::new(io::BufWriter::new(file));
         tar.mode(tar::HeaderMode::Deterministic);

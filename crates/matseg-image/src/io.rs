@@ -113,12 +113,18 @@ pub fn encode_png_rgb(img: &RgbImage) -> Vec<u8> {
     )
 }
 
-/// Writes `bytes` to `path` through a temporary sibling renamed into place, so
-/// a reader never sees a half-written file.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+/// Where a file is written before it is renamed to `path`: `path` + `.tmp`.
+/// Readers skip such names, so a half-written file is never taken as whole.
+pub fn temporary_path(path: &Path) -> PathBuf {
     let mut tmp = path.as_os_str().to_owned();
     tmp.push(".tmp");
-    let tmp = PathBuf::from(tmp);
+    PathBuf::from(tmp)
+}
+
+/// Writes `bytes` to `path` through [`temporary_path`] renamed into place, so
+/// a reader never sees a half-written file.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let tmp = temporary_path(path);
     std::fs::write(&tmp, bytes)?;
     std::fs::rename(&tmp, path)
 }
