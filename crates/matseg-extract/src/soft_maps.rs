@@ -2,7 +2,8 @@
 //! gives a map with natural-image shapes; K of them become material weights.
 
 use matseg_image::{
-    gaussian_blur, Channel, LibraryError, Photo, PhotoLibrary, Placement, Plane, Ramp,
+    gaussian_blur, level_values, Channel, ChannelWindow, LevelTable, LibraryError, Photo,
+    PhotoLibrary, Placement, Plane, Ramp,
 };
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -217,7 +218,7 @@ pub fn random_photo_channel<R: Rng + ?Sized>(
     h: usize,
     p_downscale: f64,
     p_hsv: f64,
-) -> (Plane, Placement, Channel) {
+) -> (ChannelWindow, Placement) {
     let placement = random_placement(rng, photo, w, h, p_downscale, false);
     let channels = if rng.random_bool(p_hsv) {
         Channel::HSV
@@ -228,12 +229,13 @@ pub fn random_photo_channel<R: Rng + ?Sized>(
     (
         photo.pyramid.sample_channel(&placement, w, h, channel),
         placement,
-        channel,
     )
 }
 
 /// One attempt at a map from one photo: `None` when the photo gives no
-/// acceptable threshold (the caller draws another photo).
+/// acceptable threshold (the caller draws another photo). The thresholds are
+/// searched on the window's level histogram; the map is one table lookup
+/// per pixel.
 fn try_map_from_photo<R: Rng + ?Sized>(
     rng: &mut R,
     photo: &Photo,
@@ -243,19 +245,22 @@ fn try_map_from_photo<R: Rng + ?Sized>(
     hard: bool,
     recipe: &SoftMapRecipe,
 ) -> Option<(Plane, MapRecord)> {
-    let (mut plane, placement, channel) =
+    let (window, placement) =
         random_photo_channel(rng, photo, w, h, recipe.p_downscale, recipe.p_hsv_channel);
+    let histogram = window.histogram();
     let normalised_by_max = rng.random_bool(recipe.p_normalise_by_max);
-    if normalised_by_max {
-        plane.normalise_by_max();
-    }
+    let values = level_values(if normalised_by_max {
+        histogram.max_level()
+    } else {
+        255
+    });
 
-    let n = plane.len() as f64;
+    let n = window.levels.len() as f64;
     let min_side = recipe.min_side_fraction * n;
     let mut accepted = None;
     for _ in 0..recipe.high_threshold_tries {
         let t: f32 = rng.random();
-        let above = plane.count_above(t) as f64;
+        let above = histogram.count_above(&values, t) as f64;
         if above > min_side && above <= max_occupancy * n {
             accepted = Some((t, above));
             break;
@@ -267,7 +272,7 @@ fn try_map_from_photo<R: Rng + ?Sized>(
     if !hard && !rng.random_bool(recipe.p_binary) {
         for _ in 0..recipe.low_threshold_tries {
             let t = rng.random::<f32>() * high;
-            let below = plane.count_at_or_below(t) as f64;
+            let below = n - histogram.count_above(&values, t) as f64;
             let band = n - above - below;
             if below > min_side && band < recipe.max_band_to_side_ratio * above.min(below) {
                 low = t;
@@ -276,18 +281,18 @@ fn try_map_from_photo<R: Rng + ?Sized>(
         }
     }
     let ramp = Ramp { low, high };
-    ramp.apply_all(&mut plane.data);
-    if !plane.mass_at_least(recipe.min_map_mass) {
+    let table: LevelTable = values.map(|v| ramp.apply(v));
+    if histogram.weighted_sum(&table) < recipe.min_map_mass {
         return None;
     }
     let record = MapRecord {
         photo: photo.index,
         placement,
-        channel,
+        channel: window.channel,
         normalised_by_max,
         ramp,
     };
-    Some((plane, record))
+    Some((window.map_levels(&table), record))
 }
 
 /// Draws one soft map of size `w x h` (SPEC 1, steps 1-5), redrawing photos

@@ -1,14 +1,18 @@
-//! Pixels for matseg: float planes and RGB images, colour channels (RGB/HSV),
+//! Pixels for matseg: float planes and RGB images, colour channels (RGB/HSV)
+//! on 8-bit levels and their histograms,
 //! threshold ramps, Gaussian blur, mip-pyramid resampling, image I/O and the
 //! bounded, decode-once photo library every generator draws from.
 
 #![warn(missing_docs)]
 
+pub mod bilinear;
 pub mod blur;
 pub mod channel;
 pub mod color;
 pub mod io;
+pub mod levels;
 pub mod library;
+pub mod orientation;
 pub mod plane;
 pub mod ramp;
 pub mod resample;
@@ -17,7 +21,9 @@ pub mod rgb;
 pub use blur::{gaussian_blur, gaussian_blur_region, Region};
 pub use channel::Channel;
 pub use io::ImageIoError;
+pub use levels::{level_values, ChannelWindow, LevelHistogram, LevelTable};
 pub use library::{LibraryError, Photo, PhotoLibrary, ScanReport, SkippedFile};
+pub use orientation::Orientation;
 pub use plane::Plane;
 pub use ramp::Ramp;
 pub use resample::{Placement, PointSampler, Pyramid};

@@ -45,26 +45,9 @@ impl Plane {
         self.data.iter().map(|&v| v as f64).sum()
     }
 
-    /// True when the sum of all values reaches `mass` (stops as soon as it does).
-    pub fn mass_at_least(&self, mass: f64) -> bool {
-        let mut total = 0.0f64;
-        for chunk in self.data.chunks(4096) {
-            total += chunk.iter().map(|&v| v as f64).sum::<f64>();
-            if total >= mass {
-                return true;
-            }
-        }
-        total >= mass
-    }
-
-    /// The largest value (`0` for an empty plane).
-    pub fn max(&self) -> f32 {
-        self.data.iter().copied().fold(0.0, f32::max)
-    }
-
     /// Count of values strictly greater than `t`.
     pub fn count_above(&self, t: f32) -> usize {
-        count_above(&self.data, t)
+        self.data.iter().filter(|&&v| v > t).count()
     }
 
     /// Count of values less than or equal to `t`.
@@ -82,29 +65,10 @@ impl Plane {
         self.data.is_empty()
     }
 
-    /// Multiplies every value by `k` in place.
-    pub fn scale(&mut self, k: f32) {
-        self.data.iter_mut().for_each(|v| *v *= k);
-    }
-
-    /// Divides every value by the largest one (no change when it is 0).
-    pub fn normalise_by_max(&mut self) {
-        let max = self.max();
-        if max > 0.0 {
-            self.scale(1.0 / max);
-        }
-    }
-
     /// Values in `[0, 1]` to 8-bit, rounded and clamped.
     pub fn to_u8(&self) -> Vec<u8> {
         self.data.iter().map(|&v| unit_to_u8(v)).collect()
     }
-}
-
-/// Count of `values` strictly greater than `t` (AVX2 when the CPU has it).
-#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
-fn count_above(values: &[f32], t: f32) -> usize {
-    values.iter().filter(|&&v| v > t).count()
 }
 
 /// Maps a value in `[0, 1]` to `0..=255`, rounding to nearest and clamping.
@@ -121,14 +85,7 @@ mod tests {
         let p = Plane::from_vec(2, 2, vec![0.1, 0.5, 0.5, 0.9]);
         assert_eq!(p.count_above(0.5), 1);
         assert_eq!(p.count_at_or_below(0.5), 3);
-        assert_eq!(p.max(), 0.9);
         assert!((p.sum() - 2.0).abs() < 1e-6);
         assert_eq!(p.to_u8(), vec![26, 128, 128, 230]);
-        assert!(p.mass_at_least(2.0 - 1e-6));
-        assert!(!p.mass_at_least(2.1));
-        let mut q = p.clone();
-        q.normalise_by_max();
-        assert_eq!(q.max(), 1.0);
-        assert!((q.data[0] - 0.1 / 0.9).abs() < 1e-6);
     }
 }

@@ -1,140 +1,145 @@
 //! Resampling through a mip pyramid: "resize to W'xH', then crop a window" done
 //! in one pass that only computes the output pixels.
 
-use crate::channel::Channel;
-use crate::plane::Plane;
+use crate::bilinear::{blend_pair, blend_rows, pack_weight, ColumnTaps, WEIGHT_ONE};
+use crate::channel::{hue_level, saturation_level, Channel};
+use crate::levels::ChannelWindow;
 use crate::rgb::RgbF32;
 use image::RgbImage;
 use serde::{Deserialize, Serialize};
 
 /// Levels stop once the next one would have a side shorter than this.
-const MIN_LEVEL_SIDE: u32 = 32;
+const MIN_LEVEL_SIDE: usize = 32;
+
+/// One level of a pyramid: the R, G and B planes of an 8-bit image.
+#[derive(Clone, Debug)]
+struct Level {
+    width: usize,
+    height: usize,
+    planes: [Vec<u8>; 3],
+}
+
+impl Level {
+    fn from_rgb8(img: &RgbImage) -> Self {
+        let raw = img.as_raw();
+        Self {
+            width: img.width() as usize,
+            height: img.height() as usize,
+            planes: std::array::from_fn(|c| raw.iter().skip(c).step_by(3).copied().collect()),
+        }
+    }
+
+    /// The 2x2 box average, or `None` when it would be too small.
+    fn halved(&self) -> Option<Self> {
+        let (w, h) = (self.width / 2, self.height / 2);
+        if w.min(h) < MIN_LEVEL_SIDE {
+            return None;
+        }
+        let planes = std::array::from_fn(|c| {
+            let src = &self.planes[c];
+            let mut out = Vec::with_capacity(w * h);
+            for y in 0..h {
+                let top = &src[2 * y * self.width..][..2 * w];
+                let bottom = &src[(2 * y + 1) * self.width..][..2 * w];
+                out.extend(
+                    top.chunks_exact(2)
+                        .zip(bottom.chunks_exact(2))
+                        .map(|(t, b)| {
+                            ((t[0] as u16 + t[1] as u16 + b[0] as u16 + b[1] as u16 + 2) / 4) as u8
+                        }),
+                );
+            }
+            out
+        });
+        Some(Self {
+            width: w,
+            height: h,
+            planes,
+        })
+    }
+}
 
 /// An 8-bit RGB image and its successive 2x2 box-averaged halvings, so that
 /// strong downscaling reads a level close to the target scale (no aliasing).
+/// Stored as planes: sampling one channel reads only its own bytes.
 #[derive(Clone, Debug)]
 pub struct Pyramid {
-    levels: Vec<RgbImage>,
+    levels: Vec<Level>,
 }
 
 impl Pyramid {
     /// Builds the pyramid of `img` (level 0 is `img` itself).
     pub fn new(img: RgbImage) -> Self {
-        let mut levels = vec![img];
-        loop {
-            let last = levels.last().expect("at least one level");
-            let (w, h) = (last.width() / 2, last.height() / 2);
-            if w.min(h) < MIN_LEVEL_SIDE {
-                break;
-            }
-            let next = RgbImage::from_fn(w, h, |x, y| {
-                let mut px = [0u8; 3];
-                for (c, out) in px.iter_mut().enumerate() {
-                    let sum: u32 = [(0, 0), (1, 0), (0, 1), (1, 1)]
-                        .iter()
-                        .map(|&(dx, dy)| last.get_pixel(2 * x + dx, 2 * y + dy)[c] as u32)
-                        .sum();
-                    *out = ((sum + 2) / 4) as u8;
-                }
-                image::Rgb(px)
-            });
+        let mut levels = vec![Level::from_rgb8(&img)];
+        while let Some(next) = levels.last().and_then(Level::halved) {
             levels.push(next);
         }
         Self { levels }
     }
 
-    /// The full-resolution image.
-    pub fn base(&self) -> &RgbImage {
-        &self.levels[0]
-    }
-
     /// Width of the full-resolution image.
     pub fn width(&self) -> u32 {
-        self.levels[0].width()
+        self.levels[0].width as u32
     }
 
     /// Height of the full-resolution image.
     pub fn height(&self) -> u32 {
-        self.levels[0].height()
+        self.levels[0].height as u32
     }
 
     /// Bytes held by all levels.
     pub fn bytes(&self) -> usize {
-        self.levels.iter().map(|l| l.as_raw().len()).sum()
+        self.levels.iter().map(|l| 3 * l.width * l.height).sum()
     }
 
-    /// Samples the window `placement` selects, `out_w x out_h` pixels, mapping
-    /// each bilinearly interpolated RGB (0..255) pixel through `f`.
-    pub fn sample_with<T>(
+    /// Plane `lane` (0 = R, 1 = G, 2 = B) of the window `placement` selects,
+    /// `out_w x out_h` pixels.
+    ///
+    /// Bilinear in fixed point on 8-bit pixels, rounded back to 8 bits, as
+    /// OpenCV resizes `uint8` images: rows are blended first, then columns
+    /// (see [`crate::bilinear`]).
+    fn sample_plane(
         &self,
         placement: &Placement,
         out_w: usize,
         out_h: usize,
-        f: impl Fn([f32; 3]) -> T,
-    ) -> Vec<T> {
-        self.sample_lanes(
-            placement,
-            out_w,
-            out_h,
-            |p| [p[0] as f32, p[1] as f32, p[2] as f32],
-            f,
-        )
-    }
-
-    /// The sampling core: `pick` takes the `N` lanes to interpolate from an
-    /// RGB8 pixel (one colour channel, or all three), `f` maps the result.
-    fn sample_lanes<const N: usize, T>(
-        &self,
-        placement: &Placement,
-        out_w: usize,
-        out_h: usize,
-        pick: impl Fn(&[u8]) -> [f32; N],
-        f: impl Fn([f32; N]) -> T,
-    ) -> Vec<T> {
+        lane: usize,
+    ) -> Vec<u8> {
+        let mut out = vec![0u8; out_w * out_h];
+        if out.is_empty() {
+            return out;
+        }
         let fx = self.width() as f64 / placement.resized_w as f64;
         let fy = self.height() as f64 / placement.resized_h as f64;
-        let mut out = Vec::with_capacity(out_w * out_h);
         if fx == 1.0 && fy == 1.0 {
             // Native resolution: a plain crop, no interpolation.
-            let img = &self.levels[0];
-            let stride = img.width() as usize * 3;
-            let raw = img.as_raw();
-            for y in 0..out_h {
-                let row = (y + placement.y0 as usize) * stride + placement.x0 as usize * 3;
-                out.extend(
-                    raw[row..row + out_w * 3]
-                        .chunks_exact(3)
-                        .map(|p| f(pick(p))),
-                );
+            let level = &self.levels[0];
+            let src = &level.planes[lane];
+            for (y, out_row) in out.chunks_exact_mut(out_w).enumerate() {
+                let start = (y + placement.y0 as usize) * level.width + placement.x0 as usize;
+                out_row.copy_from_slice(&src[start..start + out_w]);
             }
             return out;
         }
-        let (img, cols, rows) = self.grid(placement, out_w, out_h);
-        // Source columns the window touches; rows are blended over this span only.
-        let first = cols.first().map_or(0, |c| c.0);
-        let last = cols.last().map_or(0, |c| c.1);
-        let raw = img.as_raw();
-        let stride = img.width() as usize * 3;
-        let mut blended = vec![[0f32; N]; last - first + 1];
-        for &(y0, y1, wy) in &rows {
-            let r0 = &raw[y0 * stride + first * 3..y0 * stride + (last + 1) * 3];
-            let r1 = &raw[y1 * stride + first * 3..y1 * stride + (last + 1) * 3];
-            for ((b, a), c) in blended
-                .iter_mut()
-                .zip(r0.chunks_exact(3))
-                .zip(r1.chunks_exact(3))
-            {
-                let (a, c) = (pick(a), pick(c));
-                for lane in 0..N {
-                    b[lane] = a[lane] + (c[lane] - a[lane]) * wy;
-                }
-            }
-            out.extend(cols.iter().map(|&(x0, x1, wx)| {
-                let (a, b) = (blended[x0 - first], blended[x1 - first]);
-                f(std::array::from_fn(|lane| {
-                    a[lane] + (b[lane] - a[lane]) * wx
-                }))
-            }));
+        let (level, cols, rows) = self.grid(placement, out_w, out_h);
+        let src = &level.planes[lane];
+        // Source columns the window touches; rows are blended over this span
+        // only, plus one copy of its last value so that every column tap
+        // reads a pair (the pair at the right edge is that value twice).
+        let first = cols[0].first;
+        let span = cols[cols.len() - 1].second - first + 1;
+        let taps = ColumnTaps::new(cols.iter().map(|c| (c.first - first, c.weight)));
+        let mut blended = vec![0i16; span + 1];
+        for (row, out_row) in rows.iter().zip(out.chunks_exact_mut(out_w)) {
+            let at = |y: usize| &src[y * level.width + first..][..span];
+            blend_rows(
+                at(row.first),
+                at(row.second),
+                row.weight,
+                &mut blended[..span],
+            );
+            blended[span] = blended[span - 1];
+            taps.blend(&blended, out_row);
         }
         out
     }
@@ -146,7 +151,7 @@ impl Pyramid {
         placement: &Placement,
         out_w: usize,
         out_h: usize,
-    ) -> (&RgbImage, Vec<Tap>, Vec<Tap>) {
+    ) -> (&Level, Vec<Tap>, Vec<Tap>) {
         let fx = self.width() as f64 / placement.resized_w as f64;
         let fy = self.height() as f64 / placement.resized_h as f64;
         let shrink = fx.min(fy);
@@ -157,8 +162,8 @@ impl Pyramid {
         };
         let img = &self.levels[level];
         let step = (1u64 << level) as f64;
-        let cols = axis_taps(out_w, placement.x0, fx / step, img.width());
-        let rows = axis_taps(out_h, placement.y0, fy / step, img.height());
+        let cols = axis_taps(out_w, placement.x0, fx / step, img.width);
+        let rows = axis_taps(out_h, placement.y0, fy / step, img.height);
         (img, cols, rows)
     }
 
@@ -170,40 +175,70 @@ impl Pyramid {
         out_w: usize,
         out_h: usize,
     ) -> PointSampler<'_> {
-        let (img, cols, rows) = self.grid(placement, out_w, out_h);
-        PointSampler { img, cols, rows }
+        let (level, cols, rows) = self.grid(placement, out_w, out_h);
+        PointSampler { level, cols, rows }
     }
 
-    /// The selected window as a float RGB image.
+    /// The R, G and B planes of the selected window.
+    pub fn sample_planes(&self, placement: &Placement, out_w: usize, out_h: usize) -> [Vec<u8>; 3] {
+        std::array::from_fn(|lane| self.sample_plane(placement, out_w, out_h, lane))
+    }
+
+    /// The selected window as a float RGB image (whole 0..255 values).
     pub fn sample_rgb(&self, placement: &Placement, out_w: usize, out_h: usize) -> RgbF32 {
+        let [r, g, b] = self.sample_planes(placement, out_w, out_h);
+        let data = r
+            .iter()
+            .zip(&g)
+            .zip(&b)
+            .map(|((&r, &g), &b)| [r as f32, g as f32, b as f32])
+            .collect();
         RgbF32 {
             width: out_w,
             height: out_h,
-            data: self.sample_with(placement, out_w, out_h, |p| p),
+            data,
         }
     }
 
-    /// One channel of the selected window, on the channel's full range `[0, 1]`.
+    /// One channel of the selected window, as 8-bit levels: the RGB window
+    /// is resampled first and then converted, as the original does.
     pub fn sample_channel(
         &self,
         placement: &Placement,
         out_w: usize,
         out_h: usize,
         channel: Channel,
-    ) -> Plane {
-        // Colour channels interpolate one lane; HSV needs all three. One
-        // closure per channel, so each loop is specialised.
-        let one = |lane: usize| move |p: &[u8]| [p[lane] as f32];
-        let unit = |v: [f32; 1]| v[0] / 255.0;
-        let data = match channel {
-            Channel::R => self.sample_lanes(placement, out_w, out_h, one(0), unit),
-            Channel::G => self.sample_lanes(placement, out_w, out_h, one(1), unit),
-            Channel::B => self.sample_lanes(placement, out_w, out_h, one(2), unit),
-            Channel::H => self.sample_with(placement, out_w, out_h, |p| Channel::H.value(p)),
-            Channel::S => self.sample_with(placement, out_w, out_h, |p| Channel::S.value(p)),
-            Channel::V => self.sample_with(placement, out_w, out_h, |p| Channel::V.value(p)),
+    ) -> ChannelWindow {
+        let levels = match channel {
+            Channel::R => self.sample_plane(placement, out_w, out_h, 0),
+            Channel::G => self.sample_plane(placement, out_w, out_h, 1),
+            Channel::B => self.sample_plane(placement, out_w, out_h, 2),
+            Channel::H => self.sample_converted(placement, out_w, out_h, hue_level),
+            Channel::S => self.sample_converted(placement, out_w, out_h, saturation_level),
+            Channel::V => self.sample_converted(placement, out_w, out_h, |p| Channel::V.level(p)),
         };
-        Plane::from_vec(out_w, out_h, data)
+        ChannelWindow {
+            width: out_w,
+            height: out_h,
+            channel,
+            levels,
+        }
+    }
+
+    /// The RGB window mapped pixel by pixel through `convert`.
+    fn sample_converted(
+        &self,
+        placement: &Placement,
+        out_w: usize,
+        out_h: usize,
+        convert: impl Fn([u8; 3]) -> u8,
+    ) -> Vec<u8> {
+        let [r, g, b] = self.sample_planes(placement, out_w, out_h);
+        r.iter()
+            .zip(&g)
+            .zip(&b)
+            .map(|((&r, &g), &b)| convert([r, g, b]))
+            .collect()
     }
 
     /// The whole image resized to `w x h`.
@@ -218,13 +253,18 @@ impl Pyramid {
     }
 }
 
-/// Two source indices and the weight of the second.
-type Tap = (usize, usize, f32);
+/// Two source indices along one axis and the weight of the second, in 128ths.
+#[derive(Clone, Copy, Debug)]
+struct Tap {
+    first: usize,
+    second: usize,
+    weight: i32,
+}
 
 /// Bilinear samples of single pixels of a placed window (see
 /// [`Pyramid::point_sampler`]); equal to the same pixels of [`Pyramid::sample_rgb`].
 pub struct PointSampler<'a> {
-    img: &'a RgbImage,
+    level: &'a Level,
     cols: Vec<Tap>,
     rows: Vec<Tap>,
 }
@@ -233,33 +273,35 @@ impl PointSampler<'_> {
     /// The RGB (0..255) value of window pixel `(x, y)`.
     #[inline]
     pub fn rgb(&self, x: usize, y: usize) -> [f32; 3] {
-        let (x0, x1, wx) = self.cols[x];
-        let (y0, y1, wy) = self.rows[y];
-        let raw = self.img.as_raw();
-        let stride = self.img.width() as usize * 3;
-        let px = |xx: usize, yy: usize, c: usize| raw[yy * stride + xx * 3 + c] as f32;
+        let (col, row) = (self.cols[x], self.rows[y]);
+        let (w, keep) = (self.level.width, (WEIGHT_ONE - row.weight) as i16);
+        let packed = pack_weight(col.weight);
         std::array::from_fn(|c| {
-            let a = px(x0, y0, c) + (px(x0, y1, c) - px(x0, y0, c)) * wy;
-            let b = px(x1, y0, c) + (px(x1, y1, c) - px(x1, y0, c)) * wy;
-            a + (b - a) * wx
+            let src = &self.level.planes[c];
+            let blend_row = |xx: usize| {
+                src[row.first * w + xx] as i16 * keep
+                    + src[row.second * w + xx] as i16 * row.weight as i16
+            };
+            blend_pair(blend_row(col.first), blend_row(col.second), packed) as f32
         })
     }
 }
 
 /// For each output index along one axis: the two source indices and the
 /// weight of the second, for a source sampled at `step` pixels per output pixel.
-fn axis_taps(n: usize, offset: u32, step: f64, src_len: u32) -> Vec<Tap> {
+fn axis_taps(n: usize, offset: u32, step: f64, src_len: usize) -> Vec<Tap> {
     let last = src_len as i64 - 1;
     (0..n)
         .map(|i| {
             let u = ((i as f64 + offset as f64 + 0.5) * step - 0.5).max(0.0);
-            let i0 = (u.floor() as i64).min(last);
-            let i1 = (i0 + 1).min(last);
-            (
-                i0 as usize,
-                i1 as usize,
-                (u - i0 as f64).clamp(0.0, 1.0) as f32,
-            )
+            let first = (u.floor() as i64).min(last);
+            let second = (first + 1).min(last);
+            let fraction = (u - first as f64).clamp(0.0, 1.0);
+            Tap {
+                first: first as usize,
+                second: second as usize,
+                weight: (fraction * WEIGHT_ONE as f64).round() as i32,
+            }
         })
         .collect()
 }
@@ -370,8 +412,8 @@ mod tests {
         let img = RgbImage::from_fn(128, 64, |x, _| image::Rgb([(x % 2) as u8 * 200, 0, 0]));
         let p = Pyramid::new(img);
         assert_eq!(p.levels.len(), 2);
-        assert_eq!(p.levels[1].dimensions(), (64, 32));
-        assert!(p.levels[1].pixels().all(|px| px[0] == 100));
+        assert_eq!((p.levels[1].width, p.levels[1].height), (64, 32));
+        assert!(p.levels[1].planes[0].iter().all(|&v| v == 100));
         // A 4x downscale reads the averaged level, not aliased columns.
         let out = p.resize_rgb(32, 16);
         assert!(out.data.iter().all(|px| (px[0] - 100.0).abs() < 1e-3));

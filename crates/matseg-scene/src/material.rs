@@ -5,8 +5,8 @@ use crate::recipe::CompositionRecipe;
 use matseg_extract::random_photo_channel;
 use matseg_image::color::rotate_hue;
 use matseg_image::{
-    gaussian_blur_region, Channel, LibraryError, Photo, PhotoLibrary, Placement, Plane,
-    PointSampler, Pyramid, Region, RgbF32,
+    gaussian_blur_region, level_values, Channel, LibraryError, Orientation, Photo, PhotoLibrary,
+    Placement, Plane, PointSampler, Region, RgbF32,
 };
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -99,9 +99,9 @@ pub fn add_material<R: Rng + ?Sized>(
     acc: &mut RgbF32,
 ) -> Result<MaterialRecord, LibraryError> {
     let (w, h) = (weight.width, weight.height);
-    let (pixels, source) = if rng.random_bool(recipe.p_texture) {
-        let (pixels, source) = draw_texture(rng, recipe, textures, w, h)?;
-        (Some(pixels), source)
+    let (texture, source) = if rng.random_bool(recipe.p_texture) {
+        let (texture, source) = draw_texture(rng, recipe, textures, w, h)?;
+        (Some(texture), source)
     } else {
         let rgb = [rng.random::<u8>(), rng.random::<u8>(), rng.random::<u8>()];
         (None, MaterialSource::FlatColour { rgb })
@@ -115,7 +115,7 @@ pub fn add_material<R: Rng + ?Sized>(
         None
     };
 
-    let colour = Colour::new(&source, pixels.as_ref(), w, h);
+    let colour = Colour::new(&source, texture.as_deref(), w, h);
     let hue = match &source {
         MaterialSource::Texture {
             hue_shift_degrees, ..
@@ -147,23 +147,6 @@ pub fn add_material<R: Rng + ?Sized>(
     })
 }
 
-/// A texture's pixels after its rotation and flips.
-enum TexturePixels {
-    /// Untransformed: the library's cached pyramid.
-    Shared(Arc<Photo>),
-    /// Rotated or flipped copy.
-    Owned(Pyramid),
-}
-
-impl TexturePixels {
-    fn pyramid(&self) -> &Pyramid {
-        match self {
-            TexturePixels::Shared(photo) => &photo.pyramid,
-            TexturePixels::Owned(pyramid) => pyramid,
-        }
-    }
-}
-
 /// Draws a texture's placement (SPEC 2); the pixels are rendered later, only
 /// where the material is visible (see [`Colour`]).
 fn draw_texture<R: Rng + ?Sized>(
@@ -172,29 +155,21 @@ fn draw_texture<R: Rng + ?Sized>(
     textures: &PhotoLibrary,
     w: usize,
     h: usize,
-) -> Result<(TexturePixels, MaterialSource), LibraryError> {
+) -> Result<(Arc<Photo>, MaterialSource), LibraryError> {
     let texture = textures.pick(|n| rng.random_range(0..n))?;
     let rot90 = rng.random_bool(recipe.p_rot90);
     let flip_x = rng.random_bool(recipe.p_flip_x);
     let flip_y = rng.random_bool(recipe.p_flip_y);
-    let index = texture.index;
-    let pixels = if rot90 || flip_x || flip_y {
-        let mut img = texture.pyramid.base().clone();
-        if rot90 {
-            img = image::imageops::rotate270(&img);
-        }
-        if flip_x {
-            image::imageops::flip_horizontal_in_place(&mut img);
-        }
-        if flip_y {
-            image::imageops::flip_vertical_in_place(&mut img);
-        }
-        TexturePixels::Owned(Pyramid::new(img))
-    } else {
-        TexturePixels::Shared(texture)
+    let orientation = Orientation {
+        rot90,
+        flip_x,
+        flip_y,
     };
-
-    let (tw, th) = (pixels.pyramid().width(), pixels.pyramid().height());
+    let (tw, th) = orientation.oriented_size(
+        texture.pyramid.width() as usize,
+        texture.pyramid.height() as usize,
+    );
+    let (tw, th) = (tw as u32, th as u32);
     let fill = if rng.random_bool(recipe.p_tile) {
         let max_shrink = (tw.min(th) as f64 / recipe.min_tile_side).max(1.0);
         let shrink = if rng.random_bool(recipe.p_tile_shrink) {
@@ -228,41 +203,62 @@ fn draw_texture<R: Rng + ?Sized>(
         .random_bool(recipe.p_hue_shift)
         .then(|| rng.random_range(0.0..360.0f32));
     let source = MaterialSource::Texture {
-        texture: index,
+        texture: texture.index,
         rot90,
         flip_x,
         flip_y,
         fill,
         hue_shift_degrees,
     };
-    Ok((pixels, source))
+    Ok((texture, source))
 }
 
-/// A material's colour before shading, evaluated pixel by pixel.
+/// A material's colour before shading, evaluated pixel by pixel. Textures
+/// are read through their [`Orientation`], never copied.
 enum Colour<'a> {
     /// One colour everywhere.
     Flat([f32; 3]),
-    /// A tile repeated from a phase: tile row and column of each scene row and column.
+    /// A tile repeated from a phase: the resized tile before orientation,
+    /// and the oriented tile's column and row of each scene column and row.
     Tile {
         tile: RgbF32,
-        rows: Vec<usize>,
+        orientation: Orientation,
+        size: (usize, usize),
         cols: Vec<usize>,
+        rows: Vec<usize>,
     },
-    /// A stretched texture.
-    Stretch(PointSampler<'a>),
+    /// A stretched texture: the whole resized texture before orientation,
+    /// and where the scene sits in the oriented one.
+    Stretch {
+        sampler: PointSampler<'a>,
+        orientation: Orientation,
+        size: (usize, usize),
+        offset: (usize, usize),
+    },
 }
 
 impl<'a> Colour<'a> {
     /// The colour of a material from its record, for a `w x h` scene;
-    /// `pixels` are the texture's (rotated, flipped) pixels for a texture.
-    fn new(source: &MaterialSource, pixels: Option<&'a TexturePixels>, w: usize, h: usize) -> Self {
-        let fill = match source {
+    /// `texture` is the texture's photo for a texture.
+    fn new(source: &MaterialSource, texture: Option<&'a Photo>, w: usize, h: usize) -> Self {
+        let (fill, orientation) = match *source {
             MaterialSource::FlatColour { rgb } => return Colour::Flat(rgb.map(f32::from)),
-            MaterialSource::Texture { fill, .. } => fill,
+            MaterialSource::Texture {
+                ref fill,
+                rot90,
+                flip_x,
+                flip_y,
+                ..
+            } => (
+                fill,
+                Orientation {
+                    rot90,
+                    flip_x,
+                    flip_y,
+                },
+            ),
         };
-        let pyramid = pixels
-            .expect("a texture is drawn with its pixels")
-            .pyramid();
+        let pyramid = &texture.expect("a texture is drawn with its photo").pyramid;
         match *fill {
             Fill::Tile {
                 tile_w,
@@ -272,13 +268,31 @@ impl<'a> Colour<'a> {
                 ..
             } => {
                 let (tw, th) = (tile_w as usize, tile_h as usize);
+                let (uw, uh) = orientation.oriented_size(tw, th);
                 Colour::Tile {
-                    tile: pyramid.resize_rgb(tw, th),
-                    rows: (0..h).map(|y| (y + offset_y as usize) % th).collect(),
+                    tile: pyramid.resize_rgb(uw, uh),
+                    orientation,
+                    size: (tw, th),
                     cols: (0..w).map(|x| (x + offset_x as usize) % tw).collect(),
+                    rows: (0..h).map(|y| (y + offset_y as usize) % th).collect(),
                 }
             }
-            Fill::Stretch { placement } => Colour::Stretch(pyramid.point_sampler(&placement, w, h)),
+            Fill::Stretch { placement } => {
+                let (rw, rh) = (placement.resized_w as usize, placement.resized_h as usize);
+                let (uw, uh) = orientation.oriented_size(rw, rh);
+                let whole = Placement {
+                    resized_w: uw as u32,
+                    resized_h: uh as u32,
+                    x0: 0,
+                    y0: 0,
+                };
+                Colour::Stretch {
+                    sampler: pyramid.point_sampler(&whole, uw, uh),
+                    orientation,
+                    size: (rw, rh),
+                    offset: (placement.x0 as usize, placement.y0 as usize),
+                }
+            }
         }
     }
 
@@ -287,8 +301,25 @@ impl<'a> Colour<'a> {
     fn at(&self, x: usize, y: usize) -> [f32; 3] {
         match self {
             Colour::Flat(c) => *c,
-            Colour::Tile { tile, rows, cols } => tile.data[rows[y] * tile.width + cols[x]],
-            Colour::Stretch(sampler) => sampler.rgb(x, y),
+            Colour::Tile {
+                tile,
+                orientation,
+                size: (tw, th),
+                cols,
+                rows,
+            } => {
+                let (sx, sy) = orientation.source(cols[x], rows[y], *tw, *th);
+                tile.data[sy * tile.width + sx]
+            }
+            Colour::Stretch {
+                sampler,
+                orientation,
+                size: (rw, rh),
+                offset: (x0, y0),
+            } => {
+                let (sx, sy) = orientation.source(x0 + x, y0 + y, *rw, *rh);
+                sampler.rgb(sx, sy)
+            }
         }
     }
 }
@@ -304,7 +335,7 @@ fn draw_shading<R: Rng + ?Sized>(
     h: usize,
 ) -> Result<(Plane, ShadingRecord), LibraryError> {
     let photo = photos.pick(|n| rng.random_range(0..n))?;
-    let (mut shade, placement, channel) = random_photo_channel(
+    let (window, placement) = random_photo_channel(
         rng,
         &photo,
         w,
@@ -312,7 +343,7 @@ fn draw_shading<R: Rng + ?Sized>(
         recipe.p_shading_downscale,
         recipe.p_shading_hsv,
     );
-    shade.normalise_by_max();
+    let shade = window.map_levels(&level_values(window.max_level()));
     let kernel = recipe.shading_kernels[rng.random_range(0..recipe.shading_kernels.len())];
     let shade = gaussian_blur_region(&shade, kernel, support);
     let strength = if rng.random_bool(recipe.p_shading_full_strength) {
@@ -323,7 +354,7 @@ fn draw_shading<R: Rng + ?Sized>(
     let record = ShadingRecord {
         photo: photo.index,
         placement,
-        channel,
+        channel: window.channel,
         kernel,
         strength,
     };
