@@ -3,6 +3,7 @@
 
 #![warn(missing_docs)]
 
+mod allocator;
 mod bench;
 mod common;
 mod demo;
@@ -39,6 +40,7 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    allocator::keep_freed_blocks();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Generate(args) => generate::run(args),

@@ -73,7 +73,17 @@ impl Plane {
 
 /// Maps a value in `[0, 1]` to `0..=255`, rounding to nearest and clamping.
 pub fn unit_to_u8(v: f32) -> u8 {
-    (v * 255.0).round().clamp(0.0, 255.0) as u8
+    round_to_u8(v * 255.0)
+}
+
+/// Rounds a value on the 0..255 scale to the nearest level (halves up),
+/// clamped to `0..=255` (NaN gives 0). Adding a half and truncating is
+/// exact for these values and avoids a `round` call the baseline x86-64
+/// target cannot inline.
+#[inline]
+pub fn round_to_u8(v: f32) -> u8 {
+    // `as` truncates toward zero and saturates.
+    (v + 0.5) as u8
 }
 
 #[cfg(test)]
@@ -87,5 +97,7 @@ mod tests {
         assert_eq!(p.count_at_or_below(0.5), 3);
         assert!((p.sum() - 2.0).abs() < 1e-6);
         assert_eq!(p.to_u8(), vec![26, 128, 128, 230]);
+        let rounded = [-3.0, -0.6, 0.49, 0.5, 2.5, 254.5, 300.0, f32::NAN].map(round_to_u8);
+        assert_eq!(rounded, [0, 0, 0, 1, 3, 255, 255, 0]);
     }
 }

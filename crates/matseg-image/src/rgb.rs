@@ -1,5 +1,6 @@
 //! Float RGB images (values on the 0..255 scale) for composition.
 
+use crate::plane::round_to_u8;
 use image::RgbImage;
 
 /// A row-major RGB image with `f32` channels on the 0..255 scale.
@@ -41,7 +42,7 @@ impl RgbF32 {
         let mut raw = Vec::with_capacity(self.data.len() * 3);
         for px in &self.data {
             for &c in px {
-                raw.push(c.round().clamp(0.0, 255.0) as u8);
+                raw.push(round_to_u8(c));
             }
         }
         RgbImage::from_raw(self.width as u32, self.height as u32, raw)

@@ -1,6 +1,7 @@
 //! Annotations as written to disk: weights quantised to 8 bits so that masks
 //! and background sum to exactly 255, and colour previews.
 
+use matseg_image::plane::round_to_u8;
 use matseg_image::Plane;
 
 /// Per-pixel 8-bit masks, background and ROI.
@@ -102,7 +103,7 @@ pub fn colorize(width: usize, height: usize, weights: &[&[f32]]) -> image::RgbIm
             }
         }
         for c in 0..3 {
-            px[c] = acc[c].round().clamp(0.0, 255.0) as u8;
+            px[c] = round_to_u8(acc[c]);
         }
     }
     image::RgbImage::from_raw(width as u32, height as u32, raw).expect("size matches")
