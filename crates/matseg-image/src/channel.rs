@@ -45,35 +45,15 @@ impl Channel {
     }
 }
 
-/// Fixed-point bits of the reciprocal tables.
-const SHIFT: u32 = 12;
-
-/// `round(2^SHIFT * 256 / (6 d))`: hue levels per sextant unit, for a spread `d`.
-const HUE_RECIPROCAL: [i32; 256] = reciprocals(256 << SHIFT, 6);
-
-/// `round(2^SHIFT * 255 / m)`: saturation levels per unit of spread, for a max `m`.
-const SATURATION_RECIPROCAL: [i32; 256] = reciprocals(255 << SHIFT, 1);
-
-/// `round(numerator / (divisor * i))` for i in 1..=255 (0 for i = 0).
-const fn reciprocals(numerator: i64, divisor: i64) -> [i32; 256] {
-    let mut table = [0i32; 256];
-    let mut i = 1;
-    while i < 256 {
-        let d = divisor * i as i64;
-        table[i] = ((numerator + d / 2) / d) as i32;
-        i += 1;
-    }
-    table
-}
-
 /// Hue level of an 8-bit pixel: `round(256 * hue / 360°)` modulo 256 (0 for
-/// greys), in integer arithmetic without branches on the colour.
+/// greys). Branch-free `f32` arithmetic with one correctly rounded division,
+/// so the vectorised loops of [`levels_of`] give the same levels.
 #[inline]
 pub fn hue_level([r, g, b]: [u8; 3]) -> u8 {
     let (r, g, b) = (r as i32, g as i32, b as i32);
     let max = r.max(g).max(b);
     let spread = max - r.min(g).min(b);
-    // Numerator of the sextant position, in [-spread, 5 * spread].
+    // Numerator of the sextant position, in [-spread, 5 * spread] (0 for greys).
     let sextant = if max == r {
         g - b
     } else if max == g {
@@ -81,17 +61,39 @@ pub fn hue_level([r, g, b]: [u8; 3]) -> u8 {
     } else {
         r - g + 4 * spread
     };
-    let h = (sextant * HUE_RECIPROCAL[spread as usize] + (1 << (SHIFT - 1))) >> SHIFT;
-    (h & 255) as u8
+    let h = (sextant * 256) as f32 / (6 * spread.max(1)) as f32;
+    // Shifted by a turn so truncation rounds; the mask wraps 256 to 0.
+    ((h + 256.5) as i32 & 255) as u8
 }
 
 /// Saturation level of an 8-bit pixel: `round(255 * (max - min) / max)`, 0 for black.
 #[inline]
 pub fn saturation_level([r, g, b]: [u8; 3]) -> u8 {
-    let max = r.max(g).max(b);
-    let spread = (max - r.min(g).min(b)) as i32;
-    let s = (spread * SATURATION_RECIPROCAL[max as usize] + (1 << (SHIFT - 1))) >> SHIFT;
-    s.min(255) as u8
+    let max = r.max(g).max(b) as i32;
+    let spread = max - r.min(g).min(b) as i32;
+    ((spread * 255) as f32 / max.max(1) as f32 + 0.5) as u8
+}
+
+/// The levels of `channel` for planes of R, G and B (equal lengths), one
+/// loop per channel so that each vectorises (AVX2 when the CPU has it).
+pub fn levels_of(channel: Channel, r: &[u8], g: &[u8], b: &[u8]) -> Vec<u8> {
+    match channel {
+        Channel::R => r.to_vec(),
+        Channel::G => g.to_vec(),
+        Channel::B => b.to_vec(),
+        Channel::H => convert_planes(r, g, b, hue_level),
+        Channel::S => convert_planes(r, g, b, saturation_level),
+        Channel::V => convert_planes(r, g, b, |[r, g, b]| r.max(g).max(b)),
+    }
+}
+
+#[multiversion::multiversion(targets("x86_64+avx2"))]
+fn convert_planes(r: &[u8], g: &[u8], b: &[u8], level: impl Fn([u8; 3]) -> u8) -> Vec<u8> {
+    r.iter()
+        .zip(g)
+        .zip(b)
+        .map(|((&r, &g), &b)| level([r, g, b]))
+        .collect()
 }
 
 #[cfg(test)]
@@ -119,8 +121,8 @@ mod tests {
 
     #[test]
     fn levels_round_the_exact_hue_and_saturation() {
-        // Rounding (0.5) plus the fixed-point reciprocal's error (< 0.2 level).
-        const MAX_OFF: f32 = 0.7;
+        // Rounding to the nearest level, with f32 slack at exact halves.
+        const MAX_OFF: f32 = 0.501;
         // Every 7th value of each component: about 50k colours.
         for r in (0..=255u8).step_by(7) {
             for g in (0..=255u8).step_by(7) {

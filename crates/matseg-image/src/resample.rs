@@ -2,7 +2,7 @@
 //! in one pass that only computes the output pixels.
 
 use crate::bilinear::{blend_pair, blend_rows, pack_weight, ColumnTaps, WEIGHT_ONE};
-use crate::channel::{hue_level, saturation_level, Channel};
+use crate::channel::{levels_of, Channel};
 use crate::levels::ChannelWindow;
 use crate::rgb::RgbF32;
 use image::RgbImage;
@@ -213,9 +213,10 @@ impl Pyramid {
             Channel::R => self.sample_plane(placement, out_w, out_h, 0),
             Channel::G => self.sample_plane(placement, out_w, out_h, 1),
             Channel::B => self.sample_plane(placement, out_w, out_h, 2),
-            Channel::H => self.sample_converted(placement, out_w, out_h, hue_level),
-            Channel::S => self.sample_converted(placement, out_w, out_h, saturation_level),
-            Channel::V => self.sample_converted(placement, out_w, out_h, |p| Channel::V.level(p)),
+            Channel::H | Channel::S | Channel::V => {
+                let [r, g, b] = self.sample_planes(placement, out_w, out_h);
+                levels_of(channel, &r, &g, &b)
+            }
         };
         ChannelWindow {
             width: out_w,
@@ -223,22 +224,6 @@ impl Pyramid {
             channel,
             levels,
         }
-    }
-
-    /// The RGB window mapped pixel by pixel through `convert`.
-    fn sample_converted(
-        &self,
-        placement: &Placement,
-        out_w: usize,
-        out_h: usize,
-        convert: impl Fn([u8; 3]) -> u8,
-    ) -> Vec<u8> {
-        let [r, g, b] = self.sample_planes(placement, out_w, out_h);
-        r.iter()
-            .zip(&g)
-            .zip(&b)
-            .map(|((&r, &g), &b)| convert([r, g, b]))
-            .collect()
     }
 
     /// The whole image resized to `w x h`.
