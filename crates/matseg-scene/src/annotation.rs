@@ -15,54 +15,38 @@ pub struct QuantisedAnnotation {
     pub roi: Vec<u8>,
 }
 
-/// Quantises weights to 8 bits by largest remainder: per pixel, background
-/// plus masks sum to exactly 255 and each value is within 1 of `255 * weight`.
+/// Quantises weights to 8 bits by cumulative rounding: mask k is
+/// `round(C_k) - round(C_(k-1))`, where `C_k` is 255 times the sum of the
+/// first k weights, and the background takes the rest. Per pixel, background
+/// plus masks sum to exactly 255, each value is within 1 of `255 * weight`,
+/// and a weight of exactly 0 or 1 gives exactly 0 or 255. Every step is a
+/// pass over whole planes, so it vectorises.
 pub fn quantise_weights(weights: &[Plane], background: &Plane) -> QuantisedAnnotation {
     let n = background.len();
-    let floor = |p: &Plane| -> Vec<u8> {
-        p.data
-            .iter()
-            .map(|&v| (v * 255.0).clamp(0.0, 255.0) as u8)
-            .collect()
-    };
-    // Floor every plane (vectorisable), then hand the units the floors lost to
-    // the largest remainders, only on the pixels that lost any.
-    let mut bg = floor(background);
-    let mut masks: Vec<Vec<u8>> = weights.iter().map(floor).collect();
-    let mut totals: Vec<u32> = bg.iter().map(|&v| v as u32).collect();
-    for m in &masks {
-        for (t, &v) in totals.iter_mut().zip(m) {
-            *t += v as u32;
-        }
-    }
-    for i in 0..n {
-        for _ in 0..255u32.saturating_sub(totals[i]) {
-            // Candidate j = 0 is the background, j > 0 material j - 1; first wins ties.
-            let remainder = |plane: &Plane, q: u8| {
-                if q < 255 {
-                    plane.data[i] * 255.0 - q as f32
-                } else {
-                    f32::NEG_INFINITY
-                }
-            };
-            let mut best = (remainder(background, bg[i]), 0);
-            for (j, (w, m)) in weights.iter().zip(&masks).enumerate() {
-                let r = remainder(w, m[i]);
-                if r > best.0 {
-                    best = (r, j + 1);
-                }
-            }
-            match best.1 {
-                0 => bg[i] += 1,
-                j => masks[j - 1][i] += 1,
-            }
-        }
-    }
-    let roi = bg.iter().map(|&b| 255 - b).collect();
+    let mut cumulative = vec![0f32; n];
+    let mut rounded = vec![0u8; n];
+    let masks = weights
+        .iter()
+        .map(|w| {
+            cumulative
+                .iter_mut()
+                .zip(rounded.iter_mut())
+                .zip(&w.data)
+                .map(|((c, r), &v)| {
+                    *c += v * 255.0;
+                    let next = round_to_u8(*c);
+                    // max: float sums never step back, but the quantity must not wrap.
+                    let mask = next.max(*r) - *r;
+                    *r = next.max(*r);
+                    mask
+                })
+                .collect()
+        })
+        .collect();
     QuantisedAnnotation {
         masks,
-        background: bg,
-        roi,
+        background: rounded.iter().map(|&r| 255 - r).collect(),
+        roi: rounded,
     }
 }
 
@@ -127,16 +111,17 @@ mod tests {
                 assert!((plane.data[i] * 255.0 - mask[i] as f32).abs() < 1.0);
             }
         }
-        // 85 + 85 + 85 = 255 exactly. 127.5 + 63.75 + 63.75 floors to 253; the
-        // two missing units go to the largest remainders (the two .75s).
+        // 85 + 85 + 85 = 255 exactly. 127.5 rounds up to 128; 191.25 to 191,
+        // so the second mask gets 63 and the background 64.
         assert_eq!(
             (q.masks[0][0], q.masks[1][0], q.background[0]),
             (85, 85, 85)
         );
         assert_eq!(
             (q.masks[0][2], q.masks[1][2], q.background[2]),
-            (127, 64, 64)
+            (128, 63, 64)
         );
+        assert_eq!((q.masks[0][1], q.masks[1][1], q.background[1]), (0, 0, 255));
     }
 
     #[test]
