@@ -21,13 +21,13 @@ pub fn blend_rows(a: &[u8], b: &[u8], weight: i32, out: &mut [i16]) {
 
 /// Packs the weight of a column tap as the `i16` pair `(128 - w, w)`, the
 /// form the column pass multiplies with a pair of neighbouring values.
-pub fn pack_weight(weight: i32) -> i32 {
+fn pack_weight(weight: i32) -> i32 {
     (weight << 16) | (WEIGHT_ONE - weight)
 }
 
 /// Blends two row-blended values by the packed weight and rounds to 8 bits.
 #[inline]
-pub fn blend_pair(a: i16, b: i16, packed: i32) -> u8 {
+fn blend_pair(a: i16, b: i16, packed: i32) -> u8 {
     let (keep, weight) = (packed & 0xFFFF, packed >> 16);
     ((a as i32 * keep + b as i32 * weight + (1 << 13)) >> 14) as u8
 }

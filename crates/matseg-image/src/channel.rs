@@ -99,7 +99,33 @@ fn convert_planes(r: &[u8], g: &[u8], b: &[u8], level: impl Fn([u8; 3]) -> u8) -
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::color::{hue, saturation};
+
+    /// Textbook hue of an RGB pixel as a fraction of a turn (reference).
+    fn hue([r, g, b]: [f32; 3]) -> f32 {
+        let max = r.max(g).max(b);
+        let spread = max - r.min(g).min(b);
+        if spread == 0.0 {
+            return 0.0;
+        }
+        let degrees = if max == r {
+            60.0 * ((g - b) / spread)
+        } else if max == g {
+            60.0 * ((b - r) / spread + 2.0)
+        } else {
+            60.0 * ((r - g) / spread + 4.0)
+        };
+        degrees.rem_euclid(360.0) / 360.0
+    }
+
+    /// Textbook saturation, `(max - min) / max` (reference).
+    fn saturation([r, g, b]: [f32; 3]) -> f32 {
+        let max = r.max(g).max(b);
+        if max == 0.0 {
+            0.0
+        } else {
+            (max - r.min(g).min(b)) / max
+        }
+    }
 
     #[test]
     fn primaries_have_the_textbook_levels() {

@@ -8,7 +8,6 @@
 pub mod bilinear;
 pub mod blur;
 pub mod channel;
-pub mod color;
 pub mod io;
 pub mod levels;
 pub mod library;
@@ -26,5 +25,5 @@ pub use library::{LibraryError, Photo, PhotoLibrary, ScanReport, SkippedFile};
 pub use orientation::Orientation;
 pub use plane::Plane;
 pub use ramp::Ramp;
-pub use resample::{Placement, PointSampler, Pyramid};
+pub use resample::{Placement, Pyramid};
 pub use rgb::RgbF32;

@@ -1,7 +1,7 @@
 //! Resampling through a mip pyramid: "resize to W'xH', then crop a window" done
 //! in one pass that only computes the output pixels.
 
-use crate::bilinear::{blend_pair, blend_rows, pack_weight, ColumnTaps, WEIGHT_ONE};
+use crate::bilinear::{blend_rows, ColumnTaps, WEIGHT_ONE};
 use crate::channel::{levels_of, Channel};
 use crate::levels::ChannelWindow;
 use crate::rgb::RgbF32;
@@ -167,18 +167,6 @@ impl Pyramid {
         (img, cols, rows)
     }
 
-    /// A sampler for single pixels of the window `placement` selects, for
-    /// callers that need only some of them.
-    pub fn point_sampler(
-        &self,
-        placement: &Placement,
-        out_w: usize,
-        out_h: usize,
-    ) -> PointSampler<'_> {
-        let (level, cols, rows) = self.grid(placement, out_w, out_h);
-        PointSampler { level, cols, rows }
-    }
-
     /// The R, G and B planes of the selected window.
     pub fn sample_planes(&self, placement: &Placement, out_w: usize, out_h: usize) -> [Vec<u8>; 3] {
         std::array::from_fn(|lane| self.sample_plane(placement, out_w, out_h, lane))
@@ -186,18 +174,7 @@ impl Pyramid {
 
     /// The selected window as a float RGB image (whole 0..255 values).
     pub fn sample_rgb(&self, placement: &Placement, out_w: usize, out_h: usize) -> RgbF32 {
-        let [r, g, b] = self.sample_planes(placement, out_w, out_h);
-        let data = r
-            .iter()
-            .zip(&g)
-            .zip(&b)
-            .map(|((&r, &g), &b)| [r as f32, g as f32, b as f32])
-            .collect();
-        RgbF32 {
-            width: out_w,
-            height: out_h,
-            data,
-        }
+        RgbF32::from_planes8(out_w, out_h, &self.sample_planes(placement, out_w, out_h))
     }
 
     /// One channel of the selected window, as 8-bit levels: the RGB window
@@ -244,32 +221,6 @@ struct Tap {
     first: usize,
     second: usize,
     weight: i32,
-}
-
-/// Bilinear samples of single pixels of a placed window (see
-/// [`Pyramid::point_sampler`]); equal to the same pixels of [`Pyramid::sample_rgb`].
-pub struct PointSampler<'a> {
-    level: &'a Level,
-    cols: Vec<Tap>,
-    rows: Vec<Tap>,
-}
-
-impl PointSampler<'_> {
-    /// The RGB (0..255) value of window pixel `(x, y)`.
-    #[inline]
-    pub fn rgb(&self, x: usize, y: usize) -> [f32; 3] {
-        let (col, row) = (self.cols[x], self.rows[y]);
-        let (w, keep) = (self.level.width, (WEIGHT_ONE - row.weight) as i16);
-        let packed = pack_weight(col.weight);
-        std::array::from_fn(|c| {
-            let src = &self.level.planes[c];
-            let blend_row = |xx: usize| {
-                src[row.first * w + xx] as i16 * keep
-                    + src[row.second * w + xx] as i16 * row.weight as i16
-            };
-            blend_pair(blend_row(col.first), blend_row(col.second), packed) as f32
-        })
-    }
 }
 
 /// For each output index along one axis: the two source indices and the
@@ -347,46 +298,9 @@ mod tests {
         for y in 0..8 {
             for x in 0..10 {
                 let src = img.get_pixel(x as u32 + 5, y as u32 + 7);
-                let got = out.data[y * 10 + x];
+                let got = out.pixel(y * 10 + x);
                 for c in 0..3 {
                     assert!((got[c] - src[c] as f32).abs() < 1e-4);
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn point_sampler_matches_the_whole_window() {
-        let p = Pyramid::new(gradient(90, 70));
-        for place in [
-            Placement {
-                resized_w: 200,
-                resized_h: 156,
-                x0: 13,
-                y0: 40,
-            },
-            Placement {
-                resized_w: 90,
-                resized_h: 70,
-                x0: 3,
-                y0: 2,
-            },
-            Placement {
-                resized_w: 30,
-                resized_h: 23,
-                x0: 1,
-                y0: 0,
-            },
-        ] {
-            let whole = p.sample_rgb(&place, 25, 20);
-            let points = p.point_sampler(&place, 25, 20);
-            for y in 0..20 {
-                for x in 0..25 {
-                    let (a, b) = (whole.data[y * 25 + x], points.rgb(x, y));
-                    assert!(
-                        (0..3).all(|c| (a[c] - b[c]).abs() < 1e-3),
-                        "{place:?} ({x}, {y}): {a:?} vs {b:?}"
-                    );
                 }
             }
         }
@@ -401,7 +315,7 @@ mod tests {
         assert!(p.levels[1].planes[0].iter().all(|&v| v == 100));
         // A 4x downscale reads the averaged level, not aliased columns.
         let out = p.resize_rgb(32, 16);
-        assert!(out.data.iter().all(|px| (px[0] - 100.0).abs() < 1e-3));
+        assert!(out.planes[0].iter().all(|&v| v == 100.0));
     }
 
     #[test]

@@ -1,51 +1,199 @@
-//! Float RGB images (values on the 0..255 scale) for composition.
+//! Float RGB images (values on the 0..255 scale) for composition, stored as
+//! three planes so that per-pixel arithmetic vectorises.
 
+use crate::orientation::Orientation;
 use crate::plane::round_to_u8;
 use image::RgbImage;
 
-/// A row-major RGB image with `f32` channels on the 0..255 scale.
+/// A row-major RGB image with `f32` channels on the 0..255 scale, one plane
+/// per channel.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RgbF32 {
     /// Width in pixels.
     pub width: usize,
     /// Height in pixels.
     pub height: usize,
-    /// `width * height` pixels, row by row.
-    pub data: Vec<[f32; 3]>,
+    /// The R, G and B planes, `width * height` values each, row by row.
+    pub planes: [Vec<f32>; 3],
 }
 
 impl RgbF32 {
-    /// An image filled with one colour.
-    pub fn filled(width: usize, height: usize, color: [f32; 3]) -> Self {
+    /// Planes of 8-bit values.
+    pub fn from_planes8(width: usize, height: usize, planes: &[Vec<u8>; 3]) -> Self {
         Self {
             width,
             height,
-            data: vec![color; width * height],
+            planes: planes
+                .each_ref()
+                .map(|p| p.iter().map(|&v| v as f32).collect()),
         }
     }
 
-    /// Converts an 8-bit RGB image.
-    pub fn from_rgb8(img: &RgbImage) -> Self {
-        let data = img
-            .pixels()
-            .map(|p| [p[0] as f32, p[1] as f32, p[2] as f32])
-            .collect();
-        Self {
-            width: img.width() as usize,
-            height: img.height() as usize,
-            data,
-        }
+    /// The colour of pixel `i` (row-major index).
+    pub fn pixel(&self, i: usize) -> [f32; 3] {
+        self.planes.each_ref().map(|p| p[i])
     }
 
     /// Rounds and clamps to an 8-bit RGB image.
     pub fn to_rgb8(&self) -> RgbImage {
-        let mut raw = Vec::with_capacity(self.data.len() * 3);
-        for px in &self.data {
-            for &c in px {
-                raw.push(round_to_u8(c));
-            }
+        let [r, g, b] = &self.planes;
+        let mut raw = vec![0u8; r.len() * 3];
+        for (((px, &r), &g), &b) in raw.chunks_exact_mut(3).zip(r).zip(g).zip(b) {
+            px.copy_from_slice(&[round_to_u8(r), round_to_u8(g), round_to_u8(b)]);
         }
         RgbImage::from_raw(self.width as u32, self.height as u32, raw)
             .expect("buffer length matches the image size")
+    }
+
+    /// The image turned and mirrored by `orientation`.
+    pub fn oriented(self, orientation: Orientation) -> RgbF32 {
+        if orientation == Orientation::default() {
+            return self;
+        }
+        let (w, h) = orientation.oriented_size(self.width, self.height);
+        let planes = self.planes.map(|src| {
+            let mut out = Vec::with_capacity(w * h);
+            for y in 0..h {
+                if orientation.rot90 {
+                    out.extend((0..w).map(|x| {
+                        let (sx, sy) = orientation.source(x, y, w, h);
+                        src[sy * self.width + sx]
+                    }));
+                } else {
+                    // Mirrors only: each output row is a source row, maybe reversed.
+                    let (_, sy) = orientation.source(0, y, w, h);
+                    let row = &src[sy * w..(sy + 1) * w];
+                    if orientation.flip_x {
+                        out.extend(row.iter().rev());
+                    } else {
+                        out.extend_from_slice(row);
+                    }
+                }
+            }
+            out
+        });
+        RgbF32 {
+            width: w,
+            height: h,
+            planes,
+        }
+    }
+
+    /// Rotates the hue of every pixel by `degrees` (see [`rotate_hue`]).
+    pub fn rotate_hue(&mut self, degrees: f32) {
+        let [r, g, b] = &mut self.planes;
+        rotate_hue_planes(r, g, b, degrees);
+    }
+}
+
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+fn rotate_hue_planes(r: &mut [f32], g: &mut [f32], b: &mut [f32], degrees: f32) {
+    for ((r, g), b) in r.iter_mut().zip(g.iter_mut()).zip(b.iter_mut()) {
+        [*r, *g, *b] = rotate_hue([*r, *g, *b], degrees);
+    }
+}
+
+/// Rotates the hue of an RGB (0..255) pixel by `degrees`, modulo 360°,
+/// keeping its HSV saturation and value. Branch-free, so loops over many
+/// pixels vectorise.
+#[inline]
+pub fn rotate_hue([r, g, b]: [f32; 3], degrees: f32) -> [f32; 3] {
+    let max = r.max(g).max(b);
+    let spread = max - r.min(g).min(b);
+    let inverse = if spread > 0.0 { 1.0 / spread } else { 0.0 };
+    // Hue in sextants, [0, 6).
+    let from_r = (g - b) * inverse;
+    let from_r = if from_r < 0.0 { from_r + 6.0 } else { from_r };
+    let hue = if max == r {
+        from_r
+    } else if max == g {
+        (b - r) * inverse + 2.0
+    } else {
+        (r - g) * inverse + 4.0
+    };
+    let turn = degrees.rem_euclid(360.0) / 60.0;
+    let hue = wrap_sextants(hue + turn);
+    // HSV to RGB: channel n sits at k = (n + hue) mod 6 sextants from its peak.
+    let channel = |n: f32| {
+        let k = wrap_sextants(n + hue);
+        max - spread * k.min(4.0 - k).clamp(0.0, 1.0)
+    };
+    [channel(5.0), channel(3.0), channel(1.0)]
+}
+
+/// `x` in `[0, 12)` reduced modulo 6.
+#[inline]
+fn wrap_sextants(x: f32) -> f32 {
+    if x >= 6.0 {
+        x - 6.0
+    } else {
+        x
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn close(a: [f32; 3], b: [f32; 3]) -> bool {
+        a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-3)
+    }
+
+    #[test]
+    fn hue_rotation_turns_primaries_and_wraps_modulo_360() {
+        let red = [255.0, 0.0, 0.0];
+        assert!(close(rotate_hue(red, 120.0), [0.0, 255.0, 0.0]));
+        assert!(close(rotate_hue(red, 240.0), [0.0, 0.0, 255.0]));
+        assert!(close(rotate_hue(red, 480.0), [0.0, 255.0, 0.0]));
+        assert!(close(rotate_hue(red, -120.0), [0.0, 0.0, 255.0]));
+        assert!(close(rotate_hue(red, 360.0), red));
+        assert!(close(rotate_hue(red, 60.0), [255.0, 255.0, 0.0]));
+        let grey = [90.0, 90.0, 90.0];
+        assert!(close(rotate_hue(grey, 77.0), grey));
+    }
+
+    #[test]
+    fn hue_rotation_keeps_value_and_saturation_and_composes() {
+        for px in [[12.0, 200.0, 99.0], [250.0, 3.0, 40.0], [7.0, 70.0, 7.5]] {
+            let turned = rotate_hue(px, 100.0);
+            let max = |p: [f32; 3]| p[0].max(p[1]).max(p[2]);
+            let min = |p: [f32; 3]| p[0].min(p[1]).min(p[2]);
+            assert!((max(turned) - max(px)).abs() < 1e-3);
+            assert!((min(turned) - min(px)).abs() < 1e-3);
+            assert!(close(rotate_hue(turned, 260.0), px), "{px:?}");
+        }
+    }
+
+    #[test]
+    fn orienting_reads_the_source_pixels() {
+        let planes = [(0..12u8).collect(), (12..24).collect(), (24..36).collect()];
+        let img = RgbF32::from_planes8(4, 3, &planes);
+        for bits in 0..8 {
+            let o = Orientation {
+                rot90: bits & 1 != 0,
+                flip_x: bits & 2 != 0,
+                flip_y: bits & 4 != 0,
+            };
+            let out = img.clone().oriented(o);
+            assert_eq!((out.width, out.height), o.oriented_size(4, 3));
+            for y in 0..out.height {
+                for x in 0..out.width {
+                    let (sx, sy) = o.source(x, y, out.width, out.height);
+                    assert_eq!(out.pixel(y * out.width + x), img.pixel(sy * 4 + sx));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn planes_round_trip_and_rotate_like_pixels() {
+        let planes = [vec![255u8, 12, 0], vec![0, 200, 7], vec![0, 99, 7]];
+        let mut img = RgbF32::from_planes8(3, 1, &planes);
+        assert_eq!(img.to_rgb8().as_raw(), &[255, 0, 0, 12, 200, 99, 0, 7, 7]);
+        let before: Vec<[f32; 3]> = (0..3).map(|i| img.pixel(i)).collect();
+        img.rotate_hue(33.0);
+        for (i, px) in before.into_iter().enumerate() {
+            assert!(close(img.pixel(i), rotate_hue(px, 33.0)));
+        }
     }
 }

@@ -105,8 +105,10 @@ pub fn generate_2d<R: Rng + ?Sized>(
         true,
     );
     let mut acc = photo.pyramid.sample_rgb(&placement, width, height);
-    for (px, &wb) in acc.data.iter_mut().zip(&maps.background.data) {
-        px.iter_mut().for_each(|c| *c *= wb);
+    for plane in &mut acc.planes {
+        for (v, &wb) in plane.iter_mut().zip(&maps.background.data) {
+            *v *= wb;
+        }
     }
     let mut materials = Vec::with_capacity(k);
     for weight in &maps.weights {

@@ -3,10 +3,9 @@
 
 use crate::recipe::CompositionRecipe;
 use matseg_extract::random_photo_channel;
-use matseg_image::color::rotate_hue;
 use matseg_image::{
     gaussian_blur_region, level_values, Channel, LibraryError, Orientation, Photo, PhotoLibrary,
-    Placement, Plane, PointSampler, Region, RgbF32,
+    Placement, Plane, Region, RgbF32,
 };
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -88,8 +87,8 @@ pub struct MaterialRecord {
     pub shading: Option<ShadingRecord>,
 }
 
-/// Draws one material and adds it, weighted by `weight`, into `acc`. Hue
-/// shift, shading and blending touch only the pixels where `weight > 0`.
+/// Draws one material and adds it, weighted by `weight`, into `acc`. Only
+/// the bounding box of the pixels where `weight > 0` is shaded and blended.
 pub fn add_material<R: Rng + ?Sized>(
     rng: &mut R,
     recipe: &CompositionRecipe,
@@ -106,8 +105,8 @@ pub fn add_material<R: Rng + ?Sized>(
         let rgb = [rng.random::<u8>(), rng.random::<u8>(), rng.random::<u8>()];
         (None, MaterialSource::FlatColour { rgb })
     };
-    // Pixels outside the weight's support are never read, so the shading
-    // blur and the blending skip them.
+    // Pixels outside the weight's support add nothing, so the shading blur
+    // and the blending skip them.
     let support = Region::support(weight).unwrap_or(Region::EMPTY);
     let shading = if rng.random_bool(recipe.p_shading) {
         Some(draw_shading(rng, recipe, photos, support, w, h)?)
@@ -115,29 +114,29 @@ pub fn add_material<R: Rng + ?Sized>(
         None
     };
 
-    let colour = Colour::new(&source, texture.as_deref(), w, h);
-    let hue = match &source {
-        MaterialSource::Texture {
-            hue_shift_degrees, ..
-        } => *hue_shift_degrees,
-        MaterialSource::FlatColour { .. } => None,
-    };
+    if support == Region::EMPTY {
+        return Ok(MaterialRecord {
+            source,
+            shading: shading.map(|(_, record)| record),
+        });
+    }
+    let colour = Colour::new(&source, texture.as_deref(), support);
+    let span = support.x1 - support.x0;
+    let mut rgb = [vec![0f32; span], vec![0f32; span], vec![0f32; span]];
+    let mut factor = vec![0f32; span];
     for y in support.y0..support.y1 {
-        for x in support.x0..support.x1 {
-            let i = y * w + x;
-            let wk = weight.data[i];
-            if wk <= 0.0 {
-                continue;
+        let row = y * w + support.x0..y * w + support.x1;
+        factor.copy_from_slice(&weight.data[row.clone()]);
+        if let Some((shade, record)) = &shading {
+            let s = record.strength;
+            for (f, &v) in factor.iter_mut().zip(&shade.data[row.clone()]) {
+                *f *= (1.0 - s) + s * v;
             }
-            let mut px = colour.at(x, y);
-            if let Some(deg) = hue {
-                px = rotate_hue(px, deg);
-            }
-            let factor = shading.as_ref().map_or(1.0, |(shade, s)| {
-                (1.0 - s.strength) + s.strength * shade.data[i]
-            });
-            for (a, p) in acc.data[i].iter_mut().zip(px) {
-                *a += p * factor * wk;
+        }
+        colour.fill_row(y, support.x0, &mut rgb);
+        for (plane, values) in acc.planes.iter_mut().zip(&rgb) {
+            for ((a, &v), &f) in plane[row.clone()].iter_mut().zip(values).zip(&factor) {
+                *a += v * f;
             }
         }
     }
@@ -213,41 +212,34 @@ fn draw_texture<R: Rng + ?Sized>(
     Ok((texture, source))
 }
 
-/// A material's colour before shading, evaluated pixel by pixel. Textures
-/// are read through their [`Orientation`], never copied.
-enum Colour<'a> {
+/// A material's colour before shading, over the rectangle of the scene
+/// where it is visible.
+enum Colour {
     /// One colour everywhere.
     Flat([f32; 3]),
-    /// A tile repeated from a phase: the resized tile before orientation,
-    /// and the oriented tile's column and row of each scene column and row.
-    Tile {
-        tile: RgbF32,
-        orientation: Orientation,
-        size: (usize, usize),
-        cols: Vec<usize>,
-        rows: Vec<usize>,
-    },
-    /// A stretched texture: the whole resized texture before orientation,
-    /// and where the scene sits in the oriented one.
-    Stretch {
-        sampler: PointSampler<'a>,
-        orientation: Orientation,
-        size: (usize, usize),
-        offset: (usize, usize),
+    /// An image of the texture as it appears in the scene (resized,
+    /// oriented, hue shifted), repeated: scene pixel `(x, y)` shows image
+    /// pixel `((x + phase_x) mod width, (y + phase_y) mod height)`.
+    Image {
+        image: RgbF32,
+        phase_x: usize,
+        phase_y: usize,
     },
 }
 
-impl<'a> Colour<'a> {
-    /// The colour of a material from its record, for a `w x h` scene;
-    /// `texture` is the texture's photo for a texture.
-    fn new(source: &MaterialSource, texture: Option<&'a Photo>, w: usize, h: usize) -> Self {
-        let (fill, orientation) = match *source {
+impl Colour {
+    /// The colour of a material from its record, for a `w x h` scene, where
+    /// it is visible in `support` (not empty); `texture` is the texture's
+    /// photo for a texture.
+    fn new(source: &MaterialSource, texture: Option<&Photo>, support: Region) -> Self {
+        let (fill, orientation, hue_shift) = match *source {
             MaterialSource::FlatColour { rgb } => return Colour::Flat(rgb.map(f32::from)),
             MaterialSource::Texture {
                 ref fill,
                 rot90,
                 flip_x,
                 flip_y,
+                hue_shift_degrees,
                 ..
             } => (
                 fill,
@@ -256,10 +248,11 @@ impl<'a> Colour<'a> {
                     flip_x,
                     flip_y,
                 },
+                hue_shift_degrees,
             ),
         };
         let pyramid = &texture.expect("a texture is drawn with its photo").pyramid;
-        match *fill {
+        let (image, phase_x, phase_y) = match *fill {
             Fill::Tile {
                 tile_w,
                 tile_h,
@@ -267,58 +260,72 @@ impl<'a> Colour<'a> {
                 offset_y,
                 ..
             } => {
-                let (tw, th) = (tile_w as usize, tile_h as usize);
-                let (uw, uh) = orientation.oriented_size(tw, th);
-                Colour::Tile {
-                    tile: pyramid.resize_rgb(uw, uh),
-                    orientation,
-                    size: (tw, th),
-                    cols: (0..w).map(|x| (x + offset_x as usize) % tw).collect(),
-                    rows: (0..h).map(|y| (y + offset_y as usize) % th).collect(),
-                }
+                let (uw, uh) = orientation.oriented_size(tile_w as usize, tile_h as usize);
+                (pyramid.resize_rgb(uw, uh), offset_x as usize, offset_y as usize)
             }
             Fill::Stretch { placement } => {
+                // The visible part of the oriented texture's window is a
+                // rectangle of the texture itself: sample only that one.
                 let (rw, rh) = (placement.resized_w as usize, placement.resized_h as usize);
+                let (x0, y0) = (placement.x0 as usize, placement.y0 as usize);
+                let (span_w, span_h) = (support.x1 - support.x0, support.y1 - support.y0);
+                let corner = |x, y| orientation.source(x0 + x, y0 + y, rw, rh);
+                let (ax, ay) = corner(support.x0, support.y0);
+                let (bx, by) = corner(support.x1 - 1, support.y1 - 1);
                 let (uw, uh) = orientation.oriented_size(rw, rh);
-                let whole = Placement {
+                let (win_w, win_h) = orientation.oriented_size(span_w, span_h);
+                let window = Placement {
                     resized_w: uw as u32,
                     resized_h: uh as u32,
-                    x0: 0,
-                    y0: 0,
+                    x0: ax.min(bx) as u32,
+                    y0: ay.min(by) as u32,
                 };
-                Colour::Stretch {
-                    sampler: pyramid.point_sampler(&whole, uw, uh),
-                    orientation,
-                    size: (rw, rh),
-                    offset: (placement.x0 as usize, placement.y0 as usize),
-                }
+                let phase = |start: usize, len: usize| (len - start % len) % len;
+                (
+                    pyramid.sample_rgb(&window, win_w, win_h),
+                    phase(support.x0, span_w),
+                    phase(support.y0, span_h),
+                )
             }
+        };
+        let mut image = image;
+        if let Some(degrees) = hue_shift {
+            image.rotate_hue(degrees);
+        }
+        Colour::Image {
+            image: image.oriented(orientation),
+            phase_x,
+            phase_y,
         }
     }
 
-    /// The colour at scene pixel `(x, y)`.
-    #[inline]
-    fn at(&self, x: usize, y: usize) -> [f32; 3] {
+    /// Writes the colours of scene row `y` from column `x0` on into `rgb`
+    /// (one slice per channel, all of the same length).
+    fn fill_row(&self, y: usize, x0: usize, rgb: &mut [Vec<f32>; 3]) {
         match self {
-            Colour::Flat(c) => *c,
-            Colour::Tile {
-                tile,
-                orientation,
-                size: (tw, th),
-                cols,
-                rows,
-            } => {
-                let (sx, sy) = orientation.source(cols[x], rows[y], *tw, *th);
-                tile.data[sy * tile.width + sx]
+            Colour::Flat(c) => {
+                for (out, &v) in rgb.iter_mut().zip(c) {
+                    out.fill(v);
+                }
             }
-            Colour::Stretch {
-                sampler,
-                orientation,
-                size: (rw, rh),
-                offset: (x0, y0),
+            Colour::Image {
+                image,
+                phase_x,
+                phase_y,
             } => {
-                let (sx, sy) = orientation.source(x0 + x, y0 + y, *rw, *rh);
-                sampler.rgb(sx, sy)
+                let w = image.width;
+                let start = (y + phase_y) % image.height * w;
+                for (out, plane) in rgb.iter_mut().zip(&image.planes) {
+                    let row = &plane[start..start + w];
+                    // Copy runs of the image row, wrapping at its end.
+                    let (mut col, mut done) = ((x0 + phase_x) % w, 0);
+                    while done < out.len() {
+                        let run = (w - col).min(out.len() - done);
+                        out[done..done + run].copy_from_slice(&row[col..col + run]);
+                        done += run;
+                        col = 0;
+                    }
+                }
             }
         }
     }
