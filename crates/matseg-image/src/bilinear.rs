@@ -19,6 +19,17 @@ pub fn blend_rows(a: &[u8], b: &[u8], weight: i32, out: &mut [i16]) {
     }
 }
 
+/// `((a * (128 - w) + b * w) + 2^13) >> 14` for two rows of column-blended
+/// values (in 128ths): the second pass when columns are blended first.
+/// Both orders compute the same integer sum, so they give the same bytes.
+#[multiversion::multiversion(targets("x86_64+avx2"))]
+pub fn blend_rows_rounded(a: &[i16], b: &[i16], weight: i32, out: &mut [u8]) {
+    let keep = WEIGHT_ONE - weight;
+    for ((o, &a), &b) in out.iter_mut().zip(a).zip(b) {
+        *o = ((a as i32 * keep + b as i32 * weight + (1 << 13)) >> 14) as u8;
+    }
+}
+
 /// Packs the weight of a column tap as the `i16` pair `(128 - w, w)`, the
 /// form the column pass multiplies with a pair of neighbouring values.
 fn pack_weight(weight: i32) -> i32 {
@@ -55,6 +66,20 @@ impl ColumnTaps {
         }
     }
 
+    /// `out[i] = row[first_i] * (128 - w_i) + row[first_i + 1] * w_i` for a
+    /// row of 8-bit values widened to `i16`: the first pass when columns are
+    /// blended first (results in 128ths, at most 255 * 128).
+    pub fn blend_unrounded(&self, row: &[i16], out: &mut [i16]) {
+        assert!(row.len() >= self.row_len && out.len() == self.firsts.len());
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: as in `blend`.
+            unsafe { avx2::blend_columns_unrounded(row, &self.firsts, &self.packed, out) };
+            return;
+        }
+        blend_unrounded_portable(row, &self.firsts, &self.packed, out);
+    }
+
     /// `out[i] = blend_pair(row[first_i], row[first_i + 1], packed_i)`.
     pub fn blend(&self, row: &[i16], out: &mut [u8]) {
         assert!(row.len() >= self.row_len && out.len() == self.firsts.len());
@@ -66,6 +91,13 @@ impl ColumnTaps {
             return;
         }
         blend_columns_portable(row, &self.firsts, &self.packed, out);
+    }
+}
+
+fn blend_unrounded_portable(row: &[i16], firsts: &[u32], packed: &[i32], out: &mut [i16]) {
+    for ((o, &f), &p) in out.iter_mut().zip(firsts).zip(packed) {
+        let (keep, weight) = (p & 0xFFFF, p >> 16);
+        *o = (row[f as usize] as i32 * keep + row[f as usize + 1] as i32 * weight) as i16;
     }
 }
 
@@ -106,6 +138,50 @@ mod avx2 {
         super::blend_columns_portable(row, &firsts[i..], &packed[i..], &mut out[i..]);
     }
 
+    /// AVX2 [`super::ColumnTaps::blend_unrounded`]: as [`blend_columns`],
+    /// without the rounding shift; the sums (at most 255 * 128) pack to `i16`.
+    ///
+    /// # Safety
+    /// As [`blend_columns`].
+    #[target_feature(enable = "avx2")]
+    pub unsafe fn blend_columns_unrounded(
+        row: &[i16],
+        firsts: &[u32],
+        packed: &[i32],
+        out: &mut [i16],
+    ) {
+        let n = out.len();
+        let base = row.as_ptr() as *const i32;
+        let mut i = 0;
+        while i + 16 <= n {
+            let lo = pairs_times_weights(base, firsts, packed, i);
+            let hi = pairs_times_weights(base, firsts, packed, i + 8);
+            let words = _mm256_permute4x64_epi64::<0b11_01_10_00>(_mm256_packs_epi32(lo, hi));
+            _mm256_storeu_si256(out.as_mut_ptr().add(i) as *mut __m256i, words);
+            i += 16;
+        }
+        super::blend_unrounded_portable(row, &firsts[i..], &packed[i..], &mut out[i..]);
+    }
+
+    /// The weighted pair sums of outputs `at..at + 8`, as `i32`.
+    ///
+    /// # Safety
+    /// As [`blend_columns`]; `at + 8 <= firsts.len()`.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn pairs_times_weights(
+        base: *const i32,
+        firsts: &[u32],
+        packed: &[i32],
+        at: usize,
+    ) -> __m256i {
+        let idx = _mm256_loadu_si256(firsts.as_ptr().add(at) as *const __m256i);
+        // Scale 2: the indices count i16 elements; each read takes two.
+        let pairs = _mm256_i32gather_epi32::<2>(base, idx);
+        let w = _mm256_loadu_si256(packed.as_ptr().add(at) as *const __m256i);
+        _mm256_madd_epi16(pairs, w)
+    }
+
     /// Outputs `at..at + 8` as `i32`, rounded and shifted back to 0..=255.
     ///
     /// # Safety
@@ -119,11 +195,8 @@ mod avx2 {
         at: usize,
         round: __m256i,
     ) -> __m256i {
-        let idx = _mm256_loadu_si256(firsts.as_ptr().add(at) as *const __m256i);
-        // Scale 2: the indices count i16 elements; each read takes two.
-        let pairs = _mm256_i32gather_epi32::<2>(base, idx);
-        let w = _mm256_loadu_si256(packed.as_ptr().add(at) as *const __m256i);
-        _mm256_srai_epi32::<14>(_mm256_add_epi32(_mm256_madd_epi16(pairs, w), round))
+        let sums = pairs_times_weights(base, firsts, packed, at);
+        _mm256_srai_epi32::<14>(_mm256_add_epi32(sums, round))
     }
 }
 
@@ -145,6 +218,35 @@ mod tests {
         let mut out = [0u8; 3];
         ColumnTaps::new([(0, 0), (0, 128), (0, 64)].into_iter()).blend(&row, &mut out);
         assert_eq!(out, [100, 201, 151]);
+    }
+
+    #[test]
+    fn columns_first_gives_the_same_bytes_as_rows_first() {
+        let top: Vec<u8> = (0..40).map(|i| (i * 53 % 256) as u8).collect();
+        let bottom: Vec<u8> = (0..40).map(|i| (i * 29 % 256) as u8).collect();
+        let taps = ColumnTaps::new((0..30).map(|i| (i * 38 / 30, (i * 11 % 129) as i32)));
+        for wy in [0, 1, 63, 64, 127, 128] {
+            let mut rows = vec![0i16; 41];
+            blend_rows(&top, &bottom, wy, &mut rows[..40]);
+            rows[40] = rows[39];
+            let mut rows_first = vec![0u8; 30];
+            taps.blend(&rows, &mut rows_first);
+
+            let widen = |r: &[u8]| -> Vec<i16> {
+                let mut v: Vec<i16> = r.iter().map(|&x| x as i16).collect();
+                v.push(v[v.len() - 1]);
+                v
+            };
+            let (mut ct, mut cb) = (vec![0i16; 30], vec![0i16; 30]);
+            taps.blend_unrounded(&widen(&top), &mut ct);
+            let mut portable = vec![0i16; 30];
+            blend_unrounded_portable(&widen(&top), &taps.firsts, &taps.packed, &mut portable);
+            assert_eq!(ct, portable);
+            taps.blend_unrounded(&widen(&bottom), &mut cb);
+            let mut cols_first = vec![0u8; 30];
+            blend_rows_rounded(&ct, &cb, wy, &mut cols_first);
+            assert_eq!(rows_first, cols_first, "wy {wy}");
+        }
     }
 
     #[test]

@@ -1,7 +1,7 @@
 //! Resampling through a mip pyramid: "resize to W'xH', then crop a window" done
 //! in one pass that only computes the output pixels.
 
-use crate::bilinear::{blend_rows, ColumnTaps, WEIGHT_ONE};
+use crate::bilinear::{blend_rows, blend_rows_rounded, ColumnTaps, WEIGHT_ONE};
 use crate::channel::{levels_of, Channel};
 use crate::levels::ChannelWindow;
 use crate::rgb::RgbF32;
@@ -96,8 +96,9 @@ impl Pyramid {
     /// `out_w x out_h` pixels.
     ///
     /// Bilinear in fixed point on 8-bit pixels, rounded back to 8 bits, as
-    /// OpenCV resizes `uint8` images: rows are blended first, then columns
-    /// (see [`crate::bilinear`]).
+    /// OpenCV resizes `uint8` images. Rows are blended first, then columns;
+    /// when upscaling, columns first, so each source row is blended once
+    /// (the same integer sums, so the same bytes; see [`crate::bilinear`]).
     fn sample_plane(
         &self,
         placement: &Placement,
@@ -123,23 +124,44 @@ impl Pyramid {
         }
         let (level, cols, rows) = self.grid(placement, out_w, out_h);
         let src = &level.planes[lane];
-        // Source columns the window touches; rows are blended over this span
-        // only, plus one copy of its last value so that every column tap
-        // reads a pair (the pair at the right edge is that value twice).
+        // Source columns the window touches, plus one copy of the last so
+        // that every column tap reads a pair (the pair at the right edge is
+        // that value twice).
         let first = cols[0].first;
         let span = cols[cols.len() - 1].second - first + 1;
         let taps = ColumnTaps::new(cols.iter().map(|c| (c.first - first, c.weight)));
-        let mut blended = vec![0i16; span + 1];
-        for (row, out_row) in rows.iter().zip(out.chunks_exact_mut(out_w)) {
-            let at = |y: usize| &src[y * level.width + first..][..span];
-            blend_rows(
-                at(row.first),
-                at(row.second),
-                row.weight,
-                &mut blended[..span],
-            );
-            blended[span] = blended[span - 1];
-            taps.blend(&blended, out_row);
+        let source_rows = rows[rows.len() - 1].second - rows[0].first + 1;
+        if source_rows < out_h {
+            // Upscaling: blend the columns of each source row once, then
+            // blend pairs of those rows (cheap, vectorised) per output row.
+            let top = rows[0].first;
+            let mut widened = vec![0i16; span + 1];
+            let mut by_columns = vec![0i16; source_rows * out_w];
+            for (y, out_row) in by_columns.chunks_exact_mut(out_w).enumerate() {
+                let row = &src[(top + y) * level.width + first..][..span];
+                for (w, &v) in widened.iter_mut().zip(row) {
+                    *w = v as i16;
+                }
+                widened[span] = widened[span - 1];
+                taps.blend_unrounded(&widened, out_row);
+            }
+            let at = |y: usize| &by_columns[(y - top) * out_w..][..out_w];
+            for (row, out_row) in rows.iter().zip(out.chunks_exact_mut(out_w)) {
+                blend_rows_rounded(at(row.first), at(row.second), row.weight, out_row);
+            }
+        } else {
+            let mut blended = vec![0i16; span + 1];
+            for (row, out_row) in rows.iter().zip(out.chunks_exact_mut(out_w)) {
+                let at = |y: usize| &src[y * level.width + first..][..span];
+                blend_rows(
+                    at(row.first),
+                    at(row.second),
+                    row.weight,
+                    &mut blended[..span],
+                );
+                blended[span] = blended[span - 1];
+                taps.blend(&blended, out_row);
+            }
         }
         out
     }

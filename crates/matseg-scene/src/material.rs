@@ -261,7 +261,11 @@ impl Colour {
                 ..
             } => {
                 let (uw, uh) = orientation.oriented_size(tile_w as usize, tile_h as usize);
-                (pyramid.resize_rgb(uw, uh), offset_x as usize, offset_y as usize)
+                (
+                    pyramid.resize_rgb(uw, uh),
+                    offset_x as usize,
+                    offset_y as usize,
+                )
             }
             Fill::Stretch { placement } => {
                 // The visible part of the oriented texture's window is a
