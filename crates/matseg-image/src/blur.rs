@@ -96,30 +96,36 @@ impl Region {
     /// The bounding box of the pixels where `plane > 0`, if any.
     pub fn support(plane: &Plane) -> Option<Self> {
         let w = plane.width;
-        let mut rows = plane
-            .data
-            .chunks_exact(w)
-            .enumerate()
-            .filter(|(_, r)| r.iter().any(|&v| v > 0.0));
-        let (first, _) = rows.next()?;
-        let mut region = Region {
-            x0: w,
-            x1: 0,
-            y0: first,
-            y1: first + 1,
-        };
-        for (y, row) in
-            std::iter::once((first, &plane.data[first * w..(first + 1) * w])).chain(rows)
-        {
-            region.y1 = y + 1;
-            if let Some(x) = row.iter().position(|&v| v > 0.0) {
-                region.x0 = region.x0.min(x);
-            }
-            if let Some(x) = row.iter().rposition(|&v| v > 0.0) {
-                region.x1 = region.x1.max(x + 1);
-            }
+        let mut region: Option<Region> = None;
+        for (y, row) in plane.data.chunks_exact(w).enumerate() {
+            // Blocks of 16 are tested whole (vectorised); positions are
+            // looked for only in the first and last positive block.
+            let positive = |block: &[f32]| block.iter().fold(0.0f32, |m, &v| m.max(v)) > 0.0;
+            let Some(first) = row.chunks(16).position(positive) else {
+                continue;
+            };
+            let last = row
+                .chunks(16)
+                .rposition(positive)
+                .expect("a positive block");
+            let x0 = first * 16
+                + row[first * 16..]
+                    .iter()
+                    .position(|&v| v > 0.0)
+                    .expect("in block");
+            let tail = &row[..(last * 16 + 16).min(w)];
+            let x1 = tail.iter().rposition(|&v| v > 0.0).expect("in block") + 1;
+            let r = region.get_or_insert(Region {
+                x0,
+                x1,
+                y0: y,
+                y1: y + 1,
+            });
+            r.x0 = r.x0.min(x0);
+            r.x1 = r.x1.max(x1);
+            r.y1 = y + 1;
         }
-        Some(region)
+        region
     }
 }
 
@@ -135,11 +141,13 @@ pub fn gaussian_blur_region(src: &Plane, ksize: usize, region: Region) -> Plane 
     let Region { x0, x1, y0, y1 } = region;
     let span = x1 - x0;
 
-    // Horizontal pass over the rows the vertical pass will read: pad each row
-    // by reflection, then add mirrored taps in pairs (the kernel is symmetric).
-    let mut horiz = vec![0.0f32; w * h];
+    // Horizontal pass over the rows the vertical pass will read (only the
+    // region's columns): pad each row by reflection, then add mirrored taps
+    // in pairs (the kernel is symmetric).
+    let (first_row, end_row) = (y0.saturating_sub(r), (y1 + r).min(h));
+    let mut horiz = vec![0.0f32; (end_row - first_row) * span];
     let mut padded = vec![0.0f32; w + 2 * r];
-    for y in y0.saturating_sub(r)..(y1 + r).min(h) {
+    for (y, out_row) in (first_row..end_row).zip(horiz.chunks_exact_mut(span.max(1))) {
         let row = &src.data[y * w..(y + 1) * w];
         padded[r..r + w].copy_from_slice(row);
         for i in 0..r {
@@ -149,18 +157,19 @@ pub fn gaussian_blur_region(src: &Plane, ksize: usize, region: Region) -> Plane 
         let pairs: Vec<_> = (0..r)
             .map(|t| (taps[t], &padded[x0 + t..], &padded[x0 + 2 * r - t..]))
             .collect();
-        symmetric_taps(
-            &mut horiz[y * w + x0..y * w + x1],
-            &padded[x0 + r..x0 + r + span],
-            taps[r],
-            &pairs,
-        );
+        symmetric_taps(out_row, &padded[x0 + r..x0 + r + span], taps[r], &pairs);
     }
 
-    // Vertical pass: each output row is a weighted sum of input rows.
-    let mut out = vec![0.0f32; w * h];
-    let row = |y: isize| &horiz[reflect101(y, h) * w + x0..];
+    // Vertical pass: each output row is a weighted sum of input rows
+    // (reflected rows stay inside the horizontal pass's rows). Rows and
+    // columns outside the region are 0.
+    let row = |y: isize| &horiz[(reflect101(y, h) - first_row) * span..];
+    let mut out = Vec::with_capacity(w * h);
+    out.resize(y0 * w, 0.0);
     for y in y0..y1 {
+        out.resize(out.len() + x0, 0.0);
+        let start = out.len();
+        out.resize(start + span, 0.0);
         let yi = y as isize;
         let pairs: Vec<_> = (0..r)
             .map(|t| {
@@ -168,13 +177,10 @@ pub fn gaussian_blur_region(src: &Plane, ksize: usize, region: Region) -> Plane 
                 (taps[t], row(yi - d), row(yi + d))
             })
             .collect();
-        symmetric_taps(
-            &mut out[y * w + x0..y * w + x1],
-            &horiz[y * w + x0..y * w + x1],
-            taps[r],
-            &pairs,
-        );
+        symmetric_taps(&mut out[start..], row(yi), taps[r], &pairs);
+        out.resize(out.len() + w - x1, 0.0);
     }
+    out.resize(w * h, 0.0);
     Plane::from_vec(w, h, out)
 }
 
