@@ -5,7 +5,7 @@ use crate::io::{has_image_extension, read_dimensions, read_rgb};
 use crate::resample::Pyramid;
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 
 /// File in a folder that maps file names to licences (`"*"` is the default).
 pub const LICENSES_FILE: &str = "licenses.json";
@@ -65,6 +65,27 @@ pub struct Photo {
     pub index: usize,
     /// Its pixels and downscaled levels.
     pub pyramid: Pyramid,
+    /// The photo turned by 90° counter-clockwise, made on first use.
+    quarter_turned: OnceLock<Pyramid>,
+}
+
+impl Photo {
+    /// A photo of the library at `index` with the pixels of `img`.
+    pub fn new(index: usize, img: image::RgbImage) -> Self {
+        Self {
+            index,
+            pyramid: Pyramid::new(img),
+            quarter_turned: OnceLock::new(),
+        }
+    }
+
+    /// The pyramid of the photo turned by 90° counter-clockwise, made on
+    /// first use and kept with the photo (textures are drawn turned half
+    /// the time; the copy is not counted in the cache budget).
+    pub fn quarter_turned(&self) -> &Pyramid {
+        self.quarter_turned
+            .get_or_init(|| self.pyramid.quarter_turned())
+    }
 }
 
 /// A file left out of the library, and why.
@@ -195,10 +216,7 @@ impl PhotoLibrary {
                 return Err(e.message);
             }
         };
-        let photo = Arc::new(Photo {
-            index,
-            pyramid: Pyramid::new(img),
-        });
+        let photo = Arc::new(Photo::new(index, img));
         let mut cache = self.cache.lock().expect("lock");
         cache.clock += 1;
         let now = cache.clock;

@@ -70,11 +70,43 @@ pub struct Pyramid {
 impl Pyramid {
     /// Builds the pyramid of `img` (level 0 is `img` itself).
     pub fn new(img: RgbImage) -> Self {
-        let mut levels = vec![Level::from_rgb8(&img)];
+        Self::from_base(Level::from_rgb8(&img))
+    }
+
+    fn from_base(base: Level) -> Self {
+        let mut levels = vec![base];
         while let Some(next) = levels.last().and_then(Level::halved) {
             levels.push(next);
         }
         Self { levels }
+    }
+
+    /// The pyramid of the image turned by 90° counter-clockwise.
+    pub fn quarter_turned(&self) -> Self {
+        let base = &self.levels[0];
+        let (w, h) = (base.height, base.width);
+        let planes = base.planes.each_ref().map(|src| {
+            // Output (x, y) is source (h - 1 - y, x): output rows are source
+            // columns. Blocks of 32x32 keep the source rows in cache.
+            const BLOCK: usize = 32;
+            let mut out = vec![0u8; w * h];
+            for by in (0..h).step_by(BLOCK) {
+                for bx in (0..w).step_by(BLOCK) {
+                    for y in by..(by + BLOCK).min(h) {
+                        let column = h - 1 - y;
+                        for x in bx..(bx + BLOCK).min(w) {
+                            out[y * w + x] = src[x * base.width + column];
+                        }
+                    }
+                }
+            }
+            out
+        });
+        Self::from_base(Level {
+            width: w,
+            height: h,
+            planes,
+        })
     }
 
     /// Width of the full-resolution image.
@@ -338,6 +370,18 @@ mod tests {
         // A 4x downscale reads the averaged level, not aliased columns.
         let out = p.resize_rgb(32, 16);
         assert!(out.planes[0].iter().all(|&v| v == 100.0));
+    }
+
+    #[test]
+    fn quarter_turn_matches_image_rotation() {
+        let img = RgbImage::from_fn(70, 45, |x, y| image::Rgb([x as u8, y as u8, (x * y) as u8]));
+        let turned = Pyramid::new(img.clone()).quarter_turned();
+        let want = image::imageops::rotate270(&img);
+        let (w, h) = (turned.width(), turned.height());
+        assert_eq!((w, h), want.dimensions());
+        let got = turned.resize_rgb(w as usize, h as usize).to_rgb8();
+        assert_eq!(got, want);
+        assert_eq!(turned.levels.len(), Pyramid::new(want).levels.len());
     }
 
     #[test]

@@ -1,7 +1,6 @@
 //! Float RGB images (values on the 0..255 scale) for composition, stored as
 //! three planes so that per-pixel arithmetic vectorises.
 
-use crate::orientation::Orientation;
 use crate::plane::round_to_u8;
 use image::RgbImage;
 
@@ -43,40 +42,6 @@ impl RgbF32 {
         }
         RgbImage::from_raw(self.width as u32, self.height as u32, raw)
             .expect("buffer length matches the image size")
-    }
-
-    /// The image turned and mirrored by `orientation`.
-    pub fn oriented(self, orientation: Orientation) -> RgbF32 {
-        if orientation == Orientation::default() {
-            return self;
-        }
-        let (w, h) = orientation.oriented_size(self.width, self.height);
-        let planes = self.planes.map(|src| {
-            let mut out = Vec::with_capacity(w * h);
-            for y in 0..h {
-                if orientation.rot90 {
-                    out.extend((0..w).map(|x| {
-                        let (sx, sy) = orientation.source(x, y, w, h);
-                        src[sy * self.width + sx]
-                    }));
-                } else {
-                    // Mirrors only: each output row is a source row, maybe reversed.
-                    let (_, sy) = orientation.source(0, y, w, h);
-                    let row = &src[sy * w..(sy + 1) * w];
-                    if orientation.flip_x {
-                        out.extend(row.iter().rev());
-                    } else {
-                        out.extend_from_slice(row);
-                    }
-                }
-            }
-            out
-        });
-        RgbF32 {
-            width: w,
-            height: h,
-            planes,
-        }
     }
 
     /// Rotates the hue of every pixel by `degrees` (see [`rotate_hue`]).
@@ -161,27 +126,6 @@ mod tests {
             assert!((max(turned) - max(px)).abs() < 1e-3);
             assert!((min(turned) - min(px)).abs() < 1e-3);
             assert!(close(rotate_hue(turned, 260.0), px), "{px:?}");
-        }
-    }
-
-    #[test]
-    fn orienting_reads_the_source_pixels() {
-        let planes = [(0..12u8).collect(), (12..24).collect(), (24..36).collect()];
-        let img = RgbF32::from_planes8(4, 3, &planes);
-        for bits in 0..8 {
-            let o = Orientation {
-                rot90: bits & 1 != 0,
-                flip_x: bits & 2 != 0,
-                flip_y: bits & 4 != 0,
-            };
-            let out = img.clone().oriented(o);
-            assert_eq!((out.width, out.height), o.oriented_size(4, 3));
-            for y in 0..out.height {
-                for x in 0..out.width {
-                    let (sx, sy) = o.source(x, y, out.width, out.height);
-                    assert_eq!(out.pixel(y * out.width + x), img.pixel(sy * 4 + sx));
-                }
-            }
         }
     }
 

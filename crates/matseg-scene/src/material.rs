@@ -217,22 +217,23 @@ fn draw_texture<R: Rng + ?Sized>(
 enum Colour {
     /// One colour everywhere.
     Flat([f32; 3]),
-    /// An image of the texture as it appears in the scene (resized,
-    /// oriented, hue shifted), repeated: scene pixel `(x, y)` shows image
-    /// pixel `((x + phase_x) mod width, (y + phase_y) mod height)`.
+    /// An image of the texture as drawn (turned if it is, resized, hue
+    /// shifted), read mirrored by `mirrors` and repeated: scene pixel
+    /// `(x, y)` shows pixel `((x + phase_x) mod width, (y + phase_y) mod
+    /// height)` of the mirrored image.
     Image {
         image: RgbF32,
+        mirrors: Orientation,
         phase_x: usize,
         phase_y: usize,
     },
 }
 
 impl Colour {
-    /// The colour of a material from its record, for a `w x h` scene, where
-    /// it is visible in `support` (not empty); `texture` is the texture's
-    /// photo for a texture.
+    /// The colour of a material from its record, where it is visible in
+    /// `support` (not empty); `texture` is the texture's photo for a texture.
     fn new(source: &MaterialSource, texture: Option<&Photo>, support: Region) -> Self {
-        let (fill, orientation, hue_shift) = match *source {
+        let (fill, rot90, flip_x, flip_y, hue_shift_degrees) = match *source {
             MaterialSource::FlatColour { rgb } => return Colour::Flat(rgb.map(f32::from)),
             MaterialSource::Texture {
                 ref fill,
@@ -241,63 +242,61 @@ impl Colour {
                 flip_y,
                 hue_shift_degrees,
                 ..
-            } => (
-                fill,
-                Orientation {
-                    rot90,
-                    flip_x,
-                    flip_y,
-                },
-                hue_shift_degrees,
-            ),
+            } => (fill, rot90, flip_x, flip_y, hue_shift_degrees),
         };
-        let pyramid = &texture.expect("a texture is drawn with its photo").pyramid;
-        let (image, phase_x, phase_y) = match *fill {
+        let texture = texture.expect("a texture is drawn with its photo");
+        // Turned textures are read from the photo's cached turned copy;
+        // mirrors are applied when reading rows.
+        let pyramid = if rot90 {
+            texture.quarter_turned()
+        } else {
+            &texture.pyramid
+        };
+        let mirrors = Orientation {
+            rot90: false,
+            flip_x,
+            flip_y,
+        };
+        let (mut image, phase_x, phase_y) = match *fill {
             Fill::Tile {
                 tile_w,
                 tile_h,
                 offset_x,
                 offset_y,
                 ..
-            } => {
-                let (uw, uh) = orientation.oriented_size(tile_w as usize, tile_h as usize);
-                (
-                    pyramid.resize_rgb(uw, uh),
-                    offset_x as usize,
-                    offset_y as usize,
-                )
-            }
+            } => (
+                pyramid.resize_rgb(tile_w as usize, tile_h as usize),
+                offset_x as usize,
+                offset_y as usize,
+            ),
             Fill::Stretch { placement } => {
-                // The visible part of the oriented texture's window is a
-                // rectangle of the texture itself: sample only that one.
+                // The visible part of the mirrored texture's window is a
+                // rectangle of the unmirrored one: sample only that.
                 let (rw, rh) = (placement.resized_w as usize, placement.resized_h as usize);
                 let (x0, y0) = (placement.x0 as usize, placement.y0 as usize);
                 let (span_w, span_h) = (support.x1 - support.x0, support.y1 - support.y0);
-                let corner = |x, y| orientation.source(x0 + x, y0 + y, rw, rh);
+                let corner = |x, y| mirrors.source(x0 + x, y0 + y, rw, rh);
                 let (ax, ay) = corner(support.x0, support.y0);
                 let (bx, by) = corner(support.x1 - 1, support.y1 - 1);
-                let (uw, uh) = orientation.oriented_size(rw, rh);
-                let (win_w, win_h) = orientation.oriented_size(span_w, span_h);
                 let window = Placement {
-                    resized_w: uw as u32,
-                    resized_h: uh as u32,
                     x0: ax.min(bx) as u32,
                     y0: ay.min(by) as u32,
+                    ..placement
                 };
                 let phase = |start: usize, len: usize| (len - start % len) % len;
                 (
-                    pyramid.sample_rgb(&window, win_w, win_h),
+                    pyramid.sample_rgb(&window, span_w, span_h),
                     phase(support.x0, span_w),
                     phase(support.y0, span_h),
                 )
             }
         };
-        let mut image = image;
-        if let Some(degrees) = hue_shift {
+        if let Some(degrees) = hue_shift_degrees {
             image.rotate_hue(degrees);
         }
         Colour::Image {
-            image: image.oriented(orientation),
+            image,
+            mirrors,
             phase_x,
             phase_y,
         }
@@ -314,18 +313,27 @@ impl Colour {
             }
             Colour::Image {
                 image,
+                mirrors,
                 phase_x,
                 phase_y,
             } => {
-                let w = image.width;
-                let start = (y + phase_y) % image.height * w;
+                let (w, h) = (image.width, image.height);
+                let (_, row) = mirrors.source(0, (y + phase_y) % h, w, h);
                 for (out, plane) in rgb.iter_mut().zip(&image.planes) {
-                    let row = &plane[start..start + w];
-                    // Copy runs of the image row, wrapping at its end.
+                    let row = &plane[row * w..(row + 1) * w];
+                    // Copy runs of the (mirrored) image row, wrapping at its end.
                     let (mut col, mut done) = ((x0 + phase_x) % w, 0);
                     while done < out.len() {
                         let run = (w - col).min(out.len() - done);
-                        out[done..done + run].copy_from_slice(&row[col..col + run]);
+                        let dst = &mut out[done..done + run];
+                        if mirrors.flip_x {
+                            let src = &row[w - col - run..w - col];
+                            dst.iter_mut()
+                                .zip(src.iter().rev())
+                                .for_each(|(d, &s)| *d = s);
+                        } else {
+                            dst.copy_from_slice(&row[col..col + run]);
+                        }
                         done += run;
                         col = 0;
                     }
@@ -370,4 +378,86 @@ fn draw_shading<R: Rng + ?Sized>(
         strength,
     };
     Ok((shade, record))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use image::RgbImage;
+
+    /// A texture's colours through `Colour` equal the texture turned and
+    /// mirrored by the image crate, then tiled or cropped.
+    #[test]
+    fn texture_colours_follow_the_drawn_orientation() {
+        let img = RgbImage::from_fn(7, 5, |x, y| image::Rgb([x as u8 * 30, y as u8 * 40, 9]));
+        let photo = Photo::new(0, img.clone());
+        let (w, h) = (11, 9);
+        let support = Region {
+            x0: 2,
+            x1: 10,
+            y0: 1,
+            y1: 8,
+        };
+        for bits in 0..8 {
+            let (rot90, flip_x, flip_y) = (bits & 1 != 0, bits & 2 != 0, bits & 4 != 0);
+            let mut want = if rot90 {
+                image::imageops::rotate270(&img)
+            } else {
+                img.clone()
+            };
+            if flip_x {
+                image::imageops::flip_horizontal_in_place(&mut want);
+            }
+            if flip_y {
+                image::imageops::flip_vertical_in_place(&mut want);
+            }
+            let (tw, th) = want.dimensions();
+            let tile = Fill::Tile {
+                shrink: 1.0,
+                tile_w: tw,
+                tile_h: th,
+                offset_x: 3,
+                offset_y: 2,
+            };
+            let stretch = Fill::Stretch {
+                placement: Placement {
+                    resized_w: tw,
+                    resized_h: th,
+                    x0: 0,
+                    y0: 0,
+                },
+            };
+            // A stretched window as large as the texture: scene = texture.
+            for (fill, shown) in [
+                (tile, (w, h, 3, 2)),
+                (stretch, (tw as usize, th as usize, 0, 0)),
+            ] {
+                let (sw, sh, ox, oy) = shown;
+                let support = Region {
+                    x1: support.x1.min(sw),
+                    y1: support.y1.min(sh),
+                    ..support
+                };
+                let source = MaterialSource::Texture {
+                    texture: 0,
+                    rot90,
+                    flip_x,
+                    flip_y,
+                    fill,
+                    hue_shift_degrees: None,
+                };
+                let colour = Colour::new(&source, Some(&photo), support);
+                let span = support.x1 - support.x0;
+                let mut rgb = [vec![0f32; span], vec![0f32; span], vec![0f32; span]];
+                for y in support.y0..support.y1 {
+                    colour.fill_row(y, support.x0, &mut rgb);
+                    for x in support.x0..support.x1 {
+                        let px = want.get_pixel((x + ox) as u32 % tw, (y + oy) as u32 % th);
+                        let got = [0, 1, 2].map(|c| rgb[c][x - support.x0] as u8);
+                        assert_eq!(got, px.0, "bits {bits} ({x}, {y})");
+                    }
+                }
+            }
+        }
+    }
 }
