@@ -38,16 +38,21 @@ fn reflect101(i: isize, n: usize) -> usize {
     j as usize
 }
 
-/// `out[x] = k0 * centre[x] + sum over pairs (k, a, b) of k * (a[x] + b[x])`,
-/// written over equal-length slices so the compiler vectorises it; also
-/// compiled for AVX2, picked at run time when the CPU has it.
+/// Appends `k0 * centre[x] + sum over pairs (k, a, b) of k * (a[x] + b[x])`
+/// for every `x` of `centre` to `out`, over equal-length slices so the
+/// compiler vectorises it; also compiled for AVX2, picked at run time when
+/// the CPU has it.
 #[multiversion::multiversion(targets("x86_64+avx2+fma"))]
-fn symmetric_taps(out: &mut [f32], centre: &[f32], k0: f32, pairs: &[(f32, &[f32], &[f32])]) {
+fn append_symmetric_taps(
+    out: &mut Vec<f32>,
+    centre: &[f32],
+    k0: f32,
+    pairs: &[(f32, &[f32], &[f32])],
+) {
+    let start = out.len();
+    out.extend(centre.iter().map(|&c| k0 * c));
+    let out = &mut out[start..];
     let n = out.len();
-    let centre = &centre[..n];
-    for x in 0..n {
-        out[x] = k0 * centre[x];
-    }
     for &(k, a, b) in pairs {
         let (a, b) = (&a[..n], &b[..n]);
         for x in 0..n {
@@ -145,9 +150,9 @@ pub fn gaussian_blur_region(src: &Plane, ksize: usize, region: Region) -> Plane 
     // region's columns): pad each row by reflection, then add mirrored taps
     // in pairs (the kernel is symmetric).
     let (first_row, end_row) = (y0.saturating_sub(r), (y1 + r).min(h));
-    let mut horiz = vec![0.0f32; (end_row - first_row) * span];
+    let mut horiz = Vec::with_capacity((end_row - first_row) * span);
     let mut padded = vec![0.0f32; w + 2 * r];
-    for (y, out_row) in (first_row..end_row).zip(horiz.chunks_exact_mut(span.max(1))) {
+    for y in first_row..end_row {
         let row = &src.data[y * w..(y + 1) * w];
         padded[r..r + w].copy_from_slice(row);
         for i in 0..r {
@@ -157,7 +162,7 @@ pub fn gaussian_blur_region(src: &Plane, ksize: usize, region: Region) -> Plane 
         let pairs: Vec<_> = (0..r)
             .map(|t| (taps[t], &padded[x0 + t..], &padded[x0 + 2 * r - t..]))
             .collect();
-        symmetric_taps(out_row, &padded[x0 + r..x0 + r + span], taps[r], &pairs);
+        append_symmetric_taps(&mut horiz, &padded[x0 + r..x0 + r + span], taps[r], &pairs);
     }
 
     // Vertical pass: each output row is a weighted sum of input rows
@@ -168,8 +173,6 @@ pub fn gaussian_blur_region(src: &Plane, ksize: usize, region: Region) -> Plane 
     out.resize(y0 * w, 0.0);
     for y in y0..y1 {
         out.resize(out.len() + x0, 0.0);
-        let start = out.len();
-        out.resize(start + span, 0.0);
         let yi = y as isize;
         let pairs: Vec<_> = (0..r)
             .map(|t| {
@@ -177,7 +180,7 @@ pub fn gaussian_blur_region(src: &Plane, ksize: usize, region: Region) -> Plane 
                 (taps[t], row(yi - d), row(yi + d))
             })
             .collect();
-        symmetric_taps(&mut out[start..], row(yi), taps[r], &pairs);
+        append_symmetric_taps(&mut out, &row(yi)[..span], taps[r], &pairs);
         out.resize(out.len() + w - x1, 0.0);
     }
     out.resize(w * h, 0.0);
