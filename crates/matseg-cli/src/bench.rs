@@ -1,6 +1,7 @@
 //! `matseg bench`: generator throughput at the SPEC's scene-size distribution.
 
 use crate::common::{Libraries, DEFAULT_CACHE_MB};
+use crate::cpu_time::process_cpu_seconds;
 use anyhow::Result;
 use matseg_data::{encode_scene, generate_dataset, sample_rng, Format, GenerateOptions, JobSlice};
 use matseg_extract::make_soft_maps;
@@ -29,13 +30,46 @@ pub struct Args {
     /// Memory bound for decoded source photos, in MiB.
     #[arg(long, default_value_t = DEFAULT_CACHE_MB)]
     cache_mb: usize,
+    /// Where the end-to-end rows write (and then delete) their datasets;
+    /// default: the system's temporary folder. The disk's cost is part of
+    /// those rows.
+    #[arg(long)]
+    dir: Option<PathBuf>,
+}
+
+/// Wall-clock and process CPU time, read together.
+#[derive(Clone, Copy)]
+struct Clock {
+    wall: Instant,
+    cpu: Option<f64>,
+}
+
+impl Clock {
+    fn now() -> Self {
+        Self {
+            wall: Instant::now(),
+            cpu: process_cpu_seconds(),
+        }
+    }
+
+    /// Wall seconds and CPU seconds since `self`; CPU seconds are wall
+    /// seconds times `threads` where the platform gives no CPU time.
+    fn elapsed(self, threads: usize) -> (f64, f64) {
+        let wall = self.wall.elapsed().as_secs_f64();
+        let cpu = match (self.cpu, process_cpu_seconds()) {
+            (Some(a), Some(b)) => b - a,
+            _ => wall * threads as f64,
+        };
+        (wall, cpu)
+    }
 }
 
 struct Row {
     name: String,
     threads: usize,
     scenes: u64,
-    seconds: f64,
+    wall: f64,
+    cpu: f64,
     bytes: u64,
 }
 
@@ -53,7 +87,7 @@ pub fn run(args: Args) -> Result<()> {
     }
 
     let mut rows = Vec::new();
-    let start = Instant::now();
+    let start = Clock::now();
     for i in 0..args.scenes {
         let mut rng = sample_rng(args.seed, i);
         let shape = recipe.scene.draw(&mut rng);
@@ -68,21 +102,28 @@ pub fn run(args: Args) -> Result<()> {
             &recipe.maps,
         )?;
     }
+    let (wall, cpu) = start.elapsed(1);
     rows.push(Row {
         name: "soft maps only (SPEC 1)".into(),
         threads: 1,
         scenes: args.scenes,
-        seconds: start.elapsed().as_secs_f64(),
+        wall,
+        cpu,
         bytes: 0,
     });
-    let (mut gen_s, mut enc_s, mut pixels, mut materials, mut bytes) = (0.0, 0.0, 0u64, 0u64, 0u64);
+    let (mut gen, mut enc) = ((0.0, 0.0), (0.0, 0.0));
+    let (mut pixels, mut materials, mut bytes) = (0u64, 0u64, 0u64);
+    let add = |total: &mut (f64, f64), (wall, cpu): (f64, f64)| {
+        total.0 += wall;
+        total.1 += cpu;
+    };
     for i in 0..args.scenes {
-        let t = Instant::now();
+        let t = Clock::now();
         let scene = generate_2d(&mut sample_rng(args.seed, i), &recipe, sources)?;
-        gen_s += t.elapsed().as_secs_f64();
-        let t = Instant::now();
+        add(&mut gen, t.elapsed(1));
+        let t = Clock::now();
         let encoded = encode_scene(&scene, args.seed, i, sources);
-        enc_s += t.elapsed().as_secs_f64();
+        add(&mut enc, t.elapsed(1));
         pixels += (scene.image.width() * scene.image.height()) as u64;
         materials += scene.weights.len() as u64;
         bytes += encoded.bytes() as u64;
@@ -91,14 +132,16 @@ pub fn run(args: Args) -> Result<()> {
         name: "generate in memory (no encoding)".into(),
         threads: 1,
         scenes: args.scenes,
-        seconds: gen_s,
+        wall: gen.0,
+        cpu: gen.1,
         bytes: 0,
     });
     rows.push(Row {
         name: "encode only (JPEG + PNG masks + JSON)".into(),
         threads: 1,
         scenes: args.scenes,
-        seconds: enc_s,
+        wall: enc.0,
+        cpu: enc.1,
         bytes,
     });
 
@@ -107,10 +150,14 @@ pub fn run(args: Args) -> Result<()> {
         (threads, Format::Folders),
         (threads, Format::Wds),
     ] {
-        let dir = std::env::temp_dir().join(format!(
-            "matseg-bench-{}-{t}-{format:?}",
-            std::process::id()
-        ));
+        let dir = args
+            .dir
+            .clone()
+            .unwrap_or_else(std::env::temp_dir)
+            .join(format!(
+                "matseg-bench-{}-{t}-{format:?}",
+                std::process::id()
+            ));
         let opts = GenerateOptions {
             out: dir.clone(),
             n: args.scenes,
@@ -120,9 +167,9 @@ pub fn run(args: Args) -> Result<()> {
             job: JobSlice::ALL,
         };
         let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build()?;
-        let start = Instant::now();
+        let start = Clock::now();
         let report = pool.install(|| generate_dataset(&opts, &recipe, sources, &|_| {}))?;
-        let seconds = start.elapsed().as_secs_f64();
+        let (wall, cpu) = start.elapsed(t);
         let _ = std::fs::remove_dir_all(&dir);
         rows.push(Row {
             name: format!(
@@ -135,7 +182,8 @@ pub fn run(args: Args) -> Result<()> {
             ),
             threads: t,
             scenes: args.scenes,
-            seconds,
+            wall,
+            cpu,
             bytes: report.bytes,
         });
     }
@@ -150,27 +198,30 @@ pub fn run(args: Args) -> Result<()> {
     );
     println!(
         "| {:<40} | {:>7} | {:>9} | {:>13} | {:>13} | {:>8} |",
-        "measure", "threads", "seconds", "CPU s / scene", "scenes/s/core", "MB/s"
+        "measure", "threads", "wall s", "CPU s / scene", "scenes/s/core", "MB/s"
     );
     println!(
         "|{:-<42}|{:->9}|{:->11}|{:->15}|{:->15}|{:->10}|",
         "", "", "", "", "", ""
     );
     for r in &rows {
-        let per_core = r.scenes as f64 / r.seconds / r.threads as f64;
+        let cpu_per_scene = r.cpu / r.scenes as f64;
         println!(
             "| {:<40} | {:>7} | {:>9.2} | {:>13.4} | {:>13.1} | {:>8} |",
             r.name,
             r.threads,
-            r.seconds,
-            1.0 / per_core,
-            per_core,
+            r.wall,
+            cpu_per_scene,
+            1.0 / cpu_per_scene,
             if r.bytes > 0 {
-                format!("{:.1}", r.bytes as f64 / 1e6 / r.seconds)
+                format!("{:.1}", r.bytes as f64 / 1e6 / r.wall)
             } else {
                 "-".into()
             }
         );
+    }
+    if process_cpu_seconds().is_none() {
+        println!("(no process CPU clock here: CPU seconds are wall seconds times threads)");
     }
     Ok(())
 }

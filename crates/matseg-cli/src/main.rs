@@ -6,6 +6,7 @@
 mod allocator;
 mod bench;
 mod common;
+mod cpu_time;
 mod demo;
 mod generate;
 mod maps;
