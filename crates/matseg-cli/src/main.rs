@@ -8,6 +8,7 @@ mod bench;
 mod common;
 mod cpu_time;
 mod demo;
+mod eval;
 mod generate;
 mod maps;
 mod recipe;
@@ -34,6 +35,9 @@ enum Command {
     Maps(maps::Args),
     /// Run the pipeline on the bundled assets and write an HTML report.
     Demo(demo::Args),
+    /// Score models on real-photo benchmarks (points: triplet metric; masks: IoU).
+    #[command(subcommand)]
+    Eval(eval::Command),
     /// Measure generator throughput and print a table.
     Bench(bench::Args),
     /// Print the default 2D recipe as TOML (edit it and pass it as --config).
@@ -47,6 +51,7 @@ fn main() -> ExitCode {
         Command::Generate(args) => generate::run(args),
         Command::Maps(args) => maps::run(args),
         Command::Demo(args) => demo::run(args),
+        Command::Eval(command) => eval::run(command),
         Command::Bench(args) => bench::run(args),
         Command::Recipe => recipe::run(),
     };

@@ -1,0 +1,206 @@
+//! `matseg eval points|masks`: score models on real-photo benchmarks.
+
+use anyhow::{bail, Result};
+use clap::Subcommand;
+use matseg_eval::baselines::{baseline, BASELINES};
+use matseg_eval::{
+    evaluate_masks, evaluate_points, load_point_benchmark, scan_mask_benchmark, DescriptorModel,
+    MaskEvalOptions, QueryOptions,
+};
+use std::path::PathBuf;
+
+/// `matseg eval` subcommands.
+#[derive(Subcommand)]
+pub enum Command {
+    /// A point benchmark in the MatSeg format: triplet accuracy (All, Soft) and top-1.
+    Points(PointArgs),
+    /// Photos with ground-truth masks: mean IoU at the best threshold.
+    Masks(MaskArgs),
+}
+
+/// Options shared by both benchmarks.
+#[derive(clap::Args)]
+pub struct ModelArgs {
+    /// Baselines to score (rgb, lab, texture; `all` for every one); repeatable.
+    #[arg(long = "baseline", required = true, num_args = 1..)]
+    baselines: Vec<String>,
+    /// Longer side of the evaluated images, in pixels (0: as they are).
+    #[arg(long, default_value_t = 700)]
+    max_side: u32,
+    /// Print JSON (stable field names) instead of a table.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Arguments of `matseg eval points`.
+#[derive(clap::Args)]
+pub struct PointArgs {
+    /// Benchmark folder (images/, data/NAME/data.json, group_relations.txt).
+    bench: PathBuf,
+    #[command(flatten)]
+    model: ModelArgs,
+    /// Skip malformed images with a warning instead of stopping.
+    #[arg(long)]
+    skip_bad: bool,
+}
+
+/// Arguments of `matseg eval masks`.
+#[derive(clap::Args)]
+pub struct MaskArgs {
+    /// Folder of NAME.jpg, NAME.mask0.png, ..., optional NAME.roi.png.
+    data: PathBuf,
+    #[command(flatten)]
+    model: ModelArgs,
+    /// Query points per mask.
+    #[arg(long, default_value_t = 10)]
+    points: usize,
+    /// Erode masks by this many pixels before drawing points.
+    #[arg(long, default_value_t = 20)]
+    erode: usize,
+    /// Skip masks whose eroded area is smaller than this, in pixels.
+    #[arg(long, default_value_t = 400)]
+    min_area: usize,
+    /// Radius of a query point's disc, in pixels.
+    #[arg(long, default_value_t = 5.0)]
+    radius: f32,
+    /// Seed of the query points.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Parity mode: the best IoU over STEPS + 1 thresholds evenly spread
+    /// over each similarity map's range (e.g. 100 or 1000) instead of the
+    /// exact best.
+    #[arg(long, value_name = "STEPS")]
+    grid: Option<usize>,
+}
+
+/// Runs `matseg eval`.
+pub fn run(command: Command) -> Result<()> {
+    match command {
+        Command::Points(args) => points(args),
+        Command::Masks(args) => masks(args),
+    }
+}
+
+/// The models named by `--baseline`, in table order.
+fn models(names: &[String]) -> Result<Vec<Box<dyn DescriptorModel>>> {
+    let mut wanted: Vec<&str> = Vec::new();
+    for name in names {
+        if name == "all" {
+            wanted.extend(BASELINES);
+        } else if BASELINES.contains(&name.as_str()) {
+            wanted.push(name);
+        } else {
+            bail!(
+                "unknown baseline {name:?}; known: {}, all",
+                BASELINES.join(", ")
+            );
+        }
+    }
+    let mut models: Vec<Box<dyn DescriptorModel>> = Vec::new();
+    for name in BASELINES.iter().filter(|b| wanted.contains(b)) {
+        models.extend(baseline(name));
+    }
+    Ok(models)
+}
+
+fn score(v: Option<f64>) -> String {
+    v.map_or("-".into(), |v| format!("{v:.4}"))
+}
+
+fn points(args: PointArgs) -> Result<()> {
+    let models = models(&args.model.baselines)?;
+    let bench = load_point_benchmark(&args.bench, args.skip_bad)?;
+    for problem in &bench.skipped {
+        eprintln!("warning: skipped {problem}");
+    }
+    let reports = models
+        .iter()
+        .map(|m| evaluate_points(m.as_ref(), &bench, args.model.max_side))
+        .collect::<Result<Vec<_>, _>>()?;
+    if args.model.json {
+        let out = serde_json::json!({
+            "benchmark": args.bench,
+            "max_side": args.model.max_side,
+            "skipped": bench.skipped,
+            "models": reports,
+        });
+        println!("{}", serde_json::to_string_pretty(&out)?);
+        return Ok(());
+    }
+    let c = &reports[0].counts;
+    println!(
+        "{}: {} images ({} with relations), {} points; longer side {} px; {} skipped",
+        args.bench.display(),
+        c.images,
+        c.soft_images,
+        c.points,
+        args.model.max_side,
+        bench.skipped.len()
+    );
+    println!(
+        "| model | All by material | All by point | Soft by material | Soft by point | Top-1 by material | Top-1 by point | triplets | soft triplets |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for r in &reports {
+        println!(
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            r.model,
+            score(r.all_by_material),
+            score(r.all_by_point),
+            score(r.soft_by_material),
+            score(r.soft_by_point),
+            score(r.top1_by_material),
+            score(r.top1_by_point),
+            r.counts.triplets,
+            r.counts.soft_triplets
+        );
+    }
+    Ok(())
+}
+
+fn masks(args: MaskArgs) -> Result<()> {
+    let models = models(&args.model.baselines)?;
+    let images = scan_mask_benchmark(&args.data)?;
+    let options = MaskEvalOptions {
+        max_side: args.model.max_side,
+        queries: QueryOptions {
+            points_per_mask: args.points,
+            erosion: args.erode,
+            min_area: args.min_area,
+            seed: args.seed,
+        },
+        radius: args.radius,
+        grid_steps: args.grid,
+    };
+    let reports = models
+        .iter()
+        .map(|m| evaluate_masks(m.as_ref(), &images, &options))
+        .collect::<Result<Vec<_>, _>>()?;
+    if args.model.json {
+        let out = serde_json::json!({
+            "data": args.data,
+            "max_side": args.model.max_side,
+            "threshold": args.grid.map_or("exact".to_string(), |s| format!("grid of {s} steps")),
+            "models": reports,
+        });
+        println!("{}", serde_json::to_string_pretty(&out)?);
+        return Ok(());
+    }
+    let r0 = &reports[0];
+    println!(
+        "{}: {} images, {} masks queried ({} too small), {} queries; longer side {} px; threshold {}",
+        args.data.display(),
+        r0.images,
+        r0.masks,
+        r0.skipped_masks,
+        r0.queries,
+        args.model.max_side,
+        args.grid.map_or("exact".to_string(), |s| format!("on a grid of {s} steps"))
+    );
+    println!("| model | mean IoU at best threshold |");
+    println!("|---|---|");
+    for r in &reports {
+        println!("| {} | {} |", r.model, score(r.mean_iou));
+    }
+    Ok(())
+}

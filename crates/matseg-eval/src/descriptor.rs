@@ -1,0 +1,174 @@
+//! Per-pixel descriptor maps, the one interface every evaluated model
+//! implements (baselines now, the trained net later), and what is derived
+//! from them: point descriptors and similarity maps.
+
+use image::RgbImage;
+
+/// How two descriptors are compared.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Comparison {
+    /// Cosine similarity. A point's descriptor is the normalised sum of the
+    /// normalised pixel descriptors in its disc (SPEC 8, inference).
+    Cosine,
+    /// Minus the Euclidean distance. A point's descriptor is the mean of
+    /// the pixel descriptors in its disc (the colour baselines).
+    NegativeEuclidean,
+}
+
+impl Comparison {
+    /// The similarity of two point descriptors (higher is closer).
+    pub fn similarity(self, a: &[f32], b: &[f32]) -> f64 {
+        match self {
+            Comparison::Cosine => a.iter().zip(b).map(|(x, y)| (x * y) as f64).sum(),
+            Comparison::NegativeEuclidean => -a
+                .iter()
+                .zip(b)
+                .map(|(x, y)| ((x - y) as f64).powi(2))
+                .sum::<f64>()
+                .sqrt(),
+        }
+    }
+}
+
+/// A `width x height` map of `dim`-long descriptors, pixel by pixel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DescriptorMap {
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+    /// Length of each descriptor.
+    pub dim: usize,
+    /// `width * height * dim` values: the descriptor of pixel `i` is
+    /// `data[i * dim..(i + 1) * dim]`.
+    pub data: Vec<f32>,
+}
+
+impl DescriptorMap {
+    /// The descriptor of pixel `i` (row-major index).
+    pub fn at(&self, i: usize) -> &[f32] {
+        &self.data[i * self.dim..(i + 1) * self.dim]
+    }
+
+    /// The descriptor of the disc of radius `r` around `(x, y)` (pixel
+    /// centres within `r`, the nearest pixel at least), pooled as
+    /// `comparison` asks.
+    pub fn point_descriptor(&self, x: f32, y: f32, r: f32, comparison: Comparison) -> Vec<f32> {
+        let (w, h) = (self.width as i64, self.height as i64);
+        let (x0, x1) = ((x - r).floor() as i64, (x + r).ceil() as i64);
+        let (y0, y1) = ((y - r).floor() as i64, (y + r).ceil() as i64);
+        let mut disc: Vec<usize> = Vec::new();
+        for py in y0.max(0)..=y1.min(h - 1) {
+            for px in x0.max(0)..=x1.min(w - 1) {
+                let (dx, dy) = (px as f32 - x, py as f32 - y);
+                if dx * dx + dy * dy <= r * r {
+                    disc.push((py * w + px) as usize);
+                }
+            }
+        }
+        if disc.is_empty() {
+            let px = (x.round() as i64).clamp(0, w - 1);
+            let py = (y.round() as i64).clamp(0, h - 1);
+            disc.push((py * w + px) as usize);
+        }
+        let mut sum = vec![0f64; self.dim];
+        for &i in &disc {
+            let d = self.at(i);
+            let scale = match comparison {
+                Comparison::Cosine => 1.0 / norm(d).max(1e-12) as f64,
+                Comparison::NegativeEuclidean => 1.0,
+            };
+            for (s, &v) in sum.iter_mut().zip(d) {
+                *s += v as f64 * scale;
+            }
+        }
+        let count = disc.len();
+        let pooled: Vec<f32> = sum.iter().map(|&s| (s / count as f64) as f32).collect();
+        match comparison {
+            Comparison::Cosine => {
+                let n = norm(&pooled).max(1e-12);
+                pooled.iter().map(|v| v / n).collect()
+            }
+            Comparison::NegativeEuclidean => pooled,
+        }
+    }
+
+    /// The similarity of every pixel to the point descriptor `query`
+    /// (pixel descriptors are normalised first for cosine).
+    pub fn similarity_map(&self, query: &[f32], comparison: Comparison) -> Vec<f32> {
+        (0..self.width * self.height)
+            .map(|i| {
+                let d = self.at(i);
+                let s = match comparison {
+                    Comparison::Cosine => {
+                        comparison.similarity(query, d) / norm(d).max(1e-12) as f64
+                    }
+                    Comparison::NegativeEuclidean => comparison.similarity(query, d),
+                };
+                s as f32
+            })
+            .collect()
+    }
+}
+
+fn norm(v: &[f32]) -> f32 {
+    v.iter().map(|x| x * x).sum::<f32>().sqrt()
+}
+
+/// A model that gives every pixel of a photo a material descriptor.
+pub trait DescriptorModel: Send + Sync {
+    /// Short name for tables (`rgb`, `lab`, ...).
+    fn name(&self) -> &str;
+    /// How its descriptors are pooled and compared.
+    fn comparison(&self) -> Comparison;
+    /// The descriptor map of `image`.
+    fn describe(&self, image: &RgbImage) -> DescriptorMap;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn map() -> DescriptorMap {
+        // 3x2 pixels, 2-d descriptors.
+        DescriptorMap {
+            width: 3,
+            height: 2,
+            dim: 2,
+            data: vec![1., 0., 0., 2., 3., 0., 0., 1., 1., 1., 2., 0.],
+        }
+    }
+
+    #[test]
+    fn point_descriptors_pool_the_disc() {
+        let m = map();
+        // Radius 0: the pixel itself.
+        assert_eq!(
+            m.point_descriptor(1.0, 0.0, 0.0, Comparison::NegativeEuclidean),
+            vec![0.0, 2.0]
+        );
+        // Radius 1 around (1, 0): pixels (1,0), (0,0), (2,0), (1,1).
+        let mean = m.point_descriptor(1.0, 0.0, 1.0, Comparison::NegativeEuclidean);
+        assert_eq!(
+            mean,
+            vec![(0.0 + 1.0 + 3.0 + 1.0) / 4.0, (2.0 + 0.0 + 0.0 + 1.0) / 4.0]
+        );
+        // Cosine: normalised pixels (0,1), (1,0), (1,0), (0.707, 0.707) summed, normalised.
+        let c = m.point_descriptor(1.0, 0.0, 1.0, Comparison::Cosine);
+        let s = std::f32::consts::FRAC_1_SQRT_2;
+        let (a, b) = (2.0 + s, 1.0 + s);
+        let n = (a * a + b * b).sqrt();
+        assert!((c[0] - a / n).abs() < 1e-6 && (c[1] - b / n).abs() < 1e-6);
+    }
+
+    #[test]
+    fn similarity_maps_compare_every_pixel() {
+        let m = map();
+        let e = m.similarity_map(&[1.0, 0.0], Comparison::NegativeEuclidean);
+        assert_eq!(e[0], 0.0);
+        assert!((e[1] - -(5f32).sqrt()).abs() < 1e-6);
+        let c = m.similarity_map(&[1.0, 0.0], Comparison::Cosine);
+        assert_eq!((c[0], c[1], c[2]), (1.0, 0.0, 1.0));
+        assert!((c[4] - std::f32::consts::FRAC_1_SQRT_2).abs() < 1e-6);
+    }
+}

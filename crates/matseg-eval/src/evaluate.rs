@@ -1,0 +1,280 @@
+//! Running a model over a benchmark: images resized to the evaluation size,
+//! descriptor maps, point descriptors, and the dataset means of the scores.
+
+use crate::descriptor::DescriptorModel;
+use crate::iou::{best_iou, best_iou_on_grid};
+use crate::masks::{query_points, MaskImage, QueryOptions};
+use crate::points::{flatten, BenchError, PointBenchmark};
+use crate::triplet::{score_image, ImageScores, PointScores};
+use image::{GrayImage, RgbImage};
+use matseg_image::io::{decode_gray, read_rgb};
+use matseg_image::Pyramid;
+use serde::Serialize;
+use std::path::Path;
+
+/// The image resized so that its longer side is `max_side` (unchanged for
+/// 0), and the scale applied.
+pub fn resize_longer_side(image: RgbImage, max_side: u32) -> (RgbImage, f32) {
+    let longer = image.width().max(image.height());
+    if max_side == 0 || longer == max_side {
+        return (image, 1.0);
+    }
+    let scale = max_side as f32 / longer as f32;
+    let w = ((image.width() as f32 * scale).round() as usize).max(1);
+    let h = ((image.height() as f32 * scale).round() as usize).max(1);
+    let resized = Pyramid::new(image).resize_rgb(w, h).to_rgb8();
+    (resized, scale)
+}
+
+fn load_rgb(path: &Path) -> Result<RgbImage, BenchError> {
+    read_rgb(path).map_err(|e| BenchError {
+        path: e.path,
+        line: None,
+        message: e.message,
+    })
+}
+
+/// Dataset scores of one model on a point benchmark.
+#[derive(Clone, Debug, Serialize)]
+pub struct PointReport {
+    /// The model.
+    pub model: String,
+    /// Mean over images of each image score (images without one left out).
+    pub all_by_material: Option<f64>,
+    /// See [`ImageScores::all_by_point`].
+    pub all_by_point: Option<f64>,
+    /// See [`ImageScores::soft_by_material`].
+    pub soft_by_material: Option<f64>,
+    /// See [`ImageScores::soft_by_point`].
+    pub soft_by_point: Option<f64>,
+    /// See [`ImageScores::top1_by_material`].
+    pub top1_by_material: Option<f64>,
+    /// See [`ImageScores::top1_by_point`].
+    pub top1_by_point: Option<f64>,
+    /// What was counted.
+    pub counts: PointCounts,
+    /// Every image's scores.
+    pub images: Vec<NamedScores>,
+}
+
+/// One image's scores, with its name.
+#[derive(Clone, Debug, Serialize)]
+pub struct NamedScores {
+    /// The image.
+    pub name: String,
+    /// Its scores.
+    #[serde(flatten)]
+    pub scores: ImageScores,
+}
+
+/// Sizes of a point evaluation.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct PointCounts {
+    /// Images evaluated.
+    pub images: usize,
+    /// Images in the Soft subset (with relations).
+    pub soft_images: usize,
+    /// Points.
+    pub points: usize,
+    /// Triplets counted for All.
+    pub triplets: u64,
+    /// Triplets counted for Soft.
+    pub soft_triplets: u64,
+}
+
+/// Scores `model` on every image of `bench`, evaluated with the longer side
+/// resized to `max_side` (points scaled alike).
+pub fn evaluate_points(
+    model: &dyn DescriptorModel,
+    bench: &PointBenchmark,
+    max_side: u32,
+) -> Result<PointReport, BenchError> {
+    let comparison = model.comparison();
+    let mut counts = PointCounts::default();
+    let mut images = Vec::new();
+    for image in &bench.images {
+        let (pixels, scale) = resize_longer_side(load_rgb(&image.image_path)?, max_side);
+        let map = model.describe(&pixels);
+        let (points, material) = flatten(image);
+        let descriptors: Vec<Vec<f32>> = points
+            .iter()
+            .map(|p| map.point_descriptor(p.x * scale, p.y * scale, p.r * scale, comparison))
+            .collect();
+        let scores = score_image(
+            &PointScores {
+                material: &material,
+                weight: &|a, b| image.weights[a][b],
+                similarity: &|i, j| comparison.similarity(&descriptors[i], &descriptors[j]),
+            },
+            image.has_relations,
+        );
+        counts.images += 1;
+        counts.soft_images += image.has_relations as usize;
+        counts.points += points.len();
+        counts.triplets += scores.triplets;
+        counts.soft_triplets += scores.soft_triplets;
+        images.push(NamedScores {
+            name: image.name.clone(),
+            scores,
+        });
+    }
+    let mean_of = |f: fn(&ImageScores) -> Option<f64>| {
+        let values: Vec<f64> = images.iter().filter_map(|i| f(&i.scores)).collect();
+        (!values.is_empty()).then(|| values.iter().sum::<f64>() / values.len() as f64)
+    };
+    Ok(PointReport {
+        model: model.name().to_string(),
+        all_by_material: mean_of(|s| s.all_by_material),
+        all_by_point: mean_of(|s| s.all_by_point),
+        soft_by_material: mean_of(|s| s.soft_by_material),
+        soft_by_point: mean_of(|s| s.soft_by_point),
+        top1_by_material: mean_of(|s| s.top1_by_material),
+        top1_by_point: mean_of(|s| s.top1_by_point),
+        counts,
+        images,
+    })
+}
+
+/// How a mask benchmark is scored.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MaskEvalOptions {
+    /// Longer side of the evaluated images (0: as they are).
+    pub max_side: u32,
+    /// Query point draws.
+    pub queries: QueryOptions,
+    /// Radius of a query point's disc, in evaluated pixels.
+    pub radius: f32,
+    /// `Some(steps)`: best IoU over a grid of thresholds (parity mode)
+    /// instead of the exact best.
+    pub grid_steps: Option<usize>,
+}
+
+/// Scores of one model on a mask benchmark.
+#[derive(Clone, Debug, Serialize)]
+pub struct MaskReport {
+    /// The model.
+    pub model: String,
+    /// Mean IoU at the best threshold over all queries.
+    pub mean_iou: Option<f64>,
+    /// Images evaluated.
+    pub images: usize,
+    /// Masks queried.
+    pub masks: usize,
+    /// Masks skipped (eroded area too small).
+    pub skipped_masks: usize,
+    /// Queries scored.
+    pub queries: usize,
+    /// Every image's mean IoU.
+    pub per_image: Vec<NamedIou>,
+}
+
+/// One image's mean IoU over its queries (`None` when none of its masks
+/// was queried).
+#[derive(Clone, Debug, Serialize)]
+pub struct NamedIou {
+    /// The image.
+    pub name: String,
+    /// Its mean IoU.
+    pub mean_iou: Option<f64>,
+}
+
+fn load_mask(path: &Path, w: u32, h: u32) -> Result<GrayImage, BenchError> {
+    let bytes = std::fs::read(path).map_err(|e| BenchError {
+        path: path.to_path_buf(),
+        line: None,
+        message: format!("cannot read: {e}"),
+    })?;
+    let mask = decode_gray(&bytes, path).map_err(|e| BenchError {
+        path: e.path,
+        line: None,
+        message: e.message,
+    })?;
+    if mask.dimensions() == (w, h) {
+        Ok(mask)
+    } else {
+        Err(BenchError {
+            path: path.to_path_buf(),
+            line: None,
+            message: format!("mask is {:?}, the photo {}x{}", mask.dimensions(), w, h),
+        })
+    }
+}
+
+/// Scores `model` on the photos and masks of a mask benchmark.
+pub fn evaluate_masks(
+    model: &dyn DescriptorModel,
+    images: &[MaskImage],
+    options: &MaskEvalOptions,
+) -> Result<MaskReport, BenchError> {
+    let comparison = model.comparison();
+    let mut report = MaskReport {
+        model: model.name().to_string(),
+        mean_iou: None,
+        images: 0,
+        masks: 0,
+        skipped_masks: 0,
+        queries: 0,
+        per_image: Vec::new(),
+    };
+    let mut total = 0.0;
+    for (index, image) in images.iter().enumerate() {
+        let photo = load_rgb(&image.image_path)?;
+        let (w0, h0) = photo.dimensions();
+        let (pixels, _) = resize_longer_side(photo, options.max_side);
+        let (w, h) = pixels.dimensions();
+        let inside = |path: &Path| -> Result<Vec<bool>, BenchError> {
+            let mask = load_mask(path, w0, h0)?;
+            let mask = image::imageops::resize(&mask, w, h, image::imageops::FilterType::Nearest);
+            Ok(mask.as_raw().iter().map(|&v| v >= 128).collect())
+        };
+        let roi = image.roi_path.as_deref().map(inside).transpose()?;
+        let map = model.describe(&pixels);
+        let (mut sum, mut count) = (0.0, 0usize);
+        for (k, path) in image.mask_paths.iter().enumerate() {
+            let truth = inside(path)?;
+            let points = query_points(&truth, w as usize, h as usize, &options.queries, index, k);
+            if points.is_empty() {
+                report.skipped_masks += 1;
+                continue;
+            }
+            report.masks += 1;
+            for (x, y) in points {
+                let query = map.point_descriptor(x as f32, y as f32, options.radius, comparison);
+                let mut scores = map.similarity_map(&query, comparison);
+                let mut truth = truth.clone();
+                if let Some(roi) = &roi {
+                    // Outside the ROI nothing is predicted and nothing is true.
+                    scores = scores
+                        .iter()
+                        .zip(roi)
+                        .filter(|(_, &r)| r)
+                        .map(|(&s, _)| s)
+                        .collect();
+                    truth = truth
+                        .iter()
+                        .zip(roi)
+                        .filter(|(_, &r)| r)
+                        .map(|(&t, _)| t)
+                        .collect();
+                }
+                let best = match options.grid_steps {
+                    Some(steps) => best_iou_on_grid(&scores, &truth, steps),
+                    None => best_iou(&scores, &truth),
+                };
+                if let Some(best) = best {
+                    sum += best.iou;
+                    count += 1;
+                }
+            }
+        }
+        report.images += 1;
+        report.queries += count;
+        total += sum;
+        report.per_image.push(NamedIou {
+            name: image.name.clone(),
+            mean_iou: (count > 0).then(|| sum / count as f64),
+        });
+    }
+    report.mean_iou = (report.queries > 0).then(|| total / report.queries as f64);
+    Ok(report)
+}

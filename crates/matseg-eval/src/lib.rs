@@ -1,0 +1,21 @@
+//! Evaluation of material descriptors on real photos (SPEC section 9): point
+//! benchmarks in the MatSeg format scored by the triplet metric, mask
+//! benchmarks scored by IoU at the best threshold, and training-free
+//! baselines behind the same [`DescriptorModel`] trait a trained net uses.
+
+#![warn(missing_docs)]
+
+pub mod baselines;
+pub mod descriptor;
+pub mod evaluate;
+pub mod iou;
+pub mod masks;
+pub mod points;
+pub mod triplet;
+
+pub use descriptor::{Comparison, DescriptorMap, DescriptorModel};
+pub use evaluate::{evaluate_masks, evaluate_points, MaskEvalOptions, MaskReport, PointReport};
+pub use iou::{best_iou, best_iou_on_grid, BestIou};
+pub use masks::{scan_mask_benchmark, MaskImage, QueryOptions};
+pub use points::{load_point_benchmark, BenchError, BenchImage, PointBenchmark};
+pub use triplet::{score_image, ImageScores, PointScores};
