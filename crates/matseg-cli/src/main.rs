@@ -5,6 +5,7 @@
 
 mod allocator;
 mod bench;
+mod bench_set;
 mod common;
 mod cpu_time;
 mod demo;
@@ -38,6 +39,9 @@ enum Command {
     /// Score models on real-photo benchmarks (points: triplet metric; masks: IoU).
     #[command(subcommand)]
     Eval(eval::Command),
+    /// Make benchmarks: `make` writes a point benchmark from generated scenes.
+    #[command(subcommand)]
+    BenchSet(bench_set::Command),
     /// Measure generator throughput and print a table.
     Bench(bench::Args),
     /// Print the default 2D recipe as TOML (edit it and pass it as --config).
@@ -53,6 +57,7 @@ fn main() -> ExitCode {
         Command::Demo(args) => demo::run(args),
         Command::Eval(command) => eval::run(command),
         Command::Bench(args) => bench::run(args),
+        Command::BenchSet(command) => bench_set::run(command),
         Command::Recipe => recipe::run(),
     };
     match result {

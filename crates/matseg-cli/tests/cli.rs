@@ -282,3 +282,88 @@ fn demo_writes_a_page_showing_each_sample_and_its_annotation() {
     }
     assert!(!html.contains("00000002"));
 }
+
+#[test]
+fn a_synthetic_point_benchmark_evaluates_to_stable_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let bench = dir.path().join("bench");
+    let bench = bench.to_str().unwrap();
+    let made = matseg(&[
+        "bench-set",
+        "make",
+        "--out",
+        bench,
+        "-n",
+        "3",
+        "--seed",
+        "2",
+    ]);
+    assert!(made.status.success(), "{}", stderr(&made));
+    let out = matseg(&[
+        "eval",
+        "points",
+        bench,
+        "--baseline",
+        "rgb",
+        "lab",
+        "--json",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let models = json["models"].as_array().unwrap();
+    assert_eq!(models.len(), 2);
+    assert_eq!(models[0]["model"], "rgb");
+    for key in [
+        "all_by_material",
+        "all_by_point",
+        "top1_by_material",
+        "top1_by_point",
+    ] {
+        let v = models[0][key].as_f64().unwrap();
+        assert!((0.0..=1.0).contains(&v), "{key} = {v}");
+    }
+    assert!(models[0].get("soft_by_point").is_some());
+    assert!(models[0]["counts"]["triplets"].as_u64().unwrap() > 0);
+    assert_eq!(
+        models[0]["images"].as_array().unwrap().len() as u64,
+        models[0]["counts"]["images"].as_u64().unwrap()
+    );
+}
+
+#[test]
+fn bad_benchmarks_and_unknown_baselines_are_one_line_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let bench = dir.path().join("bench");
+    let made = matseg(&[
+        "bench-set",
+        "make",
+        "--out",
+        bench.to_str().unwrap(),
+        "-n",
+        "1",
+    ]);
+    assert!(made.status.success(), "{}", stderr(&made));
+    let data = std::fs::read_dir(bench.join("data"))
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path();
+    std::fs::write(data.join("group_relations.txt"), "1, 2\n").unwrap();
+    let out = matseg(&[
+        "eval",
+        "points",
+        bench.to_str().unwrap(),
+        "--baseline",
+        "rgb",
+    ]);
+    assert_one_line_error(&out, "group_relations.txt:1");
+    let out = matseg(&[
+        "eval",
+        "points",
+        bench.to_str().unwrap(),
+        "--baseline",
+        "sam",
+    ]);
+    assert_one_line_error(&out, "unknown baseline \"sam\"");
+}

@@ -11,6 +11,7 @@ pub mod evaluate;
 pub mod iou;
 pub mod masks;
 pub mod points;
+pub mod synthetic;
 pub mod triplet;
 
 pub use descriptor::{Comparison, DescriptorMap, DescriptorModel};
