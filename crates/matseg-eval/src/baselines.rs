@@ -64,15 +64,8 @@ impl DescriptorModel for LabBaseline {
 
 /// CIE L*a*b* (D65 white) of an 8-bit sRGB colour.
 pub fn srgb_to_lab(rgb: [u8; 3]) -> [f32; 3] {
-    let linear = rgb.map(|v| {
-        let c = v as f32 / 255.0;
-        if c <= 0.04045 {
-            c / 12.92
-        } else {
-            ((c + 0.055) / 1.055).powf(2.4)
-        }
-    });
-    let [r, g, b] = linear;
+    let table = linear_table();
+    let [r, g, b] = rgb.map(|v| table[v as usize]);
     // sRGB to XYZ, normalised by the D65 white point.
     let x = (0.4124 * r + 0.3576 * g + 0.1805 * b) / 0.95047;
     let y = 0.2126 * r + 0.7152 * g + 0.0722 * b;
@@ -86,6 +79,21 @@ pub fn srgb_to_lab(rgb: [u8; 3]) -> [f32; 3] {
     };
     let (fx, fy, fz) = (f(x), f(y), f(z));
     [116.0 * fy - 16.0, 500.0 * (fx - fy), 200.0 * (fy - fz)]
+}
+
+/// Linear light of each 8-bit sRGB level, computed once.
+fn linear_table() -> &'static [f32; 256] {
+    static TABLE: std::sync::OnceLock<[f32; 256]> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| {
+        std::array::from_fn(|v| {
+            let c = v as f32 / 255.0;
+            if c <= 0.04045 {
+                c / 12.92
+            } else {
+                ((c + 0.055) / 1.055).powf(2.4)
+            }
+        })
+    })
 }
 
 /// Colour and local texture: per pixel, over a square window, the mean and
