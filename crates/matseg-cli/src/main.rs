@@ -13,6 +13,7 @@ mod eval;
 mod generate;
 mod maps;
 mod recipe;
+mod weights;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -44,6 +45,9 @@ enum Command {
     BenchSet(bench_set::Command),
     /// Measure generator throughput and print a table.
     Bench(bench::Args),
+    /// Network weights: `import` converts PyTorch checkpoints to safetensors.
+    #[command(subcommand)]
+    Weights(weights::Command),
     /// Print the default 2D recipe as TOML (edit it and pass it as --config).
     Recipe,
 }
@@ -58,6 +62,7 @@ fn main() -> ExitCode {
         Command::Eval(command) => eval::run(command),
         Command::Bench(args) => bench::run(args),
         Command::BenchSet(command) => bench_set::run(command),
+        Command::Weights(command) => weights::run(command),
         Command::Recipe => recipe::run(),
     };
     match result {

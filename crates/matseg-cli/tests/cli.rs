@@ -367,3 +367,22 @@ fn bad_benchmarks_and_unknown_baselines_are_one_line_errors() {
     ]);
     assert_one_line_error(&out, "unknown baseline \"sam\"");
 }
+
+#[test]
+fn importing_a_file_that_is_no_checkpoint_is_a_one_line_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("notes.pth");
+    std::fs::write(&bad, "not a checkpoint").unwrap();
+    let out_file = dir.path().join("w.safetensors");
+    let out = matseg(&[
+        "weights",
+        "import",
+        bad.to_str().unwrap(),
+        "--arch",
+        "mobilenet-v2",
+        "--out",
+        out_file.to_str().unwrap(),
+    ]);
+    assert_one_line_error(&out, "notes.pth: ");
+    assert!(!out_file.exists(), "no output may be left behind");
+}

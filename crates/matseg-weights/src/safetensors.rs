@@ -1,0 +1,101 @@
+//! The safetensors format: an 8-byte little-endian header length, a JSON
+//! header (`{"NAME": {"dtype", "shape", "data_offsets": [begin, end]}}`,
+//! plus `__metadata__`), then the tensors' bytes.
+
+use crate::{DType, Tensor, WeightsError};
+use serde_json::{json, Map, Value};
+
+/// The bytes of a safetensors file holding `tensors` (in the given order)
+/// and string `metadata`.
+pub fn write_safetensors(tensors: &[Tensor], metadata: &[(&str, &str)]) -> Vec<u8> {
+    let mut header = Map::new();
+    if !metadata.is_empty() {
+        let meta: Map<String, Value> = metadata
+            .iter()
+            .map(|(k, v)| (k.to_string(), json!(v)))
+            .collect();
+        header.insert("__metadata__".into(), Value::Object(meta));
+    }
+    let mut offset = 0usize;
+    for t in tensors {
+        header.insert(
+            t.name.clone(),
+            json!({
+                "dtype": t.dtype.safetensors_name(),
+                "shape": t.shape,
+                "data_offsets": [offset, offset + t.data.len()],
+            }),
+        );
+        offset += t.data.len();
+    }
+    let mut text = serde_json::to_string(&Value::Object(header)).expect("JSON");
+    // Pad the header with spaces so the data starts 8-byte aligned.
+    while (8 + text.len()) % 8 != 0 {
+        text.push(' ');
+    }
+    let mut out = Vec::with_capacity(8 + text.len() + offset);
+    out.extend_from_slice(&(text.len() as u64).to_le_bytes());
+    out.extend_from_slice(text.as_bytes());
+    for t in tensors {
+        out.extend_from_slice(&t.data);
+    }
+    out
+}
+
+/// The tensors of a safetensors file, in data order. `name` is the file,
+/// for messages.
+pub fn read_safetensors(bytes: &[u8], name: &str) -> Result<Vec<Tensor>, WeightsError> {
+    let fail = |m: String| WeightsError::new(name, m);
+    let len = bytes
+        .get(..8)
+        .map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")) as usize)
+        .ok_or_else(|| fail("truncated safetensors header".into()))?;
+    let text = bytes
+        .get(8..8 + len)
+        .ok_or_else(|| fail("truncated safetensors header".into()))?;
+    let header: Map<String, Value> =
+        serde_json::from_slice(text).map_err(|e| fail(format!("bad safetensors header: {e}")))?;
+    let data = &bytes[8 + len..];
+    let mut tensors = Vec::new();
+    for (key, entry) in header.iter().filter(|(k, _)| *k != "__metadata__") {
+        let bad = || fail(format!("bad safetensors entry {key}"));
+        let dtype = entry["dtype"]
+            .as_str()
+            .and_then(DType::from_safetensors_name)
+            .ok_or_else(bad)?;
+        let shape: Vec<usize> = entry["shape"]
+            .as_array()
+            .ok_or_else(bad)?
+            .iter()
+            .map(|v| v.as_u64().map(|v| v as usize))
+            .collect::<Option<_>>()
+            .ok_or_else(bad)?;
+        let offsets = entry["data_offsets"].as_array().ok_or_else(bad)?;
+        let (begin, end) = match offsets.as_slice() {
+            [b, e] => (
+                b.as_u64().ok_or_else(bad)? as usize,
+                e.as_u64().ok_or_else(bad)? as usize,
+            ),
+            _ => return Err(bad()),
+        };
+        if end < begin
+            || end > data.len()
+            || end - begin != shape.iter().product::<usize>() * dtype.size()
+        {
+            return Err(fail(format!(
+                "{key}: data offsets do not match its shape or the file"
+            )));
+        }
+        tensors.push((
+            begin,
+            Tensor {
+                name: key.clone(),
+                dtype,
+                shape,
+                data: data[begin..end].to_vec(),
+            },
+        ));
+    }
+    tensors.sort_by_key(|(begin, _)| *begin);
+    Ok(tensors.into_iter().map(|(_, t)| t).collect())
+}
