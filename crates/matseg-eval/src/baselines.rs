@@ -10,42 +10,46 @@ pub const BASELINES: [&str; 3] = ["rgb", "lab", "texture"];
 /// The baseline called `name`, if there is one.
 pub fn baseline(name: &str) -> Option<Box<dyn DescriptorModel>> {
     match name {
-        "rgb" => Some(Box::new(RgbBaseline)),
-        "lab" => Some(Box::new(LabBaseline)),
+        "rgb" => Some(Box::new(ColourBaseline::RGB)),
+        "lab" => Some(Box::new(ColourBaseline::LAB)),
         "texture" => Some(Box::new(TextureBaseline::default())),
         _ => None,
     }
 }
 
-/// Mean RGB (0..255) in the point's disc; similarity = minus the distance.
-pub struct RgbBaseline;
-
-impl DescriptorModel for RgbBaseline {
-    fn name(&self) -> &str {
-        "rgb"
-    }
-
-    fn comparison(&self) -> Comparison {
-        Comparison::NegativeEuclidean
-    }
-
-    fn describe(&self, image: &RgbImage) -> DescriptorMap {
-        DescriptorMap {
-            width: image.width() as usize,
-            height: image.height() as usize,
-            dim: 3,
-            data: image.as_raw().iter().map(|&v| v as f32).collect(),
-        }
-    }
+/// The colour space of a [`ColourBaseline`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ColourSpace {
+    /// R, G, B on 0..255.
+    Rgb,
+    /// CIE L*a*b* (D65): distances are CIE76 colour differences.
+    Lab,
 }
 
-/// Mean CIE L*a*b* (D65) in the point's disc; similarity = minus the
-/// distance (CIE76 colour difference).
-pub struct LabBaseline;
+/// Mean colour in the point's disc; similarity = minus the distance.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ColourBaseline {
+    /// The space colours are compared in.
+    pub space: ColourSpace,
+}
 
-impl DescriptorModel for LabBaseline {
+impl ColourBaseline {
+    /// The `rgb` baseline.
+    pub const RGB: Self = Self {
+        space: ColourSpace::Rgb,
+    };
+    /// The `lab` baseline.
+    pub const LAB: Self = Self {
+        space: ColourSpace::Lab,
+    };
+}
+
+impl DescriptorModel for ColourBaseline {
     fn name(&self) -> &str {
-        "lab"
+        match self.space {
+            ColourSpace::Rgb => "rgb",
+            ColourSpace::Lab => "lab",
+        }
     }
 
     fn comparison(&self) -> Comparison {
@@ -53,11 +57,15 @@ impl DescriptorModel for LabBaseline {
     }
 
     fn describe(&self, image: &RgbImage) -> DescriptorMap {
+        let data = match self.space {
+            ColourSpace::Rgb => image.as_raw().iter().map(|&v| v as f32).collect(),
+            ColourSpace::Lab => image.pixels().flat_map(|p| srgb_to_lab(p.0)).collect(),
+        };
         DescriptorMap {
             width: image.width() as usize,
             height: image.height() as usize,
             dim: 3,
-            data: image.pixels().flat_map(|p| srgb_to_lab(p.0)).collect(),
+            data,
         }
     }
 }

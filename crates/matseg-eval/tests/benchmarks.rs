@@ -3,7 +3,7 @@
 //! baselines separate perfectly).
 
 use image::RgbImage;
-use matseg_eval::baselines::RgbBaseline;
+use matseg_eval::baselines::ColourBaseline;
 use matseg_eval::points::BenchPoint;
 use matseg_eval::synthetic::{annotate_points, write_point_image, SyntheticOptions};
 use matseg_eval::{
@@ -135,7 +135,7 @@ fn flat_colours_score_one_with_the_rgb_baseline() {
     assert_eq!(annotation.relations, ["[1, 3]", "[2, 3]"]);
     write_point_image(dir.path(), "bands", &img, &annotation).unwrap();
     let bench = load_point_benchmark(dir.path(), false).unwrap();
-    let report = evaluate_points(&RgbBaseline, &bench, 0).unwrap();
+    let report = evaluate_points(&ColourBaseline::RGB, &bench, 0).unwrap();
     assert_eq!(report.counts.points, 15);
     assert_eq!(report.all_by_point, Some(1.0));
     assert_eq!(report.soft_by_material, Some(1.0));
@@ -171,7 +171,7 @@ fn flat_colour_masks_are_found_exactly() {
         radius: 1.0,
         grid_steps: None,
     };
-    let report = evaluate_masks(&RgbBaseline, &images, &options).unwrap();
+    let report = evaluate_masks(&ColourBaseline::RGB, &images, &options).unwrap();
     assert_eq!((report.masks, report.queries), (2, 8));
     assert_eq!(report.mean_iou, Some(1.0));
     let grid = MaskEvalOptions {
@@ -179,7 +179,7 @@ fn flat_colour_masks_are_found_exactly() {
         ..options
     };
     assert!(
-        evaluate_masks(&RgbBaseline, &images, &grid)
+        evaluate_masks(&ColourBaseline::RGB, &images, &grid)
             .unwrap()
             .mean_iou
             .unwrap()
