@@ -12,6 +12,7 @@ mod demo;
 mod eval;
 mod generate;
 mod maps;
+mod pbr;
 mod recipe;
 mod textures;
 mod weights;
@@ -38,6 +39,8 @@ enum Command {
     Maps(maps::Args),
     /// Extract uniform-texture crops from photos into a texture library (SPEC section 4).
     Textures(textures::Args),
+    /// PBR materials (colour, normal, height, roughness, metalness, AO, opacity, specular) from textures (SPEC section 5).
+    Pbr(pbr::Args),
     /// Run the pipeline on the bundled assets and write an HTML report.
     Demo(demo::Args),
     /// Score models on real-photo benchmarks (points: triplet metric; masks: IoU).
@@ -62,6 +65,7 @@ fn main() -> ExitCode {
         Command::Generate(args) => generate::run(args),
         Command::Maps(args) => maps::run(args),
         Command::Textures(args) => textures::run(args),
+        Command::Pbr(args) => pbr::run(args),
         Command::Demo(args) => demo::run(args),
         Command::Eval(command) => eval::run(command),
         Command::Bench(args) => bench::run(args),

@@ -435,3 +435,61 @@ fn a_texture_library_is_made_once_and_feeds_the_generator() {
     let missing = matseg(&["textures", "/no/such/folder", "--out", lib]);
     assert_one_line_error(&missing, "/no/such/folder");
 }
+
+#[test]
+fn pbr_materials_have_every_map_and_are_reproducible() {
+    let dir = tempfile::tempdir().unwrap();
+    let textures = assets("textures");
+    let make = |name: &str| {
+        let out = dir.path().join(name);
+        let run = matseg(&[
+            "pbr",
+            &textures,
+            "--out",
+            out.to_str().unwrap(),
+            "--seed",
+            "3",
+        ]);
+        assert!(run.status.success(), "{}", stderr(&run));
+        out
+    };
+    let (a, b) = (make("a"), make("b"));
+    let brick = a.join("brick__pbr0");
+    for file in [
+        "Color.png",
+        "NormalGL.png",
+        "Displacement.png",
+        "Roughness.png",
+        "Metalness.png",
+        "AmbientOcclusion.png",
+        "Opacity.png",
+        "Specular.png",
+    ] {
+        let bytes = std::fs::read(brick.join(file)).unwrap();
+        assert_eq!(
+            bytes,
+            std::fs::read(b.join("brick__pbr0").join(file)).unwrap(),
+            "{file}"
+        );
+    }
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(brick.join("material.json")).unwrap()).unwrap();
+    assert_eq!(json["record"]["maps"].as_array().unwrap().len(), 6);
+    assert_eq!(json["licence"], "CC0-1.0");
+    // Normals decode to unit vectors.
+    let normal = image::open(brick.join("NormalGL.png")).unwrap().to_rgb8();
+    assert!(normal.pixels().all(|p| {
+        let v = p.0.map(|c| c as f32 / 255.0 * 2.0 - 1.0);
+        ((v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt() - 1.0).abs() < 0.02
+    }));
+    // A second run over the same folder has nothing left to do.
+    let again = matseg(&[
+        "pbr",
+        &textures,
+        "--out",
+        a.to_str().unwrap(),
+        "--seed",
+        "3",
+    ]);
+    assert!(String::from_utf8_lossy(&again.stdout).contains("0 materials written (9 already there"));
+}

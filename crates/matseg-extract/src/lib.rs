@@ -1,8 +1,9 @@
 //! From photos to material placements: the soft maps of SPEC section 1 and
-//! the uniform textures of section 4 (later: PBR materials).
+//! the uniform textures of section 4 and the PBR materials of section 5.
 
 #![warn(missing_docs)]
 
+pub mod pbr;
 pub mod soft_maps;
 pub mod textures;
 
