@@ -13,6 +13,7 @@ mod eval;
 mod generate;
 mod maps;
 mod pbr;
+mod pbr_mix;
 mod recipe;
 mod textures;
 mod weights;
@@ -41,6 +42,8 @@ enum Command {
     Textures(textures::Args),
     /// PBR materials (colour, normal, height, roughness, metalness, AO, opacity, specular) from textures (SPEC section 5).
     Pbr(pbr::Args),
+    /// New PBR materials by mixing existing ones (equal, max or flexible weights).
+    PbrMix(pbr_mix::Args),
     /// Run the pipeline on the bundled assets and write an HTML report.
     Demo(demo::Args),
     /// Score models on real-photo benchmarks (points: triplet metric; masks: IoU).
@@ -66,6 +69,7 @@ fn main() -> ExitCode {
         Command::Maps(args) => maps::run(args),
         Command::Textures(args) => textures::run(args),
         Command::Pbr(args) => pbr::run(args),
+        Command::PbrMix(args) => pbr_mix::run(args),
         Command::Demo(args) => demo::run(args),
         Command::Eval(command) => eval::run(command),
         Command::Bench(args) => bench::run(args),

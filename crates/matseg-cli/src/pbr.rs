@@ -3,8 +3,8 @@
 use crate::common::{init_threads, progress_bar};
 use anyhow::{Context, Result};
 use matseg_data::sample_rng;
-use matseg_extract::pbr::{make_pbr, PbrMaterial, PbrRecipe};
-use matseg_image::io::{encode_png_gray, encode_png_rgb, read_rgb};
+use matseg_extract::pbr::{make_pbr, PbrRecipe};
+use matseg_image::io::read_rgb;
 use matseg_image::PhotoLibrary;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -129,7 +129,8 @@ fn make_one(
         std::fs::remove_dir_all(&partial)?;
     }
     std::fs::create_dir_all(&partial)?;
-    write_maps(&partial, &material)
+    material
+        .write_maps(&partial)
         .with_context(|| format!("{}: cannot write", partial.display()))?;
     if dir.exists() {
         std::fs::remove_dir_all(&dir)?;
@@ -150,17 +151,4 @@ fn make_one(
         generate,
         write: start.elapsed().as_secs_f64(),
     })
-}
-
-fn write_maps(dir: &Path, m: &PbrMaterial) -> std::io::Result<()> {
-    std::fs::write(dir.join("Color.png"), encode_png_rgb(&m.color))?;
-    std::fs::write(dir.join("NormalGL.png"), encode_png_rgb(&m.normal))?;
-    for (kind, map) in &m.maps {
-        let (w, h) = map.dimensions();
-        std::fs::write(
-            dir.join(format!("{}.png", kind.file_stem())),
-            encode_png_gray(w, h, map.as_raw()),
-        )?;
-    }
-    Ok(())
 }

@@ -493,3 +493,50 @@ fn pbr_materials_have_every_map_and_are_reproducible() {
     ]);
     assert!(String::from_utf8_lossy(&again.stdout).contains("0 materials written (9 already there"));
 }
+
+#[test]
+fn pbr_mixes_are_written_once_and_need_two_materials() {
+    let dir = tempfile::tempdir().unwrap();
+    let mats = dir.path().join("mats");
+    let made = matseg(&["pbr", &assets("textures"), "--out", mats.to_str().unwrap()]);
+    assert!(made.status.success(), "{}", stderr(&made));
+    let mix = |out: &str| {
+        let out = dir.path().join(out);
+        let run = matseg(&[
+            "pbr-mix",
+            mats.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "-n",
+            "3",
+        ]);
+        assert!(run.status.success(), "{}", stderr(&run));
+        out
+    };
+    let (a, b) = (mix("a"), mix("b"));
+    for i in 0..3 {
+        let folder = format!("mix{i:05}");
+        for map in [
+            "Color.png",
+            "NormalGL.png",
+            "Roughness.png",
+            "material.json",
+        ] {
+            assert_eq!(
+                std::fs::read(a.join(&folder).join(map)).unwrap(),
+                std::fs::read(b.join(&folder).join(map)).unwrap(),
+                "{folder}/{map}"
+            );
+        }
+    }
+    let one = dir.path().join("one");
+    std::fs::create_dir_all(&one).unwrap();
+    std::fs::copy(mats.join("brick__pbr0/Color.png"), one.join("Color.png")).unwrap();
+    let out = matseg(&[
+        "pbr-mix",
+        one.to_str().unwrap(),
+        "--out",
+        a.to_str().unwrap(),
+    ]);
+    assert_one_line_error(&out, "at least two material folders");
+}

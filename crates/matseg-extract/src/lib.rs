@@ -3,7 +3,9 @@
 
 #![warn(missing_docs)]
 
+pub mod material_library;
 pub mod pbr;
+pub mod pbr_mix;
 pub mod soft_maps;
 pub mod textures;
 

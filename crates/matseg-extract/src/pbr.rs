@@ -3,10 +3,12 @@
 //! and rescaled; normals come from the height map (OpenGL convention).
 
 use image::{GrayImage, RgbImage};
+use matseg_image::io::{encode_png_gray, encode_png_rgb};
 use matseg_image::rgb::rotate_hue;
 use matseg_image::{gaussian_blur, Plane};
 use rand::Rng;
 use serde::{Deserialize, Serialize};
+use std::path::Path;
 
 /// Every probability of PBR drawing, with the SPEC's values as defaults.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -173,6 +175,23 @@ pub struct PbrMaterial {
     pub normal: RgbImage,
     /// How it was made.
     pub record: PbrRecord,
+}
+
+impl PbrMaterial {
+    /// Writes the maps into `dir` with ambientCG names (`Color.png`,
+    /// `NormalGL.png`, `Displacement.png`, `Roughness.png`, ...), as PNG.
+    pub fn write_maps(&self, dir: &Path) -> std::io::Result<()> {
+        std::fs::write(dir.join("Color.png"), encode_png_rgb(&self.color))?;
+        std::fs::write(dir.join("NormalGL.png"), encode_png_rgb(&self.normal))?;
+        for (kind, map) in &self.maps {
+            let (w, h) = map.dimensions();
+            std::fs::write(
+                dir.join(format!("{}.png", kind.file_stem())),
+                encode_png_gray(w, h, map.as_raw()),
+            )?;
+        }
+        Ok(())
+    }
 }
 
 /// Draws a PBR material from `texture` (SPEC 5).

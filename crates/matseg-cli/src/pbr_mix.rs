@@ -1,0 +1,116 @@
+//! `matseg pbr-mix`: new PBR materials by mixing existing ones (SPEC 5).
+
+use crate::common::{init_threads, progress_bar};
+use anyhow::{ensure, Context, Result};
+use matseg_data::sample_rng;
+use matseg_extract::material_library::{find_materials, read_material, MaterialMaps};
+use matseg_extract::pbr_mix::{mix_materials, MixRecipe};
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
+
+/// Arguments of `matseg pbr-mix`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// A folder of material folders (ours, ambientCG, MatSeg or MatSynth naming).
+    materials: PathBuf,
+    /// Output folder: one folder per mix.
+    #[arg(long)]
+    out: PathBuf,
+    /// Number of mixes.
+    #[arg(short = 'n', long = "count", default_value_t = 10)]
+    n: u64,
+    /// Seed: mix i depends only on (seed, i) and the materials.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+}
+
+/// Runs `matseg pbr-mix`.
+pub fn run(args: Args) -> Result<()> {
+    init_threads(args.threads)?;
+    let dirs = find_materials(&args.materials).map_err(anyhow::Error::msg)?;
+    ensure!(
+        dirs.len() >= 2,
+        "{}: mixing needs at least two material folders, found {}",
+        args.materials.display(),
+        dirs.len()
+    );
+    let library: Vec<MaterialMaps> = dirs
+        .par_iter()
+        .map(|d| read_material(d))
+        .collect::<Result<_, _>>()
+        .map_err(anyhow::Error::msg)?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("{}: cannot create", args.out.display()))?;
+    let todo: Vec<u64> = (0..args.n)
+        .filter(|&i| !mix_dir(&args.out, i).join("material.json").is_file())
+        .collect();
+    let bar = progress_bar(todo.len() as u64, "mixes");
+    let recipe = MixRecipe::default();
+    todo.par_iter()
+        .map(|&i| {
+            let result = write_mix(&args.out, i, args.seed, &library, &args.materials, &recipe);
+            bar.inc(1);
+            result
+        })
+        .collect::<Result<Vec<()>>>()?;
+    bar.finish_and_clear();
+    println!(
+        "{}: {} mixes of {} materials written ({} already there)",
+        args.out.display(),
+        todo.len(),
+        library.len(),
+        args.n - todo.len() as u64
+    );
+    Ok(())
+}
+
+fn mix_dir(out: &Path, i: u64) -> PathBuf {
+    out.join(format!("mix{i:05}"))
+}
+
+/// Makes mix `i` and writes its folder (through `NAME.partial/`, renamed),
+/// `material.json` last.
+fn write_mix(
+    out: &Path,
+    i: u64,
+    seed: u64,
+    library: &[MaterialMaps],
+    root: &Path,
+    recipe: &MixRecipe,
+) -> Result<()> {
+    let (mixed, record) = mix_materials(&mut sample_rng(seed, i), library, recipe);
+    let dir = mix_dir(out, i);
+    let partial = dir.with_extension("partial");
+    if partial.exists() {
+        std::fs::remove_dir_all(&partial)?;
+    }
+    std::fs::create_dir_all(&partial)?;
+    mixed
+        .write_maps(&partial)
+        .with_context(|| format!("{}: cannot write", partial.display()))?;
+    if dir.exists() {
+        std::fs::remove_dir_all(&dir)?;
+    }
+    std::fs::rename(&partial, &dir)?;
+    let sources: Vec<String> = record
+        .sources
+        .iter()
+        .map(|&s| {
+            let d = &library[s].dir;
+            d.strip_prefix(root).unwrap_or(d).display().to_string()
+        })
+        .collect();
+    let json = serde_json::json!({
+        "sources": sources,
+        "mode": record.mode,
+        "weights": record.weights,
+        "seed": seed,
+        "color_space": {"Color": "sRGB", "other maps": "linear"},
+        "normal_convention": "OpenGL (+Y up)",
+    });
+    std::fs::write(dir.join("material.json"), serde_json::to_vec_pretty(&json)?)
+        .with_context(|| format!("{}: cannot write material.json", dir.display()))
+}

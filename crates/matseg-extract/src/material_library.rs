@@ -1,0 +1,176 @@
+//! Reading PBR material folders in the namings found in the wild: ours and
+//! ambientCG's (`Color`, `NormalGL`/`NormalDX`, `Roughness`, `Metalness`,
+//! `Displacement`, `AmbientOcclusion`, `Opacity`, also as `NAME_1K_Color.jpg`),
+//! MatSeg's (`OriginColor`, `Normal`, `Height`, `Metallic`, `Specular`) and
+//! MatSynth's (`basecolor`, `diffuse`, `normal`, `height`, `displacement`,
+//! `roughness`, `metallic`, `opacity`, `specular`).
+
+use image::{GrayImage, RgbImage};
+use std::path::{Path, PathBuf};
+
+/// The maps of one material; only the colour is required.
+#[derive(Clone, Debug)]
+pub struct MaterialMaps {
+    /// The folder it was read from.
+    pub dir: PathBuf,
+    /// Base colour (sRGB).
+    pub color: RgbImage,
+    /// Normals, OpenGL convention (DirectX normals are converted).
+    pub normal: Option<RgbImage>,
+    /// Height / displacement.
+    pub height: Option<GrayImage>,
+    /// Roughness.
+    pub roughness: Option<GrayImage>,
+    /// Metalness.
+    pub metalness: Option<GrayImage>,
+    /// Ambient occlusion.
+    pub ambient_occlusion: Option<GrayImage>,
+    /// Opacity.
+    pub opacity: Option<GrayImage>,
+    /// Specular level.
+    pub specular: Option<GrayImage>,
+}
+
+/// What a file holds, from its name.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Role {
+    Color,
+    NormalGl,
+    NormalDx,
+    Height,
+    Roughness,
+    Metalness,
+    AmbientOcclusion,
+    Opacity,
+    Specular,
+}
+
+/// The role of a map file from its stem: the whole stem, or the part after
+/// the last underscore (`Bricks076_1K_Color`), case-insensitive.
+fn role(stem: &str) -> Option<Role> {
+    let lower = stem.to_lowercase();
+    let token = lower.rsplit('_').next().unwrap_or(&lower);
+    [lower.as_str(), token].iter().find_map(|name| {
+        Some(match *name {
+            "color" | "basecolor" | "albedo" | "diffuse" | "origincolor" => Role::Color,
+            "normalgl" | "normal" => Role::NormalGl,
+            "normaldx" => Role::NormalDx,
+            "displacement" | "height" => Role::Height,
+            "roughness" => Role::Roughness,
+            "metalness" | "metallic" => Role::Metalness,
+            "ambientocclusion" | "ao" | "occlusion" => Role::AmbientOcclusion,
+            "opacity" | "alpha" => Role::Opacity,
+            "specular" => Role::Specular,
+            _ => return None,
+        })
+    })
+}
+
+/// Reads the material in `dir`. An error names the folder (no colour map)
+/// or the file (unreadable).
+pub fn read_material(dir: &Path) -> Result<MaterialMaps, String> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| format!("{}: cannot list: {e}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| matseg_image::io::has_image_extension(p))
+        .collect();
+    files.sort();
+    let find = |wanted: Role| {
+        files.iter().find(|p| {
+            p.file_stem()
+                .and_then(|s| s.to_str())
+                .and_then(role)
+                .is_some_and(|r| r == wanted)
+        })
+    };
+    let open = |p: &PathBuf| image::open(p).map_err(|e| format!("{}: {e}", p.display()));
+    let grey = |wanted: Role| -> Result<Option<GrayImage>, String> {
+        find(wanted)
+            .map(|p| open(p).map(|i| i.to_luma8()))
+            .transpose()
+    };
+    let color = find(Role::Color)
+        .ok_or_else(|| {
+            format!(
+                "{}: no colour map (Color, basecolor, OriginColor, ...)",
+                dir.display()
+            )
+        })
+        .and_then(|p| open(p).map(|i| i.to_rgb8()))?;
+    let normal = match (find(Role::NormalGl), find(Role::NormalDx)) {
+        (Some(p), _) => Some(open(p)?.to_rgb8()),
+        (None, Some(p)) => {
+            // DirectX normals point y down: flip green for OpenGL.
+            let mut n = open(p)?.to_rgb8();
+            n.pixels_mut().for_each(|px| px.0[1] = 255 - px.0[1]);
+            Some(n)
+        }
+        (None, None) => None,
+    };
+    Ok(MaterialMaps {
+        dir: dir.to_path_buf(),
+        color,
+        normal,
+        height: grey(Role::Height)?,
+        roughness: grey(Role::Roughness)?,
+        metalness: grey(Role::Metalness)?,
+        ambient_occlusion: grey(Role::AmbientOcclusion)?,
+        opacity: grey(Role::Opacity)?,
+        specular: grey(Role::Specular)?,
+    })
+}
+
+/// Every material folder below `root` (a folder holding a colour map),
+/// sorted by path.
+pub fn find_materials(root: &Path) -> Result<Vec<PathBuf>, String> {
+    let mut found = Vec::new();
+    let mut stack = vec![root.to_path_buf()];
+    while let Some(dir) = stack.pop() {
+        let entries =
+            std::fs::read_dir(&dir).map_err(|e| format!("{}: cannot list: {e}", dir.display()))?;
+        let mut has_colour = false;
+        for entry in entries.filter_map(|e| e.ok()) {
+            let path = entry.path();
+            if path.is_dir() {
+                stack.push(path);
+            } else if matseg_image::io::has_image_extension(&path)
+                && path.file_stem().and_then(|s| s.to_str()).and_then(role) == Some(Role::Color)
+            {
+                has_colour = true;
+            }
+        }
+        if has_colour {
+            found.push(dir);
+        }
+    }
+    found.sort();
+    Ok(found)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_map_to_roles_in_every_convention() {
+        for (stem, want) in [
+            ("Color", Role::Color),
+            ("Bricks076_1K_Color", Role::Color),
+            ("basecolor", Role::Color),
+            ("OriginColor", Role::Color),
+            ("NormalGL", Role::NormalGl),
+            ("Rock_2K_NormalDX", Role::NormalDx),
+            ("Normal", Role::NormalGl),
+            ("Height", Role::Height),
+            ("Displacement", Role::Height),
+            ("Metallic", Role::Metalness),
+            ("Metalness", Role::Metalness),
+            ("AmbientOcclusion", Role::AmbientOcclusion),
+            ("specular", Role::Specular),
+            ("opacity", Role::Opacity),
+        ] {
+            assert_eq!(role(stem), Some(want), "{stem}");
+        }
+        assert_eq!(role("preview"), None);
+    }
+}
