@@ -1,12 +1,15 @@
 //! `matseg demo`: the pipeline on the bundled assets, with an HTML report.
 
-use crate::common::{init_threads, progress_bar, Libraries, DEFAULT_CACHE_MB};
+use crate::common::{assets_dir, init_threads, progress_bar, Libraries, DEFAULT_CACHE_MB};
 use anyhow::{Context, Result};
-use matseg_data::{generate_dataset, Dataset, Format, GenerateOptions, JobSlice};
-use matseg_image::io::{encode_png_rgb, write_atomic};
+use matseg_data::{generate_dataset, sample_rng, Dataset, Format, GenerateOptions, JobSlice};
+use matseg_extract::pbr::{make_pbr, preview_sphere, PbrRecipe};
+use matseg_extract::textures::{extract_textures, TextureOptions};
+use matseg_image::io::{encode_png_gray, encode_png_rgb, read_rgb, write_atomic};
+use matseg_image::PhotoLibrary;
 use matseg_scene::{colorize, Recipe2d};
 use std::fmt::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `matseg demo`.
 #[derive(clap::Args)]
@@ -100,6 +103,7 @@ figure {{ margin: 0; background: #fff; padding: .5em; border: 1px solid #ddd; }}
 figcaption {{ font-size: .8em; color: #444; margin-top: .3em; }}
 </style></head><body>
 <h1>matseg demo: 2D scenes</h1>
+<p>See also <a href="materials.html">textures and PBR materials</a> extracted from the bundled photos.</p>
 <p>{n} scenes generated from the bundled CC0 photos and textures (seed {seed}). Left: the image;
 right: its annotation, each material in its own colour, mixtures as mixed colours, background black.
 Samples are in MatSeg folder layout under <code>samples-2d/</code>.</p>
@@ -111,10 +115,119 @@ Samples are in MatSeg folder layout under <code>samples-2d/</code>.</p>
     );
     let index = args.out.join("index.html");
     write_atomic(&index, html.as_bytes()).with_context(|| index.display().to_string())?;
+    materials_page(&args.out, args.seed)?;
     eprintln!(
         "{}: demo report with {} samples",
         index.display(),
         dataset.len()
     );
     Ok(())
+}
+
+/// `materials.html`: uniform textures extracted from the bundled photos
+/// (SPEC 4) and one PBR material per bundled texture (SPEC 5), each with
+/// its main maps and a lit-sphere preview.
+fn materials_page(out: &Path, seed: u64) -> Result<()> {
+    let assets = assets_dir();
+    let dir = out.join("materials");
+    std::fs::create_dir_all(&dir).with_context(|| dir.display().to_string())?;
+    let write_png = |name: &str, bytes: Vec<u8>| -> Result<String> {
+        let path = dir.join(name);
+        write_atomic(&path, &bytes).with_context(|| path.display().to_string())?;
+        Ok(format!("materials/{name}"))
+    };
+
+    // Textures: the bundled photos are small, so 20-pixel cells.
+    let options = TextureOptions {
+        cell: 20,
+        ..TextureOptions::default()
+    };
+    let (photos, _) = PhotoLibrary::scan(&[assets.join("photos")], 0)?;
+    let mut textures = String::new();
+    for entry in photos.entries() {
+        let img = read_rgb(&entry.path)?;
+        for (k, (square, crop)) in extract_textures(&img, &options).into_iter().enumerate() {
+            let stem = entry
+                .name
+                .rsplit_once('.')
+                .map_or(entry.name.as_str(), |(s, _)| s);
+            let src = write_png(&format!("texture_{stem}_{k}.png"), encode_png_rgb(&crop))?;
+            writeln!(
+                textures,
+                r#"<figure><img src="{src}"><figcaption>{name}: {side}px at ({x}, {y}), score {score:.2}</figcaption></figure>"#,
+                name = entry.name,
+                side = square.side,
+                x = square.x,
+                y = square.y,
+                score = square.score
+            )?;
+        }
+    }
+
+    // PBR: one material per bundled texture, its maps and a sphere.
+    let (library, _) = PhotoLibrary::scan(&[assets.join("textures")], 0)?;
+    let mut rows = String::new();
+    for (i, entry) in library.entries().iter().enumerate() {
+        let texture = read_rgb(&entry.path)?;
+        let m = make_pbr(
+            &mut sample_rng(seed, i as u64),
+            &texture,
+            &PbrRecipe::default(),
+        );
+        let stem = entry
+            .name
+            .rsplit_once('.')
+            .map_or(entry.name.as_str(), |(s, _)| s);
+        let grey = |k: usize, what: &str| -> Result<String> {
+            let map = &m.maps[k].1;
+            write_png(
+                &format!("pbr_{stem}_{what}.png"),
+                encode_png_gray(map.width(), map.height(), map.as_raw()),
+            )
+        };
+        let cells = [
+            write_png(
+                &format!("pbr_{stem}_sphere.png"),
+                encode_png_rgb(&preview_sphere(&m, 200)),
+            )?,
+            write_png(&format!("pbr_{stem}_color.png"), encode_png_rgb(&m.color))?,
+            write_png(&format!("pbr_{stem}_normal.png"), encode_png_rgb(&m.normal))?,
+            grey(0, "height")?,
+            grey(1, "roughness")?,
+            grey(2, "metalness")?,
+        ];
+        rows.push_str("<tr>");
+        for src in cells {
+            write!(rows, r#"<td><img src="{src}"></td>"#)?;
+        }
+        writeln!(rows, "<td>{}</td></tr>", entry.name)?;
+    }
+    let html = format!(
+        r#"<!doctype html>
+<html><head><meta charset="utf-8"><title>matseg demo: materials</title>
+<style>
+body {{ font-family: sans-serif; margin: 1.5em; background: #fafafa; }}
+.grid {{ display: grid; grid-template-columns: repeat(auto-fill, minmax(180px, 1fr)); gap: .6em; }}
+figure {{ margin: 0; background: #fff; padding: .4em; border: 1px solid #ddd; }}
+figure img {{ width: 100%; }}
+figcaption {{ font-size: .75em; color: #444; }}
+td img {{ width: 140px; height: 140px; object-fit: cover; }}
+td {{ font-size: .8em; padding: 2px; }}
+</style></head><body>
+<h1>matseg demo: textures and PBR materials</h1>
+<p><a href="index.html">Back to the 2D scenes.</a></p>
+<h2>Uniform textures found in the bundled photos</h2>
+<p>Squares of 20-pixel cells that are pairwise similar in 13 colour and gradient channels
+(SPEC section 4; <code>matseg textures</code>).</p>
+<div class="grid">
+{textures}</div>
+<h2>PBR materials from the bundled textures</h2>
+<p>One material per texture (SPEC section 5; <code>matseg pbr</code>): a lit sphere, then colour,
+normals (OpenGL), height, roughness and metalness.</p>
+<table><tr><th>sphere</th><th>colour</th><th>normal</th><th>height</th><th>roughness</th><th>metalness</th><th>texture</th></tr>
+{rows}</table></body></html>
+"#
+    );
+    let page = out.join("materials.html");
+    write_atomic(&page, html.as_bytes()).with_context(|| page.display().to_string())
 }

@@ -194,6 +194,78 @@ impl PbrMaterial {
     }
 }
 
+/// A `size x size` preview of a material on a sphere lit from the upper
+/// left: the texture wrapped in longitude and latitude, its normal map
+/// bending the sphere's normals, Lambert diffuse plus a Blinn-Phong
+/// highlight whose sharpness follows the roughness and whose colour follows
+/// the metalness. For looking at materials, not a physically based renderer.
+pub fn preview_sphere(material: &PbrMaterial, size: u32) -> RgbImage {
+    let (tw, th) = material.color.dimensions();
+    let roughness = &material.maps[1].1;
+    let metalness = &material.maps[2].1;
+    let light = normalise([-0.5, 0.6, 0.65]);
+    let half = normalise([light[0], light[1], light[2] + 1.0]);
+    let to_linear = |c: u8| (c as f32 / 255.0).powf(2.2);
+    RgbImage::from_fn(size, size, |px, py| {
+        // Sphere coordinates: x right, y up, z towards the viewer.
+        let x = (px as f32 + 0.5) / size as f32 * 2.0 - 1.0;
+        let y = 1.0 - (py as f32 + 0.5) / size as f32 * 2.0;
+        let r2 = x * x + y * y;
+        if r2 > 1.0 {
+            return image::Rgb([20, 20, 24]);
+        }
+        let n = [x, y, (1.0 - r2).sqrt()];
+        // Texture coordinates by longitude and latitude (two turns around).
+        let u = (n[0].atan2(n[2]) / std::f32::consts::PI + 1.0) * 0.5;
+        let v = n[1].acos() / std::f32::consts::PI;
+        let (tx, ty) = (
+            ((u * 2.0 * tw as f32) as u32) % tw,
+            ((v * th as f32) as u32).min(th - 1),
+        );
+        // Tangent frame: east and north on the sphere.
+        let east = normalise([n[2], 0.0, -n[0]]);
+        let north = cross(n, east);
+        let t = material
+            .normal
+            .get_pixel(tx, ty)
+            .0
+            .map(|c| c as f32 / 255.0 * 2.0 - 1.0);
+        let bent = normalise(std::array::from_fn(|i| {
+            t[0] * east[i] + t[1] * north[i] + t[2] * n[i]
+        }));
+        let diffuse = dot(bent, light).max(0.0);
+        let rough = roughness.get_pixel(tx, ty).0[0] as f32 / 255.0;
+        let metal = metalness.get_pixel(tx, ty).0[0] as f32 / 255.0;
+        let shininess = 2.0 + (1.0 - rough).powi(2) * 200.0;
+        let highlight = dot(bent, half).max(0.0).powf(shininess) * (1.0 - rough * 0.8);
+        let colour = material.color.get_pixel(tx, ty).0;
+        image::Rgb(std::array::from_fn(|c| {
+            let albedo = to_linear(colour[c]);
+            let specular_tint = metal * albedo + (1.0 - metal) * 0.04;
+            let lit =
+                albedo * (1.0 - metal) * (0.08 + 0.92 * diffuse) + specular_tint * highlight * 4.0;
+            (lit.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0 + 0.5) as u8
+        }))
+    })
+}
+
+fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn normalise(v: [f32; 3]) -> [f32; 3] {
+    let len = dot(v, v).sqrt().max(1e-9);
+    v.map(|c| c / len)
+}
+
 /// Draws a PBR material from `texture` (SPEC 5).
 pub fn make_pbr<R: Rng + ?Sized>(
     rng: &mut R,
@@ -433,6 +505,26 @@ mod tests {
         // Height rising downwards (towards -y in OpenGL) tilts normals up (+y).
         let down = GrayImage::from_fn(8, 16, |_, y| image::Luma([(y * 16) as u8]));
         assert!(normal_map(&down, 4.0).get_pixel(4, 8).0[1] > 128);
+    }
+
+    #[test]
+    fn sphere_previews_are_lit_from_the_upper_left() {
+        let m = make_pbr(
+            &mut rand_chacha::ChaCha8Rng::seed_from_u64(1),
+            &texture(),
+            &PbrRecipe::default(),
+        );
+        let img = preview_sphere(&m, 64);
+        assert_eq!(img.get_pixel(0, 0).0, [20, 20, 24], "outside the sphere");
+        let brightness = |x, y| img.get_pixel(x, y).0.iter().map(|&c| c as u32).sum::<u32>();
+        // Average over patches: the lit side is brighter than the far side.
+        let patch = |cx: u32, cy: u32| {
+            (0..5)
+                .flat_map(|i| (0..5).map(move |j| (cx + i, cy + j)))
+                .map(|(x, y)| brightness(x, y))
+                .sum::<u32>()
+        };
+        assert!(patch(16, 16) > patch(44, 44));
     }
 
     #[test]
