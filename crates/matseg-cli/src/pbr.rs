@@ -25,6 +25,9 @@ pub struct Args {
     /// Seed: material j of texture i depends only on (seed, i, j).
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Make every map tileable (edges match when the material is repeated).
+    #[arg(long)]
+    seamless: bool,
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
@@ -52,7 +55,14 @@ pub fn run(args: Args) -> Result<()> {
     let results: Vec<Result<Timing, String>> = jobs
         .par_iter()
         .map(|&(i, j)| {
-            let result = make_one(&args.out, &library, i, j, args.seed, &recipe);
+            let result = make_one(
+                &args.out,
+                &library,
+                (i, j),
+                args.seed,
+                args.seamless,
+                &recipe,
+            );
             bar.inc(1);
             result.map_err(|e| format!("{e:#}"))
         })
@@ -111,16 +121,19 @@ fn folder(out: &Path, library: &PhotoLibrary, i: usize, j: u64) -> PathBuf {
 fn make_one(
     out: &Path,
     library: &PhotoLibrary,
-    i: usize,
-    j: u64,
+    (i, j): (usize, u64),
     seed: u64,
+    seamless: bool,
     recipe: &PbrRecipe,
 ) -> Result<Timing> {
     let entry = &library.entries()[i];
     let texture = read_rgb(&entry.path)?;
     let start = Instant::now();
     let mut rng = sample_rng(seed, ((i as u64) << 20) | j);
-    let material = make_pbr(&mut rng, &texture, recipe);
+    let mut material = make_pbr(&mut rng, &texture, recipe);
+    if seamless {
+        material.make_seamless();
+    }
     let generate = start.elapsed().as_secs_f64();
     let start = Instant::now();
     let dir = folder(out, library, i, j);

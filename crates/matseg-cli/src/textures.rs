@@ -3,7 +3,7 @@
 use crate::common::{init_threads, progress_bar};
 use crate::cpu_time::process_cpu_seconds;
 use anyhow::{Context, Result};
-use matseg_extract::textures::{extract_textures, TextureOptions, TextureSquare};
+use matseg_extract::textures::{extract_textures, TextureOptions, TextureSquare, CHANNEL_NAMES};
 use matseg_image::io::{encode_jpeg, read_rgb, write_atomic};
 use matseg_image::PhotoLibrary;
 use rayon::prelude::*;
@@ -43,6 +43,7 @@ struct PhotoRecord {
     width: u32,
     height: u32,
     options: TextureOptions,
+    channels: Vec<String>,
     textures: Vec<TextureRecord>,
 }
 
@@ -159,6 +160,7 @@ fn extract_one(
         width: img.width(),
         height: img.height(),
         options: *options,
+        channels: CHANNEL_NAMES.iter().map(|c| c.to_string()).collect(),
         textures,
     };
     let n = record.textures.len();

@@ -162,6 +162,9 @@ pub struct PbrRecord {
     pub non_metal: bool,
     /// Normal strength.
     pub normal_strength: f32,
+    /// Made tileable by [`PbrMaterial::make_seamless`].
+    #[serde(default)]
+    pub seamless: bool,
 }
 
 /// A PBR material: base colour (sRGB), scalar maps (linear, 8-bit), normals.
@@ -178,6 +181,59 @@ pub struct PbrMaterial {
 }
 
 impl PbrMaterial {
+    /// Makes every map tileable, in two passes: each map is blended with a
+    /// copy shifted by half its width, the copy taking over near the left
+    /// and right edges (where it is continuous) and the original in the
+    /// middle (where the copy's seam lies); then the same across the height.
+    /// The same blend for all maps keeps them consistent; normals are
+    /// renormalised.
+    pub fn make_seamless(&mut self) {
+        let (w, h) = self.color.dimensions();
+        for vertical in [false, true] {
+            let n = if vertical { h } else { w };
+            // 1 in the middle, 0 at the edges, linear over a quarter of the side.
+            let keep = |x: u32, y: u32| {
+                let i = if vertical { y } else { x };
+                (i.min(n - 1 - i) as f32 / (n as f32 / 4.0).max(1.0)).min(1.0)
+            };
+            let shifted = |x: u32, y: u32| {
+                if vertical {
+                    (x, (y + h / 2) % h)
+                } else {
+                    ((x + w / 2) % w, y)
+                }
+            };
+            let blend = |a: f32, b: f32, k: f32| a * k + b * (1.0 - k);
+            let color = self.color.clone();
+            for (x, y, px) in self.color.enumerate_pixels_mut() {
+                let (sx, sy) = shifted(x, y);
+                let other = color.get_pixel(sx, sy).0;
+                let k = keep(x, y);
+                px.0 = std::array::from_fn(|c| {
+                    (blend(px.0[c] as f32, other[c] as f32, k) + 0.5) as u8
+                });
+            }
+            for (_, map) in &mut self.maps {
+                let original = map.clone();
+                for (x, y, px) in map.enumerate_pixels_mut() {
+                    let (sx, sy) = shifted(x, y);
+                    let other = original.get_pixel(sx, sy).0[0] as f32;
+                    px.0[0] = (blend(px.0[0] as f32, other, keep(x, y)) + 0.5) as u8;
+                }
+            }
+            let normal = self.normal.clone();
+            let decode = |p: [u8; 3]| p.map(|c| c as f32 / 255.0 * 2.0 - 1.0);
+            for (x, y, px) in self.normal.enumerate_pixels_mut() {
+                let (sx, sy) = shifted(x, y);
+                let (a, b) = (decode(px.0), decode(normal.get_pixel(sx, sy).0));
+                let k = keep(x, y);
+                let n = normalise(std::array::from_fn(|c| blend(a[c], b[c], k)));
+                px.0 = n.map(|c| ((c + 1.0) / 2.0 * 255.0 + 0.5).clamp(0.0, 255.0) as u8);
+            }
+        }
+        self.record.seamless = true;
+    }
+
     /// Writes the maps into `dir` with ambientCG names (`Color.png`,
     /// `NormalGL.png`, `Displacement.png`, `Roughness.png`, ...), as PNG.
     pub fn write_maps(&self, dir: &Path) -> std::io::Result<()> {
@@ -334,6 +390,7 @@ pub fn make_pbr<R: Rng + ?Sized>(
             shiny,
             non_metal,
             normal_strength,
+            seamless: false,
         },
     }
 }
@@ -505,6 +562,42 @@ mod tests {
         // Height rising downwards (towards -y in OpenGL) tilts normals up (+y).
         let down = GrayImage::from_fn(8, 16, |_, y| image::Luma([(y * 16) as u8]));
         assert!(normal_map(&down, 4.0).get_pixel(4, 8).0[1] > 128);
+    }
+
+    #[test]
+    fn seamless_maps_tile_without_a_step_at_the_edges() {
+        let mut m = make_pbr(
+            &mut rand_chacha::ChaCha8Rng::seed_from_u64(5),
+            &texture(),
+            &PbrRecipe::default(),
+        );
+        let before = m.color.clone();
+        m.make_seamless();
+        assert!(m.record.seamless);
+        let (w, h) = m.color.dimensions();
+        let step = |img: &RgbImage, x0: u32, x1: u32| {
+            (0..h)
+                .map(|y| {
+                    let (a, b) = (img.get_pixel(x0, y).0, img.get_pixel(x1, y).0);
+                    (0..3)
+                        .map(|c| (a[c] as f32 - b[c] as f32).abs())
+                        .sum::<f32>()
+                })
+                .sum::<f32>()
+                / h as f32
+        };
+        // Across the wrap (last column to first) the colour changes no more
+        // than between typical neighbouring columns of the tile.
+        let interior = (1..w - 1).map(|x| step(&m.color, x - 1, x)).sum::<f32>() / (w - 2) as f32;
+        assert!(
+            step(&m.color, w - 1, 0) <= 1.5 * interior + 1.0,
+            "{} vs {interior}",
+            step(&m.color, w - 1, 0)
+        );
+        // Nor is there a step in the middle (where a shifted copy's seam would be).
+        assert!(step(&m.color, w / 2 - 1, w / 2) <= 1.5 * interior + 1.0);
+        // Before, the texture's own edges did not match.
+        assert!(step(&before, w - 1, 0) > 3.0 * interior);
     }
 
     #[test]

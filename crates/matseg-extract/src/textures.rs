@@ -75,6 +75,12 @@ pub fn js_distance(p: &[f64], q: &[f64]) -> f64 {
 /// Number of property channels (SPEC 4.1).
 pub const CHANNELS: usize = 13;
 
+/// Names of the property channels, in order (for records).
+pub const CHANNEL_NAMES: [&str; CHANNELS] = [
+    "R", "G", "B", "R+G+B", "dx R", "dy R", "dx G", "dy G", "dx B", "dy B", "|grad R|", "|grad G|",
+    "|grad B|",
+];
+
 /// The 13 property channels of SPEC 4.1 at pixel `(x, y)`: R, G, B, the sum
 /// R + G + B (the mean times 3: histograms over a pair's joint range do not
 /// see the scale), the horizontal and vertical 3x3 Sobel derivatives of R,
