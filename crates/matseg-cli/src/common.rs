@@ -6,6 +6,31 @@ use matseg_image::{PhotoLibrary, SkippedFile};
 use matseg_scene::Recipe2d;
 use std::path::{Path, PathBuf};
 
+/// Writes a material folder: `write` fills `DIR.partial/`, which is renamed
+/// to `dir`, and `material.json` (holding `record`) is written last, so a
+/// folder with `material.json` is complete and anything else is redone.
+pub fn write_material_folder(
+    dir: &Path,
+    write: impl FnOnce(&Path) -> std::io::Result<()>,
+    record: &serde_json::Value,
+) -> Result<()> {
+    let partial = dir.with_extension("partial");
+    if partial.exists() {
+        std::fs::remove_dir_all(&partial)?;
+    }
+    std::fs::create_dir_all(&partial)?;
+    write(&partial).with_context(|| format!("{}: cannot write", partial.display()))?;
+    if dir.exists() {
+        std::fs::remove_dir_all(dir)?;
+    }
+    std::fs::rename(&partial, dir)?;
+    std::fs::write(
+        dir.join("material.json"),
+        serde_json::to_vec_pretty(record)?,
+    )
+    .with_context(|| format!("{}: cannot write material.json", dir.display()))
+}
+
 /// Default bound on decoded source photos held in memory, per process.
 pub const DEFAULT_CACHE_MB: usize = 2048;
 

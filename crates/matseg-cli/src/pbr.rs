@@ -1,6 +1,6 @@
 //! `matseg pbr`: PBR materials from a texture library (SPEC 5).
 
-use crate::common::{init_threads, progress_bar};
+use crate::common::{init_threads, progress_bar, write_material_folder};
 use anyhow::{Context, Result};
 use matseg_data::sample_rng;
 use matseg_extract::pbr::{make_pbr, PbrRecipe};
@@ -136,19 +136,6 @@ fn make_one(
     }
     let generate = start.elapsed().as_secs_f64();
     let start = Instant::now();
-    let dir = folder(out, library, i, j);
-    let partial = dir.with_extension("partial");
-    if partial.exists() {
-        std::fs::remove_dir_all(&partial)?;
-    }
-    std::fs::create_dir_all(&partial)?;
-    material
-        .write_maps(&partial)
-        .with_context(|| format!("{}: cannot write", partial.display()))?;
-    if dir.exists() {
-        std::fs::remove_dir_all(&dir)?;
-    }
-    std::fs::rename(&partial, &dir)?;
     let json = serde_json::json!({
         "source": entry.name,
         "licence": entry.licence,
@@ -157,8 +144,11 @@ fn make_one(
         "seed": seed,
         "record": material.record,
     });
-    std::fs::write(dir.join("material.json"), serde_json::to_vec_pretty(&json)?)
-        .with_context(|| format!("{}: cannot write material.json", dir.display()))?;
+    write_material_folder(
+        &folder(out, library, i, j),
+        |d| material.write_maps(d),
+        &json,
+    )?;
     Ok(Timing {
         megapixels: (texture.width() as f64 * texture.height() as f64) / 1e6,
         generate,

@@ -1,6 +1,6 @@
 //! `matseg pbr-mix`: new PBR materials by mixing existing ones (SPEC 5).
 
-use crate::common::{init_threads, progress_bar};
+use crate::common::{init_threads, progress_bar, write_material_folder};
 use anyhow::{ensure, Context, Result};
 use matseg_data::sample_rng;
 use matseg_extract::material_library::{find_materials, read_material, MaterialMaps};
@@ -82,19 +82,6 @@ fn write_mix(
     recipe: &MixRecipe,
 ) -> Result<()> {
     let (mixed, record) = mix_materials(&mut sample_rng(seed, i), library, recipe);
-    let dir = mix_dir(out, i);
-    let partial = dir.with_extension("partial");
-    if partial.exists() {
-        std::fs::remove_dir_all(&partial)?;
-    }
-    std::fs::create_dir_all(&partial)?;
-    mixed
-        .write_maps(&partial)
-        .with_context(|| format!("{}: cannot write", partial.display()))?;
-    if dir.exists() {
-        std::fs::remove_dir_all(&dir)?;
-    }
-    std::fs::rename(&partial, &dir)?;
     let sources: Vec<String> = record
         .sources
         .iter()
@@ -111,6 +98,5 @@ fn write_mix(
         "color_space": {"Color": "sRGB", "other maps": "linear"},
         "normal_convention": "OpenGL (+Y up)",
     });
-    std::fs::write(dir.join("material.json"), serde_json::to_vec_pretty(&json)?)
-        .with_context(|| format!("{}: cannot write material.json", dir.display()))
+    write_material_folder(&mix_dir(out, i), |d| mixed.write_maps(d), &json)
 }
