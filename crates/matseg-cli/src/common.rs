@@ -2,6 +2,7 @@
 
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
+use matseg_extract::material_library::{colour_map, find_materials};
 use matseg_image::{PhotoLibrary, SkippedFile};
 use matseg_scene::Recipe2d;
 use std::path::{Path, PathBuf};
@@ -41,6 +42,27 @@ pub fn assets_dir() -> PathBuf {
         .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets"))
 }
 
+/// Texture sources: a folder of PBR material folders (from `matseg pbr`,
+/// ambientCG, MatSeg or MatSynth) stands for the colour maps of its
+/// materials; anything else (a texture library, image files) for itself.
+fn texture_sources(given: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut sources = Vec::new();
+    for path in given {
+        let materials = if path.is_dir() {
+            find_materials(path).map_err(anyhow::Error::msg)?
+        } else {
+            Vec::new()
+        };
+        if materials.is_empty() {
+            sources.push(path.clone());
+        }
+        for dir in materials {
+            sources.extend(colour_map(&dir).map_err(anyhow::Error::msg)?);
+        }
+    }
+    Ok(sources)
+}
+
 /// Photo and texture libraries from the given folders, or the bundled ones.
 pub struct Libraries {
     pub photos: PhotoLibrary,
@@ -62,7 +84,8 @@ impl Libraries {
         };
         let budget = cache_mb.saturating_mul(1 << 20);
         let (photos, r1) = PhotoLibrary::scan(&pick(photos, "photos"), budget / 2)?;
-        let (textures, r2) = PhotoLibrary::scan(&pick(textures, "textures"), budget / 2)?;
+        let textures = texture_sources(&pick(textures, "textures"))?;
+        let (textures, r2) = PhotoLibrary::scan(&textures, budget / 2)?;
         let scan_skipped: Vec<SkippedFile> = r1.skipped.into_iter().chain(r2.skipped).collect();
         for s in &scan_skipped {
             eprintln!("warning: skipped {}: {}", s.path.display(), s.reason);

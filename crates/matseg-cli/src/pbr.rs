@@ -144,11 +144,12 @@ fn make_one(
         "seed": seed,
         "record": material.record,
     });
-    write_material_folder(
-        &folder(out, library, i, j),
-        |d| material.write_maps(d),
-        &json,
-    )?;
+    let licences = serde_json::json!({ "*": entry.licence }).to_string();
+    let write = |d: &Path| {
+        material.write_maps(d)?;
+        std::fs::write(d.join("licenses.json"), &licences)
+    };
+    write_material_folder(&folder(out, library, i, j), write, &json)?;
     Ok(Timing {
         megapixels: (texture.width() as f64 * texture.height() as f64) / 1e6,
         generate,

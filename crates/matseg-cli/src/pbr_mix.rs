@@ -90,13 +90,38 @@ fn write_mix(
             d.strip_prefix(root).unwrap_or(d).display().to_string()
         })
         .collect();
+    // The mix carries every source's licence (from its licenses.json).
+    let mut licences: Vec<String> = record
+        .sources
+        .iter()
+        .map(|&s| folder_licence(&library[s].dir))
+        .collect();
+    licences.sort();
+    licences.dedup();
+    let licence = licences.join(" AND ");
     let json = serde_json::json!({
         "sources": sources,
+        "licence": licence,
         "mode": record.mode,
         "weights": record.weights,
         "seed": seed,
         "color_space": {"Color": "sRGB", "other maps": "linear"},
         "normal_convention": "OpenGL (+Y up)",
     });
-    write_material_folder(&mix_dir(out, i), |d| mixed.write_maps(d), &json)
+    let licences = serde_json::json!({ "*": licence }).to_string();
+    let write = |d: &Path| {
+        mixed.write_maps(d)?;
+        std::fs::write(d.join("licenses.json"), &licences)
+    };
+    write_material_folder(&mix_dir(out, i), write, &json)
+}
+
+/// The licence a material folder's `licenses.json` gives all its files
+/// (`"*"`), or `unknown`.
+fn folder_licence(dir: &Path) -> String {
+    std::fs::read(dir.join("licenses.json"))
+        .ok()
+        .and_then(|b| serde_json::from_slice::<serde_json::Value>(&b).ok())
+        .and_then(|v| v["*"].as_str().map(str::to_string))
+        .unwrap_or_else(|| matseg_image::library::UNKNOWN_LICENCE.to_string())
 }

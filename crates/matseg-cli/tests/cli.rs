@@ -482,6 +482,34 @@ fn pbr_materials_have_every_map_and_are_reproducible() {
         let v = p.0.map(|c| c as f32 / 255.0 * 2.0 - 1.0);
         ((v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt() - 1.0).abs() < 0.02
     }));
+    // The material folder is a texture source (its colour maps, with licences).
+    let data = dir.path().join("data");
+    let gen = generate_one(data.to_str().unwrap(), &["--textures", a.to_str().unwrap()]);
+    assert!(gen.status.success(), "{}", stderr(&gen));
+    let meta: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(data.join("00000000/meta.json")).unwrap()).unwrap();
+    let used: Vec<&serde_json::Value> = meta["sources"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|s| s["role"] == "texture")
+        .collect();
+    assert!(!used.is_empty(), "sample 0 draws textured materials");
+    for source in used {
+        assert!(
+            source["file"].as_str().unwrap().ends_with("Color.png"),
+            "{source}"
+        );
+        assert_eq!(source["licence"], "CC0-1.0");
+    }
+    // --seamless is recorded.
+    let c = dir.path().join("c");
+    let run = matseg(&["pbr", &textures, "--out", c.to_str().unwrap(), "--seamless"]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(c.join("brick__pbr0/material.json")).unwrap())
+            .unwrap();
+    assert_eq!(json["record"]["seamless"], true);
     // A second run over the same folder has nothing left to do.
     let again = matseg(&[
         "pbr",

@@ -66,23 +66,37 @@ fn role(stem: &str) -> Option<Role> {
     })
 }
 
-/// Reads the material in `dir`. An error names the folder (no colour map)
-/// or the file (unreadable).
-pub fn read_material(dir: &Path) -> Result<MaterialMaps, String> {
+/// The image files of a material folder, sorted.
+fn map_files(dir: &Path) -> Result<Vec<PathBuf>, String> {
     let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
         .map_err(|e| format!("{}: cannot list: {e}", dir.display()))?
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| matseg_image::io::has_image_extension(p))
         .collect();
     files.sort();
-    let find = |wanted: Role| {
-        files.iter().find(|p| {
-            p.file_stem()
-                .and_then(|s| s.to_str())
-                .and_then(role)
-                .is_some_and(|r| r == wanted)
-        })
-    };
+    Ok(files)
+}
+
+/// The first of `files` named for `wanted`.
+fn find_role(files: &[PathBuf], wanted: Role) -> Option<&PathBuf> {
+    files.iter().find(|p| {
+        p.file_stem()
+            .and_then(|s| s.to_str())
+            .and_then(role)
+            .is_some_and(|r| r == wanted)
+    })
+}
+
+/// The colour map of the material in `dir`, if it has one.
+pub fn colour_map(dir: &Path) -> Result<Option<PathBuf>, String> {
+    Ok(find_role(&map_files(dir)?, Role::Color).cloned())
+}
+
+/// Reads the material in `dir`. An error names the folder (no colour map)
+/// or the file (unreadable).
+pub fn read_material(dir: &Path) -> Result<MaterialMaps, String> {
+    let files = map_files(dir)?;
+    let find = |wanted: Role| find_role(&files, wanted);
     let open = |p: &PathBuf| image::open(p).map_err(|e| format!("{}: {e}", p.display()));
     let grey = |wanted: Role| -> Result<Option<GrayImage>, String> {
         find(wanted)
