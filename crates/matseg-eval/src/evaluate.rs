@@ -9,6 +9,7 @@ use crate::triplet::{score_image, ImageScores, PointScores};
 use image::{GrayImage, RgbImage};
 use matseg_image::io::{decode_gray, read_rgb};
 use matseg_image::Pyramid;
+use rayon::prelude::*;
 use serde::Serialize;
 use std::path::Path;
 
@@ -92,31 +93,40 @@ pub fn evaluate_points(
     let comparison = model.comparison();
     let mut counts = PointCounts::default();
     let mut images = Vec::new();
-    for image in &bench.images {
-        let (pixels, scale) = resize_longer_side(load_rgb(&image.image_path)?, max_side);
-        let map = model.describe(&pixels);
-        let (points, material) = flatten(image);
-        let descriptors: Vec<Vec<f32>> = points
-            .iter()
-            .map(|p| map.point_descriptor(p.x * scale, p.y * scale, p.r * scale, comparison))
-            .collect();
-        let scores = score_image(
-            &PointScores {
-                material: &material,
-                weight: &|a, b| image.weights[a][b],
-                similarity: &|i, j| comparison.similarity(&descriptors[i], &descriptors[j]),
-            },
-            image.has_relations,
-        );
+    // Images are scored in parallel and gathered in benchmark order.
+    let scored: Vec<(NamedScores, usize)> = bench
+        .images
+        .par_iter()
+        .map(|image| -> Result<(NamedScores, usize), BenchError> {
+            let (pixels, scale) = resize_longer_side(load_rgb(&image.image_path)?, max_side);
+            let map = model.describe(&pixels);
+            let (points, material) = flatten(image);
+            let descriptors: Vec<Vec<f32>> = points
+                .iter()
+                .map(|p| map.point_descriptor(p.x * scale, p.y * scale, p.r * scale, comparison))
+                .collect();
+            let scores = score_image(
+                &PointScores {
+                    material: &material,
+                    weight: &|a, b| image.weights[a][b],
+                    similarity: &|i, j| comparison.similarity(&descriptors[i], &descriptors[j]),
+                },
+                image.has_relations,
+            );
+            let named = NamedScores {
+                name: image.name.clone(),
+                scores,
+            };
+            Ok((named, points.len()))
+        })
+        .collect::<Result<_, _>>()?;
+    for ((named, points), image) in scored.into_iter().zip(&bench.images) {
         counts.images += 1;
         counts.soft_images += image.has_relations as usize;
-        counts.points += points.len();
-        counts.triplets += scores.triplets;
-        counts.soft_triplets += scores.soft_triplets;
-        images.push(NamedScores {
-            name: image.name.clone(),
-            scores,
-        });
+        counts.points += points;
+        counts.triplets += named.scores.triplets;
+        counts.soft_triplets += named.scores.soft_triplets;
+        images.push(named);
     }
     let mean_of = |f: fn(&ImageScores) -> Option<f64>| {
         let values: Vec<f64> = images.iter().filter_map(|i| f(&i.scores)).collect();
