@@ -124,90 +124,22 @@ impl Pyramid {
         self.levels.iter().map(|l| 3 * l.width * l.height).sum()
     }
 
-    /// Plane `lane` (0 = R, 1 = G, 2 = B) of the window `placement` selects,
-    /// `out_w x out_h` pixels.
-    ///
-    /// Bilinear in fixed point on 8-bit pixels, rounded back to 8 bits, as
-    /// OpenCV resizes `uint8` images. Rows are blended first, then columns;
-    /// when upscaling, columns first, so each source row is blended once
-    /// (the same integer sums, so the same bytes; see [`crate::bilinear`]).
-    fn sample_plane(
-        &self,
-        placement: &Placement,
-        out_w: usize,
-        out_h: usize,
-        lane: usize,
-    ) -> Vec<u8> {
-        let mut out = vec![0u8; out_w * out_h];
-        if out.is_empty() {
-            return out;
-        }
+    /// How to read the window `placement` selects, `out_w x out_h` pixels:
+    /// worked out once and shared by every plane read from it.
+    fn window(&self, placement: &Placement, out_w: usize, out_h: usize) -> WindowReader<'_> {
         let fx = self.width() as f64 / placement.resized_w as f64;
         let fy = self.height() as f64 / placement.resized_h as f64;
-        if fx == 1.0 && fy == 1.0 {
+        if out_w == 0 || out_h == 0 || (fx == 1.0 && fy == 1.0) {
             // Native resolution: a plain crop, no interpolation.
-            let level = &self.levels[0];
-            let src = &level.planes[lane];
-            for (y, out_row) in out.chunks_exact_mut(out_w).enumerate() {
-                let start = (y + placement.y0 as usize) * level.width + placement.x0 as usize;
-                out_row.copy_from_slice(&src[start..start + out_w]);
-            }
-            return out;
+            return WindowReader::Crop {
+                level: &self.levels[0],
+                x0: placement.x0 as usize,
+                y0: placement.y0 as usize,
+                out_w,
+                out_h,
+            };
         }
-        let (level, cols, rows) = self.grid(placement, out_w, out_h);
-        let src = &level.planes[lane];
-        // Source columns the window touches, plus one copy of the last so
-        // that every column tap reads a pair (the pair at the right edge is
-        // that value twice).
-        let first = cols[0].first;
-        let span = cols[cols.len() - 1].second - first + 1;
-        let taps = ColumnTaps::new(cols.iter().map(|c| (c.first - first, c.weight)));
-        let source_rows = rows[rows.len() - 1].second - rows[0].first + 1;
-        if source_rows < out_h {
-            // Upscaling: blend the columns of each source row once, then
-            // blend pairs of those rows (cheap, vectorised) per output row.
-            let top = rows[0].first;
-            let mut widened = vec![0i16; span + 1];
-            let mut by_columns = vec![0i16; source_rows * out_w];
-            for (y, out_row) in by_columns.chunks_exact_mut(out_w).enumerate() {
-                let row = &src[(top + y) * level.width + first..][..span];
-                for (w, &v) in widened.iter_mut().zip(row) {
-                    *w = v as i16;
-                }
-                widened[span] = widened[span - 1];
-                taps.blend_unrounded(&widened, out_row);
-            }
-            let at = |y: usize| &by_columns[(y - top) * out_w..][..out_w];
-            for (row, out_row) in rows.iter().zip(out.chunks_exact_mut(out_w)) {
-                blend_rows_rounded(at(row.first), at(row.second), row.weight, out_row);
-            }
-        } else {
-            let mut blended = vec![0i16; span + 1];
-            for (row, out_row) in rows.iter().zip(out.chunks_exact_mut(out_w)) {
-                let at = |y: usize| &src[y * level.width + first..][..span];
-                blend_rows(
-                    at(row.first),
-                    at(row.second),
-                    row.weight,
-                    &mut blended[..span],
-                );
-                blended[span] = blended[span - 1];
-                taps.blend(&blended, out_row);
-            }
-        }
-        out
-    }
-
-    /// The pyramid level to read for `placement` and the bilinear taps of
-    /// every output column and row on it.
-    fn grid(
-        &self,
-        placement: &Placement,
-        out_w: usize,
-        out_h: usize,
-    ) -> (&Level, Vec<Tap>, Vec<Tap>) {
-        let fx = self.width() as f64 / placement.resized_w as f64;
-        let fy = self.height() as f64 / placement.resized_h as f64;
+        // The pyramid level closest to the target scale from above.
         let shrink = fx.min(fy);
         let level = if shrink >= 2.0 {
             (shrink.log2().floor() as usize).min(self.levels.len() - 1)
@@ -218,12 +150,32 @@ impl Pyramid {
         let step = (1u64 << level) as f64;
         let cols = axis_taps(out_w, placement.x0, fx / step, img.width);
         let rows = axis_taps(out_h, placement.y0, fy / step, img.height);
-        (img, cols, rows)
+        let first = cols[0].first;
+        WindowReader::Bilinear {
+            level: img,
+            first,
+            span: cols[cols.len() - 1].second - first + 1,
+            taps: ColumnTaps::new(cols.iter().map(|c| (c.first - first, c.weight))),
+            rows,
+            out_w,
+        }
+    }
+
+    /// Plane `lane` (0 = R, 1 = G, 2 = B) of the window `placement` selects.
+    fn sample_plane(
+        &self,
+        placement: &Placement,
+        out_w: usize,
+        out_h: usize,
+        lane: usize,
+    ) -> Vec<u8> {
+        self.window(placement, out_w, out_h).plane(lane)
     }
 
     /// The R, G and B planes of the selected window.
     pub fn sample_planes(&self, placement: &Placement, out_w: usize, out_h: usize) -> [Vec<u8>; 3] {
-        std::array::from_fn(|lane| self.sample_plane(placement, out_w, out_h, lane))
+        let window = self.window(placement, out_w, out_h);
+        std::array::from_fn(|lane| window.plane(lane))
     }
 
     /// The selected window as a float RGB image (whole 0..255 values).
@@ -266,6 +218,104 @@ impl Pyramid {
             y0: 0,
         };
         self.sample_rgb(&whole, w, h)
+    }
+}
+
+/// A window of a pyramid, ready to read plane by plane.
+enum WindowReader<'a> {
+    /// A crop of the full-resolution level.
+    Crop {
+        level: &'a Level,
+        x0: usize,
+        y0: usize,
+        out_w: usize,
+        out_h: usize,
+    },
+    /// Bilinear taps on one level: `taps` blend the columns `first..first +
+    /// span` of a row, `rows` pick and weigh the source rows.
+    Bilinear {
+        level: &'a Level,
+        first: usize,
+        span: usize,
+        taps: ColumnTaps,
+        rows: Vec<Tap>,
+        out_w: usize,
+    },
+}
+
+impl WindowReader<'_> {
+    /// One plane of the window.
+    ///
+    /// Bilinear in fixed point on 8-bit pixels, rounded back to 8 bits, as
+    /// OpenCV resizes `uint8` images. Rows are blended first, then columns;
+    /// when upscaling, columns first, so each source row is blended once
+    /// (the same integer sums, so the same bytes; see [`crate::bilinear`]).
+    fn plane(&self, lane: usize) -> Vec<u8> {
+        match self {
+            WindowReader::Crop {
+                level,
+                x0,
+                y0,
+                out_w,
+                out_h,
+            } => {
+                let src = &level.planes[lane];
+                let mut out = Vec::with_capacity(out_w * out_h);
+                for y in 0..*out_h {
+                    let start = (y + y0) * level.width + x0;
+                    out.extend_from_slice(&src[start..start + out_w]);
+                }
+                out
+            }
+            WindowReader::Bilinear {
+                level,
+                first,
+                span,
+                taps,
+                rows,
+                out_w,
+            } => {
+                let (first, span, out_w) = (*first, *span, *out_w);
+                let src = &level.planes[lane];
+                let mut out = vec![0u8; out_w * rows.len()];
+                // Each row blend ends with one copy of its last value, so that
+                // every column tap reads a pair (at the right edge: that value twice).
+                let source_rows = rows[rows.len() - 1].second - rows[0].first + 1;
+                if source_rows < rows.len() {
+                    // Upscaling: blend the columns of each source row once, then
+                    // blend pairs of those rows (cheap, vectorised) per output row.
+                    let top = rows[0].first;
+                    let mut widened = vec![0i16; span + 1];
+                    let mut by_columns = vec![0i16; source_rows * out_w];
+                    for (y, out_row) in by_columns.chunks_exact_mut(out_w).enumerate() {
+                        let row = &src[(top + y) * level.width + first..][..span];
+                        for (w, &v) in widened.iter_mut().zip(row) {
+                            *w = v as i16;
+                        }
+                        widened[span] = widened[span - 1];
+                        taps.blend_unrounded(&widened, out_row);
+                    }
+                    let at = |y: usize| &by_columns[(y - top) * out_w..][..out_w];
+                    for (row, out_row) in rows.iter().zip(out.chunks_exact_mut(out_w)) {
+                        blend_rows_rounded(at(row.first), at(row.second), row.weight, out_row);
+                    }
+                } else {
+                    let mut blended = vec![0i16; span + 1];
+                    for (row, out_row) in rows.iter().zip(out.chunks_exact_mut(out_w)) {
+                        let at = |y: usize| &src[y * level.width + first..][..span];
+                        blend_rows(
+                            at(row.first),
+                            at(row.second),
+                            row.weight,
+                            &mut blended[..span],
+                        );
+                        blended[span] = blended[span - 1];
+                        taps.blend(&blended, out_row);
+                    }
+                }
+                out
+            }
+        }
     }
 }
 
