@@ -4,8 +4,8 @@
 use crate::recipe::CompositionRecipe;
 use matseg_extract::random_photo_channel;
 use matseg_image::{
-    gaussian_blur_region, level_values, Channel, LibraryError, Orientation, Photo, PhotoLibrary,
-    Placement, Plane, Region, RgbF32,
+    gaussian_blur_region, level_values, Channel, LibraryError, Mirrors, Photo, PhotoLibrary,
+    Placement, Plane, Pyramid, Region, RgbF32,
 };
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -146,6 +146,16 @@ pub fn add_material<R: Rng + ?Sized>(
     })
 }
 
+/// A texture's pixels before mirroring: the photo's cached quarter-turned
+/// copy when it is drawn turned, else the photo itself.
+fn drawn_pixels(texture: &Photo, rot90: bool) -> &Pyramid {
+    if rot90 {
+        texture.quarter_turned()
+    } else {
+        &texture.pyramid
+    }
+}
+
 /// Draws a texture's placement (SPEC 2); the pixels are rendered later, only
 /// where the material is visible (see [`Colour`]).
 fn draw_texture<R: Rng + ?Sized>(
@@ -159,16 +169,8 @@ fn draw_texture<R: Rng + ?Sized>(
     let rot90 = rng.random_bool(recipe.p_rot90);
     let flip_x = rng.random_bool(recipe.p_flip_x);
     let flip_y = rng.random_bool(recipe.p_flip_y);
-    let orientation = Orientation {
-        rot90,
-        flip_x,
-        flip_y,
-    };
-    let (tw, th) = orientation.oriented_size(
-        texture.pyramid.width() as usize,
-        texture.pyramid.height() as usize,
-    );
-    let (tw, th) = (tw as u32, th as u32);
+    let drawn = drawn_pixels(&texture, rot90);
+    let (tw, th) = (drawn.width(), drawn.height());
     let fill = if rng.random_bool(recipe.p_tile) {
         let max_shrink = (tw.min(th) as f64 / recipe.min_tile_side).max(1.0);
         let shrink = if rng.random_bool(recipe.p_tile_shrink) {
@@ -223,7 +225,7 @@ enum Colour {
     /// height)` of the mirrored image.
     Image {
         image: RgbF32,
-        mirrors: Orientation,
+        mirrors: Mirrors,
         phase_x: usize,
         phase_y: usize,
     },
@@ -245,18 +247,9 @@ impl Colour {
             } => (fill, rot90, flip_x, flip_y, hue_shift_degrees),
         };
         let texture = texture.expect("a texture is drawn with its photo");
-        // Turned textures are read from the photo's cached turned copy;
-        // mirrors are applied when reading rows.
-        let pyramid = if rot90 {
-            texture.quarter_turned()
-        } else {
-            &texture.pyramid
-        };
-        let mirrors = Orientation {
-            rot90: false,
-            flip_x,
-            flip_y,
-        };
+        // Mirrors are applied when reading rows.
+        let pyramid = drawn_pixels(texture, rot90);
+        let mirrors = Mirrors { flip_x, flip_y };
         let (mut image, phase_x, phase_y) = match *fill {
             Fill::Tile {
                 tile_w,
