@@ -4,6 +4,7 @@
 
 use image::{GrayImage, RgbImage};
 use matseg_image::io::{encode_png_gray, encode_png_rgb};
+use matseg_image::plane::round_to_u8;
 use matseg_image::rgb::rotate_hue;
 use matseg_image::{gaussian_blur, Plane};
 use rand::Rng;
@@ -209,26 +210,26 @@ impl PbrMaterial {
                 let (sx, sy) = shifted(x, y);
                 let other = color.get_pixel(sx, sy).0;
                 let k = keep(x, y);
-                px.0 = std::array::from_fn(|c| {
-                    (blend(px.0[c] as f32, other[c] as f32, k) + 0.5) as u8
-                });
+                px.0 =
+                    std::array::from_fn(|c| round_to_u8(blend(px.0[c] as f32, other[c] as f32, k)));
             }
             for (_, map) in &mut self.maps {
                 let original = map.clone();
                 for (x, y, px) in map.enumerate_pixels_mut() {
                     let (sx, sy) = shifted(x, y);
                     let other = original.get_pixel(sx, sy).0[0] as f32;
-                    px.0[0] = (blend(px.0[0] as f32, other, keep(x, y)) + 0.5) as u8;
+                    px.0[0] = round_to_u8(blend(px.0[0] as f32, other, keep(x, y)));
                 }
             }
             let normal = self.normal.clone();
-            let decode = |p: [u8; 3]| p.map(|c| c as f32 / 255.0 * 2.0 - 1.0);
             for (x, y, px) in self.normal.enumerate_pixels_mut() {
                 let (sx, sy) = shifted(x, y);
-                let (a, b) = (decode(px.0), decode(normal.get_pixel(sx, sy).0));
+                let (a, b) = (
+                    decode_normal(px.0),
+                    decode_normal(normal.get_pixel(sx, sy).0),
+                );
                 let k = keep(x, y);
-                let n = normalise(std::array::from_fn(|c| blend(a[c], b[c], k)));
-                px.0 = n.map(|c| ((c + 1.0) / 2.0 * 255.0 + 0.5).clamp(0.0, 255.0) as u8);
+                px.0 = encode_normal(std::array::from_fn(|c| blend(a[c], b[c], k)));
             }
         }
         self.record.seamless = true;
@@ -281,11 +282,7 @@ pub fn preview_sphere(material: &PbrMaterial, size: u32) -> RgbImage {
         // Tangent frame: east and north on the sphere.
         let east = normalise([n[2], 0.0, -n[0]]);
         let north = cross(n, east);
-        let t = material
-            .normal
-            .get_pixel(tx, ty)
-            .0
-            .map(|c| c as f32 / 255.0 * 2.0 - 1.0);
+        let t = decode_normal(material.normal.get_pixel(tx, ty).0);
         let bent = normalise(std::array::from_fn(|i| {
             t[0] * east[i] + t[1] * north[i] + t[2] * n[i]
         }));
@@ -317,6 +314,16 @@ fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
     ]
 }
 
+/// A normal stored as 8-bit RGB (`(n + 1) / 2 * 255`) as a vector in `[-1, 1]`.
+pub fn decode_normal(rgb: [u8; 3]) -> [f32; 3] {
+    rgb.map(|c| c as f32 / 255.0 * 2.0 - 1.0)
+}
+
+/// The unit vector along `n`, stored as 8-bit RGB (`(n + 1) / 2 * 255`, rounded).
+pub fn encode_normal(n: [f32; 3]) -> [u8; 3] {
+    normalise(n).map(|c| round_to_u8((c + 1.0) / 2.0 * 255.0))
+}
+
 fn normalise(v: [f32; 3]) -> [f32; 3] {
     let len = dot(v, v).sqrt().max(1e-9);
     v.map(|c| c / len)
@@ -345,7 +352,7 @@ pub fn make_pbr<R: Rng + ?Sized>(
     if let Some(degrees) = hue_degrees {
         for px in color.pixels_mut() {
             let turned = rotate_hue(px.0.map(f32::from), degrees);
-            px.0 = turned.map(|v| (v + 0.5).clamp(0.0, 255.0) as u8);
+            px.0 = turned.map(round_to_u8);
         }
     }
     let mut maps = Vec::new();
@@ -471,15 +478,8 @@ fn draw_map<R: Rng + ?Sized>(
             .iter_mut()
             .for_each(|v| *v = lo as f32 + (*v - min) * scale);
     }
-    let map = GrayImage::from_raw(
-        w,
-        h,
-        values
-            .iter()
-            .map(|&v| (v + 0.5).clamp(0.0, 255.0) as u8)
-            .collect(),
-    )
-    .expect("map size");
+    let map = GrayImage::from_raw(w, h, values.iter().map(|&v| round_to_u8(v)).collect())
+        .expect("map size");
     let record = MapRecord {
         kind,
         source,
@@ -530,9 +530,7 @@ pub fn normal_map(height: &GrayImage, strength: f32) -> RgbImage {
         let dx = (at(x + 1, y) - at(x - 1, y)) / 2.0;
         // Image rows go down; OpenGL's y goes up.
         let dy_up = (at(x, y - 1) - at(x, y + 1)) / 2.0;
-        let n = [-strength * dx, -strength * dy_up, 1.0];
-        let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-        image::Rgb(n.map(|c| ((c / len + 1.0) / 2.0 * 255.0 + 0.5).clamp(0.0, 255.0) as u8))
+        image::Rgb(encode_normal([-strength * dx, -strength * dy_up, 1.0]))
     })
 }
 

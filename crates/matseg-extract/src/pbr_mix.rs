@@ -4,8 +4,10 @@
 //! ("flexible"). Weights sum to 1; mixed normals are renormalised.
 
 use crate::material_library::MaterialMaps;
+use crate::pbr::{decode_normal, encode_normal};
 use image::{GrayImage, RgbImage};
 use matseg_image::io::{encode_png_gray, encode_png_rgb};
+use matseg_image::plane::round_to_u8;
 use rand::seq::index::sample;
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -162,7 +164,7 @@ pub fn mix_materials<R: Rng + ?Sized>(
                 .iter()
                 .map(|i| i.get_pixel(x, y).0[c] as f32)
                 .collect();
-            (combine(&values, 0) + 0.5).clamp(0.0, 255.0) as u8
+            round_to_u8(combine(&values, 0))
         }))
     });
     let normal = RgbImage::from_fn(w, h, |x, y| {
@@ -173,11 +175,10 @@ pub fn mix_materials<R: Rng + ?Sized>(
                 _ => weights[1][k],
             };
             for (c, v) in n.iter_mut().enumerate() {
-                *v += weight * (img.get_pixel(x, y).0[c] as f32 / 255.0 * 2.0 - 1.0);
+                *v += weight * decode_normal(img.get_pixel(x, y).0)[c];
             }
         }
-        let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt().max(1e-6);
-        image::Rgb(n.map(|c| ((c / len + 1.0) / 2.0 * 255.0 + 0.5).clamp(0.0, 255.0) as u8))
+        image::Rgb(encode_normal(n))
     });
     let maps: [GrayImage; 6] = std::array::from_fn(|k| {
         let planes: Vec<GrayImage> = members
@@ -202,7 +203,7 @@ pub fn mix_materials<R: Rng + ?Sized>(
                 .iter()
                 .map(|p| p.get_pixel(x, y).0[0] as f32)
                 .collect();
-            image::Luma([(combine(&values, k + 2) + 0.5).clamp(0.0, 255.0) as u8])
+            image::Luma([round_to_u8(combine(&values, k + 2))])
         })
     });
     (
