@@ -27,14 +27,6 @@ pub fn resize_longer_side(image: RgbImage, max_side: u32) -> (RgbImage, f32) {
     (resized, scale)
 }
 
-fn load_rgb(path: &Path) -> Result<RgbImage, BenchError> {
-    read_rgb(path).map_err(|e| BenchError {
-        path: e.path,
-        line: None,
-        message: e.message,
-    })
-}
-
 /// Dataset scores of one model on a point benchmark.
 #[derive(Clone, Debug, Serialize)]
 pub struct PointReport {
@@ -98,7 +90,7 @@ pub fn evaluate_points(
         .images
         .par_iter()
         .map(|image| -> Result<(NamedScores, usize), BenchError> {
-            let (pixels, scale) = resize_longer_side(load_rgb(&image.image_path)?, max_side);
+            let (pixels, scale) = resize_longer_side(read_rgb(&image.image_path)?, max_side);
             let map = model.describe(&pixels);
             let (points, material) = flatten(image);
             let descriptors: Vec<Vec<f32>> = points
@@ -194,11 +186,7 @@ fn load_mask(path: &Path, w: u32, h: u32) -> Result<GrayImage, BenchError> {
         line: None,
         message: format!("cannot read: {e}"),
     })?;
-    let mask = decode_gray(&bytes, path).map_err(|e| BenchError {
-        path: e.path,
-        line: None,
-        message: e.message,
-    })?;
+    let mask = decode_gray(&bytes, path)?;
     if mask.dimensions() == (w, h) {
         Ok(mask)
     } else {
@@ -207,6 +195,19 @@ fn load_mask(path: &Path, w: u32, h: u32) -> Result<GrayImage, BenchError> {
             line: None,
             message: format!("mask is {:?}, the photo {}x{}", mask.dimensions(), w, h),
         })
+    }
+}
+
+/// The values at the pixels inside `roi` (all of them without one).
+fn in_roi<T: Copy>(values: &[T], roi: Option<&[bool]>) -> Vec<T> {
+    match roi {
+        Some(roi) => values
+            .iter()
+            .zip(roi)
+            .filter(|(_, &inside)| inside)
+            .map(|(&v, _)| v)
+            .collect(),
+        None => values.to_vec(),
     }
 }
 
@@ -228,7 +229,7 @@ pub fn evaluate_masks(
     };
     let mut total = 0.0;
     for (index, image) in images.iter().enumerate() {
-        let photo = load_rgb(&image.image_path)?;
+        let photo = read_rgb(&image.image_path)?;
         let (w0, h0) = photo.dimensions();
         let (pixels, _) = resize_longer_side(photo, options.max_side);
         let (w, h) = pixels.dimensions();
@@ -248,25 +249,11 @@ pub fn evaluate_masks(
                 continue;
             }
             report.masks += 1;
+            // Outside the ROI nothing is predicted and nothing is true.
+            let truth = in_roi(&truth, roi.as_deref());
             for (x, y) in points {
                 let query = map.point_descriptor(x as f32, y as f32, options.radius, comparison);
-                let mut scores = map.similarity_map(&query, comparison);
-                let mut truth = truth.clone();
-                if let Some(roi) = &roi {
-                    // Outside the ROI nothing is predicted and nothing is true.
-                    scores = scores
-                        .iter()
-                        .zip(roi)
-                        .filter(|(_, &r)| r)
-                        .map(|(&s, _)| s)
-                        .collect();
-                    truth = truth
-                        .iter()
-                        .zip(roi)
-                        .filter(|(_, &r)| r)
-                        .map(|(&t, _)| t)
-                        .collect();
-                }
+                let scores = in_roi(&map.similarity_map(&query, comparison), roi.as_deref());
                 let best = match options.grid_steps {
                     Some(steps) => best_iou_on_grid(&scores, &truth, steps),
                     None => best_iou(&scores, &truth),

@@ -38,6 +38,16 @@ impl BenchError {
     }
 }
 
+impl From<matseg_image::ImageIoError> for BenchError {
+    fn from(e: matseg_image::ImageIoError) -> Self {
+        Self {
+            path: e.path,
+            line: None,
+            message: e.message,
+        }
+    }
+}
+
 /// One annotated point: centre and radius in image pixels.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BenchPoint {
