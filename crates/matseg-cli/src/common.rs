@@ -7,27 +7,53 @@ use matseg_image::{PhotoLibrary, SkippedFile};
 use matseg_scene::Recipe2d;
 use std::path::{Path, PathBuf};
 
-/// Writes a material folder: `write` fills `DIR.partial/`, which is renamed
-/// to `dir`, and `material.json` (holding `record`) is written last, so a
-/// folder with `material.json` is complete and anything else is redone.
+/// A library entry's name (a path below its source folder) as one file
+/// name: separators become `__`.
+pub fn flat_name(name: &str) -> String {
+    name.replace(['/', '\\'], "__")
+}
+
+/// [`flat_name`] without the file extension.
+pub fn flat_stem(name: &str) -> String {
+    let flat = flat_name(name);
+    match flat.rsplit_once('.') {
+        Some((stem, _)) => stem.to_string(),
+        None => flat,
+    }
+}
+
+/// Writes a material folder: `write_maps` fills `DIR.partial/`, with a
+/// `licenses.json` giving every file `licence`; the folder is renamed to
+/// `dir`, and `material.json` (the `record` object plus the licence, the
+/// colour spaces and the normal convention) is written last, so a folder
+/// with `material.json` is complete and anything else is redone.
 pub fn write_material_folder(
     dir: &Path,
-    write: impl FnOnce(&Path) -> std::io::Result<()>,
-    record: &serde_json::Value,
+    licence: &str,
+    write_maps: impl FnOnce(&Path) -> std::io::Result<()>,
+    mut record: serde_json::Value,
 ) -> Result<()> {
     let partial = dir.with_extension("partial");
     if partial.exists() {
         std::fs::remove_dir_all(&partial)?;
     }
     std::fs::create_dir_all(&partial)?;
-    write(&partial).with_context(|| format!("{}: cannot write", partial.display()))?;
+    write_maps(&partial)
+        .and_then(|()| {
+            let licences = serde_json::json!({ "*": licence }).to_string();
+            std::fs::write(partial.join("licenses.json"), licences)
+        })
+        .with_context(|| format!("{}: cannot write", partial.display()))?;
+    record["licence"] = licence.into();
+    record["color_space"] = serde_json::json!({"Color": "sRGB", "other maps": "linear"});
+    record["normal_convention"] = "OpenGL (+Y up)".into();
     if dir.exists() {
         std::fs::remove_dir_all(dir)?;
     }
     std::fs::rename(&partial, dir)?;
     std::fs::write(
         dir.join("material.json"),
-        serde_json::to_vec_pretty(record)?,
+        serde_json::to_vec_pretty(&record)?,
     )
     .with_context(|| format!("{}: cannot write material.json", dir.display()))
 }

@@ -1,6 +1,8 @@
 //! `matseg demo`: the pipeline on the bundled assets, with an HTML report.
 
-use crate::common::{assets_dir, init_threads, progress_bar, Libraries, DEFAULT_CACHE_MB};
+use crate::common::{
+    assets_dir, flat_stem, init_threads, progress_bar, Libraries, DEFAULT_CACHE_MB,
+};
 use anyhow::{Context, Result};
 use matseg_data::{generate_dataset, sample_rng, Dataset, Format, GenerateOptions, JobSlice};
 use matseg_extract::pbr::{make_pbr, preview_sphere, PbrRecipe};
@@ -147,10 +149,7 @@ fn materials_page(out: &Path, seed: u64) -> Result<()> {
     for entry in photos.entries() {
         let img = read_rgb(&entry.path)?;
         for (k, (square, crop)) in extract_textures(&img, &options).into_iter().enumerate() {
-            let stem = entry
-                .name
-                .rsplit_once('.')
-                .map_or(entry.name.as_str(), |(s, _)| s);
+            let stem = flat_stem(&entry.name);
             let src = write_png(&format!("texture_{stem}_{k}.png"), encode_png_rgb(&crop))?;
             writeln!(
                 textures,
@@ -174,10 +173,7 @@ fn materials_page(out: &Path, seed: u64) -> Result<()> {
             &texture,
             &PbrRecipe::default(),
         );
-        let stem = entry
-            .name
-            .rsplit_once('.')
-            .map_or(entry.name.as_str(), |(s, _)| s);
+        let stem = flat_stem(&entry.name);
         let grey = |k: usize, what: &str| -> Result<String> {
             let map = &m.maps[k].1;
             write_png(

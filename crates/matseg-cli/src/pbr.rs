@@ -1,6 +1,6 @@
 //! `matseg pbr`: PBR materials from a texture library (SPEC 5).
 
-use crate::common::{init_threads, progress_bar, write_material_folder};
+use crate::common::{flat_stem, init_threads, progress_bar, write_material_folder};
 use anyhow::{Context, Result};
 use matseg_data::sample_rng;
 use matseg_extract::pbr::{make_pbr, PbrRecipe};
@@ -111,9 +111,7 @@ struct Timing {
 
 /// The folder of material `j` of texture `i`.
 fn folder(out: &Path, library: &PhotoLibrary, i: usize, j: u64) -> PathBuf {
-    let name = library.entries()[i].name.replace(['/', '\\'], "__");
-    let stem = name.rsplit_once('.').map_or(name.as_str(), |(s, _)| s);
-    out.join(format!("{stem}__pbr{j}"))
+    out.join(format!("{}__pbr{j}", flat_stem(&library.entries()[i].name)))
 }
 
 /// Makes one material and writes its folder: files go to `NAME.partial/`,
@@ -138,18 +136,15 @@ fn make_one(
     let start = Instant::now();
     let json = serde_json::json!({
         "source": entry.name,
-        "licence": entry.licence,
-        "color_space": {"Color": "sRGB", "other maps": "linear"},
-        "normal_convention": "OpenGL (+Y up)",
         "seed": seed,
         "record": material.record,
     });
-    let licences = serde_json::json!({ "*": entry.licence }).to_string();
-    let write = |d: &Path| {
-        material.write_maps(d)?;
-        std::fs::write(d.join("licenses.json"), &licences)
-    };
-    write_material_folder(&folder(out, library, i, j), write, &json)?;
+    write_material_folder(
+        &folder(out, library, i, j),
+        &entry.licence,
+        |d| material.write_maps(d),
+        json,
+    )?;
     Ok(Timing {
         megapixels: (texture.width() as f64 * texture.height() as f64) / 1e6,
         generate,

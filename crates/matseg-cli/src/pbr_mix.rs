@@ -101,19 +101,11 @@ fn write_mix(
     let licence = licences.join(" AND ");
     let json = serde_json::json!({
         "sources": sources,
-        "licence": licence,
         "mode": record.mode,
         "weights": record.weights,
         "seed": seed,
-        "color_space": {"Color": "sRGB", "other maps": "linear"},
-        "normal_convention": "OpenGL (+Y up)",
     });
-    let licences = serde_json::json!({ "*": licence }).to_string();
-    let write = |d: &Path| {
-        mixed.write_maps(d)?;
-        std::fs::write(d.join("licenses.json"), &licences)
-    };
-    write_material_folder(&mix_dir(out, i), write, &json)
+    write_material_folder(&mix_dir(out, i), &licence, |d| mixed.write_maps(d), json)
 }
 
 /// The licence a material folder's `licenses.json` gives all its files

@@ -1,6 +1,6 @@
 //! `matseg textures`: a library of uniform-texture crops from photos (SPEC 4).
 
-use crate::common::{init_threads, progress_bar};
+use crate::common::{flat_name, flat_stem, init_threads, progress_bar};
 use crate::cpu_time::process_cpu_seconds;
 use anyhow::{Context, Result};
 use matseg_extract::textures::{extract_textures, TextureOptions, TextureSquare, CHANNEL_NAMES};
@@ -57,7 +57,7 @@ struct TextureRecord {
 /// The record file of a photo: its path in the sources, flattened.
 fn record_path(out: &Path, name: &str) -> PathBuf {
     out.join("records")
-        .join(format!("{}.json", name.replace(['/', '\\'], "__")))
+        .join(format!("{}.json", flat_name(name)))
 }
 
 /// Runs `matseg textures`.
@@ -83,17 +83,17 @@ pub fn run(args: Args) -> Result<()> {
     let todo: Vec<usize> = (0..library.len())
         .filter(|&i| !record_path(&args.out, &library.entries()[i].name).is_file())
         .collect();
+    // The headers tell which photos cannot hold the smallest square.
+    let (too_small, todo): (Vec<usize>, Vec<usize>) = todo.into_iter().partition(|&i| {
+        let entry = &library.entries()[i];
+        entry.width.min(entry.height) < smallest
+    });
     let bar = progress_bar(todo.len() as u64, "photos");
     let (start, cpu) = (Instant::now(), process_cpu_seconds());
     let results: Vec<Result<(usize, u64), String>> = todo
         .par_iter()
         .map(|&i| {
-            let entry = &library.entries()[i];
-            let outcome = if entry.width.min(entry.height) < smallest {
-                Ok((0, 0))
-            } else {
-                extract_one(&args.out, &library, i, &options)
-            };
+            let outcome = extract_one(&args.out, &library, i, &options);
             bar.inc(1);
             outcome
         })
@@ -113,20 +113,17 @@ pub fn run(args: Args) -> Result<()> {
             }
         }
     }
-    let too_small = todo
-        .iter()
-        .filter(|&&i| library.entries()[i].width.min(library.entries()[i].height) < smallest)
-        .count();
     write_licences(&args.out)?;
     let seconds = match (cpu, process_cpu_seconds()) {
         (Some(a), Some(b)) => b - a,
         _ => start.elapsed().as_secs_f64(),
     };
     println!(
-        "{}: {textures} textures from {} photos ({} already done, {too_small} smaller than {smallest} px, {failed} unreadable); {:.2} CPU s per megapixel",
+        "{}: {textures} textures from {} photos ({} already done, {} smaller than {smallest} px, {failed} unreadable); {:.2} CPU s per megapixel",
         args.out.display(),
-        todo.len() - too_small - failed,
-        library.len() - todo.len(),
+        todo.len() - failed,
+        library.len() - todo.len() - too_small.len(),
+        too_small.len(),
         if pixels > 0 { seconds / (pixels as f64 / 1e6) } else { 0.0 }
     );
     Ok(())
@@ -142,11 +139,7 @@ fn extract_one(
 ) -> Result<(usize, u64), String> {
     let entry = &library.entries()[i];
     let img = read_rgb(&entry.path).map_err(|e| e.to_string())?;
-    let stem = entry.name.replace(['/', '\\'], "__");
-    let stem = stem
-        .rsplit_once('.')
-        .map_or(stem.as_str(), |(s, _)| s)
-        .to_string();
+    let stem = flat_stem(&entry.name);
     let mut textures = Vec::new();
     for (k, (square, crop)) in extract_textures(&img, options).into_iter().enumerate() {
         let file = format!("{stem}__{k}.jpg");
