@@ -1,5 +1,5 @@
-# The two entry points a newcomer needs (see README.md). Later set-up steps
-# (e.g. the project-local torch venv for the net) go behind these targets.
+# The two entry points a newcomer needs (see README.md). Set-up steps (the
+# project-local torch venv for the net: scripts/torch-env.sh) run behind them.
 
 CARGO ?= cargo
 DEMO_OUT ?= demo-out
@@ -8,6 +8,7 @@ DEMO_OUT ?= demo-out
 
 ## Run the whole pipeline on the bundled assets; open $(DEMO_OUT)/index.html.
 demo:
+	scripts/torch-env.sh
 	$(CARGO) run --release -p matseg-cli -- demo --out $(DEMO_OUT)
 
 ## Formatting, lints and the whole test suite: exactly what CI runs.

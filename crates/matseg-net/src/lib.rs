@@ -1,0 +1,48 @@
+//! The per-pixel material-descriptor net of SPEC 8 on libtorch (tch):
+//! ConvNeXt and MobileNetV2 encoders, the PSP module, the decoder, the
+//! MatSeg loss, and loading imported weights.
+//!
+//! libtorch comes from the project's `.venv` (scripts/torch-env.sh); this is
+//! the only crate that links it.
+
+#![warn(missing_docs)]
+
+pub mod batch;
+pub mod blocks;
+pub mod convnext;
+pub mod decoder;
+pub mod encoder;
+pub mod loss;
+pub mod mobilenet_v2;
+pub mod net;
+pub mod psp;
+pub mod weights;
+
+pub use batch::{Batch, TrainingSample};
+pub use convnext::ConvNextConfig;
+pub use encoder::{Encoder, EncoderConfig, Taps};
+pub use loss::{matseg_loss, ImageTargets, REGION_THRESHOLD, TEMPERATURE};
+pub use mobilenet_v2::{MobileNetV2, MobileNetV2Classifier};
+pub use net::{normalise_input, rgb8_to_tensor, MaterialNet, NetConfig, PRESETS};
+pub use weights::load_named;
+
+/// Errors of the net crate: each names the file involved.
+#[derive(Debug, thiserror::Error)]
+pub enum NetError {
+    /// Weights that do not fit the net.
+    #[error("{file}: {message}")]
+    Weights {
+        /// The weights file.
+        file: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// libtorch failed.
+    #[error("{file}: {source}")]
+    Torch {
+        /// The file involved.
+        file: String,
+        /// libtorch's error.
+        source: tch::TchError,
+    },
+}

@@ -1,0 +1,138 @@
+//! The material-descriptor net (SPEC 8): encoder, PSP, decoder, a 1x1 conv
+//! head to D channels at stride 4, bilinear up to the input size, per-pixel
+//! L2 normalisation.
+
+use crate::blocks::{l2_normalise, resize_bilinear};
+use crate::convnext::ConvNextConfig;
+use crate::decoder::Decoder;
+use crate::encoder::{Encoder, EncoderConfig};
+use crate::psp::Psp;
+use serde::{Deserialize, Serialize};
+use tch::nn;
+use tch::Tensor;
+
+/// Per-channel mean subtracted from 0..255 RGB input (SPEC 8).
+pub const INPUT_MEAN: [f64; 3] = [123.68, 116.78, 103.94];
+/// Divisor of the mean-subtracted input (SPEC 8).
+pub const INPUT_SCALE: f64 = 65.0;
+/// Descriptor channels of the paper's net.
+pub const DESCRIPTOR_DIM: i64 = 128;
+
+/// The shape of a net: stored with every checkpoint.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct NetConfig {
+    /// The encoder.
+    pub encoder: EncoderConfig,
+    /// Output channels of each PSP branch.
+    pub psp_branch: i64,
+    /// Output channels of the PSP module.
+    pub psp_out: i64,
+    /// Output channels of the three decoder steps (strides 16, 8, 4).
+    pub decoder: [i64; 3],
+    /// Descriptor channels.
+    pub descriptor_dim: i64,
+}
+
+/// The named configurations `--encoder` accepts.
+pub const PRESETS: [&str; 3] = ["mobilenet-v2", "convnext-tiny", "convnext-base"];
+
+impl NetConfig {
+    /// A named configuration (see [`PRESETS`]). ConvNeXt widths follow the
+    /// paper's rule (PSP branches C32/2, PSP out C32, decoder C16, C8, 128:
+    /// exactly the paper's 512/1024/512/256/128 for ConvNeXt-B).
+    /// MobileNetV2's last features have 1280 channels but are a mobile
+    /// encoder's: the head stays light (branches 128, PSP 256, decoder 128).
+    pub fn preset(name: &str) -> Option<Self> {
+        let convnext = |c: ConvNextConfig| {
+            let [_, c8, c16, c32] = c.dims;
+            Self {
+                encoder: EncoderConfig::Convnext(c),
+                psp_branch: c32 / 2,
+                psp_out: c32,
+                decoder: [c16, c8, DESCRIPTOR_DIM],
+                descriptor_dim: DESCRIPTOR_DIM,
+            }
+        };
+        match name {
+            "mobilenet-v2" => Some(Self {
+                encoder: EncoderConfig::MobilenetV2,
+                psp_branch: 128,
+                psp_out: 256,
+                decoder: [128, 128, 128],
+                descriptor_dim: DESCRIPTOR_DIM,
+            }),
+            "convnext-tiny" => Some(convnext(ConvNextConfig::TINY)),
+            "convnext-base" => Some(convnext(ConvNextConfig::BASE)),
+            _ => None,
+        }
+    }
+}
+
+/// The net with its parameters (held by the `VarStore` it was built in).
+#[derive(Debug)]
+pub struct MaterialNet {
+    /// Its configuration.
+    pub config: NetConfig,
+    encoder: Encoder,
+    psp: Psp,
+    decoder: Decoder,
+    head: nn::Conv2D,
+}
+
+impl MaterialNet {
+    /// Creates the parameters under `p` (`encoder`, `psp`, `decoder`, `head`).
+    pub fn new(p: &nn::Path, config: NetConfig) -> Self {
+        let encoder = Encoder::new(&(p / "encoder"), config.encoder);
+        let taps = encoder.channels();
+        let psp = Psp::new(&(p / "psp"), taps[3], config.psp_branch, config.psp_out);
+        let decoder = Decoder::new(&(p / "decoder"), config.psp_out, config.decoder, taps);
+        let head = nn::conv2d(
+            p / "head",
+            config.decoder[2],
+            config.descriptor_dim,
+            1,
+            Default::default(),
+        );
+        Self {
+            config,
+            encoder,
+            psp,
+            decoder,
+            head,
+        }
+    }
+
+    /// Descriptors at stride 4, before upsampling and normalisation.
+    pub fn features_t(&self, x: &Tensor, train: bool) -> Tensor {
+        let taps = self.encoder.forward_t(x, train);
+        let psp = self.psp.forward_t(&taps.s32, train);
+        self.decoder.forward_t(&psp, &taps, train).apply(&self.head)
+    }
+
+    /// Per-pixel L2-normalised descriptors `[N, D, H, W]` of input images
+    /// `[N, 3, H, W]` prepared by [`normalise_input`].
+    pub fn forward_t(&self, x: &Tensor, train: bool) -> Tensor {
+        let (_, _, h, w) = x.size4().expect("an NCHW tensor");
+        l2_normalise(&resize_bilinear(&self.features_t(x, train), h, w), 1)
+    }
+}
+
+/// The net's input from 0..255 RGB `[N, 3, H, W]` (any float kind):
+/// `(x - INPUT_MEAN) / INPUT_SCALE` per channel.
+pub fn normalise_input(rgb: &Tensor) -> Tensor {
+    let mean = Tensor::from_slice(&INPUT_MEAN)
+        .to_kind(rgb.kind())
+        .to_device(rgb.device())
+        .view([1, 3, 1, 1]);
+    (rgb - mean) / INPUT_SCALE
+}
+
+/// An interleaved 8-bit RGB image as a float `[3, height, width]` tensor of
+/// 0..255 values.
+pub fn rgb8_to_tensor(data: &[u8], width: usize, height: usize) -> Tensor {
+    assert_eq!(data.len(), width * height * 3, "RGB buffer size");
+    Tensor::from_slice(data)
+        .view([height as i64, width as i64, 3])
+        .permute([2, 0, 1])
+        .to_kind(tch::Kind::Float)
+}

@@ -1,0 +1,165 @@
+//! Shapes and normalisation of every block, and parameter counts that pin
+//! the architectures to their references.
+
+use matseg_net::convnext::ConvNext;
+use matseg_net::decoder::Decoder;
+use matseg_net::psp::Psp;
+use matseg_net::{
+    normalise_input, rgb8_to_tensor, ConvNextConfig, EncoderConfig, MaterialNet, MobileNetV2,
+    MobileNetV2Classifier, NetConfig,
+};
+use tch::{nn, Device, Kind, Tensor};
+
+fn parameters(vs: &nn::VarStore) -> i64 {
+    vs.trainable_variables()
+        .iter()
+        .map(|t| t.numel() as i64)
+        .sum()
+}
+
+const SMALL: ConvNextConfig = ConvNextConfig {
+    depths: [1, 1, 2, 1],
+    dims: [8, 16, 24, 32],
+};
+
+fn small_net_config() -> NetConfig {
+    NetConfig {
+        encoder: EncoderConfig::Convnext(SMALL),
+        psp_branch: 8,
+        psp_out: 16,
+        decoder: [16, 12, 8],
+        descriptor_dim: 6,
+    }
+}
+
+#[test]
+fn convnext_taps_have_strides_4_to_32() {
+    tch::manual_seed(1);
+    let vs = nn::VarStore::new(Device::Cpu);
+    let encoder = ConvNext::new(&vs.root(), SMALL);
+    let taps = encoder.forward(&Tensor::randn([2, 3, 64, 96], (Kind::Float, Device::Cpu)));
+    assert_eq!(taps.s4.size(), [2, 8, 16, 24]);
+    assert_eq!(taps.s8.size(), [2, 16, 8, 12]);
+    assert_eq!(taps.s16.size(), [2, 24, 4, 6]);
+    assert_eq!(taps.s32.size(), [2, 32, 2, 3]);
+}
+
+#[test]
+fn convnext_tiny_and_base_have_the_reference_parameter_counts() {
+    // torchvision's convnext_tiny / convnext_base have 28,589,128 and
+    // 88,591,464 parameters; without their classifier (LayerNorm 2C + linear
+    // C*1000 + 1000) that is the encoder alone.
+    for (config, reference, c) in [
+        (ConvNextConfig::TINY, 28_589_128i64, 768i64),
+        (ConvNextConfig::BASE, 88_591_464, 1024),
+    ] {
+        let vs = nn::VarStore::new(Device::Cpu);
+        let _ = ConvNext::new(&vs.root(), config);
+        assert_eq!(parameters(&vs), reference - 2 * c - (c * 1000 + 1000));
+    }
+}
+
+#[test]
+fn mobilenet_v2_matches_torchvision() {
+    // torchvision's mobilenet_v2: 3,504,872 parameters.
+    let vs = nn::VarStore::new(Device::Cpu);
+    let _ = MobileNetV2Classifier::new(&vs.root());
+    assert_eq!(parameters(&vs), 3_504_872);
+    let names = vs.variables();
+    for name in [
+        "features.0.0.weight",
+        "features.1.conv.0.0.weight",
+        "features.1.conv.1.weight",
+        "features.2.conv.3.running_var",
+        "features.18.1.running_mean",
+        "classifier.1.bias",
+    ] {
+        assert!(names.contains_key(name), "missing {name}");
+    }
+
+    let vs = nn::VarStore::new(Device::Cpu);
+    let encoder = MobileNetV2::new(&vs.root());
+    let taps = encoder.forward_t(
+        &Tensor::randn([1, 3, 64, 64], (Kind::Float, Device::Cpu)),
+        false,
+    );
+    assert_eq!(taps.s4.size(), [1, 24, 16, 16]);
+    assert_eq!(taps.s8.size(), [1, 32, 8, 8]);
+    assert_eq!(taps.s16.size(), [1, 96, 4, 4]);
+    assert_eq!(taps.s32.size(), [1, 1280, 2, 2]);
+}
+
+#[test]
+fn psp_keeps_the_size_and_sets_the_channels() {
+    tch::manual_seed(2);
+    let vs = nn::VarStore::new(Device::Cpu);
+    let psp = Psp::new(&vs.root(), 12, 5, 7);
+    for (h, w) in [(7, 7), (1, 1), (3, 10)] {
+        let out = psp.forward_t(
+            &Tensor::randn([2, 12, h, w], (Kind::Float, Device::Cpu)),
+            true,
+        );
+        assert_eq!(out.size(), [2, 7, h, w]);
+    }
+}
+
+#[test]
+fn decoder_ends_at_stride_4_with_the_last_width() {
+    tch::manual_seed(3);
+    let vs = nn::VarStore::new(Device::Cpu);
+    let encoder = ConvNext::new(&(vs.root() / "e"), SMALL);
+    let decoder = Decoder::new(&(vs.root() / "d"), 20, [16, 12, 8], SMALL.dims);
+    let taps = encoder.forward(&Tensor::randn([1, 3, 96, 64], (Kind::Float, Device::Cpu)));
+    let psp = Tensor::randn([1, 20, 3, 2], (Kind::Float, Device::Cpu));
+    assert_eq!(decoder.forward_t(&psp, &taps, false).size(), [1, 8, 24, 16]);
+}
+
+#[test]
+fn net_gives_unit_descriptors_at_full_resolution() {
+    tch::manual_seed(4);
+    for config in [
+        small_net_config(),
+        NetConfig::preset("mobilenet-v2").unwrap(),
+    ] {
+        let vs = nn::VarStore::new(Device::Cpu);
+        let net = MaterialNet::new(&vs.root(), config);
+        let x = Tensor::randn([2, 3, 64, 96], (Kind::Float, Device::Cpu));
+        for train in [true, false] {
+            let y = net.forward_t(&x, train);
+            assert_eq!(y.size(), [2, config.descriptor_dim, 64, 96]);
+            let norms = y.norm_scalaropt_dim(2, [1], false);
+            let max_error = (norms - 1.0).abs().max().double_value(&[]);
+            assert!(max_error < 1e-5, "norm off by {max_error}");
+        }
+    }
+}
+
+#[test]
+fn presets_follow_the_paper_for_convnext_base() {
+    let base = NetConfig::preset("convnext-base").unwrap();
+    assert_eq!((base.psp_branch, base.psp_out), (512, 1024));
+    assert_eq!(base.decoder, [512, 256, 128]);
+    assert_eq!(base.descriptor_dim, 128);
+    assert!(NetConfig::preset("resnet-50").is_none());
+    let json = serde_json::to_string(&base).unwrap();
+    assert_eq!(serde_json::from_str::<NetConfig>(&json).unwrap(), base);
+}
+
+#[test]
+fn input_is_normalised_as_the_spec_says() {
+    let rgb = rgb8_to_tensor(&[0, 255, 124, 200, 100, 50], 2, 1).unsqueeze(0);
+    assert_eq!(rgb.size(), [1, 3, 1, 2]);
+    let x = normalise_input(&rgb);
+    let got = Vec::<f32>::try_from(x.flatten(0, -1)).unwrap();
+    let want = [
+        (0.0 - 123.68) / 65.0,
+        (200.0 - 123.68) / 65.0,
+        (255.0 - 116.78) / 65.0,
+        (100.0 - 116.78) / 65.0,
+        (124.0 - 103.94) / 65.0,
+        (50.0 - 103.94) / 65.0,
+    ];
+    for (g, w) in got.iter().zip(want) {
+        assert!((*g as f64 - w).abs() < 1e-6, "{g} vs {w}");
+    }
+}
