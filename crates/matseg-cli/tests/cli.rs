@@ -563,3 +563,51 @@ fn pbr_mixes_are_written_once_and_need_two_materials() {
     ]);
     assert_one_line_error(&out, "at least two material folders");
 }
+
+#[test]
+fn segment_refuses_points_outside_the_photo_and_missing_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let photo = Path::new(&assets("photos")).join("coffee.jpg");
+    let out = dir.path().join("seg");
+    let args = |point: &str, model: &Path| {
+        matseg(&[
+            "segment",
+            photo.to_str().unwrap(),
+            "--model",
+            model.to_str().unwrap(),
+            "--point",
+            point,
+            "--out",
+            out.to_str().unwrap(),
+        ])
+    };
+    assert_one_line_error(&args("900,10", dir.path()), "--point 900,10: outside ");
+    assert_one_line_error(
+        &args("10,10", dir.path()),
+        "not a run: no run.json beside the weights",
+    );
+    assert!(!out.exists(), "no output may be left behind");
+}
+
+#[test]
+fn train_refuses_a_folder_that_holds_a_run_and_unknown_encoders() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().to_str().unwrap();
+    let unknown = matseg(&[
+        "train",
+        "--online",
+        "--encoder",
+        "resnet",
+        "--init",
+        "scratch",
+        "--out",
+        run,
+    ]);
+    assert_one_line_error(
+        &unknown,
+        "--encoder resnet: expected one of mobilenet-v2, convnext-tiny, convnext-base",
+    );
+    std::fs::write(dir.path().join("run.json"), "{}").unwrap();
+    let again = matseg(&["train", "--online", "--init", "scratch", "--out", run]);
+    assert_one_line_error(&again, "already holds a run");
+}

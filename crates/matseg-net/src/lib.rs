@@ -7,15 +7,21 @@
 
 #![warn(missing_docs)]
 
+pub mod augment;
 pub mod batch;
 pub mod blocks;
 pub mod convnext;
+pub mod data;
 pub mod decoder;
 pub mod encoder;
+pub mod infer;
 pub mod loss;
 pub mod mobilenet_v2;
 pub mod net;
+pub mod optim;
+pub mod plot;
 pub mod psp;
+pub mod train;
 pub mod weights;
 
 pub use batch::{Batch, TrainingSample};
@@ -29,11 +35,17 @@ pub use weights::load_named;
 /// Errors of the net crate: each names the file involved.
 #[derive(Debug, thiserror::Error)]
 pub enum NetError {
-    /// Weights that do not fit the net.
+    /// A file that cannot be read or written, or does not fit the net.
     #[error("{file}: {message}")]
-    Weights {
-        /// The weights file.
+    File {
+        /// The file.
         file: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// Training data that cannot be read or generated.
+    #[error("training data: {message}")]
+    Data {
         /// What is wrong.
         message: String,
     },

@@ -16,7 +16,7 @@ pub fn load_named(
     tensors: &[matseg_weights::Tensor],
     source: &str,
 ) -> Result<usize, NetError> {
-    let error = |message: String| NetError::Weights {
+    let error = |message: String| NetError::File {
         file: source.to_string(),
         message,
     };

@@ -1,0 +1,243 @@
+//! `matseg train`: trains the material-descriptor net (SPEC 8) from a
+//! dataset or straight from the 2D generator, into a run folder that
+//! `--resume` continues exactly.
+
+use crate::common::Libraries;
+use crate::weights::{fetched, ArchArg};
+use anyhow::{bail, Context, Result};
+use indicatif::{ProgressBar, ProgressStyle};
+use matseg_data::Dataset;
+use matseg_net::data::{BatchPlan, DatasetSource, GeneratorSource, SampleSource};
+use matseg_net::train::{self, RunConfig, TrainOptions, Trainer};
+use matseg_net::{load_named, EncoderConfig, NetConfig, PRESETS};
+use matseg_scene::Recipe2d;
+use matseg_weights::read_safetensors;
+use std::path::{Path, PathBuf};
+use tch::Device;
+
+/// Arguments of `matseg train`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Train from this dataset (MatSeg folders or WebDataset shards).
+    #[arg(long, conflicts_with = "online")]
+    data: Option<PathBuf>,
+    /// Train straight from the 2D generator (bundled assets unless
+    /// --sources/--textures), with no disk in between.
+    #[arg(long)]
+    online: bool,
+    /// Photo folders for --online.
+    #[arg(long, num_args = 1..)]
+    sources: Vec<PathBuf>,
+    /// Texture folders for --online.
+    #[arg(long, num_args = 1..)]
+    textures: Vec<PathBuf>,
+    /// Encoder: mobilenet-v2, convnext-tiny or convnext-base.
+    #[arg(long, default_value = "mobilenet-v2")]
+    encoder: String,
+    /// Initial encoder weights: imagenet (MobileNetV2, from the registry),
+    /// scratch, or a safetensors file with the encoder's standard names.
+    #[arg(long, default_value = "imagenet")]
+    init: String,
+    /// cpu or cuda.
+    #[arg(long, default_value = "cpu")]
+    device: String,
+    /// Steps (batches) in all.
+    #[arg(long, default_value_t = 10_000)]
+    steps: u64,
+    /// Peak learning rate (default: 1e-5 from ImageNet weights, 1e-4 from
+    /// scratch).
+    #[arg(long)]
+    lr: Option<f64>,
+    /// Warm-up steps.
+    #[arg(long, default_value_t = train::WARMUP_STEPS)]
+    warmup: u64,
+    /// Smallest batch side (multiple of 32).
+    #[arg(long, default_value_t = BatchPlan::SPEC.min_side)]
+    min_side: usize,
+    /// Largest batch side (multiple of 32).
+    #[arg(long, default_value_t = BatchPlan::SPEC.max_side)]
+    max_side: usize,
+    /// Pixels per batch to aim at.
+    #[arg(long, default_value_t = BatchPlan::SPEC.pixels)]
+    batch_pixels: usize,
+    /// Steps between checkpoints and validations.
+    #[arg(long, default_value_t = 500)]
+    checkpoint_every: u64,
+    /// Held-out generated batches per validation (0: none).
+    #[arg(long, default_value_t = 4)]
+    validation_batches: u64,
+    /// Seed of the batch stream and of the generator.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// The run folder.
+    #[arg(long, required_unless_present = "resume")]
+    out: Option<PathBuf>,
+    /// Continue the run in this folder from its last checkpoint.
+    #[arg(long, conflicts_with_all = ["out", "encoder", "init"])]
+    resume: Option<PathBuf>,
+}
+
+/// The device named on the command line.
+pub fn parse_device(name: &str) -> Result<Device> {
+    match name {
+        "cpu" => Ok(Device::Cpu),
+        "cuda" if tch::Cuda::is_available() => Ok(Device::Cuda(0)),
+        "cuda" => bail!("--device cuda: no CUDA device is available to libtorch here"),
+        other => bail!("--device {other}: expected cpu or cuda"),
+    }
+}
+
+/// Runs `matseg train`.
+pub fn run(args: Args) -> Result<()> {
+    let device = parse_device(&args.device)?;
+    let (mut trainer, dir) = match &args.resume {
+        Some(dir) => (Trainer::resume(dir, device)?, dir.clone()),
+        None => start(&args, device)?,
+    };
+    let config = trainer.config.clone();
+    let source = data_source(&config.data, &args, config.options.seed)?;
+    let validation = GeneratorSource {
+        seed: config.options.seed ^ 0x5eed,
+        ..generator(&args)?
+    };
+    let bar = ProgressBar::new(config.options.steps).with_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} steps {per_sec} ETA {eta} {msg}")
+            .expect("template"),
+    );
+    bar.set_position(trainer.step);
+    let mut recent: Vec<f64> = Vec::new();
+    train::run(
+        &mut trainer,
+        source.as_ref(),
+        Some(&validation),
+        &dir,
+        |m| {
+            if let Some(l) = m.loss {
+                recent.push(l);
+            }
+            let tail = &recent[recent.len().saturating_sub(20)..];
+            let mean = tail.iter().sum::<f64>() / tail.len().max(1) as f64;
+            let val = m
+                .validation
+                .map(|v| format!(" val {v:.4}"))
+                .unwrap_or_default();
+            bar.set_message(format!("loss {mean:.4}{val}"));
+            bar.inc(1);
+        },
+    )?;
+    bar.finish();
+    println!(
+        "{}: {} steps; model {}",
+        dir.display(),
+        trainer.step,
+        dir.join(train::MODEL_FILE).display()
+    );
+    Ok(())
+}
+
+/// A new run: its folder, config and initial weights.
+fn start(args: &Args, device: Device) -> Result<(Trainer, PathBuf)> {
+    let dir = args
+        .out
+        .clone()
+        .expect("clap requires --out without --resume");
+    if dir.join(train::RUN_FILE).exists() {
+        bail!(
+            "{}: already holds a run; continue it with --resume {0}, or choose another --out",
+            dir.display()
+        );
+    }
+    let net = NetConfig::preset(&args.encoder).with_context(|| {
+        format!(
+            "--encoder {}: expected one of {}",
+            args.encoder,
+            PRESETS.join(", ")
+        )
+    })?;
+    let data = match (&args.data, args.online) {
+        (Some(path), false) => path.display().to_string(),
+        (None, true) => ONLINE.to_string(),
+        _ => bail!("give --data DIR or --online"),
+    };
+    let pretrained = args.init != "scratch";
+    let options = TrainOptions {
+        steps: args.steps,
+        lr: args.lr.unwrap_or(if pretrained {
+            train::LR_PRETRAINED
+        } else {
+            train::LR_SCRATCH
+        }),
+        warmup: args.warmup,
+        weight_decay: 4e-5,
+        plan: BatchPlan {
+            min_side: args.min_side,
+            max_side: args.max_side,
+            pixels: args.batch_pixels,
+            ..BatchPlan::SPEC
+        },
+        seed: args.seed,
+        checkpoint_every: args.checkpoint_every,
+        validation_batches: args.validation_batches,
+    };
+    options.plan.validate().map_err(anyhow::Error::msg)?;
+    let config = RunConfig {
+        net,
+        options,
+        init: args.init.clone(),
+        data,
+    };
+    let trainer = Trainer::new(config, device);
+    init_encoder(&trainer, &args.init)?;
+    std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+    train::write_run_config(&dir, &trainer.config)?;
+    Ok((trainer, dir))
+}
+
+/// What `run.json` records as the data of an online run.
+const ONLINE: &str = "online";
+
+/// Loads the encoder's initial weights.
+fn init_encoder(trainer: &Trainer, init: &str) -> Result<()> {
+    let path = match init {
+        "scratch" => return Ok(()),
+        "imagenet" => {
+            if trainer.config.net.encoder != EncoderConfig::MobilenetV2 {
+                bail!("--init imagenet: the registry has ImageNet weights for mobilenet-v2 only; give a safetensors file for ConvNeXt, or --init scratch");
+            }
+            fetched(ArchArg::MobilenetV2, None)?.0
+        }
+        file => PathBuf::from(file),
+    };
+    let label = path.display().to_string();
+    let bytes = std::fs::read(&path).with_context(|| format!("{label}: cannot read"))?;
+    let tensors = read_safetensors(&bytes, &label)?;
+    let copied = load_named(&trainer.vs, "encoder", &tensors, &label)?;
+    eprintln!("encoder: {copied} tensors from {label}");
+    Ok(())
+}
+
+/// The 2D generator over the given (or bundled) libraries.
+fn generator(args: &Args) -> Result<GeneratorSource> {
+    let libraries = Libraries::load(&args.sources, &args.textures, 1024)?;
+    Ok(GeneratorSource {
+        photos: libraries.photos,
+        textures: libraries.textures,
+        recipe: Recipe2d::default(),
+        seed: args.seed,
+    })
+}
+
+/// The training samples `run.json`'s `data` names.
+fn data_source(data: &str, args: &Args, seed: u64) -> Result<Box<dyn SampleSource>> {
+    if data == ONLINE {
+        return Ok(Box::new(GeneratorSource {
+            seed,
+            ..generator(args)?
+        }));
+    }
+    let dataset = Dataset::open(Path::new(data))?;
+    if dataset.is_empty() {
+        bail!("{data}: no complete samples");
+    }
+    Ok(Box::new(DatasetSource(dataset)))
+}

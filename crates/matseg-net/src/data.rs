@@ -1,0 +1,226 @@
+//! Where training batches come from: a stored dataset or the 2D generator
+//! (online, no disk in between), fitted to one random size per batch and
+//! augmented (SPEC 8). Batch `s` depends only on (seed, s), so a resumed run
+//! sees the very batches the interrupted one would have.
+
+use crate::augment::augment;
+use crate::batch::TrainingSample;
+use image::imageops::{self, FilterType};
+use image::{ImageBuffer, Luma, RgbImage};
+use matseg_data::{sample_rng, Dataset, Sample};
+use matseg_image::PhotoLibrary;
+use matseg_scene::{generate_2d, quantise_weights, Recipe2d, Sources};
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+/// Training samples by index.
+pub trait SampleSource: Send + Sync {
+    /// The sample with this index, at its own size.
+    fn sample(&self, index: u64) -> Result<TrainingSample, String>;
+    /// How many distinct samples there are (`None`: unbounded, generated).
+    fn count(&self) -> Option<u64>;
+}
+
+/// A stored dataset (MatSeg folders or WebDataset shards).
+pub struct DatasetSource(pub Dataset);
+
+impl SampleSource for DatasetSource {
+    fn sample(&self, index: u64) -> Result<TrainingSample, String> {
+        let sample = self.0.get(index as usize).map_err(|e| e.to_string())?;
+        Ok(TrainingSample::from_sample(&sample))
+    }
+
+    fn count(&self) -> Option<u64> {
+        Some(self.0.len() as u64)
+    }
+}
+
+/// The 2D generator in memory: sample `i` is what `matseg generate` with the
+/// same seed and sources writes as sample `i`, read back as training reads
+/// it (masks quantised to 8 bits), without the JPEG round trip.
+pub struct GeneratorSource {
+    /// Natural photos.
+    pub photos: PhotoLibrary,
+    /// Uniform textures.
+    pub textures: PhotoLibrary,
+    /// The scene recipe.
+    pub recipe: Recipe2d,
+    /// The dataset seed.
+    pub seed: u64,
+}
+
+impl SampleSource for GeneratorSource {
+    fn sample(&self, index: u64) -> Result<TrainingSample, String> {
+        let sources = Sources {
+            photos: &self.photos,
+            textures: &self.textures,
+        };
+        let scene = generate_2d(&mut sample_rng(self.seed, index), &self.recipe, sources)
+            .map_err(|e| e.to_string())?;
+        let (w, h) = scene.image.dimensions();
+        let q = quantise_weights(&scene.weights, &scene.background);
+        let masks = q
+            .masks
+            .into_iter()
+            .map(|m| image::GrayImage::from_raw(w, h, m).expect("mask size"))
+            .collect();
+        Ok(TrainingSample::from_sample(&Sample {
+            key: index.to_string(),
+            image: scene.image,
+            masks,
+            roi: None,
+            meta: None,
+        }))
+    }
+
+    fn count(&self) -> Option<u64> {
+        None
+    }
+}
+
+/// How batch sizes are drawn (SPEC 8: 2-7 images of one size, sides
+/// multiples of 32, about `pixels` per batch).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BatchPlan {
+    /// Smallest side (a multiple of 32).
+    pub min_side: usize,
+    /// Largest side (a multiple of 32).
+    pub max_side: usize,
+    /// Pixels per batch to aim at.
+    pub pixels: usize,
+    /// Fewest images per batch.
+    pub min_images: usize,
+    /// Most images per batch.
+    pub max_images: usize,
+    /// Fraction of images augmented.
+    pub p_augment: f64,
+}
+
+impl BatchPlan {
+    /// The SPEC's plan: sides 224..768, ~1 MP, 2-7 images, half augmented.
+    pub const SPEC: Self = Self {
+        min_side: 224,
+        max_side: 768,
+        pixels: 1 << 20,
+        min_images: 2,
+        max_images: 7,
+        p_augment: 0.5,
+    };
+
+    /// Checks the plan; the message says what is wrong.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.min_side < 32 || self.min_side % 32 != 0 || self.max_side % 32 != 0 {
+            return Err(format!(
+                "batch sides {}..{} must be multiples of 32, at least 32",
+                self.min_side, self.max_side
+            ));
+        }
+        if self.min_side > self.max_side
+            || self.min_images == 0
+            || self.min_images > self.max_images
+        {
+            return Err(format!(
+                "empty batch plan: sides {}..{}, images {}..{}",
+                self.min_side, self.max_side, self.min_images, self.max_images
+            ));
+        }
+        Ok(())
+    }
+
+    /// Draws (width, height, images) for one batch.
+    pub fn draw<R: Rng + ?Sized>(&self, rng: &mut R) -> (usize, usize, usize) {
+        let side = |rng: &mut R| 32 * rng.random_range(self.min_side / 32..=self.max_side / 32);
+        let (w, h) = (side(rng), side(rng));
+        let images = (self.pixels as f64 / (w * h) as f64).round() as usize;
+        (w, h, images.clamp(self.min_images, self.max_images))
+    }
+}
+
+/// Seed offset that keeps batch draws apart from sample seeds.
+const BATCH_STREAM: u64 = 0x6261_7463_6865_7321;
+
+/// The samples of batch `step`: drawn size, sample indices, fitting and
+/// augmentation all from (seed, step).
+pub fn batch_samples(
+    source: &dyn SampleSource,
+    plan: &BatchPlan,
+    seed: u64,
+    step: u64,
+) -> Result<Vec<TrainingSample>, String> {
+    let mut rng = sample_rng(seed ^ BATCH_STREAM, step);
+    let (w, h, images) = plan.draw(&mut rng);
+    let mut samples = Vec::with_capacity(images);
+    for j in 0..images as u64 {
+        let index = match source.count() {
+            Some(n) => rng.random_range(0..n),
+            None => step * plan.max_images as u64 + j,
+        };
+        let sample = source.sample(index)?;
+        let mut fitted = fit(&sample, w, h, &mut rng);
+        if rng.random_bool(plan.p_augment) {
+            augment(&mut fitted, &mut rng);
+        }
+        samples.push(fitted);
+    }
+    Ok(samples)
+}
+
+/// Scales `sample` to cover `width x height` (up to 1.5x more, at random)
+/// and crops a random window of that size; weights are resampled alike and
+/// the ROI is kept where its resampled value is at least 0.5.
+pub fn fit(
+    sample: &TrainingSample,
+    width: usize,
+    height: usize,
+    rng: &mut ChaCha8Rng,
+) -> TrainingSample {
+    let (sw, sh) = (sample.width as f64, sample.height as f64);
+    let cover = (width as f64 / sw).max(height as f64 / sh);
+    let scale = cover * rng.random_range(1.0..1.5);
+    let rw = ((sw * scale).round() as u32).max(width as u32);
+    let rh = ((sh * scale).round() as u32).max(height as u32);
+    let x0 = rng.random_range(0..=rw - width as u32);
+    let y0 = rng.random_range(0..=rh - height as u32);
+    let (w, h) = (width as u32, height as u32);
+
+    let rgb = RgbImage::from_raw(
+        sample.width as u32,
+        sample.height as u32,
+        sample.rgb.clone(),
+    )
+    .expect("RGB size");
+    let rgb = imageops::crop_imm(
+        &imageops::resize(&rgb, rw, rh, FilterType::Triangle),
+        x0,
+        y0,
+        w,
+        h,
+    )
+    .to_image()
+    .into_raw();
+    let plane = |data: &[f32]| -> Vec<f32> {
+        let img: ImageBuffer<Luma<f32>, Vec<f32>> =
+            ImageBuffer::from_raw(sample.width as u32, sample.height as u32, data.to_vec())
+                .expect("plane size");
+        imageops::crop_imm(
+            &imageops::resize(&img, rw, rh, FilterType::Triangle),
+            x0,
+            y0,
+            w,
+            h,
+        )
+        .to_image()
+        .into_raw()
+    };
+    TrainingSample {
+        rgb,
+        width,
+        height,
+        weights: sample.weights.iter().map(|p| plane(p)).collect(),
+        roi: plane(&sample.roi)
+            .into_iter()
+            .map(|v| if v >= 0.5 { 1.0 } else { 0.0 })
+            .collect(),
+    }
+}

@@ -1,0 +1,395 @@
+//! The training loop: batches from a [`SampleSource`] prepared in a
+//! background thread, the MatSeg loss, AdamW with linear warm-up, a metrics
+//! log, periodic validation on held-out generated batches, and checkpoints
+//! that resume exactly.
+//!
+//! A run folder holds `run.json` (the net's shape and the options),
+//! `model.safetensors` (the weights, for inference), `checkpoint.safetensors`
+//! (weights, optimizer state and the next step: all a resume needs, written
+//! atomically), `metrics.jsonl` (one line per step) and `loss.png`.
+
+use crate::batch::{Batch, TrainingSample};
+use crate::data::{batch_samples, BatchPlan, SampleSource};
+use crate::loss::matseg_loss;
+use crate::net::{MaterialNet, NetConfig};
+use crate::optim::{AdamW, AdamWConfig};
+use crate::plot::plot_losses;
+use crate::NetError;
+use serde::{Deserialize, Serialize};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::mpsc;
+use tch::{nn, Device, Tensor};
+
+/// The run's settings, stored in `run.json`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TrainOptions {
+    /// Steps (batches) in all.
+    pub steps: u64,
+    /// Peak learning rate.
+    pub lr: f64,
+    /// Steps of linear warm-up to `lr`.
+    pub warmup: u64,
+    /// Decoupled weight decay.
+    pub weight_decay: f64,
+    /// Batch sizes and augmentation.
+    pub plan: BatchPlan,
+    /// Seed of the batch stream.
+    pub seed: u64,
+    /// Steps between checkpoints (and validations).
+    pub checkpoint_every: u64,
+    /// Held-out batches per validation (0: none).
+    pub validation_batches: u64,
+}
+
+/// Learning rate for an ImageNet-initialised encoder (SPEC 8).
+pub const LR_PRETRAINED: f64 = 1e-5;
+/// Learning rate from scratch: a randomly initialised net needs larger
+/// steps; 1e-4 with warm-up trains our ConvNeXt and MobileNetV2 nets stably.
+pub const LR_SCRATCH: f64 = 1e-4;
+/// Default warm-up steps.
+pub const WARMUP_STEPS: u64 = 100;
+/// Validation batches are drawn from this seed offset, disjoint from training.
+const VALIDATION_SEED: u64 = 0x7661_6c69_6461_7465;
+
+/// What `run.json` holds.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RunConfig {
+    /// The net's shape.
+    pub net: NetConfig,
+    /// Training settings.
+    pub options: TrainOptions,
+    /// Where the initial weights came from (`scratch`, `imagenet`, a path).
+    pub init: String,
+    /// Where the data came from.
+    pub data: String,
+}
+
+/// One line of `metrics.jsonl`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StepMetrics {
+    /// Step index (0-based).
+    pub step: u64,
+    /// Training loss, or `None` for a batch with fewer than two materials.
+    pub loss: Option<f64>,
+    /// Learning rate used.
+    pub lr: f64,
+    /// Images in the batch.
+    pub images: usize,
+    /// Batch image width.
+    pub width: usize,
+    /// Batch image height.
+    pub height: usize,
+    /// Mean validation loss, on validation steps.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub validation: Option<f64>,
+}
+
+/// A net being trained, with its optimizer and the next step.
+pub struct Trainer {
+    /// The variables (the net's parameters and BatchNorm statistics).
+    pub vs: nn::VarStore,
+    /// The net.
+    pub net: MaterialNet,
+    optimizer: AdamW,
+    /// The next step to take.
+    pub step: u64,
+    /// The run's settings.
+    pub config: RunConfig,
+}
+
+fn torch_error(file: &Path) -> impl Fn(tch::TchError) -> NetError + '_ {
+    move |source| NetError::Torch {
+        file: file.display().to_string(),
+        source,
+    }
+}
+
+impl Trainer {
+    /// A fresh trainer (weights as initialised by the caller afterwards
+    /// through [`Trainer::vs`]).
+    pub fn new(config: RunConfig, device: Device) -> Self {
+        let vs = nn::VarStore::new(device);
+        let net = MaterialNet::new(&vs.root(), config.net);
+        let optimizer = AdamW::new(
+            &vs,
+            AdamWConfig {
+                weight_decay: config.options.weight_decay,
+                ..Default::default()
+            },
+        );
+        Self {
+            vs,
+            net,
+            optimizer,
+            step: 0,
+            config,
+        }
+    }
+
+    /// Resumes the run in `dir` from its last checkpoint.
+    pub fn resume(dir: &Path, device: Device) -> Result<Self, NetError> {
+        let config = read_run_config(dir)?;
+        let mut trainer = Self::new(config, device);
+        let path = dir.join(CHECKPOINT_FILE);
+        let saved = Tensor::read_safetensors(&path).map_err(torch_error(&path))?;
+        let bad = |message: String| NetError::File {
+            file: path.display().to_string(),
+            message,
+        };
+        let mut model = Vec::new();
+        let mut optim = Vec::new();
+        for (name, t) in saved {
+            if let Some(n) = name.strip_prefix("model.") {
+                model.push((n.to_string(), t));
+            } else if let Some(n) = name.strip_prefix("optim.") {
+                optim.push((n.to_string(), t));
+            } else if name == "next_step" {
+                trainer.step = t.int64_value(&[0]) as u64;
+            }
+        }
+        load_tensors(&trainer.vs, &model).map_err(&bad)?;
+        trainer.optimizer.load_state(&optim).map_err(&bad)?;
+        Ok(trainer)
+    }
+
+    /// Learning rate at `step`: linear warm-up, then constant.
+    pub fn lr(&self, step: u64) -> f64 {
+        let o = &self.config.options;
+        o.lr * ((step + 1) as f64 / o.warmup.max(1) as f64).min(1.0)
+    }
+
+    /// One step on `samples`; the loss, or `None` for a skipped batch.
+    pub fn train_step(&mut self, samples: &[TrainingSample]) -> Option<f64> {
+        let batch = Batch::new(samples, self.vs.device());
+        let descriptors = self.net.forward_t(&batch.images, true);
+        let lr = self.lr(self.step);
+        self.step += 1;
+        match matseg_loss(&descriptors, &batch.targets) {
+            Some(loss) => {
+                loss.backward();
+                self.optimizer.step(lr);
+                Some(loss.double_value(&[]))
+            }
+            None => {
+                self.optimizer.zero_grad();
+                None
+            }
+        }
+    }
+
+    /// The loss on `samples` without training (inference-mode BatchNorm).
+    pub fn evaluate(&self, samples: &[TrainingSample]) -> Option<f64> {
+        let batch = Batch::new(samples, self.vs.device());
+        tch::no_grad(|| {
+            let descriptors = self.net.forward_t(&batch.images, false);
+            matseg_loss(&descriptors, &batch.targets).map(|l| l.double_value(&[]))
+        })
+    }
+
+    /// Writes `model.safetensors` and `checkpoint.safetensors` (atomically).
+    pub fn save(&self, dir: &Path) -> Result<(), NetError> {
+        let mut named: Vec<(String, Tensor)> = self.vs.variables().into_iter().collect();
+        named.sort_by(|a, b| a.0.cmp(&b.0));
+        write_tensors(&dir.join(MODEL_FILE), &named)?;
+        let mut all: Vec<(String, Tensor)> = named
+            .into_iter()
+            .map(|(n, t)| (format!("model.{n}"), t))
+            .collect();
+        all.extend(
+            self.optimizer
+                .state()
+                .into_iter()
+                .map(|(n, t)| (format!("optim.{n}"), t)),
+        );
+        all.push(("next_step".into(), Tensor::from_slice(&[self.step as i64])));
+        write_tensors(&dir.join(CHECKPOINT_FILE), &all)
+    }
+}
+
+/// The run's settings file.
+pub const RUN_FILE: &str = "run.json";
+/// The weights for inference.
+pub const MODEL_FILE: &str = "model.safetensors";
+/// Everything a resume needs.
+pub const CHECKPOINT_FILE: &str = "checkpoint.safetensors";
+/// One JSON line per step.
+pub const METRICS_FILE: &str = "metrics.jsonl";
+/// The loss curve.
+pub const PLOT_FILE: &str = "loss.png";
+
+/// Reads `dir/run.json`.
+pub fn read_run_config(dir: &Path) -> Result<RunConfig, NetError> {
+    let path = dir.join(RUN_FILE);
+    let bad = |message: String| NetError::File {
+        file: path.display().to_string(),
+        message,
+    };
+    let text = std::fs::read_to_string(&path).map_err(|e| bad(format!("cannot read: {e}")))?;
+    serde_json::from_str(&text).map_err(|e| bad(format!("not a run config: {e}")))
+}
+
+/// Writes `dir/run.json` (atomically).
+pub fn write_run_config(dir: &Path, config: &RunConfig) -> Result<(), NetError> {
+    let path = dir.join(RUN_FILE);
+    let text = serde_json::to_string_pretty(config).expect("serialisable");
+    write_atomic(&path, text.as_bytes())
+}
+
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), NetError> {
+    let tmp = temporary(path);
+    std::fs::write(&tmp, bytes)
+        .and_then(|_| std::fs::rename(&tmp, path))
+        .map_err(|e| NetError::File {
+            file: path.display().to_string(),
+            message: format!("cannot write: {e}"),
+        })
+}
+
+fn temporary(path: &Path) -> PathBuf {
+    let mut name = path.file_name().expect("a file name").to_os_string();
+    name.push(".tmp");
+    path.with_file_name(name)
+}
+
+fn write_tensors(path: &Path, named: &[(String, Tensor)]) -> Result<(), NetError> {
+    let tmp = temporary(path);
+    let cpu: Vec<(String, Tensor)> = named
+        .iter()
+        .map(|(n, t)| (n.clone(), t.to_device(Device::Cpu)))
+        .collect();
+    Tensor::write_safetensors(&cpu, &tmp).map_err(torch_error(path))?;
+    std::fs::rename(&tmp, path).map_err(|e| NetError::File {
+        file: path.display().to_string(),
+        message: format!("cannot write: {e}"),
+    })
+}
+
+/// Copies named tensors into the variables of `vs` (all must be present,
+/// with their shapes).
+pub fn load_tensors(vs: &nn::VarStore, named: &[(String, Tensor)]) -> Result<(), String> {
+    let mut variables: Vec<(String, Tensor)> = vs.variables().into_iter().collect();
+    variables.sort_by(|a, b| a.0.cmp(&b.0));
+    for (name, mut variable) in variables {
+        let (_, saved) = named
+            .iter()
+            .find(|(n, _)| *n == name)
+            .ok_or_else(|| format!("no parameter {name}: a checkpoint of another net"))?;
+        if saved.size() != variable.size() {
+            return Err(format!(
+                "{name} has shape {:?}, the net expects {:?}: a checkpoint of another net",
+                saved.size(),
+                variable.size()
+            ));
+        }
+        tch::no_grad(|| variable.copy_(saved));
+    }
+    Ok(())
+}
+
+/// Trains `trainer` on `source` until `options.steps`, writing into `dir`;
+/// `progress(step, loss)` is called after every step. Batches are prepared
+/// one ahead in a background thread.
+pub fn run(
+    trainer: &mut Trainer,
+    source: &dyn SampleSource,
+    validation: Option<&dyn SampleSource>,
+    dir: &Path,
+    mut progress: impl FnMut(&StepMetrics),
+) -> Result<(), NetError> {
+    let options = trainer.config.options.clone();
+    let metrics_path = dir.join(METRICS_FILE);
+    let mut history = read_metrics(&metrics_path, trainer.step);
+    let mut log = rewrite_metrics(&metrics_path, &history)?;
+    let validation_sets: Vec<Vec<TrainingSample>> = match validation {
+        Some(v) => (0..options.validation_batches)
+            .map(|i| batch_samples(v, &options.plan, options.seed ^ VALIDATION_SEED, i))
+            .collect::<Result<_, _>>()
+            .map_err(|message| NetError::Data { message })?,
+        None => Vec::new(),
+    };
+    std::thread::scope(|scope| -> Result<(), NetError> {
+        let (tx, rx) = mpsc::sync_channel(1);
+        let first = trainer.step;
+        scope.spawn(move || {
+            for step in first..options.steps {
+                let batch = batch_samples(source, &options.plan, options.seed, step);
+                let failed = batch.is_err();
+                if tx.send(batch).is_err() || failed {
+                    return;
+                }
+            }
+        });
+        while trainer.step < options.steps {
+            let samples = rx
+                .recv()
+                .expect("the batch thread sends until the last step")
+                .map_err(|message| NetError::Data { message })?;
+            let step = trainer.step;
+            let lr = trainer.lr(step);
+            let loss = trainer.train_step(&samples);
+            let checkpoint = trainer.step % options.checkpoint_every.max(1) == 0
+                || trainer.step == options.steps;
+            let validation = (checkpoint && !validation_sets.is_empty()).then(|| {
+                let losses: Vec<f64> = validation_sets
+                    .iter()
+                    .filter_map(|b| trainer.evaluate(b))
+                    .collect();
+                losses.iter().sum::<f64>() / losses.len().max(1) as f64
+            });
+            let metrics = StepMetrics {
+                step,
+                loss,
+                lr,
+                images: samples.len(),
+                width: samples[0].width,
+                height: samples[0].height,
+                validation,
+            };
+            writeln!(
+                log,
+                "{}",
+                serde_json::to_string(&metrics).expect("serialisable")
+            )
+            .map_err(|e| NetError::File {
+                file: metrics_path.display().to_string(),
+                message: format!("cannot write: {e}"),
+            })?;
+            progress(&metrics);
+            history.push(metrics);
+            if checkpoint {
+                log.flush().ok();
+                trainer.save(dir)?;
+                plot_losses(&history, &dir.join(PLOT_FILE))?;
+            }
+        }
+        Ok(())
+    })
+}
+
+/// The metrics of steps before `next_step` from an earlier run's log.
+fn read_metrics(path: &Path, next_step: u64) -> Vec<StepMetrics> {
+    std::fs::read_to_string(path)
+        .unwrap_or_default()
+        .lines()
+        .filter_map(|l| serde_json::from_str::<StepMetrics>(l).ok())
+        .filter(|m| m.step < next_step)
+        .collect()
+}
+
+/// Rewrites the log with `history` (dropping steps after the checkpoint a
+/// run resumes from) and opens it for appending.
+fn rewrite_metrics(path: &Path, history: &[StepMetrics]) -> Result<std::fs::File, NetError> {
+    let text: String = history
+        .iter()
+        .map(|m| serde_json::to_string(m).expect("serialisable") + "\n")
+        .collect();
+    write_atomic(path, text.as_bytes())?;
+    std::fs::OpenOptions::new()
+        .append(true)
+        .open(path)
+        .map_err(|e| NetError::File {
+            file: path.display().to_string(),
+            message: format!("cannot open: {e}"),
+        })
+}

@@ -1,0 +1,154 @@
+//! Training runs: checkpoints resume exactly, the metrics log stays one line
+//! per step, batches follow the plan, and a checkpoint of another net is
+//! refused.
+
+use matseg_image::PhotoLibrary;
+use matseg_net::data::{batch_samples, BatchPlan, GeneratorSource};
+use matseg_net::train::{self, RunConfig, StepMetrics, TrainOptions, Trainer};
+use matseg_net::{ConvNextConfig, EncoderConfig, NetConfig};
+use matseg_scene::Recipe2d;
+use std::path::Path;
+use tch::Device;
+
+fn source() -> GeneratorSource {
+    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets");
+    let mut recipe = Recipe2d::default();
+    recipe.scene.size_min = 64;
+    recipe.scene.size_max = 128;
+    GeneratorSource {
+        photos: PhotoLibrary::scan(&[assets.join("photos")], 1 << 30)
+            .unwrap()
+            .0,
+        textures: PhotoLibrary::scan(&[assets.join("textures")], 1 << 30)
+            .unwrap()
+            .0,
+        recipe,
+        seed: 5,
+    }
+}
+
+const PLAN: BatchPlan = BatchPlan {
+    min_side: 64,
+    max_side: 96,
+    pixels: 3 * 64 * 64,
+    min_images: 2,
+    max_images: 3,
+    p_augment: 0.5,
+};
+
+fn config(steps: u64) -> RunConfig {
+    RunConfig {
+        net: NetConfig {
+            encoder: EncoderConfig::Convnext(ConvNextConfig {
+                depths: [1, 1, 1, 1],
+                dims: [8, 16, 16, 24],
+            }),
+            psp_branch: 8,
+            psp_out: 16,
+            decoder: [16, 16, 8],
+            descriptor_dim: 8,
+        },
+        options: TrainOptions {
+            steps,
+            lr: 1e-3,
+            warmup: 2,
+            weight_decay: 4e-5,
+            plan: PLAN,
+            seed: 11,
+            checkpoint_every: 3,
+            validation_batches: 1,
+        },
+        init: "scratch".into(),
+        data: "generator".into(),
+    }
+}
+
+fn train_to(trainer: &mut Trainer, steps: u64, dir: &Path) -> Vec<StepMetrics> {
+    trainer.config.options.steps = steps;
+    let source = source();
+    let mut seen = Vec::new();
+    train::run(trainer, &source, Some(&source), dir, |m| {
+        seen.push(m.clone())
+    })
+    .unwrap();
+    seen
+}
+
+#[test]
+fn a_resumed_run_takes_exactly_the_same_steps() {
+    let dir = tempfile::tempdir().unwrap();
+    let copy = tempfile::tempdir().unwrap();
+    tch::manual_seed(3);
+    let mut trainer = Trainer::new(config(6), Device::Cpu);
+    train::write_run_config(dir.path(), &trainer.config).unwrap();
+    let early = train_to(&mut trainer, 3, dir.path());
+    assert_eq!(early.len(), 3);
+    assert!(
+        early[2].validation.is_some(),
+        "validation at the checkpoint"
+    );
+    for f in std::fs::read_dir(dir.path()).unwrap() {
+        let f = f.unwrap().path();
+        std::fs::copy(&f, copy.path().join(f.file_name().unwrap())).unwrap();
+    }
+    let straight = train_to(&mut trainer, 6, dir.path());
+
+    let mut resumed = Trainer::resume(copy.path(), Device::Cpu).unwrap();
+    assert_eq!(resumed.step, 3);
+    let again = train_to(&mut resumed, 6, copy.path());
+    assert_eq!(straight.len(), 3);
+    for (a, b) in straight.iter().zip(&again) {
+        assert_eq!(a, b, "step {}", a.step);
+    }
+    assert!(straight.iter().any(|m| m.loss.is_some()));
+
+    let log = std::fs::read_to_string(copy.path().join(train::METRICS_FILE)).unwrap();
+    let steps: Vec<u64> = log
+        .lines()
+        .map(|l| serde_json::from_str::<StepMetrics>(l).unwrap().step)
+        .collect();
+    assert_eq!(steps, [0, 1, 2, 3, 4, 5]);
+    assert!(copy.path().join(train::PLOT_FILE).is_file());
+    assert!(copy.path().join(train::MODEL_FILE).is_file());
+}
+
+#[test]
+fn a_checkpoint_of_another_net_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let trainer = Trainer::new(config(1), Device::Cpu);
+    trainer.save(dir.path()).unwrap();
+    let mut other = config(1);
+    other.net.descriptor_dim = 16;
+    train::write_run_config(dir.path(), &other).unwrap();
+    let err = Trainer::resume(dir.path(), Device::Cpu)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(err.ends_with("checkpoint.safetensors: head.bias has shape [8], the net expects [16]: a checkpoint of another net"), "{err}");
+}
+
+#[test]
+fn batches_follow_the_plan_and_keep_the_ground_truth_consistent() {
+    let source = source();
+    for step in 0..6 {
+        let batch = batch_samples(&source, &PLAN, 1, step).unwrap();
+        assert!((2..=3).contains(&batch.len()));
+        let (w, h) = (batch[0].width, batch[0].height);
+        assert!([64, 96].contains(&w) && [64, 96].contains(&h));
+        for s in &batch {
+            assert_eq!((s.width, s.height), (w, h));
+            assert_eq!(s.rgb.len(), w * h * 3);
+            for i in 0..w * h {
+                let sum: f32 = s.weights.iter().map(|p| p[i]).sum();
+                assert!(sum <= 1.0 + 1e-4, "weights sum {sum}");
+                assert!(s.roi[i] == 0.0 || s.roi[i] == 1.0);
+                if s.roi[i] == 1.0 {
+                    assert!(sum > 0.45, "ROI pixel with weight sum {sum}");
+                }
+            }
+        }
+        // The same step draws the same batch.
+        let again = batch_samples(&source, &PLAN, 1, step).unwrap();
+        assert_eq!(batch[0].rgb, again[0].rgb);
+    }
+}
