@@ -2,9 +2,10 @@
 //! moving average in blue, validation losses as red dots; the vertical axis
 //! runs from 0 to the largest loss, the horizontal over the steps.
 
-use crate::train::StepMetrics;
+use crate::train::{write_atomic, StepMetrics};
 use crate::NetError;
 use image::{Rgb, RgbImage};
+use matseg_image::io::encode_png_rgb;
 use std::path::Path;
 
 const WIDTH: u32 = 640;
@@ -62,17 +63,5 @@ pub fn plot_losses(history: &[StepMetrics], path: &Path) -> Result<(), NetError>
             }
         }
     }
-    let mut bytes = Vec::new();
-    img.write_to(
-        &mut std::io::Cursor::new(&mut bytes),
-        image::ImageFormat::Png,
-    )
-    .expect("PNG encoding to memory");
-    let tmp = path.with_extension("png.tmp");
-    std::fs::write(&tmp, &bytes)
-        .and_then(|_| std::fs::rename(&tmp, path))
-        .map_err(|e| NetError::File {
-            file: path.display().to_string(),
-            message: format!("cannot write: {e}"),
-        })
+    write_atomic(path, &encode_png_rgb(&img))
 }

@@ -15,9 +15,10 @@ use crate::net::{MaterialNet, NetConfig};
 use crate::optim::{AdamW, AdamWConfig};
 use crate::plot::plot_losses;
 use crate::NetError;
+use matseg_image::io::temporary_path;
 use serde::{Deserialize, Serialize};
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::mpsc;
 use tch::{nn, Device, Tensor};
 
@@ -236,24 +237,16 @@ pub fn write_run_config(dir: &Path, config: &RunConfig) -> Result<(), NetError> 
     write_atomic(&path, text.as_bytes())
 }
 
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), NetError> {
-    let tmp = temporary(path);
-    std::fs::write(&tmp, bytes)
-        .and_then(|_| std::fs::rename(&tmp, path))
-        .map_err(|e| NetError::File {
-            file: path.display().to_string(),
-            message: format!("cannot write: {e}"),
-        })
-}
-
-fn temporary(path: &Path) -> PathBuf {
-    let mut name = path.file_name().expect("a file name").to_os_string();
-    name.push(".tmp");
-    path.with_file_name(name)
+/// [`matseg_image::io::write_atomic`] with the error naming `path`.
+pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), NetError> {
+    matseg_image::io::write_atomic(path, bytes).map_err(|e| NetError::File {
+        file: path.display().to_string(),
+        message: format!("cannot write: {e}"),
+    })
 }
 
 fn write_tensors(path: &Path, named: &[(String, Tensor)]) -> Result<(), NetError> {
-    let tmp = temporary(path);
+    let tmp = temporary_path(path);
     let cpu: Vec<(String, Tensor)> = named
         .iter()
         .map(|(n, t)| (n.clone(), t.to_device(Device::Cpu)))
