@@ -2,7 +2,8 @@
 //! descriptor map of a photo.
 
 use crate::net::{normalise_input, rgb8_to_tensor, MaterialNet};
-use crate::train::{load_tensors, read_run_config, MODEL_FILE, RUN_FILE};
+use crate::train::{read_run_config, MODEL_FILE, RUN_FILE};
+use crate::weights::load_tensors;
 use crate::NetError;
 use std::path::Path;
 use tch::{nn, Device, Tensor};

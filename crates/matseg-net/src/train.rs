@@ -14,6 +14,7 @@ use crate::loss::matseg_loss;
 use crate::net::{MaterialNet, NetConfig};
 use crate::optim::{AdamW, AdamWConfig};
 use crate::plot::plot_losses;
+use crate::weights::load_tensors;
 use crate::NetError;
 use matseg_image::io::temporary_path;
 use serde::{Deserialize, Serialize};
@@ -256,28 +257,6 @@ fn write_tensors(path: &Path, named: &[(String, Tensor)]) -> Result<(), NetError
         file: path.display().to_string(),
         message: format!("cannot write: {e}"),
     })
-}
-
-/// Copies named tensors into the variables of `vs` (all must be present,
-/// with their shapes).
-pub fn load_tensors(vs: &nn::VarStore, named: &[(String, Tensor)]) -> Result<(), String> {
-    let mut variables: Vec<(String, Tensor)> = vs.variables().into_iter().collect();
-    variables.sort_by(|a, b| a.0.cmp(&b.0));
-    for (name, mut variable) in variables {
-        let (_, saved) = named
-            .iter()
-            .find(|(n, _)| *n == name)
-            .ok_or_else(|| format!("no parameter {name}: a checkpoint of another net"))?;
-        if saved.size() != variable.size() {
-            return Err(format!(
-                "{name} has shape {:?}, the net expects {:?}: a checkpoint of another net",
-                saved.size(),
-                variable.size()
-            ));
-        }
-        tch::no_grad(|| variable.copy_(saved));
-    }
-    Ok(())
 }
 
 /// Trains `trainer` on `source` until `options.steps`, writing into `dir`;
