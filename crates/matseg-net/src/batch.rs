@@ -23,11 +23,11 @@ pub struct TrainingSample {
 
 impl TrainingSample {
     /// A stored sample as training reads it (SPEC 7.1).
-    pub fn from_sample(sample: &Sample) -> Self {
+    pub fn from_sample(sample: Sample) -> Self {
         let (width, height) = sample.image.dimensions();
         let targets = sample.targets();
         Self {
-            rgb: sample.image.as_raw().clone(),
+            rgb: sample.image.into_raw(),
             width: width as usize,
             height: height as usize,
             weights: targets.weights.into_iter().map(|p| p.data).collect(),

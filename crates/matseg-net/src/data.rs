@@ -28,7 +28,7 @@ pub struct DatasetSource(pub Dataset);
 impl SampleSource for DatasetSource {
     fn sample(&self, index: u64) -> Result<TrainingSample, String> {
         let sample = self.0.get(index as usize).map_err(|e| e.to_string())?;
-        Ok(TrainingSample::from_sample(&sample))
+        Ok(TrainingSample::from_sample(sample))
     }
 
     fn count(&self) -> Option<u64> {
@@ -65,7 +65,7 @@ impl SampleSource for GeneratorSource {
             .into_iter()
             .map(|m| image::GrayImage::from_raw(w, h, m).expect("mask size"))
             .collect();
-        Ok(TrainingSample::from_sample(&Sample {
+        Ok(TrainingSample::from_sample(Sample {
             key: index.to_string(),
             image: scene.image,
             masks,
@@ -157,7 +157,7 @@ pub fn batch_samples(
             None => step * plan.max_images as u64 + j,
         };
         let sample = source.sample(index)?;
-        let mut fitted = fit(&sample, w, h, &mut rng);
+        let mut fitted = fit(sample, w, h, &mut rng);
         if rng.random_bool(plan.p_augment) {
             augment(&mut fitted, &mut rng);
         }
@@ -170,7 +170,7 @@ pub fn batch_samples(
 /// and crops a random window of that size; weights are resampled alike and
 /// the ROI is kept where its resampled value is at least 0.5.
 pub fn fit(
-    sample: &TrainingSample,
+    sample: TrainingSample,
     width: usize,
     height: usize,
     rng: &mut ChaCha8Rng,
@@ -184,12 +184,8 @@ pub fn fit(
     let y0 = rng.random_range(0..=rh - height as u32);
     let (w, h) = (width as u32, height as u32);
 
-    let rgb = RgbImage::from_raw(
-        sample.width as u32,
-        sample.height as u32,
-        sample.rgb.clone(),
-    )
-    .expect("RGB size");
+    let rgb = RgbImage::from_raw(sample.width as u32, sample.height as u32, sample.rgb)
+        .expect("RGB size");
     let rgb = imageops::crop_imm(
         &imageops::resize(&rgb, rw, rh, FilterType::Triangle),
         x0,
@@ -199,9 +195,9 @@ pub fn fit(
     )
     .to_image()
     .into_raw();
-    let plane = |data: &[f32]| -> Vec<f32> {
+    let plane = |data: Vec<f32>| -> Vec<f32> {
         let img: ImageBuffer<Luma<f32>, Vec<f32>> =
-            ImageBuffer::from_raw(sample.width as u32, sample.height as u32, data.to_vec())
+            ImageBuffer::from_raw(sample.width as u32, sample.height as u32, data)
                 .expect("plane size");
         imageops::crop_imm(
             &imageops::resize(&img, rw, rh, FilterType::Triangle),
@@ -217,8 +213,8 @@ pub fn fit(
         rgb,
         width,
         height,
-        weights: sample.weights.iter().map(|p| plane(p)).collect(),
-        roi: plane(&sample.roi)
+        weights: sample.weights.into_iter().map(plane).collect(),
+        roi: plane(sample.roi)
             .into_iter()
             .map(|v| if v >= 0.5 { 1.0 } else { 0.0 })
             .collect(),

@@ -44,7 +44,7 @@ fn samples() -> Vec<TrainingSample> {
                 .into_iter()
                 .map(|m| GrayImage::from_raw(SIDE as u32, SIDE as u32, m).unwrap())
                 .collect();
-            TrainingSample::from_sample(&Sample {
+            TrainingSample::from_sample(Sample {
                 key: seed.to_string(),
                 image: scene.image,
                 masks,
