@@ -95,11 +95,19 @@ pub fn run(args: Args) -> Result<()> {
         None => start(&args, device)?,
     };
     let config = trainer.config.clone();
-    let source = data_source(&config.data, &args, config.options.seed)?;
-    let validation = GeneratorSource {
-        seed: config.options.seed ^ 0x5eed,
-        ..generator(&args)?
+    // One scan of the libraries serves the online source and validation.
+    let libraries = Libraries::load(&args.sources, &args.textures, 1024)?;
+    let generator = |seed| GeneratorSource {
+        sources: libraries.sources(),
+        recipe: Recipe2d::default(),
+        seed,
     };
+    let source: Box<dyn SampleSource + '_> = if config.data == ONLINE {
+        Box::new(generator(config.options.seed))
+    } else {
+        Box::new(dataset_source(&config.data)?)
+    };
+    let validation = generator(config.options.seed ^ VALIDATION_GENERATOR_SEED);
     let bar = ProgressBar::new(config.options.steps).with_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} steps {per_sec} ETA {eta} {msg}")
             .expect("template"),
@@ -216,28 +224,15 @@ fn init_encoder(trainer: &Trainer, init: &str) -> Result<()> {
     Ok(())
 }
 
-/// The 2D generator over the given (or bundled) libraries.
-fn generator(args: &Args) -> Result<GeneratorSource> {
-    let libraries = Libraries::load(&args.sources, &args.textures, 1024)?;
-    Ok(GeneratorSource {
-        photos: libraries.photos,
-        textures: libraries.textures,
-        recipe: Recipe2d::default(),
-        seed: args.seed,
-    })
-}
+/// Validation scenes come from the generator under this seed offset, apart
+/// from the online training scenes.
+const VALIDATION_GENERATOR_SEED: u64 = 0x5eed;
 
-/// The training samples `run.json`'s `data` names.
-fn data_source(data: &str, args: &Args, seed: u64) -> Result<Box<dyn SampleSource>> {
-    if data == ONLINE {
-        return Ok(Box::new(GeneratorSource {
-            seed,
-            ..generator(args)?
-        }));
-    }
+/// The dataset `run.json`'s `data` names.
+fn dataset_source(data: &str) -> Result<DatasetSource> {
     let dataset = Dataset::open(Path::new(data))?;
     if dataset.is_empty() {
         bail!("{data}: no complete samples");
     }
-    Ok(Box::new(DatasetSource(dataset)))
+    Ok(DatasetSource(dataset))
 }

@@ -8,7 +8,6 @@ use crate::batch::TrainingSample;
 use image::imageops::{self, FilterType};
 use image::{ImageBuffer, Luma, RgbImage};
 use matseg_data::{sample_rng, Dataset, Sample};
-use matseg_image::PhotoLibrary;
 use matseg_scene::{generate_2d, quantise_weights, Recipe2d, Sources};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
@@ -39,25 +38,23 @@ impl SampleSource for DatasetSource {
 /// The 2D generator in memory: sample `i` is what `matseg generate` with the
 /// same seed and sources writes as sample `i`, read back as training reads
 /// it (masks quantised to 8 bits), without the JPEG round trip.
-pub struct GeneratorSource {
-    /// Natural photos.
-    pub photos: PhotoLibrary,
-    /// Uniform textures.
-    pub textures: PhotoLibrary,
+pub struct GeneratorSource<'a> {
+    /// The photo and texture libraries.
+    pub sources: Sources<'a>,
     /// The scene recipe.
     pub recipe: Recipe2d,
     /// The dataset seed.
     pub seed: u64,
 }
 
-impl SampleSource for GeneratorSource {
+impl SampleSource for GeneratorSource<'_> {
     fn sample(&self, index: u64) -> Result<TrainingSample, String> {
-        let sources = Sources {
-            photos: &self.photos,
-            textures: &self.textures,
-        };
-        let scene = generate_2d(&mut sample_rng(self.seed, index), &self.recipe, sources)
-            .map_err(|e| e.to_string())?;
+        let scene = generate_2d(
+            &mut sample_rng(self.seed, index),
+            &self.recipe,
+            self.sources,
+        )
+        .map_err(|e| e.to_string())?;
         let (w, h) = scene.image.dimensions();
         let q = quantise_weights(&scene.weights, &scene.background);
         let masks = q

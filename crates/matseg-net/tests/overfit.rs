@@ -1,16 +1,13 @@
 //! A tiny net overfits four fixed generated samples: the loss, the net and
 //! the optimiser are wired so that training drives the loss far down.
 
-use image::GrayImage;
-use matseg_data::Sample;
-use matseg_image::PhotoLibrary;
+mod common;
+
+use matseg_net::data::SampleSource;
 use matseg_net::{
     matseg_loss, Batch, ConvNextConfig, EncoderConfig, MaterialNet, NetConfig, TrainingSample,
 };
-use matseg_scene::{generate_2d, quantise_weights, Recipe2d, Sources};
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-use std::path::Path;
+use matseg_scene::Recipe2d;
 use tch::nn::{self, OptimizerConfig};
 use tch::Device;
 
@@ -19,40 +16,12 @@ const SIDE: usize = 64;
 /// Four generated 64x64 samples read back as training reads them (masks
 /// quantised to 8 bits; weights = mask / sum, ROI = sum >= 10).
 fn samples() -> Vec<TrainingSample> {
-    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets");
-    let photos = PhotoLibrary::scan(&[assets.join("photos")], 1 << 30)
-        .unwrap()
-        .0;
-    let textures = PhotoLibrary::scan(&[assets.join("textures")], 1 << 30)
-        .unwrap()
-        .0;
-    let sources = Sources {
-        photos: &photos,
-        textures: &textures,
-    };
     let mut recipe = Recipe2d::default();
     recipe.scene.size_min = SIDE;
     recipe.scene.size_max = SIDE;
     recipe.scene.materials_max = 3;
-    (0..4u64)
-        .map(|seed| {
-            let scene =
-                generate_2d(&mut ChaCha8Rng::seed_from_u64(seed), &recipe, sources).unwrap();
-            let q = quantise_weights(&scene.weights, &scene.background);
-            let masks = q
-                .masks
-                .into_iter()
-                .map(|m| GrayImage::from_raw(SIDE as u32, SIDE as u32, m).unwrap())
-                .collect();
-            TrainingSample::from_sample(Sample {
-                key: seed.to_string(),
-                image: scene.image,
-                masks,
-                roi: None,
-                meta: None,
-            })
-        })
-        .collect()
+    let generator = common::generator(recipe, 0);
+    (0..4).map(|i| generator.sample(i).unwrap()).collect()
 }
 
 #[test]

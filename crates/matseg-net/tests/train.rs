@@ -2,7 +2,8 @@
 //! per step, batches follow the plan, and a checkpoint of another net is
 //! refused.
 
-use matseg_image::PhotoLibrary;
+mod common;
+
 use matseg_net::data::{batch_samples, BatchPlan, GeneratorSource};
 use matseg_net::train::{self, RunConfig, StepMetrics, TrainOptions, Trainer};
 use matseg_net::{ConvNextConfig, EncoderConfig, NetConfig};
@@ -10,21 +11,11 @@ use matseg_scene::Recipe2d;
 use std::path::Path;
 use tch::Device;
 
-fn source() -> GeneratorSource {
-    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets");
+fn source() -> GeneratorSource<'static> {
     let mut recipe = Recipe2d::default();
     recipe.scene.size_min = 64;
     recipe.scene.size_max = 128;
-    GeneratorSource {
-        photos: PhotoLibrary::scan(&[assets.join("photos")], 1 << 30)
-            .unwrap()
-            .0,
-        textures: PhotoLibrary::scan(&[assets.join("textures")], 1 << 30)
-            .unwrap()
-            .0,
-        recipe,
-        seed: 5,
-    }
+    common::generator(recipe, 5)
 }
 
 const PLAN: BatchPlan = BatchPlan {
