@@ -5,6 +5,7 @@
 //! MatSynth's (`basecolor`, `diffuse`, `normal`, `height`, `displacement`,
 //! `roughness`, `metallic`, `opacity`, `specular`).
 
+use crate::pbr::MapKind;
 use image::{GrayImage, RgbImage};
 use std::path::{Path, PathBuf};
 
@@ -37,12 +38,7 @@ enum Role {
     Color,
     NormalGl,
     NormalDx,
-    Height,
-    Roughness,
-    Metalness,
-    AmbientOcclusion,
-    Opacity,
-    Specular,
+    Scalar(MapKind),
 }
 
 /// The role of a map file from its stem: the whole stem, or the part after
@@ -55,12 +51,12 @@ fn role(stem: &str) -> Option<Role> {
             "color" | "basecolor" | "albedo" | "diffuse" | "origincolor" => Role::Color,
             "normalgl" | "normal" => Role::NormalGl,
             "normaldx" => Role::NormalDx,
-            "displacement" | "height" => Role::Height,
-            "roughness" => Role::Roughness,
-            "metalness" | "metallic" => Role::Metalness,
-            "ambientocclusion" | "ao" | "occlusion" => Role::AmbientOcclusion,
-            "opacity" | "alpha" => Role::Opacity,
-            "specular" => Role::Specular,
+            "displacement" | "height" => Role::Scalar(MapKind::Height),
+            "roughness" => Role::Scalar(MapKind::Roughness),
+            "metalness" | "metallic" => Role::Scalar(MapKind::Metalness),
+            "ambientocclusion" | "ao" | "occlusion" => Role::Scalar(MapKind::AmbientOcclusion),
+            "opacity" | "alpha" => Role::Scalar(MapKind::Opacity),
+            "specular" => Role::Scalar(MapKind::Specular),
             _ => return None,
         })
     })
@@ -98,8 +94,8 @@ pub fn read_material(dir: &Path) -> Result<MaterialMaps, String> {
     let files = map_files(dir)?;
     let find = |wanted: Role| find_role(&files, wanted);
     let open = |p: &PathBuf| image::open(p).map_err(|e| format!("{}: {e}", p.display()));
-    let grey = |wanted: Role| -> Result<Option<GrayImage>, String> {
-        find(wanted)
+    let grey = |kind: MapKind| -> Result<Option<GrayImage>, String> {
+        find(Role::Scalar(kind))
             .map(|p| open(p).map(|i| i.to_luma8()))
             .transpose()
     };
@@ -125,12 +121,12 @@ pub fn read_material(dir: &Path) -> Result<MaterialMaps, String> {
         dir: dir.to_path_buf(),
         color,
         normal,
-        height: grey(Role::Height)?,
-        roughness: grey(Role::Roughness)?,
-        metalness: grey(Role::Metalness)?,
-        ambient_occlusion: grey(Role::AmbientOcclusion)?,
-        opacity: grey(Role::Opacity)?,
-        specular: grey(Role::Specular)?,
+        height: grey(MapKind::Height)?,
+        roughness: grey(MapKind::Roughness)?,
+        metalness: grey(MapKind::Metalness)?,
+        ambient_occlusion: grey(MapKind::AmbientOcclusion)?,
+        opacity: grey(MapKind::Opacity)?,
+        specular: grey(MapKind::Specular)?,
     })
 }
 
@@ -175,13 +171,13 @@ mod tests {
             ("NormalGL", Role::NormalGl),
             ("Rock_2K_NormalDX", Role::NormalDx),
             ("Normal", Role::NormalGl),
-            ("Height", Role::Height),
-            ("Displacement", Role::Height),
-            ("Metallic", Role::Metalness),
-            ("Metalness", Role::Metalness),
-            ("AmbientOcclusion", Role::AmbientOcclusion),
-            ("specular", Role::Specular),
-            ("opacity", Role::Opacity),
+            ("Height", Role::Scalar(MapKind::Height)),
+            ("Displacement", Role::Scalar(MapKind::Height)),
+            ("Metallic", Role::Scalar(MapKind::Metalness)),
+            ("Metalness", Role::Scalar(MapKind::Metalness)),
+            ("AmbientOcclusion", Role::Scalar(MapKind::AmbientOcclusion)),
+            ("specular", Role::Scalar(MapKind::Specular)),
+            ("opacity", Role::Scalar(MapKind::Opacity)),
         ] {
             assert_eq!(role(stem), Some(want), "{stem}");
         }
