@@ -27,16 +27,6 @@ pub struct ImageTargets {
     pub roi: Tensor,
 }
 
-impl ImageTargets {
-    /// A copy on `device` (for a net trained there).
-    pub fn to_device(&self, device: tch::Device) -> Self {
-        Self {
-            weights: self.weights.to_device(device),
-            roi: self.roi.to_device(device),
-        }
-    }
-}
-
 /// The loss of normalised descriptors `[B, D, H, W]` against one
 /// [`ImageTargets`] per image; `None` when the batch has fewer than two
 /// materials with a region.

@@ -60,11 +60,6 @@ impl AdamW {
         }
     }
 
-    /// Steps taken so far.
-    pub fn steps(&self) -> i64 {
-        self.steps
-    }
-
     /// One update with learning rate `lr` from the gradients in place; then
     /// clears the gradients.
     pub fn step(&mut self, lr: f64) {
