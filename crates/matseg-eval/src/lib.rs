@@ -6,6 +6,7 @@
 #![warn(missing_docs)]
 
 pub mod baselines;
+pub mod cluster;
 pub mod descriptor;
 pub mod evaluate;
 pub mod iou;
@@ -14,6 +15,7 @@ pub mod points;
 pub mod synthetic;
 pub mod triplet;
 
+pub use cluster::{cluster_descriptors, ClusterOptions, Clustering};
 pub use descriptor::{Comparison, DescriptorMap, DescriptorModel};
 pub use evaluate::{evaluate_masks, evaluate_points, MaskEvalOptions, MaskReport, PointReport};
 pub use iou::{best_iou, best_iou_on_grid, BestIou};
