@@ -22,8 +22,17 @@ pub enum Command {
 #[derive(clap::Args)]
 pub struct ModelArgs {
     /// Baselines to score (rgb, lab, texture; `all` for every one); repeatable.
-    #[arg(long = "baseline", required = true, num_args = 1..)]
+    #[arg(long = "baseline", num_args = 1..)]
     baselines: Vec<String>,
+    /// Trained nets to score: run folders of `matseg train` (or their
+    /// model.safetensors); repeatable.
+    #[cfg(feature = "net")]
+    #[arg(long = "model", num_args = 1..)]
+    nets: Vec<PathBuf>,
+    /// Device the nets run on: cpu or cuda.
+    #[cfg(feature = "net")]
+    #[arg(long, default_value = "cpu")]
+    device: String,
     /// Longer side of the evaluated images, in pixels (0: as they are).
     #[arg(long, default_value_t = 700)]
     max_side: u32,
@@ -81,10 +90,11 @@ pub fn run(command: Command) -> Result<()> {
     }
 }
 
-/// The models named by `--baseline`, in table order.
-fn models(names: &[String]) -> Result<Vec<Box<dyn DescriptorModel>>> {
+/// The models named by `--baseline` (in table order), then the nets named by
+/// `--model`.
+fn models(args: &ModelArgs) -> Result<Vec<Box<dyn DescriptorModel>>> {
     let mut wanted: Vec<&str> = Vec::new();
-    for name in names {
+    for name in &args.baselines {
         if name == "all" {
             wanted.extend(BASELINES);
         } else if BASELINES.contains(&name.as_str()) {
@@ -100,7 +110,35 @@ fn models(names: &[String]) -> Result<Vec<Box<dyn DescriptorModel>>> {
     for name in BASELINES.iter().filter(|b| wanted.contains(b)) {
         models.extend(baseline(name));
     }
+    #[cfg(feature = "net")]
+    models.extend(nets(args)?);
+    if models.is_empty() {
+        bail!("nothing to score: give --baseline NAME... or --model RUN...");
+    }
     Ok(models)
+}
+
+/// The trained nets named by `--model`, each named after its run folder.
+#[cfg(feature = "net")]
+fn nets(args: &ModelArgs) -> Result<Vec<Box<dyn DescriptorModel>>> {
+    use matseg_net::infer::{NetModel, TrainedNet};
+    let device = crate::train::parse_device(&args.device)?;
+    let mut nets: Vec<Box<dyn DescriptorModel>> = Vec::new();
+    for path in &args.nets {
+        let run = if path.is_dir() {
+            path.as_path()
+        } else {
+            path.parent().unwrap_or(path)
+        };
+        let name = run
+            .file_name()
+            .map_or("net".into(), |n| n.to_string_lossy().into_owned());
+        nets.push(Box::new(NetModel::new(
+            name,
+            TrainedNet::load(path, device)?,
+        )));
+    }
+    Ok(nets)
 }
 
 fn score(v: Option<f64>) -> String {
@@ -108,7 +146,7 @@ fn score(v: Option<f64>) -> String {
 }
 
 fn points(args: PointArgs) -> Result<()> {
-    let models = models(&args.model.baselines)?;
+    let models = models(&args.model)?;
     let bench = load_point_benchmark(&args.bench, args.skip_bad)?;
     for problem in &bench.skipped {
         eprintln!("warning: skipped {problem}");
@@ -159,7 +197,7 @@ fn points(args: PointArgs) -> Result<()> {
 }
 
 fn masks(args: MaskArgs) -> Result<()> {
-    let models = models(&args.model.baselines)?;
+    let models = models(&args.model)?;
     let images = scan_mask_benchmark(&args.data)?;
     let options = MaskEvalOptions {
         max_side: args.model.max_side,

@@ -1,12 +1,15 @@
 //! `matseg segment`: where else in this photo is the material under these
 //! points? Similarity maps from a trained net (SPEC 8, inference), and a hard
-//! segmentation when several points are given.
+//! segmentation when several points are given, or with no points by
+//! clustering the descriptors (`--auto K`).
 
 use crate::train::parse_device;
 use anyhow::{bail, Context, Result};
-use matseg_eval::descriptor::{Comparison, DescriptorMap};
+use matseg_eval::descriptor::Comparison;
+use matseg_eval::{cluster_descriptors, ClusterOptions};
 use matseg_image::io::{encode_png_gray, encode_png_rgb, read_rgb, write_atomic};
 use matseg_net::infer::TrainedNet;
+use matseg_net::TEMPERATURE;
 use std::path::PathBuf;
 
 /// Arguments of `matseg segment`.
@@ -18,8 +21,15 @@ pub struct Args {
     #[arg(long)]
     model: PathBuf,
     /// A query point `X,Y` in image pixels; repeat for several materials.
-    #[arg(long = "point", required = true, value_parser = parse_point)]
+    #[arg(long = "point", required_unless_present = "auto", value_parser = parse_point)]
     points: Vec<(f32, f32)>,
+    /// No points: split the photo into K materials by clustering the
+    /// descriptors (spherical k-means).
+    #[arg(long, value_name = "K", conflicts_with = "points", value_parser = clap::value_parser!(u32).range(2..=255))]
+    auto: Option<u32>,
+    /// Seed of the clustering (--auto).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
     /// Radius of each point's disc in pixels.
     #[arg(long, default_value_t = 5.0)]
     radius: f32,
@@ -59,6 +69,9 @@ const PALETTE: [[u8; 3]; 8] = [
 pub fn run(args: Args) -> Result<()> {
     let photo = read_rgb(&args.image)?;
     let (w, h) = (photo.width() as usize, photo.height() as usize);
+    if args.points.len() > 255 {
+        bail!("--point: at most 255 points (labels.png is 8-bit)");
+    }
     for &(x, y) in &args.points {
         if !(0.0..w as f32).contains(&x) || !(0.0..h as f32).contains(&y) {
             bail!(
@@ -68,22 +81,27 @@ pub fn run(args: Args) -> Result<()> {
         }
     }
     let net = TrainedNet::load(&args.model, parse_device(&args.device)?)?;
-    let descriptors = net.describe(photo.as_raw(), w, h);
-    let dim = descriptors.size()[0] as usize;
-    let data = Vec::<f32>::try_from(descriptors.permute([1, 2, 0]).contiguous().flatten(0, -1))
-        .context("descriptor map")?;
-    let map = DescriptorMap {
-        width: w,
-        height: h,
-        dim,
-        data,
-    };
+    let map = net.descriptor_map(&photo);
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("{}: cannot create", args.out.display()))?;
     let write = |name: &str, bytes: Vec<u8>| {
         let path = args.out.join(name);
         write_atomic(&path, &bytes).with_context(|| format!("{}: cannot write", path.display()))
     };
+    if let Some(k) = args.auto {
+        let options = ClusterOptions {
+            seed: args.seed,
+            ..ClusterOptions::new(k as usize)
+        };
+        let clustering = cluster_descriptors(&map, &options);
+        write_segmentation(&photo, &clustering.labels, &write)?;
+        println!(
+            "{}: segmentation.png and labels.png, {} clusters",
+            args.out.display(),
+            clustering.centres.len()
+        );
+        return Ok(());
+    }
     let mut maps = Vec::new();
     for (i, &(x, y)) in args.points.iter().enumerate() {
         let query = map.point_descriptor(x, y, args.radius, Comparison::Cosine);
@@ -99,7 +117,7 @@ pub fn run(args: Args) -> Result<()> {
         )?;
         let mut overlay = photo.clone();
         for (p, s) in overlay.pixels_mut().zip(&similarity) {
-            let a = s.clamp(0.0, 1.0);
+            let a = overlay_strength(*s);
             p.0 = [
                 (p.0[0] as f32 * (1.0 - a) + 255.0 * a) as u8,
                 (p.0[1] as f32 * (1.0 - a)) as u8,
@@ -111,29 +129,56 @@ pub fn run(args: Args) -> Result<()> {
         maps.push(similarity);
     }
     if maps.len() > 1 {
-        let mut segmentation = photo.clone();
-        for (j, p) in segmentation.pixels_mut().enumerate() {
-            let best = (0..maps.len())
-                .max_by(|&a, &b| maps[a][j].total_cmp(&maps[b][j]))
-                .expect("points");
-            let c = PALETTE[best % PALETTE.len()];
-            for (v, &colour) in p.0.iter_mut().zip(&c) {
-                *v = ((*v as u16 + 2 * colour as u16) / 3) as u8;
-            }
-        }
-        write("segmentation.png", encode_png_rgb(&segmentation))?;
+        let labels: Vec<u32> = (0..w * h)
+            .map(|j| {
+                (0..maps.len())
+                    .max_by(|&a, &b| maps[a][j].total_cmp(&maps[b][j]))
+                    .expect("points") as u32
+            })
+            .collect();
+        write_segmentation(&photo, &labels, &write)?;
     }
     println!(
         "{}: {} similarity map(s){}",
         args.out.display(),
         maps.len(),
         if maps.len() > 1 {
-            " and segmentation.png"
+            " and segmentation.png, labels.png"
         } else {
             ""
         }
     );
     Ok(())
+}
+
+/// How red a pixel of similarity `s` is painted in an overlay: the
+/// training softmax's weight of the point's material relative to a perfect
+/// match, `exp((s - 1) / T)`, so the map reads as the net was taught to
+/// read it (cosine 1: full red; 0.8: 37%; 0.5: 8%).
+fn overlay_strength(s: f32) -> f32 {
+    (((s - 1.0) as f64 / TEMPERATURE).exp() as f32).clamp(0.0, 1.0)
+}
+
+/// Writes `segmentation.png` (each label's colour blended over the photo)
+/// and `labels.png` (8-bit grey, pixel value = label).
+fn write_segmentation(
+    photo: &image::RgbImage,
+    labels: &[u32],
+    write: &dyn Fn(&str, Vec<u8>) -> Result<()>,
+) -> Result<()> {
+    let mut segmentation = photo.clone();
+    for (p, &label) in segmentation.pixels_mut().zip(labels) {
+        let c = PALETTE[label as usize % PALETTE.len()];
+        for (v, &colour) in p.0.iter_mut().zip(&c) {
+            *v = ((*v as u16 + 2 * colour as u16) / 3) as u8;
+        }
+    }
+    write("segmentation.png", encode_png_rgb(&segmentation))?;
+    let grey: Vec<u8> = labels.iter().map(|&l| l as u8).collect();
+    write(
+        "labels.png",
+        encode_png_gray(photo.width(), photo.height(), &grey),
+    )
 }
 
 /// Draws the query disc's outline in white.

@@ -7,8 +7,10 @@ use crate::weights::{fetched, ArchArg};
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use matseg_data::Dataset;
+use matseg_eval::{evaluate_points, load_point_benchmark};
 use matseg_net::data::{BatchPlan, DatasetSource, GeneratorSource, SampleSource};
-use matseg_net::train::{self, RunConfig, TrainOptions, Trainer};
+use matseg_net::infer::{NetModel, TrainedNet};
+use matseg_net::train::{self, NetScore, RunConfig, TrainOptions, Trainer, Validation};
 use matseg_net::{load_named, EncoderConfig, NetConfig, PRESETS};
 use matseg_scene::Recipe2d;
 use matseg_weights::read_safetensors;
@@ -66,6 +68,14 @@ pub struct Args {
     /// Held-out generated batches per validation (0: none).
     #[arg(long, default_value_t = 4)]
     validation_batches: u64,
+    /// A point benchmark (MatSeg format) to score the net on at each
+    /// checkpoint: triplet accuracy (All, by material) in the metrics log
+    /// as `val_points`.
+    #[arg(long, value_name = "BENCH_DIR")]
+    val_points: Option<PathBuf>,
+    /// Longer side of the --val-points images, in pixels (0: as they are).
+    #[arg(long, default_value_t = 700)]
+    val_max_side: u32,
     /// Seed of the batch stream and of the generator.
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -107,32 +117,47 @@ pub fn run(args: Args) -> Result<()> {
     } else {
         Box::new(dataset_source(&config.data)?)
     };
-    let validation = generator(config.options.seed ^ VALIDATION_GENERATOR_SEED);
+    let held_out = generator(config.options.seed ^ VALIDATION_GENERATOR_SEED);
+    let bench = match &args.val_points {
+        Some(dir) => Some(load_point_benchmark(dir, false)?),
+        None => None,
+    };
+    let score_points = |trainer: &Trainer| -> Result<f64, String> {
+        let bench = bench.as_ref().expect("only called with a benchmark");
+        let net = TrainedNet::snapshot(trainer).map_err(|e| e.to_string())?;
+        let report = evaluate_points(&NetModel::new("net", net), bench, args.val_max_side)
+            .map_err(|e| e.to_string())?;
+        report
+            .all_by_material
+            .ok_or_else(|| "--val-points: the benchmark has no triplets".to_string())
+    };
+    let validation = Validation {
+        samples: Some(&held_out),
+        points: bench.is_some().then_some(&score_points as NetScore),
+    };
     let bar = ProgressBar::new(config.options.steps).with_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} steps {per_sec} ETA {eta} {msg}")
             .expect("template"),
     );
     bar.set_position(trainer.step);
     let mut recent: Vec<f64> = Vec::new();
-    train::run(
-        &mut trainer,
-        source.as_ref(),
-        Some(&validation),
-        &dir,
-        |m| {
-            if let Some(l) = m.loss {
-                recent.push(l);
-            }
-            let tail = &recent[recent.len().saturating_sub(20)..];
-            let mean = tail.iter().sum::<f64>() / tail.len().max(1) as f64;
-            let val = m
-                .validation
-                .map(|v| format!(" val {v:.4}"))
-                .unwrap_or_default();
-            bar.set_message(format!("loss {mean:.4}{val}"));
-            bar.inc(1);
-        },
-    )?;
+    train::run(&mut trainer, source.as_ref(), validation, &dir, |m| {
+        if let Some(l) = m.loss {
+            recent.push(l);
+        }
+        let tail = &recent[recent.len().saturating_sub(20)..];
+        let mean = tail.iter().sum::<f64>() / tail.len().max(1) as f64;
+        let val = m
+            .validation
+            .map(|v| format!(" val {v:.4}"))
+            .unwrap_or_default();
+        let points = m
+            .val_points
+            .map(|v| format!(" points {v:.4}"))
+            .unwrap_or_default();
+        bar.set_message(format!("loss {mean:.4}{val}{points}"));
+        bar.inc(1);
+    })?;
     bar.finish();
     println!(
         "{}: {} steps; model {}",

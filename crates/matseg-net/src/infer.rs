@@ -1,11 +1,15 @@
-//! A trained net for inference: loading a run's weights and computing the
-//! descriptor map of a photo.
+//! A trained net for inference: loading a run's weights, computing the
+//! descriptor map of a photo, and the net as an evaluated model
+//! ([`DescriptorModel`]) for the point and mask benchmarks.
 
 use crate::net::{normalise_input, rgb8_to_tensor, MaterialNet};
-use crate::train::{read_run_config, MODEL_FILE, RUN_FILE};
+use crate::train::{read_run_config, Trainer, MODEL_FILE, RUN_FILE};
 use crate::weights::load_tensors;
 use crate::NetError;
+use image::RgbImage;
+use matseg_eval::descriptor::{Comparison, DescriptorMap, DescriptorModel};
 use std::path::Path;
+use std::sync::{Mutex, PoisonError};
 use tch::{nn, Device, Tensor};
 
 /// A trained net with its variables.
@@ -44,6 +48,17 @@ impl TrainedNet {
         Ok(Self { vs, net })
     }
 
+    /// A copy of the net `trainer` is training, as it is now.
+    pub fn snapshot(trainer: &Trainer) -> Result<Self, NetError> {
+        let mut vs = nn::VarStore::new(trainer.vs.device());
+        let net = MaterialNet::new(&vs.root(), trainer.config.net);
+        vs.copy(&trainer.vs).map_err(|source| NetError::Torch {
+            file: "the net in training".into(),
+            source,
+        })?;
+        Ok(Self { vs, net })
+    }
+
     /// Unit descriptors `[D, height, width]` of an interleaved RGB image,
     /// computed at the nearest size with sides multiple of 32 and resized
     /// back (then re-normalised).
@@ -60,5 +75,57 @@ impl TrainedNet {
                 .squeeze_dim(0)
                 .to_device(Device::Cpu)
         })
+    }
+}
+
+impl TrainedNet {
+    /// The descriptor map of `image` (see [`TrainedNet::describe`]), on the CPU.
+    pub fn descriptor_map(&self, image: &RgbImage) -> DescriptorMap {
+        let (width, height) = (image.width() as usize, image.height() as usize);
+        let d = self.describe(image.as_raw(), width, height);
+        let dim = d.size()[0] as usize;
+        let data = Vec::<f32>::try_from(d.permute([1, 2, 0]).contiguous().flatten(0, -1))
+            .expect("a float tensor on the CPU converts to Vec<f32>");
+        DescriptorMap {
+            width,
+            height,
+            dim,
+            data,
+        }
+    }
+}
+
+/// A trained net as a [`DescriptorModel`]: unit descriptors compared by
+/// cosine. Photos are described one at a time (libtorch parallelises
+/// within each).
+pub struct NetModel {
+    name: String,
+    net: Mutex<TrainedNet>,
+}
+
+impl NetModel {
+    /// `net` under the name `name` in result tables.
+    pub fn new(name: impl Into<String>, net: TrainedNet) -> Self {
+        Self {
+            name: name.into(),
+            net: Mutex::new(net),
+        }
+    }
+}
+
+impl DescriptorModel for NetModel {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn comparison(&self) -> Comparison {
+        Comparison::Cosine
+    }
+
+    fn describe(&self, image: &RgbImage) -> DescriptorMap {
+        self.net
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .descriptor_map(image)
     }
 }

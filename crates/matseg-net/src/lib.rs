@@ -49,6 +49,12 @@ pub enum NetError {
         /// What is wrong.
         message: String,
     },
+    /// The net could not be scored on a validation benchmark.
+    #[error("validation: {message}")]
+    Validation {
+        /// What is wrong.
+        message: String,
+    },
     /// libtorch failed.
     #[error("{file}: {source}")]
     Torch {

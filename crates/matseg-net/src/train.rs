@@ -85,6 +85,23 @@ pub struct StepMetrics {
     /// Mean validation loss, on validation steps.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub validation: Option<f64>,
+    /// The point-benchmark score, on validation steps when there is one.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub val_points: Option<f64>,
+}
+
+/// A score of the net as it is now, higher is better (e.g. triplet
+/// accuracy on a point benchmark); errors are one-line messages.
+pub type NetScore<'a> = &'a dyn Fn(&Trainer) -> Result<f64, String>;
+
+/// What a run validates on at each checkpoint.
+#[derive(Clone, Copy, Default)]
+pub struct Validation<'a> {
+    /// Held-out samples: `validation_batches` batches of them, scored by
+    /// the mean MatSeg loss.
+    pub samples: Option<&'a dyn SampleSource>,
+    /// A point benchmark's score.
+    pub points: Option<NetScore<'a>>,
 }
 
 /// A net being trained, with its optimizer and the next step.
@@ -265,7 +282,7 @@ fn write_tensors(path: &Path, named: &[(String, Tensor)]) -> Result<(), NetError
 pub fn run(
     trainer: &mut Trainer,
     source: &dyn SampleSource,
-    validation: Option<&dyn SampleSource>,
+    validation: Validation,
     dir: &Path,
     mut progress: impl FnMut(&StepMetrics),
 ) -> Result<(), NetError> {
@@ -273,7 +290,7 @@ pub fn run(
     let metrics_path = dir.join(METRICS_FILE);
     let mut history = read_metrics(&metrics_path, trainer.step);
     let mut log = rewrite_metrics(&metrics_path, &history)?;
-    let validation_sets: Vec<Vec<TrainingSample>> = match validation {
+    let validation_sets: Vec<Vec<TrainingSample>> = match validation.samples {
         Some(v) => (0..options.validation_batches)
             .map(|i| batch_samples(v, &options.plan, options.seed ^ VALIDATION_SEED, i))
             .collect::<Result<_, _>>()
@@ -302,6 +319,12 @@ pub fn run(
             let loss = trainer.train_step(&samples);
             let checkpoint = trainer.step % options.checkpoint_every.max(1) == 0
                 || trainer.step == options.steps;
+            let val_points = match validation.points.filter(|_| checkpoint) {
+                Some(score) => {
+                    Some(score(trainer).map_err(|message| NetError::Validation { message })?)
+                }
+                None => None,
+            };
             let validation = (checkpoint && !validation_sets.is_empty()).then(|| {
                 let losses: Vec<f64> = validation_sets
                     .iter()
@@ -317,6 +340,7 @@ pub fn run(
                 width: samples[0].width,
                 height: samples[0].height,
                 validation,
+                val_points,
             };
             writeln!(
                 log,

@@ -5,7 +5,8 @@
 mod common;
 
 use matseg_net::data::{batch_samples, BatchPlan, GeneratorSource};
-use matseg_net::train::{self, RunConfig, StepMetrics, TrainOptions, Trainer};
+use matseg_net::infer::TrainedNet;
+use matseg_net::train::{self, RunConfig, StepMetrics, TrainOptions, Trainer, Validation};
 use matseg_net::{ConvNextConfig, EncoderConfig, NetConfig};
 use matseg_scene::Recipe2d;
 use std::path::Path;
@@ -54,14 +55,32 @@ fn config(steps: u64) -> RunConfig {
     }
 }
 
+/// A 64x48 colour gradient.
+fn photo() -> image::RgbImage {
+    image::RgbImage::from_fn(64, 48, |x, y| {
+        image::Rgb([(x * 4) as u8, (y * 5) as u8, 90])
+    })
+}
+
+/// A score that depends on every weight: the mean first descriptor
+/// component of [`photo`] under a snapshot of the net.
+fn first_component(trainer: &Trainer) -> Result<f64, String> {
+    let map = TrainedNet::snapshot(trainer)
+        .map_err(|e| e.to_string())?
+        .descriptor_map(&photo());
+    let firsts: Vec<f32> = map.data.iter().step_by(map.dim).copied().collect();
+    Ok(firsts.iter().map(|&v| v as f64).sum::<f64>() / firsts.len() as f64)
+}
+
 fn train_to(trainer: &mut Trainer, steps: u64, dir: &Path) -> Vec<StepMetrics> {
     trainer.config.options.steps = steps;
     let source = source();
     let mut seen = Vec::new();
-    train::run(trainer, &source, Some(&source), dir, |m| {
-        seen.push(m.clone())
-    })
-    .unwrap();
+    let validation = Validation {
+        samples: Some(&source),
+        points: Some(&first_component),
+    };
+    train::run(trainer, &source, validation, dir, |m| seen.push(m.clone())).unwrap();
     seen
 }
 
@@ -75,9 +94,12 @@ fn a_resumed_run_takes_exactly_the_same_steps() {
     let early = train_to(&mut trainer, 3, dir.path());
     assert_eq!(early.len(), 3);
     assert!(
-        early[2].validation.is_some(),
+        early[2].validation.is_some() && early[2].val_points.is_some(),
         "validation at the checkpoint"
     );
+    assert!(early[..2]
+        .iter()
+        .all(|m| m.validation.is_none() && m.val_points.is_none()));
     for f in std::fs::read_dir(dir.path()).unwrap() {
         let f = f.unwrap().path();
         std::fs::copy(&f, copy.path().join(f.file_name().unwrap())).unwrap();
@@ -141,5 +163,26 @@ fn batches_follow_the_plan_and_keep_the_ground_truth_consistent() {
         // The same step draws the same batch.
         let again = batch_samples(&source, &PLAN, 1, step).unwrap();
         assert_eq!(batch[0].rgb, again[0].rgb);
+    }
+}
+
+#[test]
+fn a_snapshot_describes_like_the_saved_model() {
+    let dir = tempfile::tempdir().unwrap();
+    tch::manual_seed(5);
+    let trainer = Trainer::new(config(1), Device::Cpu);
+    train::write_run_config(dir.path(), &trainer.config).unwrap();
+    trainer.save(dir.path()).unwrap();
+    let live = TrainedNet::snapshot(&trainer)
+        .unwrap()
+        .descriptor_map(&photo());
+    let saved = TrainedNet::load(dir.path(), Device::Cpu)
+        .unwrap()
+        .descriptor_map(&photo());
+    assert_eq!((live.width, live.height, live.dim), (64, 48, 8));
+    assert_eq!(live, saved);
+    for i in 0..live.width * live.height {
+        let n: f32 = live.at(i).iter().map(|v| v * v).sum();
+        assert!((n - 1.0).abs() < 1e-4, "pixel {i}: |d|^2 = {n}");
     }
 }
