@@ -28,6 +28,10 @@ pub struct Args {
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
+    /// Steps of the demo's training run (0: no net page).
+    #[cfg(feature = "net")]
+    #[arg(long, default_value_t = 150)]
+    train_steps: u64,
 }
 
 /// Runs `matseg demo`: generates samples from the bundled assets and writes the HTML report.
@@ -105,7 +109,7 @@ figure {{ margin: 0; background: #fff; padding: .5em; border: 1px solid #ddd; }}
 figcaption {{ font-size: .8em; color: #444; margin-top: .3em; }}
 </style></head><body>
 <h1>matseg demo: 2D scenes</h1>
-<p>See also <a href="materials.html">textures and PBR materials</a> extracted from the bundled photos.</p>
+<p>See also <a href="materials.html">textures and PBR materials</a> extracted from the bundled photos{net_link}.</p>
 <p>{n} scenes generated from the bundled CC0 photos and textures (seed {seed}). Left: the image;
 right: its annotation, each material in its own colour, mixtures as mixed colours, background black.
 Samples are in MatSeg folder layout under <code>samples-2d/</code>.</p>
@@ -114,16 +118,37 @@ Samples are in MatSeg folder layout under <code>samples-2d/</code>.</p>
 "#,
         n = dataset.len(),
         seed = args.seed,
+        net_link = if trains_the_net(&args) {
+            r#", and <a href="net.html">the net</a> trained on scenes like these, segmenting the photos"#
+        } else {
+            ""
+        },
     );
     let index = args.out.join("index.html");
     write_atomic(&index, html.as_bytes()).with_context(|| index.display().to_string())?;
     materials_page(&args.out, args.seed)?;
+    #[cfg(feature = "net")]
+    if trains_the_net(&args) {
+        crate::demo_net::net_page(&args.out, args.train_steps, args.seed)?;
+    }
     eprintln!(
         "{}: demo report with {} samples",
         index.display(),
         dataset.len()
     );
     Ok(())
+}
+
+/// Whether the demo trains the net and writes `net.html`.
+#[cfg(feature = "net")]
+fn trains_the_net(args: &Args) -> bool {
+    args.train_steps > 0
+}
+
+/// Whether the demo trains the net: never, when built without it.
+#[cfg(not(feature = "net"))]
+fn trains_the_net(_: &Args) -> bool {
+    false
 }
 
 /// `materials.html`: uniform textures extracted from the bundled photos

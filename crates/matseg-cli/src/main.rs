@@ -9,6 +9,8 @@ mod bench_set;
 mod common;
 mod cpu_time;
 mod demo;
+#[cfg(feature = "net")]
+mod demo_net;
 mod eval;
 mod generate;
 mod maps;
@@ -64,7 +66,7 @@ enum Command {
     /// Train the material-descriptor net (SPEC 8).
     #[cfg(feature = "net")]
     Train(train::Args),
-    /// Similarity maps and segmentation of a photo from points (SPEC 8).
+    /// Similarity maps and segmentation of a photo, from points or by clustering (SPEC 8).
     #[cfg(feature = "net")]
     Segment(segment::Args),
     /// Print the default 2D recipe as TOML (edit it and pass it as --config).

@@ -125,6 +125,10 @@ fn convert(bytes: &[u8], label: &str, arch: Option<ArchArg>, out: &Path) -> Resu
         .map(|t| t.shape.iter().product::<usize>())
         .sum();
     let file = write_safetensors(&tensors, &[("source", label)]);
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("{}: cannot create", dir.display()))?;
+    }
     write_atomic(out, &file).with_context(|| format!("{}: cannot write", out.display()))?;
     println!(
         "{}: {} tensors, {} float parameters, from {label}",

