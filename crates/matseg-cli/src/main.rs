@@ -5,6 +5,8 @@
 
 mod allocator;
 mod bench;
+#[cfg(feature = "net")]
+mod bench_net;
 mod bench_set;
 mod common;
 mod cpu_time;
@@ -69,6 +71,9 @@ enum Command {
     /// Similarity maps and segmentation of a photo, from points or by clustering (SPEC 8).
     #[cfg(feature = "net")]
     Segment(segment::Args),
+    /// Measure the net's forward and training-step time on one batch size.
+    #[cfg(feature = "net")]
+    BenchNet(bench_net::Args),
     /// Print the default 2D recipe as TOML (edit it and pass it as --config).
     Recipe,
 }
@@ -91,6 +96,8 @@ fn main() -> ExitCode {
         Command::Train(args) => train::run(args),
         #[cfg(feature = "net")]
         Command::Segment(args) => segment::run(args),
+        #[cfg(feature = "net")]
+        Command::BenchNet(args) => bench_net::run(args),
         Command::Recipe => recipe::run(),
     };
     match result {

@@ -97,6 +97,16 @@ pub fn parse_device(name: &str) -> Result<Device> {
     }
 }
 
+/// The net preset named by `--encoder`.
+pub fn preset(encoder: &str) -> Result<NetConfig> {
+    NetConfig::preset(encoder).with_context(|| {
+        format!(
+            "--encoder {encoder}: expected one of {}",
+            PRESETS.join(", ")
+        )
+    })
+}
+
 /// Runs `matseg train`.
 pub fn run(args: Args) -> Result<()> {
     let device = parse_device(&args.device)?;
@@ -180,13 +190,7 @@ fn start(args: &Args, device: Device) -> Result<(Trainer, PathBuf)> {
             dir.display()
         );
     }
-    let net = NetConfig::preset(&args.encoder).with_context(|| {
-        format!(
-            "--encoder {}: expected one of {}",
-            args.encoder,
-            PRESETS.join(", ")
-        )
-    })?;
+    let net = preset(&args.encoder)?;
     let data = match (&args.data, args.online) {
         (Some(path), false) => path.display().to_string(),
         (None, true) => ONLINE.to_string(),

@@ -277,15 +277,21 @@ fn import_imagenet_mobilenet_v2(out: &Path) {
         .map(|e| e.unwrap().path())
         .find(|p| p.extension().is_some_and(|e| e == "whl"))
         .expect("the MobileNetV2 wheel in .venv/weights");
-    matseg_ok(&[
+    let imported = import_mobilenet_v2(&wheel, out);
+    assert!(imported.status.success(), "{}", stderr(&imported));
+}
+
+/// `matseg weights import FILE --arch mobilenet-v2 --out OUT`.
+fn import_mobilenet_v2(file: &Path, out: &Path) -> Output {
+    matseg(&[
         "weights",
         "import",
-        wheel.to_str().unwrap(),
+        file.to_str().unwrap(),
         "--arch",
         "mobilenet-v2",
         "--out",
         out.to_str().unwrap(),
-    ]);
+    ])
 }
 
 #[test]
@@ -415,15 +421,7 @@ fn importing_a_file_that_is_no_checkpoint_is_a_one_line_error() {
     let bad = dir.path().join("notes.pth");
     std::fs::write(&bad, "not a checkpoint").unwrap();
     let out_file = dir.path().join("w.safetensors");
-    let out = matseg(&[
-        "weights",
-        "import",
-        bad.to_str().unwrap(),
-        "--arch",
-        "mobilenet-v2",
-        "--out",
-        out_file.to_str().unwrap(),
-    ]);
+    let out = import_mobilenet_v2(&bad, &out_file);
     assert_one_line_error(&out, "notes.pth: ");
     assert!(!out_file.exists(), "no output may be left behind");
 }
@@ -766,4 +764,31 @@ fn a_trained_run_segments_photos_and_scores_on_a_point_benchmark() {
         "segment", photo, "--model", run_str, "--auto", "1", "--out", run_str,
     ]);
     assert!(!one.status.success() && stderr(&one).contains("--auto"));
+}
+
+#[test]
+fn bench_net_reports_one_batch_and_refuses_odd_sides() {
+    let out = matseg_ok(&[
+        "bench-net",
+        "--side",
+        "64",
+        "--batch",
+        "2",
+        "--repeats",
+        "1",
+        "--warmup",
+        "0",
+        "--json",
+    ]);
+    let row: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(row["encoder"], "mobilenet-v2");
+    assert_eq!(
+        (row["side"].as_u64(), row["batch"].as_u64()),
+        (Some(64), Some(2))
+    );
+    for key in ["forward_ms", "train_step_ms", "peak_rss_mib"] {
+        assert!(row[key].as_f64().unwrap() > 0.0, "{key}");
+    }
+    let odd = matseg(&["bench-net", "--side", "100"]);
+    assert_one_line_error(&odd, "--side must be a positive multiple of 32");
 }
