@@ -1,48 +1,56 @@
 //! The net part of `matseg demo`: a short training run from the ImageNet
 //! MobileNetV2 encoder straight from the generator, then `net.html`, the
 //! similarity maps of points clicked on the bundled photos and automatic
-//! segmentations. Each step is an ordinary `matseg` command, shown on the
-//! page so it can be re-run by hand.
+//! segmentations. The page lists the `matseg` commands that redo each step
+//! by hand: training runs through that command's own parser.
 
 use crate::common::assets_dir;
+use crate::segment::{write_clusters, write_point_maps, DEFAULT_RADIUS};
 use anyhow::{bail, Context, Result};
 use clap::Parser;
-use matseg_image::io::write_atomic;
+use matseg_eval::ClusterOptions;
+use matseg_image::io::{read_rgb, write_atomic};
+use matseg_net::infer::TrainedNet;
 use matseg_net::train::{read_run_config, RUN_FILE};
 use std::fmt::Write as _;
 use std::path::Path;
+use tch::Device;
 
 /// Bundled photos on the page, and the points clicked on each (pixels),
 /// one per material.
-const CLICKS: [(&str, &[(u32, u32)]); 4] = [
+const CLICKS: [(&str, &[(f32, f32)]); 4] = [
     (
         "coffee.jpg",
-        &[(290, 130), (120, 300), (540, 80), (365, 290)],
+        &[
+            (290.0, 130.0),
+            (120.0, 300.0),
+            (540.0, 80.0),
+            (365.0, 290.0),
+        ],
     ),
-    ("astronaut.jpg", &[(150, 380), (230, 120), (420, 420)]),
-    ("chelsea.jpg", &[(80, 200), (430, 60), (170, 110)]),
-    ("rocket.jpg", &[(320, 40), (40, 250), (320, 400)]),
+    (
+        "astronaut.jpg",
+        &[(150.0, 380.0), (230.0, 120.0), (420.0, 420.0)],
+    ),
+    (
+        "chelsea.jpg",
+        &[(80.0, 200.0), (430.0, 60.0), (170.0, 110.0)],
+    ),
+    (
+        "rocket.jpg",
+        &[(320.0, 40.0), (40.0, 250.0), (320.0, 400.0)],
+    ),
 ];
 
 /// Clusters of the automatic segmentations.
 const AUTO_K: usize = 4;
 
-/// Parses a `matseg train` or `matseg segment` command line.
+/// Parses a `matseg train` command line.
 #[derive(Parser)]
-#[command(name = "matseg")]
-enum Step {
-    Train(crate::train::Args),
-    Segment(crate::segment::Args),
-}
-
-/// Runs `command` (words after `matseg`) as the CLI would.
-fn run_step(command: &[String]) -> Result<()> {
-    let step = Step::try_parse_from(std::iter::once("matseg".to_string()).chain(command.to_vec()))
-        .with_context(|| format!("demo step `matseg {}`", command.join(" ")))?;
-    match step {
-        Step::Train(args) => crate::train::run(args),
-        Step::Segment(args) => crate::segment::run(args),
-    }
+#[command(name = "matseg train")]
+struct TrainCommand {
+    #[command(flatten)]
+    args: crate::train::Args,
 }
 
 /// Trains `OUT/net-run` for `steps` steps (or continues it, if an earlier
@@ -50,7 +58,7 @@ fn run_step(command: &[String]) -> Result<()> {
 pub fn net_page(out: &Path, steps: u64, seed: u64) -> Result<()> {
     let run = out.join("net-run");
     let run_arg = run.display().to_string();
-    let train: Vec<String> = if run.join(RUN_FILE).is_file() {
+    let mut train: Vec<String> = if run.join(RUN_FILE).is_file() {
         let planned = read_run_config(&run)?.options.steps;
         if planned != steps {
             bail!(
@@ -58,69 +66,53 @@ pub fn net_page(out: &Path, steps: u64, seed: u64) -> Result<()> {
                 run.display()
             );
         }
-        vec!["train".into(), "--resume".into(), run_arg.clone()]
+        vec!["--resume".into()]
     } else {
-        let mut words = vec!["train", "--online", "--out", &run_arg, "--init", "imagenet"];
         // 224 x 224, 4 images a batch: about 1 s a step on 2 CPU cores.
-        words.extend([
-            "--min-side",
-            "224",
-            "--max-side",
-            "224",
-            "--batch-pixels",
-            "200704",
-            "--lr",
-            "1e-4",
-            "--warmup",
-            "30",
-            "--validation-batches",
-            "2",
-        ]);
-        let mut words: Vec<String> = words.into_iter().map(String::from).collect();
-        words.extend([
-            "--steps".into(),
-            steps.to_string(),
-            "--checkpoint-every".into(),
-            steps.to_string(),
-            "--seed".into(),
-            seed.to_string(),
-        ]);
-        words
+        format!(
+            "--online --init imagenet --min-side 224 --max-side 224 --batch-pixels 200704 \
+             --lr 1e-4 --warmup 30 --validation-batches 2 --steps {steps} \
+             --checkpoint-every {steps} --seed {seed} --out"
+        )
+        .split_whitespace()
+        .map(String::from)
+        .collect()
     };
-    run_step(&train)?;
+    train.push(run_arg.clone());
+    let command =
+        TrainCommand::try_parse_from(std::iter::once("matseg train".into()).chain(train.clone()))
+            .context("the demo's training command")?;
+    crate::train::run(command.args)?;
 
+    // The segmentations `matseg segment` would write, with the net loaded
+    // once and each photo described once.
+    let net = TrainedNet::load(&run, Device::Cpu)?;
     let photos = assets_dir().join("photos");
-    let mut commands = vec![format!("matseg {}", train.join(" "))];
+    let mut commands = vec![format!("matseg train {}", train.join(" "))];
     let mut rows = String::new();
     for (name, points) in CLICKS {
         let stem = name.trim_end_matches(".jpg");
-        let photo = photos.join(name).display().to_string();
+        let photo = photos.join(name);
         let by_points = format!("net/{stem}");
         let auto = format!("net/{stem}-auto");
-        let mut segment = vec![
-            "segment".to_string(),
-            photo.clone(),
-            "--model".into(),
-            run_arg.clone(),
-        ];
-        for (x, y) in points {
-            segment.extend(["--point".into(), format!("{x},{y}")]);
-        }
-        segment.extend(["--out".into(), out.join(&by_points).display().to_string()]);
-        run_step(&segment)?;
-        let clustering = vec![
-            "segment".to_string(),
-            photo,
-            "--model".into(),
-            run_arg.clone(),
-            "--auto".into(),
-            AUTO_K.to_string(),
-            "--out".into(),
-            out.join(&auto).display().to_string(),
-        ];
-        run_step(&clustering)?;
-        commands.push(format!("matseg {}", segment.join(" ")));
-        commands.push(format!("matseg {}", clustering.join(" ")));
+        let image = read_rgb(&photo)?;
+        let map = net.descriptor_map(&image);
+        write_point_maps(&image, &map, points, DEFAULT_RADIUS, &out.join(&by_points))?;
+        write_clusters(&image, &map, &ClusterOptions::new(AUTO_K), &out.join(&auto))?;
+        let point_args: String = points
+            .iter()
+            .map(|(x, y)| format!(" --point {x},{y}"))
+            .collect();
+        commands.push(format!(
+            "matseg segment {photo} --model {run_arg}{point_args} --out {}",
+            out.join(&by_points).display(),
+            photo = photo.display()
+        ));
+        commands.push(format!(
+            "matseg segment {photo} --model {run_arg} --auto {AUTO_K} --out {}",
+            out.join(&auto).display(),
+            photo = photo.display()
+        ));
 
         rows.push_str("<tr>");
         for (i, (x, y)) in points.iter().enumerate() {

@@ -5,12 +5,17 @@
 
 use crate::train::parse_device;
 use anyhow::{bail, Context, Result};
-use matseg_eval::descriptor::Comparison;
+use image::RgbImage;
+use matseg_eval::descriptor::{Comparison, DescriptorMap};
 use matseg_eval::{cluster_descriptors, ClusterOptions};
 use matseg_image::io::{encode_png_gray, encode_png_rgb, read_rgb, write_atomic};
 use matseg_net::infer::TrainedNet;
 use matseg_net::TEMPERATURE;
-use std::path::PathBuf;
+use matseg_scene::PALETTE;
+use std::path::{Path, PathBuf};
+
+/// Radius of a query point's disc unless `--radius` says otherwise, in pixels.
+pub const DEFAULT_RADIUS: f32 = 5.0;
 
 /// Arguments of `matseg segment`.
 #[derive(clap::Args)]
@@ -31,7 +36,7 @@ pub struct Args {
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Radius of each point's disc in pixels.
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, default_value_t = DEFAULT_RADIUS)]
     radius: f32,
     /// cpu or cuda.
     #[arg(long, default_value = "cpu")]
@@ -53,27 +58,15 @@ fn parse_point(s: &str) -> Result<(f32, f32), String> {
     Ok((number(x)?, number(y)?))
 }
 
-/// Distinct colours for the segmentation's labels.
-const PALETTE: [[u8; 3]; 8] = [
-    [230, 25, 75],
-    [60, 180, 75],
-    [255, 225, 25],
-    [0, 130, 200],
-    [245, 130, 48],
-    [145, 30, 180],
-    [70, 240, 240],
-    [240, 50, 230],
-];
-
 /// Runs `matseg segment`.
 pub fn run(args: Args) -> Result<()> {
     let photo = read_rgb(&args.image)?;
-    let (w, h) = (photo.width() as usize, photo.height() as usize);
+    let (w, h) = (photo.width() as f32, photo.height() as f32);
     if args.points.len() > 255 {
         bail!("--point: at most 255 points (labels.png is 8-bit)");
     }
     for &(x, y) in &args.points {
-        if !(0.0..w as f32).contains(&x) || !(0.0..h as f32).contains(&y) {
+        if !(0.0..w).contains(&x) || !(0.0..h).contains(&y) {
             bail!(
                 "--point {x},{y}: outside {} ({w}x{h})",
                 args.image.display()
@@ -82,38 +75,57 @@ pub fn run(args: Args) -> Result<()> {
     }
     let net = TrainedNet::load(&args.model, parse_device(&args.device)?)?;
     let map = net.descriptor_map(&photo);
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("{}: cannot create", args.out.display()))?;
-    let write = |name: &str, bytes: Vec<u8>| {
-        let path = args.out.join(name);
-        write_atomic(&path, &bytes).with_context(|| format!("{}: cannot write", path.display()))
-    };
     if let Some(k) = args.auto {
         let options = ClusterOptions {
             seed: args.seed,
             ..ClusterOptions::new(k as usize)
         };
-        let clustering = cluster_descriptors(&map, &options);
-        write_segmentation(&photo, &clustering.labels, &write)?;
+        let clusters = write_clusters(&photo, &map, &options, &args.out)?;
         println!(
-            "{}: segmentation.png and labels.png, {} clusters",
-            args.out.display(),
-            clustering.centres.len()
+            "{}: segmentation.png and labels.png, {clusters} clusters",
+            args.out.display()
         );
         return Ok(());
     }
+    write_point_maps(&photo, &map, &args.points, args.radius, &args.out)?;
+    println!(
+        "{}: {} similarity map(s){}",
+        args.out.display(),
+        args.points.len(),
+        if args.points.len() > 1 {
+            " and segmentation.png, labels.png"
+        } else {
+            ""
+        }
+    );
+    Ok(())
+}
+
+/// Writes into `out`, for each point (inside `photo`, in pixels),
+/// `similarity_I.png` (cosine in [0, 1] as grey) and `overlay_I.png`, and
+/// for several points their nearest-point segmentation.
+pub fn write_point_maps(
+    photo: &RgbImage,
+    map: &DescriptorMap,
+    points: &[(f32, f32)],
+    radius: f32,
+    out: &Path,
+) -> Result<()> {
+    create_folder(out)?;
+    let (w, h) = photo.dimensions();
     let mut maps = Vec::new();
-    for (i, &(x, y)) in args.points.iter().enumerate() {
-        let query = map.point_descriptor(x, y, args.radius, Comparison::Cosine);
+    for (i, &(x, y)) in points.iter().enumerate() {
+        let query = map.point_descriptor(x, y, radius, Comparison::Cosine);
         let similarity = map.similarity_map(&query, Comparison::Cosine);
         // Cosine in [0, 1] to grey levels (negative similarity is black).
         let grey: Vec<u8> = similarity
             .iter()
             .map(|s| (s.clamp(0.0, 1.0) * 255.0).round() as u8)
             .collect();
-        write(
+        write_file(
+            out,
             &format!("similarity_{i}.png"),
-            encode_png_gray(w as u32, h as u32, &grey),
+            encode_png_gray(w, h, &grey),
         )?;
         let mut overlay = photo.clone();
         for (p, s) in overlay.pixels_mut().zip(&similarity) {
@@ -124,31 +136,35 @@ pub fn run(args: Args) -> Result<()> {
                 (p.0[2] as f32 * (1.0 - a)) as u8,
             ];
         }
-        mark(&mut overlay, x, y, args.radius);
-        write(&format!("overlay_{i}.png"), encode_png_rgb(&overlay))?;
+        mark(&mut overlay, x, y, radius);
+        write_file(out, &format!("overlay_{i}.png"), encode_png_rgb(&overlay))?;
         maps.push(similarity);
     }
     if maps.len() > 1 {
-        let labels: Vec<u32> = (0..w * h)
+        let labels: Vec<u32> = (0..map.width * map.height)
             .map(|j| {
                 (0..maps.len())
                     .max_by(|&a, &b| maps[a][j].total_cmp(&maps[b][j]))
                     .expect("points") as u32
             })
             .collect();
-        write_segmentation(&photo, &labels, &write)?;
+        write_segmentation(photo, &labels, out)?;
     }
-    println!(
-        "{}: {} similarity map(s){}",
-        args.out.display(),
-        maps.len(),
-        if maps.len() > 1 {
-            " and segmentation.png, labels.png"
-        } else {
-            ""
-        }
-    );
     Ok(())
+}
+
+/// Writes into `out` the segmentation of `photo` by k-means on its
+/// descriptor `map`; returns the number of clusters.
+pub fn write_clusters(
+    photo: &RgbImage,
+    map: &DescriptorMap,
+    options: &ClusterOptions,
+    out: &Path,
+) -> Result<usize> {
+    create_folder(out)?;
+    let clustering = cluster_descriptors(map, options);
+    write_segmentation(photo, &clustering.labels, out)?;
+    Ok(clustering.centres.len())
 }
 
 /// How red a pixel of similarity `s` is painted in an overlay: the
@@ -159,13 +175,9 @@ fn overlay_strength(s: f32) -> f32 {
     (((s - 1.0) as f64 / TEMPERATURE).exp() as f32).clamp(0.0, 1.0)
 }
 
-/// Writes `segmentation.png` (each label's colour blended over the photo)
-/// and `labels.png` (8-bit grey, pixel value = label).
-fn write_segmentation(
-    photo: &image::RgbImage,
-    labels: &[u32],
-    write: &dyn Fn(&str, Vec<u8>) -> Result<()>,
-) -> Result<()> {
+/// Writes `segmentation.png` (each label's palette colour blended over the
+/// photo) and `labels.png` (8-bit grey, pixel value = label).
+fn write_segmentation(photo: &RgbImage, labels: &[u32], out: &Path) -> Result<()> {
     let mut segmentation = photo.clone();
     for (p, &label) in segmentation.pixels_mut().zip(labels) {
         let c = PALETTE[label as usize % PALETTE.len()];
@@ -173,16 +185,27 @@ fn write_segmentation(
             *v = ((*v as u16 + 2 * colour as u16) / 3) as u8;
         }
     }
-    write("segmentation.png", encode_png_rgb(&segmentation))?;
+    write_file(out, "segmentation.png", encode_png_rgb(&segmentation))?;
     let grey: Vec<u8> = labels.iter().map(|&l| l as u8).collect();
-    write(
+    write_file(
+        out,
         "labels.png",
         encode_png_gray(photo.width(), photo.height(), &grey),
     )
 }
 
+fn create_folder(out: &Path) -> Result<()> {
+    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))
+}
+
+/// Writes `out/name` atomically.
+fn write_file(out: &Path, name: &str, bytes: Vec<u8>) -> Result<()> {
+    let path = out.join(name);
+    write_atomic(&path, &bytes).with_context(|| format!("{}: cannot write", path.display()))
+}
+
 /// Draws the query disc's outline in white.
-fn mark(img: &mut image::RgbImage, x: f32, y: f32, r: f32) {
+fn mark(img: &mut RgbImage, x: f32, y: f32, r: f32) {
     let r = r.max(3.0);
     for k in 0..64 {
         let t = k as f32 / 64.0 * std::f32::consts::TAU;
