@@ -121,22 +121,10 @@ fn models(args: &ModelArgs) -> Result<Vec<Box<dyn DescriptorModel>>> {
 /// The trained nets named by `--model`, each named after its run folder.
 #[cfg(feature = "net")]
 fn nets(args: &ModelArgs) -> Result<Vec<Box<dyn DescriptorModel>>> {
-    use matseg_net::infer::{NetModel, TrainedNet};
     let device = crate::train::parse_device(&args.device)?;
     let mut nets: Vec<Box<dyn DescriptorModel>> = Vec::new();
     for path in &args.nets {
-        let run = if path.is_dir() {
-            path.as_path()
-        } else {
-            path.parent().unwrap_or(path)
-        };
-        let name = run
-            .file_name()
-            .map_or("net".into(), |n| n.to_string_lossy().into_owned());
-        nets.push(Box::new(NetModel::new(
-            name,
-            TrainedNet::load(path, device)?,
-        )));
+        nets.push(Box::new(matseg_net::infer::NetModel::load(path, device)?));
     }
     Ok(nets)
 }

@@ -8,7 +8,7 @@ use crate::weights::load_tensors;
 use crate::NetError;
 use image::RgbImage;
 use matseg_eval::descriptor::{Comparison, DescriptorMap, DescriptorModel};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::{Mutex, PoisonError};
 use tch::{nn, Device, Tensor};
 
@@ -18,23 +18,31 @@ pub struct TrainedNet {
     net: MaterialNet,
 }
 
+/// The run folder and the weights file `model` names: a run folder and
+/// its `model.safetensors`, or a weights file and the folder it is in.
+fn run_files(model: &Path) -> (&Path, PathBuf) {
+    if model.is_dir() {
+        (model, model.join(MODEL_FILE))
+    } else {
+        (
+            model.parent().unwrap_or(Path::new(".")),
+            model.to_path_buf(),
+        )
+    }
+}
+
 impl TrainedNet {
     /// Loads `model`: a run folder, or a `model.safetensors` with the run's
     /// `run.json` beside it.
     pub fn load(model: &Path, device: Device) -> Result<Self, NetError> {
-        let (dir, weights) = if model.is_dir() {
-            (model.to_path_buf(), model.join(MODEL_FILE))
-        } else {
-            let dir = model.parent().unwrap_or(Path::new(".")).to_path_buf();
-            (dir, model.to_path_buf())
-        };
+        let (dir, weights) = run_files(model);
         if !dir.join(RUN_FILE).is_file() {
             return Err(NetError::File {
                 file: model.display().to_string(),
                 message: format!("not a run: no {RUN_FILE} beside the weights"),
             });
         }
-        let config = read_run_config(&dir)?;
+        let config = read_run_config(dir)?;
         let vs = nn::VarStore::new(device);
         let net = MaterialNet::new(&vs.root(), config.net);
         let saved = Tensor::read_safetensors(&weights).map_err(|source| NetError::Torch {
@@ -104,6 +112,16 @@ pub struct NetModel {
 }
 
 impl NetModel {
+    /// Loads `model` as [`TrainedNet::load`] does, named after its run
+    /// folder.
+    pub fn load(model: &Path, device: Device) -> Result<Self, NetError> {
+        let name = run_files(model)
+            .0
+            .file_name()
+            .map_or("net".into(), |n| n.to_string_lossy().into_owned());
+        Ok(Self::new(name, TrainedNet::load(model, device)?))
+    }
+
     /// `net` under the name `name` in result tables.
     pub fn new(name: impl Into<String>, net: TrainedNet) -> Self {
         Self {

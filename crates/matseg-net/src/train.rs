@@ -95,7 +95,7 @@ pub struct StepMetrics {
 pub type NetScore<'a> = &'a dyn Fn(&Trainer) -> Result<f64, String>;
 
 /// What a run validates on at each checkpoint.
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Copy)]
 pub struct Validation<'a> {
     /// Held-out samples: `validation_batches` batches of them, scored by
     /// the mean MatSeg loss.
@@ -206,9 +206,12 @@ impl Trainer {
         })
     }
 
-    /// Writes `model.safetensors` and `checkpoint.safetensors` (atomically).
+    /// Writes `model.safetensors` and `checkpoint.safetensors` (atomically);
+    /// the variables are copied to the CPU once for both.
     pub fn save(&self, dir: &Path) -> Result<(), NetError> {
-        let mut named: Vec<(String, Tensor)> = self.vs.variables().into_iter().collect();
+        let on_cpu = |(n, t): (String, Tensor)| (n, t.to_device(Device::Cpu));
+        let mut named: Vec<(String, Tensor)> =
+            self.vs.variables().into_iter().map(on_cpu).collect();
         named.sort_by(|a, b| a.0.cmp(&b.0));
         write_tensors(&dir.join(MODEL_FILE), &named)?;
         let mut all: Vec<(String, Tensor)> = named
@@ -219,6 +222,7 @@ impl Trainer {
             self.optimizer
                 .state()
                 .into_iter()
+                .map(on_cpu)
                 .map(|(n, t)| (format!("optim.{n}"), t)),
         );
         all.push(("next_step".into(), Tensor::from_slice(&[self.step as i64])));
@@ -263,13 +267,10 @@ pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), NetError> {
     })
 }
 
+/// Writes CPU tensors to `path` through a temporary file.
 fn write_tensors(path: &Path, named: &[(String, Tensor)]) -> Result<(), NetError> {
     let tmp = temporary_path(path);
-    let cpu: Vec<(String, Tensor)> = named
-        .iter()
-        .map(|(n, t)| (n.clone(), t.to_device(Device::Cpu)))
-        .collect();
-    Tensor::write_safetensors(&cpu, &tmp).map_err(torch_error(path))?;
+    Tensor::write_safetensors(named, &tmp).map_err(torch_error(path))?;
     std::fs::rename(&tmp, path).map_err(|e| NetError::File {
         file: path.display().to_string(),
         message: format!("cannot write: {e}"),
