@@ -19,6 +19,7 @@ mod maps;
 mod pbr;
 mod pbr_mix;
 mod recipe;
+mod render;
 #[cfg(feature = "net")]
 mod segment;
 mod textures;
@@ -60,6 +61,8 @@ enum Command {
     /// Make benchmarks: `make` writes a point benchmark from generated scenes.
     #[command(subcommand)]
     BenchSet(bench_set::Command),
+    /// Render one 3D scene description (JSON) with its exact material annotation.
+    Render(render::Args),
     /// Measure generator throughput and print a table.
     Bench(bench::Args),
     /// Network weights: `import` converts PyTorch checkpoints to safetensors.
@@ -89,6 +92,7 @@ fn main() -> ExitCode {
         Command::PbrMix(args) => pbr_mix::run(args),
         Command::Demo(args) => demo::run(args),
         Command::Eval(command) => eval::run(command),
+        Command::Render(args) => render::run(args),
         Command::Bench(args) => bench::run(args),
         Command::BenchSet(command) => bench_set::run(command),
         Command::Weights(command) => weights::run(command),

@@ -792,3 +792,122 @@ fn bench_net_reports_one_batch_and_refuses_odd_sides() {
     let odd = matseg(&["bench-net", "--side", "100"]);
     assert_one_line_error(&odd, "--side must be a positive multiple of 32");
 }
+
+/// A small scene: a split blob lit by the bundled forest HDRI, on a ground.
+fn write_scene(dir: &Path) -> std::path::PathBuf {
+    let scene = serde_json::json!({
+        "width": 40, "height": 30, "spp": 4, "seed": 2,
+        "camera": {"position": {"x": 0, "y": -150, "z": 60}, "target": {"x": 0, "y": 0, "z": 30}},
+        "environment": {"hdri": assets("hdris/forest.exr"), "rotation_deg": 40},
+        "materials": [
+            {"base_color": {"x": 0.8, "y": 0.1, "z": 0.1}},
+            {"base_color": {"x": 0.9, "y": 0.9, "z": 0.9}, "metallic": 1.0, "roughness": 0.2},
+            {"base_color": {"x": 0.3, "y": 0.3, "z": 0.3}}
+        ],
+        "maps": [{"photo": assets("photos/coffee.jpg"), "channel": "R", "normalise": "max"}],
+        "objects": [
+            {"mesh": {"primitive": {"shape": "blob", "seed": 1, "bumps": 5, "amplitude": 0.2}}, "radius": 30,
+             "main": true, "transform": {"translation": {"x": 0, "y": 0, "z": 30}},
+             "surface": {"split": {"map": 0, "placement": {"scale": 0.5}, "ramp": {"low": 0.4, "high": 0.6},
+                                   "below": {"material": 0}, "above": {"material": 1}}}},
+            {"mesh": "plane", "transform": {"scale": 300}, "surface": {"material": 2}}
+        ]
+    });
+    let path = dir.join("scene.json");
+    std::fs::write(&path, serde_json::to_vec_pretty(&scene).unwrap()).unwrap();
+    path
+}
+
+#[test]
+fn render_writes_the_image_and_an_annotation_that_sums_to_255() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path());
+    let out = dir.path().join("out");
+    matseg_ok(&[
+        "render",
+        scene.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let image = image::open(out.join("image.png")).unwrap().to_rgb8();
+    assert_eq!(image.dimensions(), (40, 30));
+    let masks: Vec<image::GrayImage> = (0..2)
+        .map(|k| grey_values(&out.join(format!("mask{k}.png"))))
+        .collect();
+    let roi = grey_values(&out.join("roi.png"));
+    assert!(
+        !out.join("mask2.png").exists(),
+        "the ground is not annotated"
+    );
+    for (i, r) in roi.pixels().enumerate() {
+        let sum: u32 = masks.iter().map(|m| m.as_raw()[i] as u32).sum();
+        assert_eq!(sum, r.0[0] as u32, "masks add up to the ROI at pixel {i}");
+    }
+    let covered = roi.pixels().filter(|p| p.0[0] == 255).count();
+    assert!(
+        covered > 100 && covered < 1000,
+        "the blob covers part of the image: {covered}"
+    );
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("render.json")).unwrap()).unwrap();
+    assert_eq!(report["annotated_materials"], serde_json::json!([0, 1]));
+    // Re-rendering gives the same bytes; --width rescales.
+    let again = dir.path().join("again");
+    matseg_ok(&[
+        "render",
+        scene.to_str().unwrap(),
+        "--out",
+        again.to_str().unwrap(),
+        "--threads",
+        "1",
+    ]);
+    assert_eq!(
+        std::fs::read(out.join("image.png")).unwrap(),
+        std::fs::read(again.join("image.png")).unwrap()
+    );
+    let small = dir.path().join("small");
+    matseg_ok(&[
+        "render",
+        scene.to_str().unwrap(),
+        "--out",
+        small.to_str().unwrap(),
+        "--width",
+        "20",
+        "--spp",
+        "1",
+    ]);
+    assert_eq!(
+        image::open(small.join("image.png"))
+            .unwrap()
+            .to_rgb8()
+            .dimensions(),
+        (20, 15)
+    );
+}
+
+#[test]
+fn broken_scenes_are_one_line_errors_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(dir.path());
+    let text = std::fs::read_to_string(&scene).unwrap();
+    let out = dir.path().join("out");
+    let run = |text: &str| {
+        std::fs::write(&scene, text).unwrap();
+        matseg(&[
+            "render",
+            scene.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+    };
+    assert_one_line_error(&run("{\"width\": 4"), "scene.json");
+    assert_one_line_error(
+        &run(&text.replace("\"material\": 1", "\"material\": 7")),
+        "object 0: material 7 of 3",
+    );
+    let missing = text.replace("\"plane\"", "{\"file\": \"nowhere.obj\"}");
+    assert_one_line_error(&run(&missing), "nowhere.obj: cannot read");
+    let bad_hdri = text.replace("forest.exr", "missing.exr");
+    assert_one_line_error(&run(&bad_hdri), "missing.exr");
+    assert!(!out.exists(), "nothing written for a broken scene");
+}

@@ -1,0 +1,327 @@
+//! Light from far away: an equirectangular HDRI (turned about the vertical
+//! axis and scaled), importance-sampled by its luminance, plus point and
+//! spot lights.
+
+use crate::hdr_io::HdrImage;
+use crate::math::Vec3;
+use crate::sampling::Distribution1d;
+use serde::{Deserialize, Serialize};
+use std::f32::consts::PI;
+
+/// An environment map with its sampling tables. Direction (x, y, z) with z
+/// up maps to longitude `atan2(y, x)` across the image (turned by the
+/// rotation) and the zenith to the top row.
+#[derive(Clone, Debug)]
+pub struct Environment {
+    image: HdrImage,
+    strength: f32,
+    rotation: f32,
+    rows: Distribution1d,
+    columns: Vec<Distribution1d>,
+}
+
+impl Environment {
+    /// From an HDRI, a multiplier and a rotation in degrees.
+    pub fn new(image: HdrImage, strength: f32, rotation_deg: f32) -> Self {
+        let (w, h) = (image.width, image.height);
+        let columns: Vec<Distribution1d> = (0..h)
+            .map(|y| {
+                let sin = (PI * (y as f32 + 0.5) / h as f32).sin();
+                let weights: Vec<f32> = image.pixels[y * w..(y + 1) * w]
+                    .iter()
+                    .map(|p| p.luminance().max(0.0) * sin)
+                    .collect();
+                Distribution1d::new(&weights)
+            })
+            .collect();
+        let row_weights: Vec<f32> = columns.iter().map(Distribution1d::total).collect();
+        Environment {
+            rows: Distribution1d::new(&row_weights),
+            columns,
+            image,
+            strength,
+            rotation: rotation_deg.to_radians(),
+        }
+    }
+
+    /// The same radiance from every direction. (A 32x16 map rather than
+    /// one pixel, so that importance sampling by rows is close to uniform
+    /// over the sphere.)
+    pub fn uniform(radiance: Vec3) -> Self {
+        Environment::new(
+            HdrImage {
+                width: 32,
+                height: 16,
+                pixels: vec![radiance; 32 * 16],
+            },
+            1.0,
+            0.0,
+        )
+    }
+
+    /// Image coordinates in [0,1)² of a unit direction.
+    #[inline]
+    fn uv(&self, d: Vec3) -> (f32, f32) {
+        let phi = d.y.atan2(d.x) - self.rotation;
+        let u = (phi / (2.0 * PI)).rem_euclid(1.0);
+        let v = d.z.clamp(-1.0, 1.0).acos() / PI;
+        (u, v)
+    }
+
+    /// The pixel holding image coordinates (u, v).
+    #[inline]
+    fn pixel(&self, u: f32, v: f32) -> (usize, usize) {
+        let (w, h) = (self.image.width, self.image.height);
+        (
+            ((u * w as f32) as usize).min(w - 1),
+            ((v * h as f32) as usize).min(h - 1),
+        )
+    }
+
+    /// Radiance arriving from unit direction `d` (bilinear between pixels).
+    pub fn radiance(&self, d: Vec3) -> Vec3 {
+        let (u, v) = self.uv(d);
+        let (w, h) = (self.image.width, self.image.height);
+        let x = u * w as f32 - 0.5;
+        let y = (v * h as f32 - 0.5).clamp(0.0, (h - 1) as f32);
+        let (x0, y0) = (x.floor(), y.floor());
+        let (tx, ty) = (x - x0, y - y0);
+        let xi = |x: f32| (x as i64).rem_euclid(w as i64) as usize;
+        let (xa, xb) = (xi(x0), xi(x0 + 1.0));
+        let (ya, yb) = (y0 as usize, (y0 as usize + 1).min(h - 1));
+        let p = |x: usize, y: usize| self.image.pixels[y * w + x];
+        let top = p(xa, ya).lerp(p(xb, ya), tx);
+        let bottom = p(xa, yb).lerp(p(xb, yb), tx);
+        top.lerp(bottom, ty) * self.strength
+    }
+
+    /// Draws a direction proportionally to luminance: the direction, its
+    /// radiance and its solid-angle density.
+    pub fn sample(&self, u: [f32; 2]) -> Option<(Vec3, Vec3, f32)> {
+        if self.rows.total() <= 0.0 {
+            return None;
+        }
+        let (y, fy) = self.rows.sample(u[0]);
+        let (x, fx) = self.columns[y].sample(u[1]);
+        let (w, h) = (self.image.width as f32, self.image.height as f32);
+        let (uu, vv) = ((x as f32 + fx) / w, (y as f32 + fy) / h);
+        let theta = PI * vv;
+        let phi = 2.0 * PI * uu + self.rotation;
+        let (st, ct) = theta.sin_cos();
+        if st <= 0.0 {
+            return None;
+        }
+        let d = Vec3::new(st * phi.cos(), st * phi.sin(), ct);
+        let pdf = self.rows.probability(y) * self.columns[y].probability(x) * w * h
+            / (2.0 * PI * PI * st);
+        Some((d, self.radiance(d), pdf))
+    }
+
+    /// The density [`Environment::sample`] gives unit direction `d`.
+    pub fn pdf(&self, d: Vec3) -> f32 {
+        if self.rows.total() <= 0.0 {
+            return 0.0;
+        }
+        let (u, v) = self.uv(d);
+        let (x, y) = self.pixel(u, v);
+        let st = (1.0 - d.z * d.z).max(0.0).sqrt();
+        if st <= 0.0 {
+            return 0.0;
+        }
+        let (w, h) = (self.image.width as f32, self.image.height as f32);
+        self.rows.probability(y) * self.columns[y].probability(x) * w * h / (2.0 * PI * PI * st)
+    }
+
+    /// Largest and mean radiance over the sphere (solid-angle weighted).
+    pub fn radiance_stats(&self) -> (f32, f32) {
+        let (w, h) = (self.image.width, self.image.height);
+        let (mut sum, mut weight, mut max) = (0f64, 0f64, 0f32);
+        for y in 0..h {
+            let sin = (PI * (y as f32 + 0.5) / h as f32).sin() as f64;
+            for p in &self.image.pixels[y * w..(y + 1) * w] {
+                sum += p.luminance() as f64 * sin;
+                weight += sin;
+                max = max.max(p.luminance());
+            }
+        }
+        (max * self.strength, (sum / weight) as f32 * self.strength)
+    }
+}
+
+/// A light at a point.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum Light {
+    /// Shines equally in every direction.
+    Point {
+        /// Where.
+        position: Vec3,
+        /// Radiant intensity (W/sr) per RGB channel.
+        intensity: Vec3,
+    },
+    /// Shines into a cone, with a smooth edge.
+    Spot {
+        /// Where.
+        position: Vec3,
+        /// The point it aims at.
+        target: Vec3,
+        /// Radiant intensity on the axis (W/sr).
+        intensity: Vec3,
+        /// Full cone angle in degrees.
+        angle_deg: f32,
+        /// Fraction of the cone's half-angle over which it fades (0..1).
+        #[serde(default)]
+        blend: f32,
+    },
+}
+
+impl Light {
+    /// Light arriving at `p` from this light: unit direction toward the
+    /// light, its distance, and the irradiance-producing radiance term
+    /// (intensity / distance², times the spot falloff).
+    pub fn illuminate(&self, p: Vec3) -> Option<(Vec3, f32, Vec3)> {
+        let (position, intensity) = match self {
+            Light::Point {
+                position,
+                intensity,
+            }
+            | Light::Spot {
+                position,
+                intensity,
+                ..
+            } => (*position, *intensity),
+        };
+        let to = position - p;
+        let dist2 = to.dot(to);
+        if dist2 <= 0.0 {
+            return None;
+        }
+        let dist = dist2.sqrt();
+        let wi = to / dist;
+        let mut value = intensity / dist2;
+        if let Light::Spot {
+            target,
+            angle_deg,
+            blend,
+            ..
+        } = self
+        {
+            let axis = (*target - position).normalized();
+            let cos = (-wi).dot(axis);
+            let half = (angle_deg * 0.5).to_radians();
+            let outer = half.cos();
+            let inner = (half * (1.0 - blend.clamp(0.0, 1.0))).cos();
+            let falloff = if cos >= inner {
+                1.0
+            } else if cos <= outer {
+                0.0
+            } else {
+                let t = (cos - outer) / (inner - outer);
+                t * t * (3.0 - 2.0 * t)
+            };
+            value *= falloff;
+        }
+        (value.max_elem() > 0.0).then_some((wi, dist, value))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::{uniform_sphere, Pcg32};
+
+    fn sky() -> Environment {
+        // A dim sky with one bright patch, 64x32.
+        let (w, h) = (64, 32);
+        let pixels = (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                if (10..13).contains(&x) && (6..9).contains(&y) {
+                    Vec3::new(500.0, 400.0, 300.0)
+                } else {
+                    Vec3::splat(0.5 + y as f32 / 64.0)
+                }
+            })
+            .collect();
+        Environment::new(
+            HdrImage {
+                width: w,
+                height: h,
+                pixels,
+            },
+            1.5,
+            30.0,
+        )
+    }
+
+    #[test]
+    fn sampling_density_integrates_to_one_and_matches_pdf() {
+        let env = sky();
+        let mut rng = Pcg32::new(4, 0);
+        let n = 400_000;
+        let total: f64 = (0..n)
+            .map(|_| env.pdf(uniform_sphere(rng.next_2d())) as f64)
+            .sum::<f64>()
+            / n as f64
+            * 4.0
+            * std::f64::consts::PI;
+        assert!((total - 1.0).abs() < 0.02, "{total}");
+        for _ in 0..1000 {
+            let (d, _, pdf) = env.sample(rng.next_2d()).unwrap();
+            assert!(
+                (env.pdf(d) - pdf).abs() <= 1e-3 * pdf,
+                "{} vs {pdf}",
+                env.pdf(d)
+            );
+        }
+    }
+
+    #[test]
+    fn importance_sampling_estimates_the_mean_radiance() {
+        // E[L / pdf] over samples = ∫ L dω, which the solid-angle mean gives too.
+        let env = sky();
+        let mut rng = Pcg32::new(6, 0);
+        let n = 100_000;
+        let est: f64 = (0..n)
+            .filter_map(|_| env.sample(rng.next_2d()))
+            .map(|(_, l, pdf)| (l.luminance() / pdf) as f64)
+            .sum::<f64>()
+            / n as f64;
+        let (_, mean) = env.radiance_stats();
+        let exact = mean as f64 * 4.0 * std::f64::consts::PI;
+        // Bilinear lookups smooth the patch's edge a little.
+        assert!((est - exact).abs() < 0.05 * exact, "{est} vs {exact}");
+    }
+
+    #[test]
+    fn rotation_turns_the_map_about_the_vertical() {
+        let env = sky();
+        let turned = Environment::new(env.image.clone(), 1.5, 120.0);
+        let d = Vec3::new(0.3, 0.5, 0.2).normalized();
+        let (s, c) = 90f32.to_radians().sin_cos();
+        let d_turned = Vec3::new(c * d.x - s * d.y, s * d.x + c * d.y, d.z);
+        assert!((env.radiance(d) - turned.radiance(d_turned)).length() < 1e-3);
+    }
+
+    #[test]
+    fn spot_lights_fade_outside_their_cone() {
+        let spot = Light::Spot {
+            position: Vec3::new(0.0, 0.0, 10.0),
+            target: Vec3::ZERO,
+            intensity: Vec3::splat(100.0),
+            angle_deg: 60.0,
+            blend: 0.2,
+        };
+        let (wi, dist, value) = spot.illuminate(Vec3::ZERO).unwrap();
+        assert_eq!((wi, dist, value), (Vec3::Z, 10.0, Vec3::splat(1.0)));
+        assert!(
+            spot.illuminate(Vec3::new(10.0, 0.0, 0.0)).is_none(),
+            "45° is outside a 60° cone"
+        );
+        let (_, _, edge) = spot.illuminate(Vec3::new(5.5, 0.0, 0.0)).unwrap();
+        assert!(
+            edge.x > 0.0 && edge.x < 100.0 / (100.0 + 5.5 * 5.5),
+            "fading at 28.8°"
+        );
+    }
+}

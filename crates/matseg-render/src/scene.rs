@@ -1,0 +1,502 @@
+//! A scene as data: everything a render needs (objects, their material
+//! layouts, materials, photo maps, lights, environment, camera, settings)
+//! in one JSON-serialisable description, and its loading into the
+//! structures the path tracer reads. Relative file paths are resolved
+//! against a base folder (the scene file's).
+
+use crate::camera::Camera;
+use crate::environment::{Environment, Light};
+use crate::hdr_io::read_hdr;
+use crate::math::{Transform, Vec3};
+use crate::mesh::{Mesh, UvProjection};
+use crate::primitives::Primitive;
+use crate::texture::{Placement, Texture};
+use matseg_image::{Channel, Ramp};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Everything one image is rendered from.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SceneDescription {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Samples per pixel.
+    #[serde(default = "default_spp")]
+    pub spp: u32,
+    /// Seed of the pixel random streams.
+    #[serde(default)]
+    pub seed: u64,
+    /// Longest path, in surface bounces.
+    #[serde(default = "default_bounces")]
+    pub max_bounces: u32,
+    /// Exposure in stops, applied before tone mapping.
+    #[serde(default)]
+    pub exposure_ev: f32,
+    /// The camera.
+    pub camera: Camera,
+    /// Light from far away.
+    pub environment: EnvironmentDescription,
+    /// Point and spot lights.
+    #[serde(default)]
+    pub lights: Vec<Light>,
+    /// Materials, referred to by index from surface layouts.
+    pub materials: Vec<MaterialDescription>,
+    /// Photo channels, referred to by index from layout splits.
+    #[serde(default)]
+    pub maps: Vec<MapDescription>,
+    /// The objects.
+    pub objects: Vec<ObjectDescription>,
+}
+
+fn default_spp() -> u32 {
+    16
+}
+
+fn default_bounces() -> u32 {
+    6
+}
+
+/// The environment: an HDRI file, or a uniform colour when there is none.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EnvironmentDescription {
+    /// An equirectangular `.hdr` or `.exr`.
+    #[serde(default)]
+    pub hdri: Option<PathBuf>,
+    /// Radiance when there is no HDRI.
+    #[serde(default = "default_sky")]
+    pub color: Vec3,
+    /// Multiplier.
+    #[serde(default = "one")]
+    pub strength: f32,
+    /// Turn about the vertical axis, degrees.
+    #[serde(default)]
+    pub rotation_deg: f32,
+}
+
+fn default_sky() -> Vec3 {
+    Vec3::splat(0.8)
+}
+
+fn one() -> f32 {
+    1.0
+}
+
+/// A material: a PBR folder (colour, normal, height, roughness, metalness
+/// maps) or constants, with a placement for its maps.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MaterialDescription {
+    /// A folder of PBR maps (any naming `matseg pbr` reads).
+    #[serde(default)]
+    pub pbr: Option<PathBuf>,
+    /// Base colour (linear RGB) when there is no colour map.
+    #[serde(default = "default_base")]
+    pub base_color: Vec3,
+    /// Roughness when there is no roughness map.
+    #[serde(default = "half")]
+    pub roughness: f32,
+    /// Metalness when there is no metalness map.
+    #[serde(default)]
+    pub metallic: f32,
+    /// Fraction of light transmitted (glass-like), 0..1.
+    #[serde(default)]
+    pub transmission: f32,
+    /// Index of refraction.
+    #[serde(default = "default_ior")]
+    pub ior: f32,
+    /// Height-map bump strength (texture repeats per height unit).
+    #[serde(default = "default_bump")]
+    pub bump: f32,
+    /// Where the maps sit on the surface.
+    #[serde(default)]
+    pub placement: Placement,
+}
+
+fn default_base() -> Vec3 {
+    Vec3::splat(0.5)
+}
+
+fn half() -> f32 {
+    0.5
+}
+
+fn default_ior() -> f32 {
+    1.45
+}
+
+fn default_bump() -> f32 {
+    0.02
+}
+
+/// How a photo channel's levels become values in [0, 1].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Normalise {
+    /// Divide by the channel's largest level.
+    Max,
+    /// Divide by 255.
+    Range,
+}
+
+/// One channel of a natural photo, used as a field on surfaces.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MapDescription {
+    /// The photo.
+    pub photo: PathBuf,
+    /// Which channel.
+    pub channel: Channel,
+    /// How its levels are scaled to [0, 1].
+    pub normalise: Normalise,
+}
+
+/// Which material is where on a surface: one material, or a split of the
+/// surface by a photo channel through a ramp into two sub-layouts.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Layout {
+    /// One material everywhere (index into the materials).
+    Material(usize),
+    /// `above` where the ramp of the map is 1, `below` where it is 0,
+    /// mixed in between.
+    Split {
+        /// Index into the maps.
+        map: usize,
+        /// Where the photo sits on the surface.
+        placement: Placement,
+        /// The threshold ramp.
+        ramp: Ramp,
+        /// Layout where the map is low.
+        below: Box<Layout>,
+        /// Layout where the map is high.
+        above: Box<Layout>,
+    },
+}
+
+impl Layout {
+    /// Every material index in the layout, in order of appearance.
+    pub fn materials(&self, out: &mut Vec<usize>) {
+        match self {
+            Layout::Material(m) => {
+                if !out.contains(m) {
+                    out.push(*m)
+                }
+            }
+            Layout::Split { below, above, .. } => {
+                below.materials(out);
+                above.materials(out);
+            }
+        }
+    }
+}
+
+/// Where an object's triangles come from.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MeshSource {
+    /// An OBJ, OFF or PLY file.
+    File(PathBuf),
+    /// A procedural shape.
+    Primitive(Primitive),
+    /// A flat square of half-side 1 in the xy plane, facing up (ground).
+    Plane,
+}
+
+/// An object: a mesh, its placement, and its surface layout.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ObjectDescription {
+    /// The geometry.
+    pub mesh: MeshSource,
+    /// Replace the mesh's texture coordinates by a projection.
+    #[serde(default)]
+    pub uv_projection: Option<UvProjection>,
+    /// Scale the mesh (centred) to this bounding radius before the transform.
+    #[serde(default)]
+    pub radius: Option<f32>,
+    /// Uniform scale, rotation (degrees about x, y, z) and translation.
+    #[serde(default)]
+    pub transform: TransformDescription,
+    /// Which material is where.
+    pub surface: Layout,
+    /// Whether this object is annotated (part of the main object).
+    #[serde(default)]
+    pub main: bool,
+}
+
+/// The parts of [`Transform::from_parts`].
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TransformDescription {
+    /// Uniform scale.
+    #[serde(default = "one")]
+    pub scale: f32,
+    /// Euler angles in degrees.
+    #[serde(default)]
+    pub rotation_deg: Vec3,
+    /// Translation.
+    #[serde(default)]
+    pub translation: Vec3,
+}
+
+impl Default for TransformDescription {
+    fn default() -> Self {
+        TransformDescription {
+            scale: 1.0,
+            rotation_deg: Vec3::ZERO,
+            translation: Vec3::ZERO,
+        }
+    }
+}
+
+/// Whether `v` is a number above zero (NaN is not).
+fn positive(v: f32) -> bool {
+    v > 0.0 && v.is_finite()
+}
+
+/// A scene that cannot be loaded: the file or item, and what is wrong.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct SceneError(pub String);
+
+/// A material with its maps decoded.
+#[derive(Clone, Debug)]
+pub struct LoadedMaterial {
+    /// The description (constants, placement).
+    pub description: MaterialDescription,
+    /// Colour map (sRGB).
+    pub color: Option<Texture>,
+    /// Roughness map.
+    pub roughness: Option<Texture>,
+    /// Metalness map.
+    pub metalness: Option<Texture>,
+    /// Tangent-space normal map (OpenGL).
+    pub normal: Option<Texture>,
+    /// Height map (used for bump when there is no normal map).
+    pub height: Option<Texture>,
+}
+
+/// A photo channel as levels, with its scale to [0, 1].
+#[derive(Clone, Debug)]
+pub struct LoadedMap {
+    /// The channel's levels.
+    pub levels: Texture,
+    /// Multiplier from a level's [0,1] value to the normalised value.
+    pub scale: f32,
+}
+
+/// An object's layout and role after loading.
+#[derive(Clone, Debug)]
+pub struct LoadedObject {
+    /// Which material is where.
+    pub surface: Layout,
+    /// Whether it is annotated.
+    pub main: bool,
+}
+
+/// Everything decoded and in world space, ready to render.
+#[derive(Clone, Debug)]
+pub struct LoadedScene {
+    /// The description it came from.
+    pub description: SceneDescription,
+    /// All objects' triangles in world space, one mesh.
+    pub mesh: Mesh,
+    /// The object of each triangle.
+    pub triangle_object: Vec<u32>,
+    /// Per object.
+    pub objects: Vec<LoadedObject>,
+    /// Per material.
+    pub materials: Vec<LoadedMaterial>,
+    /// Per map.
+    pub maps: Vec<LoadedMap>,
+    /// The environment.
+    pub environment: Environment,
+    /// Materials of the main object(s), in annotation order.
+    pub annotated: Vec<usize>,
+}
+
+impl SceneDescription {
+    /// Reads a scene file.
+    pub fn read(path: &Path) -> Result<SceneDescription, SceneError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| SceneError(format!("{}: cannot read: {e}", path.display())))?;
+        serde_json::from_str(&text).map_err(|e| SceneError(format!("{}: {e}", path.display())))
+    }
+
+    /// Checks indices and numbers before anything is decoded.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.width == 0 || self.height == 0 || self.width > 16384 || self.height > 16384 {
+            return Err(format!(
+                "image size {}x{} out of 1..16384",
+                self.width, self.height
+            ));
+        }
+        if self.spp == 0 {
+            return Err("spp must be at least 1".into());
+        }
+        if self.objects.is_empty() {
+            return Err("no objects".into());
+        }
+        fn check(
+            layout: &Layout,
+            materials: usize,
+            maps: usize,
+            object: usize,
+        ) -> Result<(), String> {
+            match layout {
+                Layout::Material(m) if *m >= materials => {
+                    Err(format!("object {object}: material {m} of {materials}"))
+                }
+                Layout::Material(_) => Ok(()),
+                Layout::Split {
+                    map,
+                    below,
+                    above,
+                    placement,
+                    ..
+                } => {
+                    if *map >= maps {
+                        return Err(format!("object {object}: map {map} of {maps}"));
+                    }
+                    if !positive(placement.scale) {
+                        return Err(format!(
+                            "object {object}: map placement scale must be positive"
+                        ));
+                    }
+                    check(below, materials, maps, object)?;
+                    check(above, materials, maps, object)
+                }
+            }
+        }
+        for (i, o) in self.objects.iter().enumerate() {
+            check(&o.surface, self.materials.len(), self.maps.len(), i)?;
+            if o.radius.is_some_and(|r| !positive(r)) {
+                return Err(format!("object {i}: radius must be positive"));
+            }
+        }
+        for (i, m) in self.materials.iter().enumerate() {
+            if !positive(m.placement.scale) || !positive(m.ior) {
+                return Err(format!(
+                    "material {i}: placement scale and ior must be positive"
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Decodes every file (relative paths against `base`) and builds the
+    /// world-space mesh.
+    pub fn load(&self, base: &Path) -> Result<LoadedScene, SceneError> {
+        self.validate().map_err(SceneError)?;
+        let resolve = |p: &Path| {
+            if p.is_absolute() {
+                p.to_path_buf()
+            } else {
+                base.join(p)
+            }
+        };
+        let mut mesh = Mesh::default();
+        let mut triangle_object = Vec::new();
+        for (i, o) in self.objects.iter().enumerate() {
+            let mut m = match &o.mesh {
+                MeshSource::File(p) => {
+                    crate::mesh_io::read_mesh(&resolve(p)).map_err(|e| SceneError(e.to_string()))?
+                }
+                MeshSource::Primitive(p) => p.mesh(),
+                MeshSource::Plane => crate::primitives::ground_plane(),
+            };
+            if let Some(projection) = o.uv_projection {
+                m.project_uvs(projection);
+            }
+            if let Some(r) = o.radius {
+                m.normalise_to_radius(r);
+            }
+            let t = &o.transform;
+            m.transform(&Transform::from_parts(
+                t.scale,
+                t.rotation_deg,
+                t.translation,
+            ));
+            triangle_object.extend(std::iter::repeat_n(i as u32, m.triangles.len()));
+            mesh.append(&m);
+        }
+        let materials = self
+            .materials
+            .iter()
+            .map(|d| load_material(d, &resolve))
+            .collect::<Result<Vec<_>, _>>()?;
+        let maps = self
+            .maps
+            .iter()
+            .map(|d| load_map(d, &resolve(&d.photo)))
+            .collect::<Result<Vec<_>, _>>()?;
+        let env = &self.environment;
+        let environment = match &env.hdri {
+            Some(p) => Environment::new(
+                read_hdr(&resolve(p)).map_err(|e| SceneError(e.to_string()))?,
+                env.strength,
+                env.rotation_deg,
+            ),
+            None => Environment::uniform(env.color * env.strength),
+        };
+        let mut annotated = Vec::new();
+        for o in self.objects.iter().filter(|o| o.main) {
+            o.surface.materials(&mut annotated);
+        }
+        Ok(LoadedScene {
+            description: self.clone(),
+            mesh,
+            triangle_object,
+            objects: self
+                .objects
+                .iter()
+                .map(|o| LoadedObject {
+                    surface: o.surface.clone(),
+                    main: o.main,
+                })
+                .collect(),
+            materials,
+            maps,
+            environment,
+            annotated,
+        })
+    }
+}
+
+fn load_material(
+    d: &MaterialDescription,
+    resolve: &impl Fn(&Path) -> PathBuf,
+) -> Result<LoadedMaterial, SceneError> {
+    let Some(dir) = &d.pbr else {
+        return Ok(LoadedMaterial {
+            description: d.clone(),
+            color: None,
+            roughness: None,
+            metalness: None,
+            normal: None,
+            height: None,
+        });
+    };
+    let maps =
+        matseg_extract::material_library::read_material(&resolve(dir)).map_err(SceneError)?;
+    Ok(LoadedMaterial {
+        description: d.clone(),
+        color: Some(Texture::from_rgb(&maps.color)),
+        roughness: maps.roughness.as_ref().map(Texture::from_gray),
+        metalness: maps.metalness.as_ref().map(Texture::from_gray),
+        normal: maps.normal.as_ref().map(Texture::from_rgb),
+        height: maps.height.as_ref().map(Texture::from_gray),
+    })
+}
+
+fn load_map(d: &MapDescription, path: &Path) -> Result<LoadedMap, SceneError> {
+    let img = matseg_image::io::read_rgb(path).map_err(|e| SceneError(e.to_string()))?;
+    let levels: Vec<u8> = img.pixels().map(|p| d.channel.level(p.0)).collect();
+    let max = levels.iter().copied().max().unwrap_or(0);
+    let scale = match d.normalise {
+        Normalise::Max if max > 0 => 255.0 / max as f32,
+        _ => 1.0,
+    };
+    Ok(LoadedMap {
+        levels: Texture::from_levels(img.width() as usize, img.height() as usize, levels),
+        scale,
+    })
+}
