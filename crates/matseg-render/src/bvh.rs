@@ -162,11 +162,17 @@ impl Bvh {
         if self.nodes[0].bounds.hit(ray.origin, inv, t_far).is_none() {
             return;
         }
-        let mut stack = [0u32; 64];
+        // Nodes to visit with the distance where the ray enters them: a node
+        // entered beyond the closest hit found since it was pushed is skipped.
+        let mut stack = [(0u32, 0f32); 64];
         let mut top = 1;
         while top > 0 {
             top -= 1;
-            let node = &self.nodes[stack[top] as usize];
+            let (index, entry) = stack[top];
+            if entry > t_far {
+                continue;
+            }
+            let node = &self.nodes[index as usize];
             if node.count > 0 {
                 let start = node.first as usize;
                 for k in start..start + node.count as usize {
@@ -184,17 +190,21 @@ impl Bvh {
             // Push the far child first so the near one is visited next.
             match (tl, tr) {
                 (Some(a), Some(b)) => {
-                    let (near, far) = if a <= b { (l, r) } else { (r, l) };
+                    let (near, far) = if a <= b {
+                        ((l, a), (r, b))
+                    } else {
+                        ((r, b), (l, a))
+                    };
                     stack[top] = far;
                     stack[top + 1] = near;
                     top += 2;
                 }
-                (Some(_), None) => {
-                    stack[top] = l;
+                (Some(a), None) => {
+                    stack[top] = (l, a);
                     top += 1;
                 }
-                (None, Some(_)) => {
-                    stack[top] = r;
+                (None, Some(b)) => {
+                    stack[top] = (r, b);
                     top += 1;
                 }
                 (None, None) => {}

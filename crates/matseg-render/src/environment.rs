@@ -4,41 +4,92 @@
 
 use crate::hdr_io::HdrImage;
 use crate::math::Vec3;
-use crate::sampling::Distribution1d;
+use crate::sampling::AliasTable;
 use serde::{Deserialize, Serialize};
 use std::f32::consts::PI;
+use std::sync::Arc;
 
-/// An environment map with its sampling tables. Direction (x, y, z) with z
-/// up maps to longitude `atan2(y, x)` across the image (turned by the
-/// rotation) and the zenith to the top row.
+/// What a draw from one bin of the alias table needs besides the table:
+/// for the bin's own pixel and its alias pixel, their probabilities and
+/// radiance, side by side so a draw touches few places in memory.
+#[derive(Clone, Copy, Debug)]
+struct SamplingBin {
+    alias: u32,
+    probability: [f32; 2],
+    radiance: [Vec3; 2],
+}
+
+/// An HDRI with its importance-sampling table (pixels by luminance times
+/// their solid angle, as an alias table): built once per file, shared
+/// between scenes.
+#[derive(Clone, Debug)]
+pub struct EnvironmentMap {
+    image: HdrImage,
+    /// Probability of each pixel.
+    probability: Vec<f32>,
+    table: AliasTable,
+    bins: Vec<SamplingBin>,
+}
+
+impl EnvironmentMap {
+    /// Builds the sampling table of `image`.
+    pub fn new(image: HdrImage) -> Self {
+        let (w, h) = (image.width, image.height);
+        let weights: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let sin = (PI * ((i / w) as f32 + 0.5) / h as f32).sin();
+                image.pixels[i].luminance().max(0.0) * sin
+            })
+            .collect();
+        let table = AliasTable::new(&weights);
+        let probability: Vec<f32> = (0..w * h).map(|i| table.probability(i)).collect();
+        let bins = table
+            .bins()
+            .iter()
+            .enumerate()
+            .map(|(i, &(_, alias))| SamplingBin {
+                alias,
+                probability: [probability[i], probability[alias as usize]],
+                radiance: [image.pixels[i], image.pixels[alias as usize]],
+            })
+            .collect();
+        EnvironmentMap {
+            probability,
+            bins,
+            table,
+            image,
+        }
+    }
+
+    /// Bytes held (for cache bounds).
+    pub fn bytes(&self) -> usize {
+        self.image.pixels.len()
+            * (std::mem::size_of::<Vec3>() + 4 + std::mem::size_of::<SamplingBin>())
+    }
+}
+
+/// An environment map in a scene: shared tables, plus this scene's strength
+/// and rotation. As in Blender: a direction (x, y, z), z up, first turned
+/// about z by the rotation, maps to image column `-atan2(y, x) / 2pi`
+/// (mod 1) and its zenith angle to the row, the zenith on top, so a scene
+/// looks the same rendered here or by Cycles.
 #[derive(Clone, Debug)]
 pub struct Environment {
-    image: HdrImage,
+    map: Arc<EnvironmentMap>,
     strength: f32,
     rotation: f32,
-    rows: Distribution1d,
-    columns: Vec<Distribution1d>,
 }
 
 impl Environment {
     /// From an HDRI, a multiplier and a rotation in degrees.
     pub fn new(image: HdrImage, strength: f32, rotation_deg: f32) -> Self {
-        let (w, h) = (image.width, image.height);
-        let columns: Vec<Distribution1d> = (0..h)
-            .map(|y| {
-                let sin = (PI * (y as f32 + 0.5) / h as f32).sin();
-                let weights: Vec<f32> = image.pixels[y * w..(y + 1) * w]
-                    .iter()
-                    .map(|p| p.luminance().max(0.0) * sin)
-                    .collect();
-                Distribution1d::new(&weights)
-            })
-            .collect();
-        let row_weights: Vec<f32> = columns.iter().map(Distribution1d::total).collect();
+        Environment::with_map(Arc::new(EnvironmentMap::new(image)), strength, rotation_deg)
+    }
+
+    /// From shared tables, a multiplier and a rotation in degrees.
+    pub fn with_map(map: Arc<EnvironmentMap>, strength: f32, rotation_deg: f32) -> Self {
         Environment {
-            rows: Distribution1d::new(&row_weights),
-            columns,
-            image,
+            map,
             strength,
             rotation: rotation_deg.to_radians(),
         }
@@ -62,8 +113,10 @@ impl Environment {
     /// Image coordinates in [0,1)² of a unit direction.
     #[inline]
     fn uv(&self, d: Vec3) -> (f32, f32) {
-        let phi = d.y.atan2(d.x) - self.rotation;
-        let u = (phi / (2.0 * PI)).rem_euclid(1.0);
+        // Blender's equirectangular convention: longitude increases to the
+        // left of the image; the rotation turns the direction first.
+        let phi = d.y.atan2(d.x) + self.rotation;
+        let u = (-phi / (2.0 * PI)).rem_euclid(1.0);
         let v = d.z.clamp(-1.0, 1.0).acos() / PI;
         (u, v)
     }
@@ -71,7 +124,7 @@ impl Environment {
     /// The pixel holding image coordinates (u, v).
     #[inline]
     fn pixel(&self, u: f32, v: f32) -> (usize, usize) {
-        let (w, h) = (self.image.width, self.image.height);
+        let (w, h) = (self.map.image.width, self.map.image.height);
         (
             ((u * w as f32) as usize).min(w - 1),
             ((v * h as f32) as usize).min(h - 1),
@@ -81,7 +134,7 @@ impl Environment {
     /// Radiance arriving from unit direction `d` (bilinear between pixels).
     pub fn radiance(&self, d: Vec3) -> Vec3 {
         let (u, v) = self.uv(d);
-        let (w, h) = (self.image.width, self.image.height);
+        let (w, h) = (self.map.image.width, self.map.image.height);
         let x = u * w as f32 - 0.5;
         let y = (v * h as f32 - 0.5).clamp(0.0, (h - 1) as f32);
         let (x0, y0) = (x.floor(), y.floor());
@@ -89,37 +142,53 @@ impl Environment {
         let xi = |x: f32| (x as i64).rem_euclid(w as i64) as usize;
         let (xa, xb) = (xi(x0), xi(x0 + 1.0));
         let (ya, yb) = (y0 as usize, (y0 as usize + 1).min(h - 1));
-        let p = |x: usize, y: usize| self.image.pixels[y * w + x];
+        let p = |x: usize, y: usize| self.map.image.pixels[y * w + x];
         let top = p(xa, ya).lerp(p(xb, ya), tx);
         let bottom = p(xa, yb).lerp(p(xb, yb), tx);
         top.lerp(bottom, ty) * self.strength
     }
 
+    /// Radiance from unit direction `d`, constant over each pixel (the
+    /// function [`Environment::sample`] and [`Environment::pdf`] describe;
+    /// light sampling and the paths it is weighed against use this one).
+    pub fn radiance_nearest(&self, d: Vec3) -> Vec3 {
+        let (u, v) = self.uv(d);
+        let (x, y) = self.pixel(u, v);
+        self.map.image.pixels[y * self.map.image.width + x] * self.strength
+    }
+
     /// Draws a direction proportionally to luminance: the direction, its
-    /// radiance and its solid-angle density.
+    /// radiance (as [`Environment::radiance_nearest`]) and its solid-angle
+    /// density.
     pub fn sample(&self, u: [f32; 2]) -> Option<(Vec3, Vec3, f32)> {
-        if self.rows.total() <= 0.0 {
+        let map = &self.map;
+        if map.table.total() <= 0.0 {
             return None;
         }
-        let (y, fy) = self.rows.sample(u[0]);
-        let (x, fx) = self.columns[y].sample(u[1]);
-        let (w, h) = (self.image.width as f32, self.image.height as f32);
-        let (uu, vv) = ((x as f32 + fx) / w, (y as f32 + fy) / h);
+        let (bin, alias, fx) = map.table.draw(u[0]);
+        let b = &map.bins[bin];
+        let (k, i) = if alias {
+            (1, b.alias as usize)
+        } else {
+            (0, bin)
+        };
+        let (w, h) = (map.image.width, map.image.height);
+        let (px, py) = (i % w, i / w);
+        let (uu, vv) = ((px as f32 + fx) / w as f32, (py as f32 + u[1]) / h as f32);
         let theta = PI * vv;
-        let phi = 2.0 * PI * uu + self.rotation;
+        let phi = -2.0 * PI * uu - self.rotation;
         let (st, ct) = theta.sin_cos();
         if st <= 0.0 {
             return None;
         }
         let d = Vec3::new(st * phi.cos(), st * phi.sin(), ct);
-        let pdf = self.rows.probability(y) * self.columns[y].probability(x) * w * h
-            / (2.0 * PI * PI * st);
-        Some((d, self.radiance(d), pdf))
+        let pdf = b.probability[k] * (w * h) as f32 / (2.0 * PI * PI * st);
+        Some((d, b.radiance[k] * self.strength, pdf))
     }
 
     /// The density [`Environment::sample`] gives unit direction `d`.
     pub fn pdf(&self, d: Vec3) -> f32 {
-        if self.rows.total() <= 0.0 {
+        if self.map.table.total() <= 0.0 {
             return 0.0;
         }
         let (u, v) = self.uv(d);
@@ -128,17 +197,17 @@ impl Environment {
         if st <= 0.0 {
             return 0.0;
         }
-        let (w, h) = (self.image.width as f32, self.image.height as f32);
-        self.rows.probability(y) * self.columns[y].probability(x) * w * h / (2.0 * PI * PI * st)
+        let (w, h) = (self.map.image.width, self.map.image.height);
+        self.map.probability[y * w + x] * (w * h) as f32 / (2.0 * PI * PI * st)
     }
 
     /// Largest and mean radiance over the sphere (solid-angle weighted).
     pub fn radiance_stats(&self) -> (f32, f32) {
-        let (w, h) = (self.image.width, self.image.height);
+        let (w, h) = (self.map.image.width, self.map.image.height);
         let (mut sum, mut weight, mut max) = (0f64, 0f64, 0f32);
         for y in 0..h {
             let sin = (PI * (y as f32 + 0.5) / h as f32).sin() as f64;
-            for p in &self.image.pixels[y * w..(y + 1) * w] {
+            for p in &self.map.image.pixels[y * w..(y + 1) * w] {
                 sum += p.luminance() as f64 * sin;
                 weight += sin;
                 max = max.max(p.luminance());
@@ -296,9 +365,9 @@ mod tests {
     #[test]
     fn rotation_turns_the_map_about_the_vertical() {
         let env = sky();
-        let turned = Environment::new(env.image.clone(), 1.5, 120.0);
+        let turned = Environment::with_map(env.map.clone(), 1.5, 120.0);
         let d = Vec3::new(0.3, 0.5, 0.2).normalized();
-        let (s, c) = 90f32.to_radians().sin_cos();
+        let (s, c) = (-90f32).to_radians().sin_cos();
         let d_turned = Vec3::new(c * d.x - s * d.y, s * d.x + c * d.y, d.z);
         assert!((env.radiance(d) - turned.radiance(d_turned)).length() < 1e-3);
     }

@@ -165,7 +165,13 @@ impl Tracer<'_> {
                 }
             };
             let Some(hit) = self.bvh.intersect(&ray, 0.0, f32::INFINITY) else {
-                let le = env.radiance(ray.dir);
+                // Camera rays see the smooth map; paths see the piecewise
+                // constant one that light sampling draws from.
+                let le = if bounce == 0 {
+                    env.radiance(ray.dir)
+                } else {
+                    env.radiance_nearest(ray.dir)
+                };
                 let w = if bounce == 0 {
                     1.0
                 } else {

@@ -9,6 +9,7 @@
 
 pub mod bsdf;
 pub mod bvh;
+pub mod cache;
 pub mod camera;
 pub mod environment;
 pub mod hdr_io;

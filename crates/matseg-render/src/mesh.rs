@@ -37,6 +37,11 @@ impl Mesh {
         self.positions.iter().fold(Aabb::EMPTY, |b, &p| b.grow(p))
     }
 
+    /// Bytes held.
+    pub fn bytes(&self) -> usize {
+        self.positions.len() * (2 * std::mem::size_of::<Vec3>() + 8) + self.triangles.len() * 12
+    }
+
     /// Distance from the bounding box's centre to the farthest vertex.
     pub fn bounding_radius(&self) -> f32 {
         let c = self.bounds().centre();

@@ -110,70 +110,104 @@ pub fn power_heuristic(a: f32, b: f32) -> f32 {
     }
 }
 
-/// A table to draw an index with probability proportional to given weights,
-/// and to ask that probability back.
+/// Walker's alias table (built by Vose's method): draws an index with
+/// probability proportional to given weights in constant time, one lookup,
+/// and tells that probability back.
 #[derive(Clone, Debug)]
-pub struct Distribution1d {
-    /// Cumulative weights, normalised: `cdf[0] = 0`, `cdf[n] = 1`.
-    cdf: Vec<f32>,
+pub struct AliasTable {
+    /// Per bin: the probability of keeping the bin's own index, and the
+    /// other index it sends the rest to.
+    bins: Vec<(f32, u32)>,
+    /// Normalised probability of each index.
+    pmf: Vec<f32>,
     /// The weights' sum before normalising.
-    total: f32,
+    total: f64,
 }
 
-impl Distribution1d {
+impl AliasTable {
     /// From non-negative weights; all-zero weights become uniform.
     pub fn new(weights: &[f32]) -> Self {
-        let mut cdf = Vec::with_capacity(weights.len() + 1);
-        let mut acc = 0f64;
-        cdf.push(0.0);
-        for &w in weights {
-            acc += w.max(0.0) as f64;
-            cdf.push(acc as f32);
+        let n = weights.len();
+        let total: f64 = weights.iter().map(|&w| w.max(0.0) as f64).sum();
+        let pmf: Vec<f64> = weights
+            .iter()
+            .map(|&w| {
+                if total > 0.0 {
+                    w.max(0.0) as f64 / total
+                } else {
+                    1.0 / n as f64
+                }
+            })
+            .collect();
+        let mut scaled: Vec<f64> = pmf.iter().map(|p| p * n as f64).collect();
+        let mut bins = vec![(1.0f32, 0u32); n];
+        let (mut small, mut large): (Vec<usize>, Vec<usize>) =
+            (0..n).partition(|&i| scaled[i] < 1.0);
+        while let (Some(s), Some(&l)) = (small.pop(), large.last()) {
+            bins[s] = (scaled[s] as f32, l as u32);
+            scaled[l] -= 1.0 - scaled[s];
+            if scaled[l] < 1.0 {
+                large.pop();
+                small.push(l);
+            }
         }
-        let total = acc as f32;
-        let n = weights.len().max(1) as f32;
-        for (i, c) in cdf.iter_mut().enumerate() {
-            *c = if total > 0.0 {
-                *c / total
-            } else {
-                i as f32 / n
-            };
+        // What is left is 1 up to rounding: keep itself.
+        for i in small.into_iter().chain(large) {
+            bins[i] = (1.0, i as u32);
         }
-        Distribution1d { cdf, total }
+        AliasTable {
+            bins,
+            pmf: pmf.iter().map(|&p| p as f32).collect(),
+            total,
+        }
     }
 
     /// Number of entries.
     pub fn len(&self) -> usize {
-        self.cdf.len() - 1
+        self.pmf.len()
     }
 
     /// Whether there are no entries.
     pub fn is_empty(&self) -> bool {
-        self.len() == 0
+        self.pmf.is_empty()
     }
 
     /// The sum of the weights.
-    pub fn total(&self) -> f32 {
+    pub fn total(&self) -> f64 {
         self.total
     }
 
-    /// Probability of index `i`.
-    pub fn probability(&self, i: usize) -> f32 {
-        self.cdf[i + 1] - self.cdf[i]
+    /// Per bin: the probability of keeping the bin's own index and the
+    /// index it gives the rest to.
+    pub fn bins(&self) -> &[(f32, u32)] {
+        &self.bins
     }
 
-    /// Draws an index from `u` in [0,1); also returns where `u` fell inside
-    /// its interval, rescaled to [0,1) (for reuse as a fresh random number).
-    pub fn sample(&self, u: f32) -> (usize, f32) {
-        // The last index whose cdf is <= u, skipping zero-width entries.
-        let i = self.cdf.partition_point(|&c| c <= u).clamp(1, self.len()) - 1;
-        let width = self.cdf[i + 1] - self.cdf[i];
-        let rest = if width > 0.0 {
-            ((u - self.cdf[i]) / width).clamp(0.0, 0.999_999_94)
+    /// Probability of index `i`.
+    #[inline]
+    pub fn probability(&self, i: usize) -> f32 {
+        self.pmf[i]
+    }
+
+    /// Draws from `u` in [0,1): the bin, whether its alias was taken (the
+    /// index drawn is then `bins()[bin].1`, else `bin`), and a fresh uniform
+    /// number in [0,1) made from what `u` did not use.
+    #[inline]
+    pub fn draw(&self, u: f32) -> (usize, bool, f32) {
+        let n = self.bins.len();
+        let x = u * n as f32;
+        let bin = (x as usize).min(n - 1);
+        let rest = (x - bin as f32).clamp(0.0, 0.999_999_94);
+        let keep = self.bins[bin].0;
+        if rest < keep {
+            (bin, false, (rest / keep).min(0.999_999_94))
         } else {
-            0.5
-        };
-        (i, rest)
+            (
+                bin,
+                true,
+                ((rest - keep) / (1.0 - keep)).clamp(0.0, 0.999_999_94),
+            )
+        }
     }
 }
 
@@ -221,16 +255,38 @@ mod tests {
     }
 
     #[test]
-    fn distributions_follow_their_weights() {
-        let d = Distribution1d::new(&[1.0, 0.0, 3.0]);
-        assert_eq!(d.probability(1), 0.0);
-        assert!((d.probability(2) - 0.75).abs() < 1e-6);
-        assert_eq!(d.sample(0.1).0, 0);
-        assert_eq!(d.sample(0.25).0, 2, "the empty entry is never drawn");
-        assert_eq!(d.sample(0.999).0, 2);
-        let (_, rest) = d.sample(0.625);
-        assert!((rest - 0.5).abs() < 1e-6);
-        let uniform = Distribution1d::new(&[0.0, 0.0]);
+    fn alias_tables_draw_by_weight() {
+        let weights = [1.0, 0.0, 3.0, 0.5, 2.5];
+        let table = AliasTable::new(&weights);
+        assert_eq!(table.probability(1), 0.0);
+        assert!((table.probability(2) - 3.0 / 7.0).abs() < 1e-6);
+        let mut counts = [0usize; 5];
+        let mut rest_sum = 0.0;
+        let n = 200_000;
+        let mut rng = Pcg32::new(12, 0);
+        for _ in 0..n {
+            let (bin, alias, rest) = table.draw(rng.next_f32());
+            let i = if alias {
+                table.bins()[bin].1 as usize
+            } else {
+                bin
+            };
+            counts[i] += 1;
+            rest_sum += rest as f64;
+        }
+        assert_eq!(counts[1], 0, "a zero weight is never drawn");
+        for (c, w) in counts.iter().zip(weights) {
+            let expected = w as f64 / 7.0;
+            assert!(
+                (*c as f64 / n as f64 - expected).abs() < 0.005,
+                "{counts:?}"
+            );
+        }
+        assert!(
+            (rest_sum / n as f64 - 0.5).abs() < 0.005,
+            "the rest is uniform"
+        );
+        let uniform = AliasTable::new(&[0.0, 0.0]);
         assert_eq!(uniform.probability(0), 0.5);
     }
 

@@ -4,9 +4,9 @@
 //! structures the path tracer reads. Relative file paths are resolved
 //! against a base folder (the scene file's).
 
+use crate::cache::AssetCache;
 use crate::camera::Camera;
 use crate::environment::{Environment, Light};
-use crate::hdr_io::read_hdr;
 use crate::math::{Transform, Vec3};
 use crate::mesh::{Mesh, UvProjection};
 use crate::primitives::Primitive;
@@ -14,6 +14,7 @@ use crate::texture::{Placement, Texture};
 use matseg_image::{Channel, Ramp};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// Everything one image is rendered from.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -257,11 +258,9 @@ fn positive(v: f32) -> bool {
 #[error("{0}")]
 pub struct SceneError(pub String);
 
-/// A material with its maps decoded.
-#[derive(Clone, Debug)]
-pub struct LoadedMaterial {
-    /// The description (constants, placement).
-    pub description: MaterialDescription,
+/// The decoded maps of a PBR material folder.
+#[derive(Clone, Debug, Default)]
+pub struct MaterialTextures {
     /// Colour map (sRGB).
     pub color: Option<Texture>,
     /// Roughness map.
@@ -274,12 +273,79 @@ pub struct LoadedMaterial {
     pub height: Option<Texture>,
 }
 
-/// A photo channel as levels, with its scale to [0, 1].
+impl MaterialTextures {
+    /// Reads the maps of the material folder `dir`.
+    pub fn read(dir: &Path) -> Result<Self, SceneError> {
+        let maps = matseg_extract::material_library::read_material(dir).map_err(SceneError)?;
+        Ok(MaterialTextures {
+            color: Some(Texture::from_rgb(&maps.color)),
+            roughness: maps.roughness.as_ref().map(Texture::from_gray),
+            metalness: maps.metalness.as_ref().map(Texture::from_gray),
+            normal: maps.normal.as_ref().map(Texture::from_rgb),
+            height: maps.height.as_ref().map(Texture::from_gray),
+        })
+    }
+
+    /// Bytes held.
+    pub fn bytes(&self) -> usize {
+        [
+            &self.color,
+            &self.roughness,
+            &self.metalness,
+            &self.normal,
+            &self.height,
+        ]
+        .iter()
+        .filter_map(|t| t.as_ref().map(Texture::bytes))
+        .sum()
+    }
+}
+
+/// A material: its description and its decoded maps (none for a constant
+/// material).
+#[derive(Clone, Debug)]
+pub struct LoadedMaterial {
+    /// The description (constants, placement).
+    pub description: MaterialDescription,
+    /// The maps, shared through the asset cache.
+    pub maps: Arc<MaterialTextures>,
+}
+
+/// A photo channel as levels, with its largest level.
 #[derive(Clone, Debug)]
 pub struct LoadedMap {
     /// The channel's levels.
     pub levels: Texture,
-    /// Multiplier from a level's [0,1] value to the normalised value.
+    /// The largest level.
+    pub max_level: u8,
+}
+
+impl LoadedMap {
+    /// Channel `channel` of the photo at `path`.
+    pub fn read(path: &Path, channel: Channel) -> Result<Self, SceneError> {
+        let img = matseg_image::io::read_rgb(path).map_err(|e| SceneError(e.to_string()))?;
+        let levels: Vec<u8> = img.pixels().map(|p| channel.level(p.0)).collect();
+        Ok(LoadedMap {
+            max_level: levels.iter().copied().max().unwrap_or(0),
+            levels: Texture::from_levels(img.width() as usize, img.height() as usize, levels),
+        })
+    }
+
+    /// The multiplier from a level's value in [0, 1] to the normalised value.
+    pub fn scale(&self, normalise: Normalise) -> f32 {
+        match normalise {
+            Normalise::Max if self.max_level > 0 => 255.0 / self.max_level as f32,
+            _ => 1.0,
+        }
+    }
+}
+
+/// A map in a scene: the shared channel and this scene's normalisation.
+#[derive(Clone, Debug)]
+pub struct SceneMap {
+    /// The channel.
+    pub map: Arc<LoadedMap>,
+    /// Multiplier to the normalised value.
     pub scale: f32,
 }
 
@@ -306,7 +372,7 @@ pub struct LoadedScene {
     /// Per material.
     pub materials: Vec<LoadedMaterial>,
     /// Per map.
-    pub maps: Vec<LoadedMap>,
+    pub maps: Vec<SceneMap>,
     /// The environment.
     pub environment: Environment,
     /// Materials of the main object(s), in annotation order.
@@ -385,6 +451,12 @@ impl SceneDescription {
     /// Decodes every file (relative paths against `base`) and builds the
     /// world-space mesh.
     pub fn load(&self, base: &Path) -> Result<LoadedScene, SceneError> {
+        self.load_cached(base, &AssetCache::default())
+    }
+
+    /// As [`SceneDescription::load`], taking decoded files from `cache`
+    /// (and leaving new ones there).
+    pub fn load_cached(&self, base: &Path, cache: &AssetCache) -> Result<LoadedScene, SceneError> {
         self.validate().map_err(SceneError)?;
         let resolve = |p: &Path| {
             if p.is_absolute() {
@@ -397,9 +469,7 @@ impl SceneDescription {
         let mut triangle_object = Vec::new();
         for (i, o) in self.objects.iter().enumerate() {
             let mut m = match &o.mesh {
-                MeshSource::File(p) => {
-                    crate::mesh_io::read_mesh(&resolve(p)).map_err(|e| SceneError(e.to_string()))?
-                }
+                MeshSource::File(p) => Mesh::clone(&*cache.mesh(&resolve(p))?),
                 MeshSource::Primitive(p) => p.mesh(),
                 MeshSource::Plane => crate::primitives::ground_plane(),
             };
@@ -421,20 +491,31 @@ impl SceneDescription {
         let materials = self
             .materials
             .iter()
-            .map(|d| load_material(d, &resolve))
-            .collect::<Result<Vec<_>, _>>()?;
+            .map(|d| {
+                let maps = match &d.pbr {
+                    Some(dir) => cache.material(&resolve(dir))?,
+                    None => Arc::new(MaterialTextures::default()),
+                };
+                Ok(LoadedMaterial {
+                    description: d.clone(),
+                    maps,
+                })
+            })
+            .collect::<Result<Vec<_>, SceneError>>()?;
         let maps = self
             .maps
             .iter()
-            .map(|d| load_map(d, &resolve(&d.photo)))
-            .collect::<Result<Vec<_>, _>>()?;
+            .map(|d| {
+                let map = cache.map(&resolve(&d.photo), d.channel)?;
+                let scale = map.scale(d.normalise);
+                Ok(SceneMap { map, scale })
+            })
+            .collect::<Result<Vec<_>, SceneError>>()?;
         let env = &self.environment;
         let environment = match &env.hdri {
-            Some(p) => Environment::new(
-                read_hdr(&resolve(p)).map_err(|e| SceneError(e.to_string()))?,
-                env.strength,
-                env.rotation_deg,
-            ),
+            Some(p) => {
+                Environment::with_map(cache.hdri(&resolve(p))?, env.strength, env.rotation_deg)
+            }
             None => Environment::uniform(env.color * env.strength),
         };
         let mut annotated = Vec::new();
@@ -459,44 +540,4 @@ impl SceneDescription {
             annotated,
         })
     }
-}
-
-fn load_material(
-    d: &MaterialDescription,
-    resolve: &impl Fn(&Path) -> PathBuf,
-) -> Result<LoadedMaterial, SceneError> {
-    let Some(dir) = &d.pbr else {
-        return Ok(LoadedMaterial {
-            description: d.clone(),
-            color: None,
-            roughness: None,
-            metalness: None,
-            normal: None,
-            height: None,
-        });
-    };
-    let maps =
-        matseg_extract::material_library::read_material(&resolve(dir)).map_err(SceneError)?;
-    Ok(LoadedMaterial {
-        description: d.clone(),
-        color: Some(Texture::from_rgb(&maps.color)),
-        roughness: maps.roughness.as_ref().map(Texture::from_gray),
-        metalness: maps.metalness.as_ref().map(Texture::from_gray),
-        normal: maps.normal.as_ref().map(Texture::from_rgb),
-        height: maps.height.as_ref().map(Texture::from_gray),
-    })
-}
-
-fn load_map(d: &MapDescription, path: &Path) -> Result<LoadedMap, SceneError> {
-    let img = matseg_image::io::read_rgb(path).map_err(|e| SceneError(e.to_string()))?;
-    let levels: Vec<u8> = img.pixels().map(|p| d.channel.level(p.0)).collect();
-    let max = levels.iter().copied().max().unwrap_or(0);
-    let scale = match d.normalise {
-        Normalise::Max if max > 0 => 255.0 / max as f32,
-        _ => 1.0,
-    };
-    Ok(LoadedMap {
-        levels: Texture::from_levels(img.width() as usize, img.height() as usize, levels),
-        scale,
-    })
 }

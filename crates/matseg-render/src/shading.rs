@@ -6,7 +6,7 @@ use crate::bsdf::Lobe;
 use crate::bvh::Hit;
 use crate::math::{Frame, Vec3};
 use crate::microfacet::Ggx;
-use crate::scene::{Layout, LoadedMap, LoadedMaterial, LoadedScene};
+use crate::scene::{Layout, LoadedMaterial, LoadedScene, SceneMap};
 
 /// Geometry at a hit point, world space.
 #[derive(Clone, Copy, Debug)]
@@ -96,11 +96,8 @@ impl LoadedScene {
                 above,
             } => {
                 let [u, v] = placement.apply(uv);
-                let LoadedMap {
-                    levels,
-                    scale: norm,
-                } = &self.maps[*map];
-                let t = ramp.apply((levels.scalar(u, v) * norm).min(1.0));
+                let SceneMap { map, scale: norm } = &self.maps[*map];
+                let t = ramp.apply((map.levels.scalar(u, v) * norm).min(1.0));
                 self.layout_weights(below, uv, scale * (1.0 - t), out);
                 self.layout_weights(above, uv, scale * t, out);
             }
@@ -127,21 +124,24 @@ impl LoadedMaterial {
         let d = &self.description;
         let [u, v] = d.placement.apply(sp.uv);
         let base = self
+            .maps
             .color
             .as_ref()
             .map_or(d.base_color, |t| Vec3::from(t.linear_rgb(u, v)));
         let roughness = self
+            .maps
             .roughness
             .as_ref()
             .map_or(d.roughness, |t| t.scalar(u, v));
         let metallic = self
+            .maps
             .metalness
             .as_ref()
             .map_or(d.metallic, |t| t.scalar(u, v));
         let n = sp.shading_normal;
         let frame = Frame::from_normal_tangent(n, sp.tangent);
         let bitangent = if sp.mirrored { -frame.t } else { frame.t };
-        let normal = if let Some(nm) = &self.normal {
+        let normal = if let Some(nm) = &self.maps.normal {
             let [x, y, z] = nm.raw_rgb(u, v).map(|c| 2.0 * c - 1.0);
             let mapped = (frame.s * x + bitangent * y + n * z.max(0.05)).normalized();
             if mapped.is_finite() && mapped != Vec3::ZERO {
@@ -149,7 +149,7 @@ impl LoadedMaterial {
             } else {
                 n
             }
-        } else if let Some(h) = &self.height {
+        } else if let Some(h) = &self.maps.height {
             // Central differences over one texel.
             let (du, dv) = (1.0 / h.width() as f32, 1.0 / h.height() as f32);
             let hu = (h.scalar(u + du, v) - h.scalar(u - du, v)) / (2.0 * du);

@@ -71,6 +71,11 @@ impl Texture {
         }
     }
 
+    /// Bytes held.
+    pub fn bytes(&self) -> usize {
+        self.data.len()
+    }
+
     /// Width in texels.
     pub fn width(&self) -> usize {
         self.width
