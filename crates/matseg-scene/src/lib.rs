@@ -1,4 +1,5 @@
-//! Scene recipes: the 2D composer of SPEC section 2 with exact soft annotations.
+//! Scene recipes: the 2D composer of SPEC section 2 and the 3D scene builder
+//! of SPEC section 3, with exact soft annotations.
 
 #![warn(missing_docs)]
 
@@ -6,6 +7,8 @@ pub mod annotation;
 pub mod compose2d;
 pub mod material;
 pub mod recipe;
+pub mod recipe3d;
+pub mod scene3d;
 
 pub use annotation::{colorize, quantise_weights, QuantisedAnnotation, PALETTE};
 pub use compose2d::{
@@ -13,3 +16,5 @@ pub use compose2d::{
 };
 pub use material::{Fill, MaterialRecord, MaterialSource, ShadingRecord};
 pub use recipe::{CompositionRecipe, Recipe2d, RecipeError, SceneDraws, SceneShape};
+pub use recipe3d::Recipe3d;
+pub use scene3d::{build_scene_3d, Sources3d};
