@@ -3,6 +3,7 @@
 //! the process's peak memory. `scripts/bench-net-pytorch.py` times the same
 //! net and step in PyTorch for the ratio in BENCHMARKS.md.
 
+use crate::cpu_time::{median, peak_rss_mib};
 use crate::train::{parse_device, preset};
 use anyhow::{bail, Result};
 use matseg_net::batch::{Batch, TrainingSample};
@@ -152,22 +153,4 @@ fn time(warmup: usize, repeats: usize, device: Device, mut f: impl FnMut()) -> V
             start.elapsed().as_secs_f64() * 1e3
         })
         .collect()
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        (v[n / 2 - 1] + v[n / 2]) / 2.0
-    }
-}
-
-/// The process's peak resident memory (Linux `VmHWM`), in MiB.
-fn peak_rss_mib() -> Option<f64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib / 1024.0)
 }

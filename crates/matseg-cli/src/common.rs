@@ -58,6 +58,26 @@ pub fn write_material_folder(
     .with_context(|| format!("{}: cannot write material.json", dir.display()))
 }
 
+/// The user's matseg cache: `$MATSEG_CACHE`, else `$XDG_CACHE_HOME/matseg`,
+/// else `~/.cache/matseg`.
+pub fn cache_root() -> Result<PathBuf> {
+    let var = |k: &str| {
+        std::env::var_os(k)
+            .filter(|v| !v.is_empty())
+            .map(PathBuf::from)
+    };
+    if let Some(dir) = var("MATSEG_CACHE") {
+        return Ok(dir);
+    }
+    if let Some(dir) = var("XDG_CACHE_HOME") {
+        return Ok(dir.join("matseg"));
+    }
+    match var("HOME") {
+        Some(home) => Ok(home.join(".cache/matseg")),
+        None => anyhow::bail!("no cache folder: set MATSEG_CACHE"),
+    }
+}
+
 /// Default bound on decoded source photos held in memory, per process.
 pub const DEFAULT_CACHE_MB: usize = 2048;
 

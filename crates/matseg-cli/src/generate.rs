@@ -1,10 +1,22 @@
 //! `matseg generate`.
 
-use crate::common::{init_threads, load_recipe, progress_bar, Libraries, DEFAULT_CACHE_MB};
-use anyhow::{bail, Result};
+use crate::common::{
+    assets_dir, cache_root, init_threads, load_recipe, progress_bar, Libraries, DEFAULT_CACHE_MB,
+};
+use anyhow::{bail, Context, Result};
 use clap::ValueEnum;
-use matseg_data::{generate_dataset, Format, GenerateOptions, JobSlice};
-use std::path::PathBuf;
+use matseg_data::{
+    files_with_extensions, generate_with, Format, GenerateOptions, GenerateReport, Generator2d,
+    Generator3d, JobSlice, SampleMaker,
+};
+use matseg_extract::material_library::find_materials;
+use matseg_image::PhotoLibrary;
+use matseg_render::cache::AssetCache;
+use matseg_render::hdr_io::HDR_EXTENSIONS;
+use matseg_render::mesh_io::MESH_EXTENSIONS;
+use matseg_scene::{Recipe3d, Sources3d};
+use rayon::prelude::*;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// Scene kinds `generate` can make.
@@ -13,6 +25,10 @@ pub enum Kind {
     /// Textures mixed by soft maps over a photo background (SPEC section 2).
     #[value(name = "2d")]
     TwoD,
+    /// Objects carrying several PBR materials split by photo channels, lit
+    /// by HDRIs and path traced (SPEC section 3).
+    #[value(name = "3d")]
+    ThreeD,
 }
 
 /// Output layouts, as command-line values.
@@ -42,9 +58,25 @@ pub struct Args {
     /// Folders of natural photos (maps, backgrounds, shading); default: bundled assets.
     #[arg(long, num_args = 1..)]
     sources: Vec<PathBuf>,
-    /// Folders of uniform textures; default: bundled assets.
+    /// Folders of uniform textures (2d); default: bundled assets.
     #[arg(long, num_args = 1..)]
     textures: Vec<PathBuf>,
+    /// Folders of PBR material folders (3d); default: materials made once
+    /// from the bundled textures into the cache ($MATSEG_CACHE/materials).
+    #[arg(long, num_args = 1..)]
+    materials: Vec<PathBuf>,
+    /// Mesh files or folders of them, OBJ/OFF/PLY (3d); default: procedural shapes only.
+    #[arg(long, num_args = 1..)]
+    meshes: Vec<PathBuf>,
+    /// HDRI files or folders of them, .hdr/.exr (3d); default: the bundled HDRIs.
+    #[arg(long, num_args = 1..)]
+    hdris: Vec<PathBuf>,
+    /// Samples per pixel (3d), overriding the recipe.
+    #[arg(long)]
+    spp: Option<u32>,
+    /// Image side in pixels (3d), overriding the recipe.
+    #[arg(long)]
+    size: Option<u32>,
     /// Output layout.
     #[arg(long, value_enum, default_value = "folders")]
     format: FormatArg,
@@ -58,7 +90,7 @@ pub struct Args {
     /// or JOB_COMPLETION_INDEX, else 0.
     #[arg(long)]
     shard_index: Option<u64>,
-    /// Scene side range LO..HI (inclusive), overriding the recipe.
+    /// Scene side range LO..HI (inclusive, 2d), overriding the recipe.
     #[arg(long)]
     size_range: Option<String>,
     /// TOML recipe overriding any probability or range (see docs/recipe.md).
@@ -74,9 +106,7 @@ pub struct Args {
 
 /// Runs `matseg generate` with the parsed arguments.
 pub fn run(args: Args) -> Result<()> {
-    let Kind::TwoD = args.kind;
     init_threads(args.threads)?;
-    let recipe = load_recipe(args.config.as_deref(), args.size_range.as_deref())?;
     // The job index comes from the job array only when the work is split.
     let index = match args.shard_index {
         Some(i) => i,
@@ -92,7 +122,6 @@ pub fn run(args: Args) -> Result<()> {
     if let Err(e) = job.validate() {
         bail!("{e}");
     }
-    let libs = Libraries::load(&args.sources, &args.textures, args.cache_mb)?;
     let opts = GenerateOptions {
         out: args.out.clone(),
         n: args.n,
@@ -104,11 +133,41 @@ pub fn run(args: Args) -> Result<()> {
         shard_size: args.shard_size,
         job,
     };
-    let bar = progress_bar(opts.samples_in_job(), "samples");
     let start = Instant::now();
-    let report = generate_dataset(&opts, &recipe, libs.sources(), &|k| bar.inc(k))?;
-    bar.finish_and_clear();
-    libs.report_skipped();
+    let report = match args.kind {
+        Kind::TwoD => {
+            let recipe = load_recipe(args.config.as_deref(), args.size_range.as_deref())?;
+            let libs = Libraries::load(&args.sources, &args.textures, args.cache_mb)?;
+            let report = with_progress(
+                &opts,
+                &Generator2d {
+                    recipe: &recipe,
+                    sources: libs.sources(),
+                },
+            )?;
+            libs.report_skipped();
+            report
+        }
+        Kind::ThreeD => {
+            let recipe = load_recipe_3d(args.config.as_deref(), args.size, args.spp)?;
+            let cache = AssetCache::new(args.cache_mb.saturating_mul(1 << 20));
+            let files = Files3d::load(
+                &args.sources,
+                &args.materials,
+                &args.meshes,
+                &args.hdris,
+                &cache,
+            )?;
+            with_progress(
+                &opts,
+                &Generator3d {
+                    recipe: &recipe,
+                    sources: files.sources(),
+                    cache: &cache,
+                },
+            )?
+        }
+    };
     let secs = start.elapsed().as_secs_f64();
     eprintln!(
         "{}: {} samples generated, {} already complete, {:.1} MB written in {:.1} s ({:.1} samples/s)",
@@ -120,4 +179,142 @@ pub fn run(args: Args) -> Result<()> {
         report.generated as f64 / secs.max(1e-9)
     );
     Ok(())
+}
+
+/// Writes the dataset with a progress bar.
+fn with_progress(opts: &GenerateOptions, maker: &dyn SampleMaker) -> Result<GenerateReport> {
+    let bar = progress_bar(opts.samples_in_job(), "samples");
+    let report = generate_with(opts, maker, &|k| bar.inc(k))?;
+    bar.finish_and_clear();
+    Ok(report)
+}
+
+/// The 3D recipe: defaults, then a TOML file, then the size and spp options.
+pub fn load_recipe_3d(
+    config: Option<&Path>,
+    size: Option<u32>,
+    spp: Option<u32>,
+) -> Result<Recipe3d> {
+    let mut recipe = match config {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("{}: cannot read", path.display()))?;
+            toml::from_str(&text)
+                .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.message()))?
+        }
+        None => Recipe3d::default(),
+    };
+    recipe.size = size.unwrap_or(recipe.size);
+    recipe.spp = spp.unwrap_or(recipe.spp);
+    recipe.validate().map_err(anyhow::Error::msg)?;
+    Ok(recipe)
+}
+
+/// The files 3D scenes draw from, each checked by decoding it once (into
+/// the asset cache); unreadable ones are skipped with a warning.
+pub struct Files3d {
+    photos: Vec<PathBuf>,
+    materials: Vec<PathBuf>,
+    meshes: Vec<PathBuf>,
+    hdris: Vec<PathBuf>,
+}
+
+impl Files3d {
+    /// Finds and checks the files; empty lists take the defaults.
+    pub fn load(
+        photos: &[PathBuf],
+        materials: &[PathBuf],
+        meshes: &[PathBuf],
+        hdris: &[PathBuf],
+        cache: &AssetCache,
+    ) -> Result<Self> {
+        let bundled = assets_dir();
+        let photo_roots = if photos.is_empty() {
+            vec![bundled.join("photos")]
+        } else {
+            photos.to_vec()
+        };
+        let (library, report) = PhotoLibrary::scan(&photo_roots, 0)?;
+        for s in &report.skipped {
+            eprintln!("warning: skipped {}: {}", s.path.display(), s.reason);
+        }
+        let photos: Vec<PathBuf> = library.entries().iter().map(|e| e.path.clone()).collect();
+        let material_roots = if materials.is_empty() {
+            vec![bundled_materials()?]
+        } else {
+            materials.to_vec()
+        };
+        let mut found = Vec::new();
+        for root in &material_roots {
+            if !root.is_dir() {
+                bail!("{}: no such folder", root.display());
+            }
+            found.extend(find_materials(root).map_err(anyhow::Error::msg)?);
+        }
+        let materials = keep_readable(found, |p| cache.material(p).map(drop));
+        let meshes = files_with_extensions(meshes, &MESH_EXTENSIONS).map_err(anyhow::Error::msg)?;
+        let meshes = keep_readable(meshes, |p| cache.mesh(p).map(drop));
+        let hdri_roots = if hdris.is_empty() {
+            vec![bundled.join("hdris")]
+        } else {
+            hdris.to_vec()
+        };
+        let hdris =
+            files_with_extensions(&hdri_roots, &HDR_EXTENSIONS).map_err(anyhow::Error::msg)?;
+        let hdris = keep_readable(hdris, |p| cache.hdri(p).map(drop));
+        Ok(Files3d {
+            photos,
+            materials,
+            meshes,
+            hdris,
+        })
+    }
+
+    /// As scene sources.
+    pub fn sources(&self) -> Sources3d<'_> {
+        Sources3d {
+            photos: &self.photos,
+            materials: &self.materials,
+            meshes: &self.meshes,
+            hdris: &self.hdris,
+        }
+    }
+}
+
+/// The paths `check` accepts, warning about the others (in parallel: the
+/// checks decode files).
+fn keep_readable(
+    paths: Vec<PathBuf>,
+    check: impl Fn(&Path) -> Result<(), matseg_render::SceneError> + Sync,
+) -> Vec<PathBuf> {
+    let results: Vec<(PathBuf, Result<(), matseg_render::SceneError>)> = paths
+        .into_par_iter()
+        .map(|p| {
+            let r = check(&p);
+            (p, r)
+        })
+        .collect();
+    let mut kept = Vec::new();
+    let mut skipped = 0;
+    for (path, result) in results {
+        match result {
+            Ok(()) => kept.push(path),
+            Err(e) => {
+                eprintln!("warning: skipped {e}");
+                skipped += 1;
+            }
+        }
+    }
+    if skipped > 0 {
+        eprintln!("warning: {skipped} unreadable files skipped");
+    }
+    kept
+}
+
+/// The default 3D material library: one seamless PBR material per bundled
+/// texture, made once (seed 0) into the cache.
+pub fn bundled_materials() -> Result<PathBuf> {
+    let dir = cache_root()?.join("materials/bundled-textures-seed0");
+    crate::pbr::make_library(&[assets_dir().join("textures")], &dir, 1, 0, true)?;
+    Ok(dir)
 }

@@ -7,6 +7,7 @@ mod allocator;
 mod bench;
 #[cfg(feature = "net")]
 mod bench_net;
+mod bench_render;
 mod bench_set;
 mod common;
 mod cpu_time;
@@ -63,6 +64,8 @@ enum Command {
     BenchSet(bench_set::Command),
     /// Render one 3D scene description (JSON) with its exact material annotation.
     Render(render::Args),
+    /// Measure the path tracer on the reference 3D scene (and save it for Cycles).
+    BenchRender(bench_render::Args),
     /// Measure generator throughput and print a table.
     Bench(bench::Args),
     /// Network weights: `import` converts PyTorch checkpoints to safetensors.
@@ -94,6 +97,7 @@ fn main() -> ExitCode {
         Command::Eval(command) => eval::run(command),
         Command::Render(args) => render::run(args),
         Command::Bench(args) => bench::run(args),
+        Command::BenchRender(args) => bench_render::run(args),
         Command::BenchSet(command) => bench_set::run(command),
         Command::Weights(command) => weights::run(command),
         #[cfg(feature = "net")]

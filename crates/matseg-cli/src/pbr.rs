@@ -36,46 +36,81 @@ pub struct Args {
 /// Runs `matseg pbr`.
 pub fn run(args: Args) -> Result<()> {
     init_threads(args.threads)?;
-    let (library, report) = PhotoLibrary::scan(&args.textures, 0)?;
+    let made = make_library(
+        &args.textures,
+        &args.out,
+        args.per_texture,
+        args.seed,
+        args.seamless,
+    )?;
+    let per_mp = |s: f64| {
+        if made.timing.megapixels > 0.0 {
+            s / made.timing.megapixels
+        } else {
+            0.0
+        }
+    };
+    println!(
+        "{}: {} materials written ({} already there, {} failed); per megapixel of material: {:.3} s making the maps, {:.3} s encoding and writing them",
+        args.out.display(),
+        made.written,
+        made.existing,
+        made.failed,
+        per_mp(made.timing.generate),
+        per_mp(made.timing.write),
+    );
+    Ok(())
+}
+
+/// What [`make_library`] did.
+pub struct LibraryReport {
+    /// Materials written now.
+    pub written: usize,
+    /// Materials found complete.
+    pub existing: usize,
+    /// Materials that failed (each warned about).
+    pub failed: usize,
+    timing: Timing,
+}
+
+/// Makes `per_texture` PBR materials from each texture under `textures`
+/// into `out` (one folder each, skipping complete ones), on the current
+/// rayon pool, with a progress bar and a warning per failure.
+pub fn make_library(
+    textures: &[PathBuf],
+    out: &Path,
+    per_texture: u64,
+    seed: u64,
+    seamless: bool,
+) -> Result<LibraryReport> {
+    let (library, report) = PhotoLibrary::scan(textures, 0)?;
     for s in &report.skipped {
         eprintln!("warning: skipped {}: {}", s.path.display(), s.reason);
     }
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("{}: cannot create", args.out.display()))?;
+    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
     let recipe = PbrRecipe::default();
     let jobs: Vec<(usize, u64)> = (0..library.len())
-        .flat_map(|i| (0..args.per_texture).map(move |j| (i, j)))
-        .filter(|&(i, j)| {
-            !folder(&args.out, &library, i, j)
-                .join("material.json")
-                .is_file()
-        })
+        .flat_map(|i| (0..per_texture).map(move |j| (i, j)))
+        .filter(|&(i, j)| !folder(out, &library, i, j).join("material.json").is_file())
         .collect();
     let bar = progress_bar(jobs.len() as u64, "materials");
     let results: Vec<Result<Timing, String>> = jobs
         .par_iter()
         .map(|&(i, j)| {
-            let result = make_one(
-                &args.out,
-                &library,
-                (i, j),
-                args.seed,
-                args.seamless,
-                &recipe,
-            );
+            let result = make_one(out, &library, (i, j), seed, seamless, &recipe);
             bar.inc(1);
             result.map_err(|e| format!("{e:#}"))
         })
         .collect();
     bar.finish_and_clear();
-    let mut total = Timing::default();
+    let mut timing = Timing::default();
     let mut failed = 0;
     for r in results {
         match r {
             Ok(t) => {
-                total.megapixels += t.megapixels;
-                total.generate += t.generate;
-                total.write += t.write;
+                timing.megapixels += t.megapixels;
+                timing.generate += t.generate;
+                timing.write += t.write;
             }
             Err(e) => {
                 eprintln!("warning: skipped {e}");
@@ -83,22 +118,12 @@ pub fn run(args: Args) -> Result<()> {
             }
         }
     }
-    let per_mp = |s: f64| {
-        if total.megapixels > 0.0 {
-            s / total.megapixels
-        } else {
-            0.0
-        }
-    };
-    println!(
-        "{}: {} materials written ({} already there, {failed} failed); per megapixel of material: {:.3} s making the maps, {:.3} s encoding and writing them",
-        args.out.display(),
-        jobs.len() - failed,
-        library.len() as u64 * args.per_texture - jobs.len() as u64,
-        per_mp(total.generate),
-        per_mp(total.write),
-    );
-    Ok(())
+    Ok(LibraryReport {
+        written: jobs.len() - failed,
+        existing: library.len() * per_texture as usize - jobs.len(),
+        failed,
+        timing,
+    })
 }
 
 /// Where one material's time went (thread seconds) and its size.

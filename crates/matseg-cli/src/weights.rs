@@ -146,21 +146,7 @@ fn import(args: ImportArgs) -> Result<()> {
 
 /// The default cache folder for weights.
 fn default_cache() -> Result<PathBuf> {
-    let var = |k: &str| {
-        std::env::var_os(k)
-            .filter(|v| !v.is_empty())
-            .map(PathBuf::from)
-    };
-    if let Some(dir) = var("MATSEG_CACHE") {
-        return Ok(dir.join("weights"));
-    }
-    if let Some(dir) = var("XDG_CACHE_HOME") {
-        return Ok(dir.join("matseg/weights"));
-    }
-    match var("HOME") {
-        Some(home) => Ok(home.join(".cache/matseg/weights")),
-        None => bail!("no cache folder: set MATSEG_CACHE or pass --cache"),
-    }
+    Ok(crate::common::cache_root()?.join("weights"))
 }
 
 fn fetch(args: FetchArgs) -> Result<()> {

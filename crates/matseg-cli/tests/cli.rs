@@ -911,3 +911,103 @@ fn broken_scenes_are_one_line_errors_naming_the_file() {
     assert_one_line_error(&run(&bad_hdri), "missing.exr");
     assert!(!out.exists(), "nothing written for a broken scene");
 }
+
+/// A material folder with a 4x4 colour map, and a broken one.
+fn write_materials(root: &Path) {
+    let good = root.join("red");
+    std::fs::create_dir_all(&good).unwrap();
+    image::RgbImage::from_pixel(4, 4, image::Rgb([200, 30, 30]))
+        .save(good.join("Color.png"))
+        .unwrap();
+    std::fs::write(good.join("licenses.json"), r#"{"*": "CC0-1.0"}"#).unwrap();
+    let broken = root.join("broken");
+    std::fs::create_dir_all(&broken).unwrap();
+    std::fs::write(broken.join("Color.png"), b"not a png").unwrap();
+}
+
+#[test]
+fn generate_3d_writes_rendered_samples_and_skips_broken_assets() {
+    let dir = tempfile::tempdir().unwrap();
+    let materials = dir.path().join("materials");
+    write_materials(&materials);
+    let meshes = dir.path().join("meshes");
+    std::fs::create_dir_all(&meshes).unwrap();
+    std::fs::write(
+        meshes.join("tetra.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n",
+    )
+    .unwrap();
+    std::fs::write(meshes.join("broken.off"), "OFF\n9 9 0\n").unwrap();
+    let run = |out: &Path, threads: &str| {
+        matseg(&[
+            "generate",
+            "--kind",
+            "3d",
+            "--out",
+            out.to_str().unwrap(),
+            "-n",
+            "3",
+            "--size",
+            "24",
+            "--spp",
+            "2",
+            "--materials",
+            materials.to_str().unwrap(),
+            "--meshes",
+            meshes.to_str().unwrap(),
+            "--threads",
+            threads,
+        ])
+    };
+    let out = dir.path().join("out");
+    let result = run(&out, "2");
+    let err = stderr(&result);
+    assert!(result.status.success(), "{err}");
+    assert!(
+        err.contains("warning: skipped") && err.contains("broken.off"),
+        "{err}"
+    );
+    assert!(
+        err.contains(&materials.join("broken").display().to_string()),
+        "{err}"
+    );
+    for i in 0..3 {
+        let sample = out.join(format!("{i:08}"));
+        assert!(sample.join("Finished.txt").is_file());
+        let meta: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(sample.join("meta.json")).unwrap()).unwrap();
+        assert_eq!(meta["kind"], "3d");
+        assert!(meta["scene"]["objects"]
+            .as_array()
+            .is_some_and(|o| !o.is_empty()));
+        let roi = grey_values(&sample.join("ObjectMaskOcluded.png"));
+        let masks: Vec<image::GrayImage> = (0..)
+            .map(|k| sample.join(format!("mask{k}.png")))
+            .take_while(|p| p.is_file())
+            .map(|p| grey_values(&p))
+            .collect();
+        assert!(
+            masks.len() >= 2,
+            "at least two materials on the main object"
+        );
+        for (j, r) in roi.pixels().enumerate() {
+            let sum: u32 = masks.iter().map(|m| m.as_raw()[j] as u32).sum();
+            assert_eq!(sum, r.0[0] as u32);
+        }
+    }
+    // One thread writes the same bytes; a second run finds everything complete.
+    let again = dir.path().join("again");
+    assert!(run(&again, "1").status.success());
+    for i in 0..3 {
+        let name = format!("{i:08}/RGB__RGB.jpg");
+        assert_eq!(
+            std::fs::read(out.join(&name)).unwrap(),
+            std::fs::read(again.join(&name)).unwrap()
+        );
+    }
+    let resumed = stderr(&run(&out, "2"));
+    assert!(
+        resumed.contains("0 samples generated, 3 already complete"),
+        "{resumed}"
+    );
+}

@@ -2,7 +2,7 @@
 //! and the JSON sidecar.
 
 use matseg_image::io::{encode_jpeg, encode_png_gray};
-use matseg_scene::{quantise_weights, Scene2d, SceneRecord, SourceRef, Sources};
+use matseg_scene::{quantise_weights, QuantisedAnnotation, Scene2d, SourceRef, Sources};
 use serde::{Deserialize, Serialize};
 
 /// JPEG quality of sample images (OpenCV's default, as in the original).
@@ -16,7 +16,7 @@ pub const SIDECAR_VERSION: u32 = 1;
 pub struct SampleMeta {
     /// Sidecar layout version.
     pub version: u32,
-    /// Scene kind (`2d`).
+    /// Scene kind (`2d` or `3d`).
     pub kind: String,
     /// Dataset seed.
     pub seed: u64,
@@ -26,8 +26,9 @@ pub struct SampleMeta {
     pub sources: Vec<SourceRef>,
     /// The distinct licences of those files, sorted.
     pub licences: Vec<String>,
-    /// Every drawn parameter.
-    pub scene: SceneRecord,
+    /// Every drawn parameter: a 2D scene record, or the 3D scene
+    /// description (`matseg render` re-renders it).
+    pub scene: serde_json::Value,
 }
 
 /// The encoded files of one sample.
@@ -57,12 +58,9 @@ impl EncodedSample {
 
 /// Encodes a scene as sample `index` of a dataset seeded with `seed`.
 pub fn encode_scene(scene: &Scene2d, seed: u64, index: u64, sources: Sources<'_>) -> EncodedSample {
-    let (w, h) = (scene.image.width(), scene.image.height());
     let q = quantise_weights(&scene.weights, &scene.background);
     let refs = scene.record.source_refs(sources);
-    let mut licences: Vec<String> = refs.iter().map(|r| r.licence.clone()).collect();
-    licences.sort();
-    licences.dedup();
+    let licences = distinct_licences(&refs);
     let meta = SampleMeta {
         version: SIDECAR_VERSION,
         kind: "2d".into(),
@@ -70,13 +68,36 @@ pub fn encode_scene(scene: &Scene2d, seed: u64, index: u64, sources: Sources<'_>
         index,
         sources: refs,
         licences,
-        scene: scene.record.clone(),
+        scene: serde_json::to_value(&scene.record).expect("record serialises"),
     };
+    encode_sample(index, &scene.image, &q, &meta)
+}
+
+/// The distinct licences of `refs`, sorted.
+pub fn distinct_licences(refs: &[SourceRef]) -> Vec<String> {
+    let mut licences: Vec<String> = refs.iter().map(|r| r.licence.clone()).collect();
+    licences.sort();
+    licences.dedup();
+    licences
+}
+
+/// Encodes an image, its quantised annotation and its sidecar.
+pub fn encode_sample(
+    index: u64,
+    image: &image::RgbImage,
+    annotation: &QuantisedAnnotation,
+    meta: &SampleMeta,
+) -> EncodedSample {
+    let (w, h) = image.dimensions();
     EncodedSample {
         index,
-        jpg: encode_jpeg(&scene.image, JPEG_QUALITY),
-        masks: q.masks.iter().map(|m| encode_png_gray(w, h, m)).collect(),
-        roi: encode_png_gray(w, h, &q.roi),
-        json: serde_json::to_vec_pretty(&meta).expect("sidecar serialises"),
+        jpg: encode_jpeg(image, JPEG_QUALITY),
+        masks: annotation
+            .masks
+            .iter()
+            .map(|m| encode_png_gray(w, h, m))
+            .collect(),
+        roi: encode_png_gray(w, h, &annotation.roi),
+        json: serde_json::to_vec_pretty(meta).expect("sidecar serialises"),
     }
 }

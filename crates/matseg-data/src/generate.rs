@@ -1,11 +1,11 @@
 //! Writing a dataset: N samples, in parallel, resumable, and byte-identical
 //! whatever the thread count or the split into jobs.
 
-use crate::encode::{encode_scene, EncodedSample};
+use crate::encode::EncodedSample;
 use crate::folders;
-use crate::seed::sample_rng;
+use crate::maker::{Generator2d, SampleMaker};
 use crate::wds::{shard_path, ShardWriter};
-use matseg_scene::{generate_2d, Recipe2d, SceneError, Sources};
+use matseg_scene::{Recipe2d, Sources};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -118,8 +118,8 @@ pub struct DatasetManifest {
     pub shard_size: Option<u64>,
     /// Fingerprint of the source files (names and sizes).
     pub sources_fingerprint: String,
-    /// The recipe.
-    pub recipe: Recipe2d,
+    /// The recipe (2D or 3D, as its kind says).
+    pub recipe: serde_json::Value,
 }
 
 /// Name of the manifest file.
@@ -152,8 +152,8 @@ pub enum GenerateError {
     Scene {
         /// Sample index.
         index: u64,
-        /// Why (not a `source`: the message already says it, once).
-        error: SceneError,
+        /// Why.
+        error: String,
     },
     /// The output folder holds a dataset made with other settings.
     #[error("{}: holds a dataset made with other settings ({reason}); choose another --out", path.display())]
@@ -243,25 +243,23 @@ fn check_manifest(path: &Path, want: &DatasetManifest) -> Result<(), GenerateErr
     matseg_image::io::write_atomic(path, &json).map_err(io_err(path))
 }
 
-fn make_sample(
-    recipe: &Recipe2d,
-    sources: Sources<'_>,
-    seed: u64,
-    index: u64,
-) -> Result<EncodedSample, GenerateError> {
-    let mut rng = sample_rng(seed, index);
-    let scene = generate_2d(&mut rng, recipe, sources)
-        .map_err(|error| GenerateError::Scene { index, error })?;
-    Ok(encode_scene(&scene, seed, index, sources))
-}
-
-/// Writes the samples of `opts.job`'s slice of the dataset, skipping complete
-/// ones, on the current rayon pool. `progress(k)` is called as `k` more samples
-/// are done (skipped ones included).
+/// Writes the samples of `opts.job`'s slice of a 2D dataset (see
+/// [`generate_with`]).
 pub fn generate_dataset(
     opts: &GenerateOptions,
     recipe: &Recipe2d,
     sources: Sources<'_>,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<GenerateReport, GenerateError> {
+    generate_with(opts, &Generator2d { recipe, sources }, progress)
+}
+
+/// Writes the samples of `opts.job`'s slice of the dataset `maker` makes,
+/// skipping complete ones, on the current rayon pool. `progress(k)` is
+/// called as `k` more samples are done (skipped ones included).
+pub fn generate_with(
+    opts: &GenerateOptions,
+    maker: &dyn SampleMaker,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<GenerateReport, GenerateError> {
     opts.job.validate().map_err(GenerateError::Options)?;
@@ -272,26 +270,33 @@ pub fn generate_dataset(
     }
     std::fs::create_dir_all(&opts.out).map_err(io_err(&opts.out))?;
     let manifest = DatasetManifest {
-        kind: "2d".into(),
+        kind: maker.kind().into(),
         format: opts.format,
         n: opts.n,
         seed: opts.seed,
         shard_size: (opts.format == Format::Wds).then_some(opts.shard_size),
-        sources_fingerprint: sources_fingerprint(sources),
-        recipe: recipe.clone(),
+        sources_fingerprint: maker.sources_fingerprint(),
+        recipe: maker.recipe(),
     };
     check_manifest(&opts.out.join(MANIFEST_FILE), &manifest)?;
     let mine = |unit: u64| opts.owns_unit(unit);
+    let make = |index: u64| {
+        maker
+            .make(opts.seed, index)
+            .map_err(|error| GenerateError::Scene { index, error })
+    };
     match opts.format {
-        Format::Folders => generate_folders(opts, recipe, sources, progress, &mine),
-        Format::Wds => generate_shards(opts, recipe, sources, progress, &mine),
+        Format::Folders => generate_folders(opts, &make, progress, &mine),
+        Format::Wds => generate_shards(opts, &make, progress, &mine),
     }
 }
 
+/// Makes sample `index`.
+type Make<'a> = dyn Fn(u64) -> Result<EncodedSample, GenerateError> + Sync + 'a;
+
 fn generate_folders(
     opts: &GenerateOptions,
-    recipe: &Recipe2d,
-    sources: Sources<'_>,
+    make: &Make<'_>,
     progress: &(dyn Fn(u64) + Sync),
     mine: &(dyn Fn(u64) -> bool + Sync),
 ) -> Result<GenerateReport, GenerateError> {
@@ -303,7 +308,7 @@ fn generate_folders(
     let bytes = pending
         .par_iter()
         .map(|&index| {
-            let sample = make_sample(recipe, sources, opts.seed, index)?;
+            let sample = make(index)?;
             folders::write_sample(&opts.out, &sample)
                 .map_err(io_err(&folders::sample_dir(&opts.out, index)))?;
             progress(1);
@@ -319,8 +324,7 @@ fn generate_folders(
 
 fn generate_shards(
     opts: &GenerateOptions,
-    recipe: &Recipe2d,
-    sources: Sources<'_>,
+    make: &Make<'_>,
     progress: &(dyn Fn(u64) + Sync),
     mine: &(dyn Fn(u64) -> bool + Sync),
 ) -> Result<GenerateReport, GenerateError> {
@@ -342,7 +346,7 @@ fn generate_shards(
             let last = (first + chunk).min(end);
             let samples: Vec<EncodedSample> = (first..last)
                 .into_par_iter()
-                .map(|index| make_sample(recipe, sources, opts.seed, index))
+                .map(make)
                 .collect::<Result<_, _>>()?;
             for sample in &samples {
                 writer.append(sample).map_err(io_err(&path))?;

@@ -6,14 +6,16 @@
 pub mod encode;
 pub mod folders;
 pub mod generate;
+pub mod maker;
 pub mod reader;
 pub mod seed;
 pub mod wds;
 
-pub use encode::{encode_scene, EncodedSample, SampleMeta};
+pub use encode::{encode_sample, encode_scene, EncodedSample, SampleMeta};
 pub use generate::{
-    generate_dataset, DatasetManifest, Format, GenerateError, GenerateOptions, GenerateReport,
-    JobSlice,
+    generate_dataset, generate_with, DatasetManifest, Format, GenerateError, GenerateOptions,
+    GenerateReport, JobSlice,
 };
+pub use maker::{files_with_extensions, Generator2d, Generator3d, SampleMaker};
 pub use reader::{Dataset, ReadError, Sample, TrainingTargets};
 pub use seed::sample_rng;

@@ -21,7 +21,7 @@ pub use blur::{gaussian_blur, gaussian_blur_region, Region};
 pub use channel::Channel;
 pub use io::ImageIoError;
 pub use levels::{level_values, ChannelWindow, LevelHistogram, LevelTable};
-pub use library::{LibraryError, Photo, PhotoLibrary, ScanReport, SkippedFile};
+pub use library::{licence_of, LibraryError, Photo, PhotoLibrary, ScanReport, SkippedFile};
 pub use mirrors::Mirrors;
 pub use plane::Plane;
 pub use ramp::Ramp;

@@ -270,6 +270,22 @@ impl PhotoLibrary {
     }
 }
 
+/// The licence of a file or folder from the `licenses.json` beside it (by
+/// file name, else its `"*"` entry), or, for a folder, from the one inside it
+/// (`"*"` entry); [`UNKNOWN_LICENCE`] when none says.
+pub fn licence_of(path: &Path) -> String {
+    let inside = path.is_dir().then(|| read_licences(path).ok()).flatten();
+    let from_inside = inside.and_then(|l| l.get("*").cloned());
+    from_inside
+        .or_else(|| {
+            let dir = path.parent()?;
+            let licences = read_licences(dir).ok()?;
+            let name = path.file_name()?.to_str()?;
+            licences.get(name).or_else(|| licences.get("*")).cloned()
+        })
+        .unwrap_or_else(|| UNKNOWN_LICENCE.to_string())
+}
+
 fn read_licences(dir: &Path) -> Result<BTreeMap<String, String>, LibraryError> {
     let path = dir.join(LICENSES_FILE);
     if !path.is_file() {
