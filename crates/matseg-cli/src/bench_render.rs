@@ -171,6 +171,7 @@ pub fn reference_scene(
         seed: 1,
         max_bounces: 6,
         exposure_ev: 0.0,
+        denoise: false,
         camera: Camera {
             position: Vec3::new(0.0, -230.0, 90.0),
             target: Vec3::ZERO,

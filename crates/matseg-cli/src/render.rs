@@ -28,6 +28,9 @@ pub struct Args {
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
+    /// Denoise the image (whatever the scene says).
+    #[arg(long)]
+    denoise: bool,
 }
 
 #[derive(Serialize)]
@@ -52,6 +55,7 @@ pub fn run(args: Args) -> Result<()> {
         anyhow::ensure!(spp >= 1, "--spp must be at least 1");
         description.spp = spp;
     }
+    description.denoise |= args.denoise;
     if let Some(w) = args.width {
         anyhow::ensure!(w >= 1, "--width must be at least 1");
         let h = (description.height as f64 * w as f64 / description.width as f64)

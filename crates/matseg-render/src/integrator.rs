@@ -128,6 +128,9 @@ pub fn render(scene: &LoadedScene) -> Result<Rendered, String> {
         }
         out.roi.push(p.roi * n);
     }
+    if d.denoise {
+        out.radiance = crate::denoise::denoise(&out);
+    }
     Ok(out)
 }
 

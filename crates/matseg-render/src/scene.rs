@@ -35,6 +35,10 @@ pub struct SceneDescription {
     /// Exposure in stops, applied before tone mapping.
     #[serde(default)]
     pub exposure_ev: f32,
+    /// Denoise the image (edge-aware, guided by normals and base colour;
+    /// the annotation is never filtered).
+    #[serde(default)]
+    pub denoise: bool,
     /// The camera.
     pub camera: Camera,
     /// Light from far away.

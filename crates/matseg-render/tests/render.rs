@@ -47,6 +47,7 @@ fn sphere_scene(size: u32, spp: u32) -> SceneDescription {
         seed: 3,
         max_bounces: 6,
         exposure_ev: 0.0,
+        denoise: false,
         camera: Camera {
             position: Vec3::new(0.0, -4.0, 0.0),
             target: Vec3::ZERO,
@@ -262,4 +263,47 @@ fn bundled_hdris_keep_the_dynamic_range_of_their_sources() {
         );
         assert!(src_max / src_mean > 50.0, "{file}: a real HDR range");
     }
+}
+
+#[test]
+fn denoising_brings_a_noisy_render_closer_to_the_converged_one() {
+    // One material: the noise is all in the lighting (the denoiser keeps
+    // texture detail by filtering light divided by base colour, so noise in
+    // a 2-sample estimate of fine texture stays).
+    let mut scene = sphere_scene(32, 2);
+    scene.objects[0].surface = Layout::Material(0);
+    scene.lights.push(matseg_render::environment::Light::Point {
+        position: Vec3::new(-3.0, -3.0, 3.0),
+        intensity: Vec3::splat(20.0),
+    });
+    let noisy = render(&scene.load(Path::new(".")).unwrap()).unwrap();
+    scene.spp = 256;
+    let reference = render(&scene.load(Path::new(".")).unwrap()).unwrap();
+    let denoised = matseg_render::denoise::denoise(&noisy);
+    // Inside the object (coverage at edges is sampling, not noise).
+    let inside: Vec<usize> = (0..noisy.roi.len())
+        .filter(|&i| noisy.roi[i] == 1.0 && reference.roi[i] == 1.0)
+        .collect();
+    let error = |img: &[Vec3]| -> f32 {
+        let d = |i: usize| img[i] - reference.radiance[i];
+        inside.iter().map(|&i| d(i).dot(d(i))).sum::<f32>() / inside.len() as f32
+    };
+    let (before, after) = (error(&noisy.radiance), error(&denoised));
+    assert!(
+        after < 0.25 * before,
+        "mean squared error {before} -> {after}"
+    );
+    // Pixels that see only the uniform sky keep its radiance: the filter
+    // does not bleed the object into them.
+    let sky = (0..noisy.roi.len()).filter(|&i| noisy.albedo[i] == Vec3::ZERO);
+    let mut count = 0;
+    for i in sky {
+        assert!(
+            (denoised[i] - Vec3::splat(0.5)).length() < 1e-2,
+            "pixel {i}: {:?}",
+            denoised[i]
+        );
+        count += 1;
+    }
+    assert!(count > 100);
 }

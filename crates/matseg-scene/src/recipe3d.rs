@@ -13,6 +13,8 @@ pub struct Recipe3d {
     pub spp: u32,
     /// Longest light path, in bounces.
     pub max_bounces: u32,
+    /// Denoise images (edge-aware; the annotation is never filtered).
+    pub denoise: bool,
     /// Probability that the main object is one object ...
     pub p_single_object: f64,
     /// ... of bounding radius in this range.
@@ -98,6 +100,7 @@ impl Default for Recipe3d {
             size: 512,
             spp: 16,
             max_bounces: 6,
+            denoise: false,
             p_single_object: 0.5,
             single_radius: [40.0, 60.0],
             p_merged_objects: 0.5,

@@ -389,6 +389,7 @@ pub fn build_scene_3d<R: Rng + ?Sized>(
         seed,
         max_bounces: recipe.max_bounces,
         exposure_ev: 0.0,
+        denoise: recipe.denoise,
         camera,
         environment,
         lights,
