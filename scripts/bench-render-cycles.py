@@ -7,7 +7,7 @@ DIR/object_K.obj: each material becomes a Principled BSDF (PBR maps through
 a Mapping node for the placement, or constants), each split of a surface
 layout a Mix Shader whose factor is the photo channel through the ramp;
 the HDRI lights the world. Usage (scripts/bench-render-cycles.sh sets up the
-venv): python bench-render-cycles.py DIR [THREADS]
+venv and runs both): python bench-render-cycles.py DIR [THREADS]
 """
 
 import json

@@ -22,6 +22,12 @@ pub struct Args {
     /// Number of 2D samples.
     #[arg(short = 'n', long = "samples", value_name = "N", default_value_t = 36)]
     n: u64,
+    /// Number of 3D samples (0: no 3D page).
+    #[arg(long, default_value_t = 6)]
+    samples_3d: u64,
+    /// Side of the 3D samples, in pixels.
+    #[arg(long, default_value_t = 256)]
+    size_3d: u32,
     /// Seed.
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -55,7 +61,74 @@ pub fn run(args: Args) -> Result<()> {
     // Read the samples back through the dataset reader, so the report shows
     // what a training run would see.
     let dataset = Dataset::open(&samples_dir)?;
-    let previews = args.out.join("previews");
+    let cards = sample_cards(&dataset, &args.out, "samples-2d", |meta| {
+        let hard = meta["scene"]["hard"].as_bool().unwrap_or(false);
+        (if hard { "hard" } else { "soft" }).to_string()
+    })?;
+    let html = format!(
+        r#"<!doctype html>
+<html><head><meta charset="utf-8"><title>matseg demo</title>
+{style}</head><body>
+<h1>matseg demo: 2D scenes</h1>
+<p>See also <a href="materials.html">textures and PBR materials</a> extracted from the bundled photos{scenes_3d}{net_link}.</p>
+<p>{n} scenes generated from the bundled CC0 photos and textures (seed {seed}). Left: the image;
+right: its annotation, each material in its own colour, mixtures as mixed colours, background black.
+Samples are in MatSeg folder layout under <code>samples-2d/</code>.</p>
+<div class="grid">
+{cards}</div></body></html>
+"#,
+        style = STYLE,
+        n = dataset.len(),
+        seed = args.seed,
+        scenes_3d = if args.samples_3d > 0 {
+            r#", <a href="scenes-3d.html">3D scenes</a> path traced with their annotations"#
+        } else {
+            ""
+        },
+        net_link = if trains_the_net(&args) {
+            r#", and <a href="net.html">the net</a> trained on scenes like these, segmenting the photos"#
+        } else {
+            ""
+        },
+    );
+    let index = args.out.join("index.html");
+    write_atomic(&index, html.as_bytes()).with_context(|| index.display().to_string())?;
+    materials_page(&args.out, args.seed)?;
+    if args.samples_3d > 0 {
+        crate::demo_3d::scenes_page(&args.out, args.samples_3d, args.size_3d, args.seed)?;
+    }
+    #[cfg(feature = "net")]
+    if trains_the_net(&args) {
+        crate::demo_net::net_page(&args.out, args.train_steps, args.seed)?;
+    }
+    eprintln!(
+        "{}: demo report with {} samples",
+        index.display(),
+        dataset.len()
+    );
+    Ok(())
+}
+
+/// The report pages' shared style sheet.
+pub const STYLE: &str = r#"<style>
+body { font-family: sans-serif; margin: 1.5em; background: #fafafa; }
+.grid { display: grid; grid-template-columns: repeat(auto-fill, minmax(420px, 1fr)); gap: 1em; }
+figure { margin: 0; background: #fff; padding: .5em; border: 1px solid #ddd; }
+.pair { display: grid; grid-template-columns: 1fr 1fr; gap: 4px; }
+.pair img { width: 100%; height: 200px; object-fit: contain; background: #000; }
+figcaption { font-size: .8em; color: #444; margin-top: .3em; }
+</style>"#;
+
+/// One figure per sample of `dataset` (stored under `out/sub`): the image
+/// beside its colour annotation (written to `out/previews/SUB_KEY_annotation.png`),
+/// captioned with size, material count, `describe(sidecar)` and licences.
+pub fn sample_cards(
+    dataset: &Dataset,
+    out: &Path,
+    sub: &str,
+    describe: impl Fn(&serde_json::Value) -> String,
+) -> Result<String> {
+    let previews = out.join("previews");
     std::fs::create_dir_all(&previews).with_context(|| previews.display().to_string())?;
     let mut cards = String::new();
     for sample in dataset.iter() {
@@ -67,19 +140,21 @@ pub fn run(args: Args) -> Result<()> {
             .map(|m| m.as_raw().iter().map(|&v| v as f32 / 255.0).collect())
             .collect();
         let slices: Vec<&[f32]> = masks.iter().map(Vec::as_slice).collect();
-        let name = format!("{}_annotation.png", sample.key);
+        let prefix = if sub == "samples-2d" {
+            String::new()
+        } else {
+            format!("{sub}_")
+        };
+        let name = format!("{prefix}{}_annotation.png", sample.key);
         let path = previews.join(&name);
         write_atomic(
             &path,
             &encode_png_rgb(&colorize(w as usize, h as usize, &slices)),
         )
         .with_context(|| path.display().to_string())?;
-        let meta = sample.meta.as_ref();
-        let hard = meta
-            .and_then(|m| m["scene"]["hard"].as_bool())
-            .unwrap_or(false);
-        let licences = meta
-            .and_then(|m| m["licences"].as_array())
+        let meta = sample.meta.clone().unwrap_or_default();
+        let licences = meta["licences"]
+            .as_array()
             .map(|l| {
                 l.iter()
                     .filter_map(|v| v.as_str())
@@ -89,54 +164,15 @@ pub fn run(args: Args) -> Result<()> {
             .unwrap_or_default();
         write!(
             cards,
-            r#"<figure><div class="pair"><img src="samples-2d/{key}/RGB__RGB.jpg"><img src="previews/{name}"></div>
-<figcaption>#{key}: {w}x{h}, {k} material(s), {kind}; {licences}</figcaption></figure>
+            r#"<figure><div class="pair"><img src="{sub}/{key}/RGB__RGB.jpg"><img src="previews/{name}"></div>
+<figcaption>#{key}: {w}x{h}, {k} material(s), {what}; {licences}</figcaption></figure>
 "#,
             key = sample.key,
             k = sample.masks.len(),
-            kind = if hard { "hard" } else { "soft" },
+            what = describe(&meta),
         )?;
     }
-    let html = format!(
-        r#"<!doctype html>
-<html><head><meta charset="utf-8"><title>matseg demo</title>
-<style>
-body {{ font-family: sans-serif; margin: 1.5em; background: #fafafa; }}
-.grid {{ display: grid; grid-template-columns: repeat(auto-fill, minmax(420px, 1fr)); gap: 1em; }}
-figure {{ margin: 0; background: #fff; padding: .5em; border: 1px solid #ddd; }}
-.pair {{ display: grid; grid-template-columns: 1fr 1fr; gap: 4px; }}
-.pair img {{ width: 100%; height: 200px; object-fit: contain; background: #000; }}
-figcaption {{ font-size: .8em; color: #444; margin-top: .3em; }}
-</style></head><body>
-<h1>matseg demo: 2D scenes</h1>
-<p>See also <a href="materials.html">textures and PBR materials</a> extracted from the bundled photos{net_link}.</p>
-<p>{n} scenes generated from the bundled CC0 photos and textures (seed {seed}). Left: the image;
-right: its annotation, each material in its own colour, mixtures as mixed colours, background black.
-Samples are in MatSeg folder layout under <code>samples-2d/</code>.</p>
-<div class="grid">
-{cards}</div></body></html>
-"#,
-        n = dataset.len(),
-        seed = args.seed,
-        net_link = if trains_the_net(&args) {
-            r#", and <a href="net.html">the net</a> trained on scenes like these, segmenting the photos"#
-        } else {
-            ""
-        },
-    );
-    let index = args.out.join("index.html");
-    write_atomic(&index, html.as_bytes()).with_context(|| index.display().to_string())?;
-    materials_page(&args.out, args.seed)?;
-    #[cfg(feature = "net")]
-    if trains_the_net(&args) {
-        crate::demo_net::net_page(&args.out, args.train_steps, args.seed)?;
-    }
-    eprintln!(
-        "{}: demo report with {} samples",
-        index.display(),
-        dataset.len()
-    );
-    Ok(())
+    Ok(cards)
 }
 
 /// Whether the demo trains the net and writes `net.html`.

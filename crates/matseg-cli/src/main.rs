@@ -12,6 +12,7 @@ mod bench_set;
 mod common;
 mod cpu_time;
 mod demo;
+mod demo_3d;
 #[cfg(feature = "net")]
 mod demo_net;
 mod eval;

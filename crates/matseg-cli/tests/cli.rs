@@ -303,7 +303,7 @@ fn demo_writes_a_page_showing_each_sample_and_its_annotation() {
     let out = dir.path().join("demo");
     let demo = Command::new(env!("CARGO_BIN_EXE_matseg"))
         .args(["demo", "--out", out.to_str().unwrap(), "-n", "2"])
-        .args(["--train-steps", "2"])
+        .args(["--train-steps", "2", "--samples-3d", "1", "--size-3d", "32"])
         .env("MATSEG_CACHE", &cache)
         .output()
         .unwrap();
@@ -331,6 +331,14 @@ fn demo_writes_a_page_showing_each_sample_and_its_annotation() {
         assert_eq!((img.width(), img.height()), (ann.width(), ann.height()));
     }
     assert!(!html.contains("00000002"));
+    let scenes = std::fs::read_to_string(dir.join("scenes-3d.html")).unwrap();
+    for image in [
+        "samples-3d/00000000/RGB__RGB.jpg",
+        "previews/samples-3d_00000000_annotation.png",
+    ] {
+        assert!(scenes.contains(image), "{image} missing from the 3D page");
+        assert_eq!(image::open(dir.join(image)).unwrap().width(), 32);
+    }
 }
 
 #[test]
