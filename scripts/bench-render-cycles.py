@@ -166,7 +166,13 @@ def main():
     s.cycles.samples = scene["spp"]
     s.cycles.use_adaptive_sampling = False
     s.cycles.use_denoising = False
-    s.cycles.max_bounces = scene.get("max_bounces", 6)
+    # matseg's one limit on path length, for every kind of bounce (Cycles'
+    # defaults would stop diffuse and glossy paths at 4).
+    bounces = scene.get("max_bounces", 6)
+    s.cycles.max_bounces = bounces
+    s.cycles.diffuse_bounces = bounces
+    s.cycles.glossy_bounces = bounces
+    s.cycles.transmission_bounces = bounces
     s.render.threads_mode = "FIXED"
     s.render.threads = threads
     s.render.resolution_x = scene["width"]

@@ -87,6 +87,8 @@ pub fn render(scene: &LoadedScene) -> Result<Rendered, String> {
     let rows: Vec<Vec<PixelSums>> = (0..h)
         .into_par_iter()
         .map(|y| {
+            // Layout weights of a hit, reused by every path of the row.
+            let mut weights: Vec<(usize, f32)> = Vec::with_capacity(8);
             (0..w)
                 .map(|x| {
                     let mut rng = Pcg32::new(d.seed, (y * w + x) as u64);
@@ -100,7 +102,7 @@ pub fn render(scene: &LoadedScene) -> Result<Rendered, String> {
                     for s in 0..d.spp {
                         let [jx, jy] = stratified_2d(s, d.spp, rng.next_2d());
                         let ray = rays.ray(x as f32 + jx, y as f32 + jy);
-                        tracer.sample(ray, &mut rng, &mut sums);
+                        tracer.sample(ray, &mut rng, &mut sums, &mut weights);
                     }
                     sums
                 })
@@ -150,7 +152,13 @@ impl Tracer<'_> {
     }
 
     /// Traces one camera path, adding into the pixel's sums.
-    fn sample(&self, mut ray: Ray, rng: &mut Pcg32, sums: &mut PixelSums) {
+    fn sample(
+        &self,
+        mut ray: Ray,
+        rng: &mut Pcg32,
+        sums: &mut PixelSums,
+        weights: &mut Vec<(usize, f32)>,
+    ) {
         let scene = self.scene;
         let d = &scene.description;
         let env = &scene.environment;
@@ -158,7 +166,6 @@ impl Tracer<'_> {
         let mut radiance = Vec3::ZERO;
         let mut indirect = Vec3::ZERO;
         let mut bsdf_pdf = 0.0f32;
-        let mut weights: Vec<(usize, f32)> = Vec::with_capacity(8);
         for bounce in 0..=d.max_bounces {
             let mut add = |v: Vec3| {
                 if bounce == 0 {
@@ -187,10 +194,10 @@ impl Tracer<'_> {
             let sp = scene.surface_point(&hit, p);
             let object = &scene.objects[sp.object];
             weights.clear();
-            scene.layout_weights(&object.surface, sp.uv, 1.0, &mut weights);
+            scene.layout_weights(&object.surface, sp.uv, 1.0, weights);
             let total: f32 = weights.iter().map(|w| w.1).sum();
             if bounce == 0 && object.main {
-                for &(m, w) in &weights {
+                for &(m, w) in weights.iter() {
                     if let Some(k) = self.channel_of[m] {
                         sums.fractions[k] += w / total;
                     }

@@ -260,11 +260,32 @@ impl Aabb {
     /// within `(0, t_max)`; `inv_dir` is `1 / ray.dir` per component.
     #[inline]
     pub fn hit(&self, origin: Vec3, inv_dir: Vec3, t_max: f32) -> Option<f32> {
+        // Plain comparisons rather than f32::min/max, whose NaN rules cost
+        // extra instructions in the hottest test of the renderer (a NaN from
+        // 0 * inf on a slab plane just picks the other operand).
+        #[inline(always)]
+        fn lo(a: f32, b: f32) -> f32 {
+            if a < b {
+                a
+            } else {
+                b
+            }
+        }
+        #[inline(always)]
+        fn hi(a: f32, b: f32) -> f32 {
+            if a > b {
+                a
+            } else {
+                b
+            }
+        }
         let t0 = (self.min - origin).mul_elem(inv_dir);
         let t1 = (self.max - origin).mul_elem(inv_dir);
-        let near = t0.min(t1).max_elem().max(0.0);
-        let far = t0.max(t1);
-        let far = far.x.min(far.y).min(far.z).min(t_max);
+        let near = hi(hi(lo(t0.x, t1.x), lo(t0.y, t1.y)), hi(lo(t0.z, t1.z), 0.0));
+        let far = lo(
+            lo(hi(t0.x, t1.x), hi(t0.y, t1.y)),
+            lo(hi(t0.z, t1.z), t_max),
+        );
         (near <= far).then_some(near)
     }
 }

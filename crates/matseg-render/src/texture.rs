@@ -90,13 +90,26 @@ impl Texture {
     /// v = 0 is the bottom row, as in OBJ and Blender.
     #[inline]
     fn taps(&self, u: f32, v: f32) -> ([usize; 4], [f32; 4]) {
+        // Wrap into one repeat first (no integer division in this hot path):
+        // the left/top tap is then in -1..n-1 and the right/bottom one in 0..n.
+        let (u, v) = (u - u.floor(), v - v.floor());
         let x = u * self.width as f32 - 0.5;
         let y = (1.0 - v) * self.height as f32 - 0.5;
         let (fx, fy) = (x.floor(), y.floor());
         let (tx, ty) = (x - fx, y - fy);
-        let wrap = |i: f32, n: usize| (i as i64).rem_euclid(n as i64) as usize;
+        let wrap = |i: f32, n: usize| {
+            let i = i as i64;
+            if i < 0 {
+                n - 1
+            } else if i as usize >= n {
+                i as usize - n
+            } else {
+                i as usize
+            }
+        };
         let (x0, y0) = (wrap(fx, self.width), wrap(fy, self.height));
-        let (x1, y1) = ((x0 + 1) % self.width, (y0 + 1) % self.height);
+        let next = |i: usize, n: usize| if i + 1 == n { 0 } else { i + 1 };
+        let (x1, y1) = (next(x0, self.width), next(y0, self.height));
         let c = self.channels;
         (
             [
