@@ -106,16 +106,9 @@ pub fn reference_scene(
                 offset: [0.1, 0.3],
             };
             descriptions.push(match index % 3 {
-                0 | 1 => MaterialDescription {
-                    pbr: Some(materials[index % materials.len()].clone()),
-                    base_color: Vec3::splat(0.5),
-                    roughness: 0.5,
-                    metallic: 0.0,
-                    transmission: 0.0,
-                    ior: 1.45,
-                    bump: 0.02,
-                    placement,
-                },
+                0 | 1 => {
+                    MaterialDescription::pbr(materials[index % materials.len()].clone(), placement)
+                }
                 _ => MaterialDescription {
                     pbr: None,
                     base_color: Vec3::new(0.9, 0.6 + 0.05 * i as f32, 0.3),

@@ -3,10 +3,9 @@
 
 use anyhow::{Context, Result};
 use matseg_image::io::{encode_png_gray, encode_png_rgb, write_atomic};
-use matseg_image::Plane;
 use matseg_render::hdr_io::{encode_radiance, HdrImage};
 use matseg_render::{render, tone_map, SceneDescription};
-use matseg_scene::{colorize, quantise_weights};
+use matseg_scene::{colorize, quantise_fractions};
 use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -101,13 +100,7 @@ pub fn run(args: Args) -> Result<()> {
             pixels: out.radiance.clone(),
         }),
     )?;
-    let weights: Vec<Plane> = out
-        .fractions
-        .iter()
-        .map(|f| Plane::from_vec(w, h, f.clone()))
-        .collect();
-    let background = Plane::from_vec(w, h, out.roi.iter().map(|r| 1.0 - r).collect());
-    let masks = quantise_weights(&weights, &background);
+    let masks = quantise_fractions(w, h, &out.fractions, &out.roi);
     for (k, mask) in masks.masks.iter().enumerate() {
         write(
             &format!("mask{k}.png"),

@@ -7,12 +7,12 @@ use crate::encode::{
 };
 use crate::generate::sources_fingerprint;
 use crate::seed::sample_rng;
-use matseg_image::{licence_of, Plane};
+use matseg_image::licence_of;
 use matseg_render::cache::AssetCache;
 use matseg_render::scene::{MeshSource, SceneDescription};
 use matseg_render::{render, tone_map};
 use matseg_scene::{
-    build_scene_3d, generate_2d, quantise_weights, Recipe2d, Recipe3d, SourceRef, Sources,
+    build_scene_3d, generate_2d, quantise_fractions, Recipe2d, Recipe3d, SourceRef, Sources,
     Sources3d,
 };
 use rand::Rng;
@@ -134,13 +134,7 @@ impl SampleMaker for Generator3d<'_> {
         let out = render(&loaded)?;
         let (w, h) = (out.width, out.height);
         let image = tone_map(&out.radiance, w, h, scene.exposure_ev);
-        let weights: Vec<Plane> = out
-            .fractions
-            .iter()
-            .map(|f| Plane::from_vec(w, h, f.clone()))
-            .collect();
-        let background = Plane::from_vec(w, h, out.roi.iter().map(|r| 1.0 - r).collect());
-        let annotation = quantise_weights(&weights, &background);
+        let annotation = quantise_fractions(w, h, &out.fractions, &out.roi);
         let refs = scene_sources(&scene);
         let meta = SampleMeta {
             version: SIDECAR_VERSION,

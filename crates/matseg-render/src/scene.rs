@@ -118,6 +118,23 @@ pub struct MaterialDescription {
     pub placement: Placement,
 }
 
+impl MaterialDescription {
+    /// The PBR material in folder `dir` at `placement` (the constants, used
+    /// for maps the folder lacks, at their defaults).
+    pub fn pbr(dir: PathBuf, placement: Placement) -> Self {
+        MaterialDescription {
+            pbr: Some(dir),
+            base_color: default_base(),
+            roughness: half(),
+            metallic: 0.0,
+            transmission: 0.0,
+            ior: default_ior(),
+            bump: default_bump(),
+            placement,
+        }
+    }
+}
+
 fn default_base() -> Vec3 {
     Vec3::splat(0.5)
 }

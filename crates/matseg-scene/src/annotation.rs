@@ -50,6 +50,22 @@ pub fn quantise_weights(weights: &[Plane], background: &Plane) -> QuantisedAnnot
     }
 }
 
+/// Quantises a render's annotation: per-material fractions and the ROI
+/// (row-major, `width x height`), the background being `1 - roi`.
+pub fn quantise_fractions(
+    width: usize,
+    height: usize,
+    fractions: &[Vec<f32>],
+    roi: &[f32],
+) -> QuantisedAnnotation {
+    let weights: Vec<Plane> = fractions
+        .iter()
+        .map(|f| Plane::from_vec(width, height, f.clone()))
+        .collect();
+    let background = Plane::from_vec(width, height, roi.iter().map(|r| 1.0 - r).collect());
+    quantise_weights(&weights, &background)
+}
+
 /// Distinct colours for material previews, in material order.
 pub const PALETTE: [[u8; 3]; 20] = [
     [230, 25, 75],

@@ -10,7 +10,9 @@ pub mod recipe;
 pub mod recipe3d;
 pub mod scene3d;
 
-pub use annotation::{colorize, quantise_weights, QuantisedAnnotation, PALETTE};
+pub use annotation::{
+    colorize, quantise_fractions, quantise_weights, QuantisedAnnotation, PALETTE,
+};
 pub use compose2d::{
     generate_2d, BackgroundRecord, Scene2d, SceneError, SceneRecord, SourceRef, Sources,
 };

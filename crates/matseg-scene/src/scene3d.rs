@@ -98,6 +98,32 @@ fn mesh_source<R: Rng + ?Sized>(
     }
 }
 
+/// An object of bounding radius `radius` at `translation`, its mesh and
+/// rotation drawn.
+fn random_object<R: Rng + ?Sized>(
+    rng: &mut R,
+    recipe: &Recipe3d,
+    sources: Sources3d,
+    radius: f32,
+    translation: Vec3,
+    surface: Layout,
+    main: bool,
+) -> ObjectDescription {
+    let (mesh, uv_projection) = mesh_source(rng, recipe, sources);
+    ObjectDescription {
+        mesh,
+        uv_projection,
+        radius: Some(radius),
+        transform: TransformDescription {
+            scale: 1.0,
+            rotation_deg: random_rotation(rng),
+            translation,
+        },
+        surface,
+        main,
+    }
+}
+
 fn random_rotation<R: Rng + ?Sized>(rng: &mut R) -> Vec3 {
     Vec3::new(
         rng.random_range(0.0..360.0),
@@ -119,16 +145,8 @@ fn material<R: Rng + ?Sized>(
         offset: [rng.random(), rng.random()],
     };
     if !sources.materials.is_empty() && rng.random_bool(recipe.p_pbr) {
-        return MaterialDescription {
-            pbr: Some(sources.materials.choose(rng).expect("not empty").clone()),
-            base_color: Vec3::splat(0.5),
-            roughness: 0.5,
-            metallic: 0.0,
-            transmission: 0.0,
-            ior: 1.45,
-            bump: 0.02,
-            placement,
-        };
+        let dir = sources.materials.choose(rng).expect("not empty").clone();
+        return MaterialDescription::pbr(dir, placement);
     }
     let metal = rng.random_bool(recipe.p_metal);
     let transmissive = !metal && rng.random_bool(recipe.p_transmissive);
@@ -240,7 +258,6 @@ pub fn build_scene_3d<R: Rng + ?Sized>(
     let mut extent = 0f32;
     for i in 0..parts {
         let radius = uniform(rng, radius_range);
-        let (mesh, uv_projection) = mesh_source(rng, recipe, sources);
         let offset = if i == 0 && parts == 1 {
             Vec3::ZERO
         } else {
@@ -253,18 +270,15 @@ pub fn build_scene_3d<R: Rng + ?Sized>(
             )
         };
         extent = extent.max(offset.length() + radius);
-        objects.push(ObjectDescription {
-            mesh,
-            uv_projection,
-            radius: Some(radius),
-            transform: TransformDescription {
-                scale: 1.0,
-                rotation_deg: random_rotation(rng),
-                translation: offset,
-            },
-            surface: layout.clone(),
-            main: true,
-        });
+        objects.push(random_object(
+            rng,
+            recipe,
+            sources,
+            radius,
+            offset,
+            layout.clone(),
+            true,
+        ));
     }
 
     // The world: ground, distractors, lights, environment.
@@ -289,7 +303,6 @@ pub fn build_scene_3d<R: Rng + ?Sized>(
     if rng.random_bool(recipe.p_distractors) {
         for _ in 0..count(rng, recipe.distractor_count) {
             let radius = uniform(rng, recipe.distractor_radius);
-            let (mesh, uv_projection) = mesh_source(rng, recipe, sources);
             materials.push(material(rng, recipe, sources));
             let d = extent + radius + rng.random_range(0.0..60.0);
             let a: f32 = rng.random_range(0.0..std::f32::consts::TAU);
@@ -298,18 +311,17 @@ pub fn build_scene_3d<R: Rng + ?Sized>(
             } else {
                 rng.random_range(-extent..extent)
             };
-            objects.push(ObjectDescription {
-                mesh,
-                uv_projection,
-                radius: Some(radius),
-                transform: TransformDescription {
-                    scale: 1.0,
-                    rotation_deg: random_rotation(rng),
-                    translation: Vec3::new(d * a.cos(), d * a.sin(), z),
-                },
-                surface: Layout::Material(materials.len() - 1),
-                main: false,
-            });
+            let translation = Vec3::new(d * a.cos(), d * a.sin(), z);
+            let surface = Layout::Material(materials.len() - 1);
+            objects.push(random_object(
+                rng,
+                recipe,
+                sources,
+                radius,
+                translation,
+                surface,
+                false,
+            ));
         }
     }
     let mut lights = Vec::new();
