@@ -81,8 +81,8 @@ enum Command {
     /// Measure the net's forward and training-step time on one batch size.
     #[cfg(feature = "net")]
     BenchNet(bench_net::Args),
-    /// Print the default 2D recipe as TOML (edit it and pass it as --config).
-    Recipe,
+    /// Print a default recipe (--kind 2d or 3d) as TOML (edit it and pass it as --config).
+    Recipe(recipe::Args),
 }
 
 fn main() -> ExitCode {
@@ -107,7 +107,7 @@ fn main() -> ExitCode {
         Command::Segment(args) => segment::run(args),
         #[cfg(feature = "net")]
         Command::BenchNet(args) => bench_net::run(args),
-        Command::Recipe => recipe::run(),
+        Command::Recipe(args) => recipe::run(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -186,6 +186,12 @@ fn printed_recipe_round_trips_through_config() {
         config.to_str().unwrap(),
     ]);
     assert!(out_dir.join("00000000/Finished.txt").is_file());
+
+    let out = matseg_ok(&["recipe", "--kind", "3d"]);
+    let text = String::from_utf8(out.stdout).unwrap();
+    let parsed: matseg_scene::Recipe3d = toml::from_str(&text).unwrap();
+    assert_eq!(parsed, matseg_scene::Recipe3d::default());
+    assert!(text.contains("p_hard_split = 0.75\n"), "{text}");
 }
 
 #[test]
