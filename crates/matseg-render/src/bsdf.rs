@@ -56,9 +56,9 @@ pub struct BsdfSample {
     pub pdf: f32,
 }
 
-/// Probability of sampling the plastic's coating rather than its base.
-fn plastic_specular_probability(base: Vec3, eta: f32, cos_o: f32) -> f32 {
-    let f = fresnel_dielectric(cos_o, eta);
+/// Probability of sampling the plastic's coating rather than its base, from
+/// the coating's reflectance `f` toward the viewer.
+fn plastic_specular_probability(base: Vec3, f: f32) -> f32 {
     let diffuse = (1.0 - f) * base.luminance();
     (f / (f + diffuse).max(1e-6)).clamp(0.1, 0.9)
 }
@@ -74,10 +74,10 @@ impl Lobe {
                 let wm = (wo + wi).normalized();
                 let f = fresnel_dielectric(wo.dot(wm), eta);
                 let spec = ggx.d(wm) * ggx.g(wo, wi) * f / (4.0 * wo.z * wi.z);
-                let through =
-                    (1.0 - fresnel_dielectric(wo.z, eta)) * (1.0 - fresnel_dielectric(wi.z, eta));
+                let f_o = fresnel_dielectric(wo.z, eta);
+                let through = (1.0 - f_o) * (1.0 - fresnel_dielectric(wi.z, eta));
                 let value = base * (FRAC_1_PI * through) + Vec3::splat(spec);
-                let ps = plastic_specular_probability(base, eta, wo.z);
+                let ps = plastic_specular_probability(base, f_o);
                 let pdf = ps * ggx.visible_pdf(wo, wm) / (4.0 * wo.dot(wm))
                     + (1.0 - ps) * wi.z * FRAC_1_PI;
                 (value, pdf)
@@ -103,7 +103,7 @@ impl Lobe {
                 if wo.z <= 0.0 {
                     return None;
                 }
-                if uc < plastic_specular_probability(base, eta, wo.z) {
+                if uc < plastic_specular_probability(base, fresnel_dielectric(wo.z, eta)) {
                     reflect(wo, ggx.sample_visible(wo, u))
                 } else {
                     crate::sampling::cosine_hemisphere(u)

@@ -148,17 +148,35 @@ impl Environment {
         top.lerp(bottom, ty) * self.strength
     }
 
-    /// Radiance from unit direction `d`, constant over each pixel (the
-    /// function [`Environment::sample`] and [`Environment::pdf`] describe;
-    /// light sampling and the paths it is weighed against use this one).
-    pub fn radiance_nearest(&self, d: Vec3) -> Vec3 {
+    /// The pixel unit direction `d` falls in, and the density
+    /// [`Environment::sample`] gives `d`.
+    #[inline]
+    fn lookup(&self, d: Vec3) -> (usize, f32) {
         let (u, v) = self.uv(d);
         let (x, y) = self.pixel(u, v);
-        self.map.image.pixels[y * self.map.image.width + x] * self.strength
+        let (w, h) = (self.map.image.width, self.map.image.height);
+        let i = y * w + x;
+        let st = (1.0 - d.z * d.z).max(0.0).sqrt();
+        if self.map.table.total() <= 0.0 || st <= 0.0 {
+            return (i, 0.0);
+        }
+        (
+            i,
+            self.map.probability[i] * (w * h) as f32 / (2.0 * PI * PI * st),
+        )
+    }
+
+    /// Radiance from unit direction `d`, constant over each pixel (the
+    /// function light sampling draws from; the paths it is weighed against
+    /// use this one), and the density [`Environment::sample`] gives `d`:
+    /// one lookup for both.
+    pub fn radiance_and_pdf(&self, d: Vec3) -> (Vec3, f32) {
+        let (i, pdf) = self.lookup(d);
+        (self.map.image.pixels[i] * self.strength, pdf)
     }
 
     /// Draws a direction proportionally to luminance: the direction, its
-    /// radiance (as [`Environment::radiance_nearest`]) and its solid-angle
+    /// radiance (as [`Environment::radiance_and_pdf`]) and its solid-angle
     /// density.
     pub fn sample(&self, u: [f32; 2]) -> Option<(Vec3, Vec3, f32)> {
         let map = &self.map;
@@ -188,17 +206,7 @@ impl Environment {
 
     /// The density [`Environment::sample`] gives unit direction `d`.
     pub fn pdf(&self, d: Vec3) -> f32 {
-        if self.map.table.total() <= 0.0 {
-            return 0.0;
-        }
-        let (u, v) = self.uv(d);
-        let (x, y) = self.pixel(u, v);
-        let st = (1.0 - d.z * d.z).max(0.0).sqrt();
-        if st <= 0.0 {
-            return 0.0;
-        }
-        let (w, h) = (self.map.image.width, self.map.image.height);
-        self.map.probability[y * w + x] * (w * h) as f32 / (2.0 * PI * PI * st)
+        self.lookup(d).1
     }
 
     /// Largest and mean radiance over the sphere (solid-angle weighted).

@@ -177,15 +177,11 @@ impl Tracer<'_> {
             let Some(hit) = self.bvh.intersect(&ray, 0.0, f32::INFINITY) else {
                 // Camera rays see the smooth map; paths see the piecewise
                 // constant one that light sampling draws from.
-                let le = if bounce == 0 {
-                    env.radiance(ray.dir)
+                let (le, w) = if bounce == 0 {
+                    (env.radiance(ray.dir), 1.0)
                 } else {
-                    env.radiance_nearest(ray.dir)
-                };
-                let w = if bounce == 0 {
-                    1.0
-                } else {
-                    power_heuristic(bsdf_pdf, env.pdf(ray.dir))
+                    let (le, light_pdf) = env.radiance_and_pdf(ray.dir);
+                    (le, power_heuristic(bsdf_pdf, light_pdf))
                 };
                 add(throughput.mul_elem(le) * w);
                 break;
