@@ -299,11 +299,11 @@ impl MaterialTextures {
     pub fn read(dir: &Path) -> Result<Self, SceneError> {
         let maps = matseg_extract::material_library::read_material(dir).map_err(SceneError)?;
         Ok(MaterialTextures {
-            color: Some(Texture::from_rgb(&maps.color)),
-            roughness: maps.roughness.as_ref().map(Texture::from_gray),
-            metalness: maps.metalness.as_ref().map(Texture::from_gray),
-            normal: maps.normal.as_ref().map(Texture::from_rgb),
-            height: maps.height.as_ref().map(Texture::from_gray),
+            color: Some(Texture::from_rgb(maps.color)),
+            roughness: maps.roughness.map(Texture::from_gray),
+            metalness: maps.metalness.map(Texture::from_gray),
+            normal: maps.normal.map(Texture::from_rgb),
+            height: maps.height.map(Texture::from_gray),
         })
     }
 

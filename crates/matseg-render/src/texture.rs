@@ -40,33 +40,33 @@ pub fn linear_to_srgb(v: f32) -> f32 {
 }
 
 impl Texture {
-    /// From an RGB image.
-    pub fn from_rgb(img: &image::RgbImage) -> Self {
-        Texture {
-            width: img.width() as usize,
-            height: img.height() as usize,
-            channels: 3,
-            data: img.as_raw().clone(),
-        }
+    /// From an RGB image (its pixels are moved, not copied).
+    pub fn from_rgb(img: image::RgbImage) -> Self {
+        let (w, h) = (img.width() as usize, img.height() as usize);
+        Texture::from_raw(w, h, 3, img.into_raw())
     }
 
-    /// From a greyscale image.
-    pub fn from_gray(img: &image::GrayImage) -> Self {
-        Texture {
-            width: img.width() as usize,
-            height: img.height() as usize,
-            channels: 1,
-            data: img.as_raw().clone(),
-        }
+    /// From a greyscale image (its pixels are moved, not copied).
+    pub fn from_gray(img: image::GrayImage) -> Self {
+        let (w, h) = (img.width() as usize, img.height() as usize);
+        Texture::from_levels(w, h, img.into_raw())
     }
 
     /// From raw single-channel levels.
     pub fn from_levels(width: usize, height: usize, data: Vec<u8>) -> Self {
-        assert_eq!(data.len(), width * height, "levels fill the image");
+        Texture::from_raw(width, height, 1, data)
+    }
+
+    fn from_raw(width: usize, height: usize, channels: usize, data: Vec<u8>) -> Self {
+        assert_eq!(
+            data.len(),
+            width * height * channels,
+            "texels fill the image"
+        );
         Texture {
             width,
             height,
-            channels: 1,
+            channels,
             data,
         }
     }
@@ -219,7 +219,7 @@ mod tests {
     #[test]
     fn colour_is_decoded_from_srgb() {
         let img = image::RgbImage::from_pixel(1, 1, image::Rgb([255, 188, 0]));
-        let t = Texture::from_rgb(&img);
+        let t = Texture::from_rgb(img);
         let [r, g, b] = t.linear_rgb(0.3, 0.3);
         assert!((r - 1.0).abs() < 1e-6 && b == 0.0);
         assert!((g - 0.5029).abs() < 1e-3, "{g}");
