@@ -3,13 +3,14 @@
 use crate::common::{
     assets_dir, cache_root, init_threads, load_recipe, progress_bar, Libraries, DEFAULT_CACHE_MB,
 };
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use clap::ValueEnum;
 use matseg_data::{
-    files_with_extensions, generate_with, Format, GenerateOptions, GenerateReport, Generator2d,
-    Generator3d, JobSlice, SampleMaker,
+    generate_with, Format, GenerateOptions, GenerateReport, Generator2d, Generator3d, JobSlice,
+    SampleMaker,
 };
 use matseg_extract::material_library::find_materials;
+use matseg_image::io::find_files;
 use matseg_image::PhotoLibrary;
 use matseg_render::cache::AssetCache;
 use matseg_render::hdr_io::HDR_EXTENSIONS;
@@ -196,17 +197,14 @@ pub fn load_recipe_3d(
     spp: Option<u32>,
 ) -> Result<Recipe3d> {
     let mut recipe = match config {
-        Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("{}: cannot read", path.display()))?;
-            toml::from_str(&text)
-                .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.message()))?
-        }
+        Some(path) => Recipe3d::from_toml_file(path)?,
         None => Recipe3d::default(),
     };
     recipe.size = size.unwrap_or(recipe.size);
     recipe.spp = spp.unwrap_or(recipe.spp);
-    recipe.validate().map_err(anyhow::Error::msg)?;
+    recipe
+        .validate()
+        .map_err(|e| anyhow::anyhow!("--size/--spp: invalid recipe: {e}"))?;
     Ok(recipe)
 }
 
@@ -252,15 +250,14 @@ impl Files3d {
             found.extend(find_materials(root).map_err(anyhow::Error::msg)?);
         }
         let materials = keep_readable(found, |p| cache.material(p).map(drop));
-        let meshes = files_with_extensions(meshes, &MESH_EXTENSIONS).map_err(anyhow::Error::msg)?;
+        let meshes = find_files(meshes, &MESH_EXTENSIONS).map_err(anyhow::Error::msg)?;
         let meshes = keep_readable(meshes, |p| cache.mesh(p).map(drop));
         let hdri_roots = if hdris.is_empty() {
             vec![bundled.join("hdris")]
         } else {
             hdris.to_vec()
         };
-        let hdris =
-            files_with_extensions(&hdri_roots, &HDR_EXTENSIONS).map_err(anyhow::Error::msg)?;
+        let hdris = find_files(&hdri_roots, &HDR_EXTENSIONS).map_err(anyhow::Error::msg)?;
         let hdris = keep_readable(hdris, |p| cache.hdri(p).map(drop));
         Ok(Files3d {
             photos,

@@ -59,26 +59,35 @@ impl EncodedSample {
 /// Encodes a scene as sample `index` of a dataset seeded with `seed`.
 pub fn encode_scene(scene: &Scene2d, seed: u64, index: u64, sources: Sources<'_>) -> EncodedSample {
     let q = quantise_weights(&scene.weights, &scene.background);
-    let refs = scene.record.source_refs(sources);
-    let licences = distinct_licences(&refs);
-    let meta = SampleMeta {
-        version: SIDECAR_VERSION,
-        kind: "2d".into(),
-        seed,
-        index,
-        sources: refs,
-        licences,
-        scene: serde_json::to_value(&scene.record).expect("record serialises"),
-    };
+    let record = serde_json::to_value(&scene.record).expect("record serialises");
+    let meta = SampleMeta::new("2d", seed, index, scene.record.source_refs(sources), record);
     encode_sample(index, &scene.image, &q, &meta)
 }
 
-/// The distinct licences of `refs`, sorted.
-pub fn distinct_licences(refs: &[SourceRef]) -> Vec<String> {
-    let mut licences: Vec<String> = refs.iter().map(|r| r.licence.clone()).collect();
-    licences.sort();
-    licences.dedup();
-    licences
+impl SampleMeta {
+    /// The sidecar of sample `index` of a dataset seeded with `seed`: its
+    /// kind, the files it used (their distinct licences listed apart) and
+    /// its drawn scene.
+    pub fn new(
+        kind: &str,
+        seed: u64,
+        index: u64,
+        sources: Vec<SourceRef>,
+        scene: serde_json::Value,
+    ) -> Self {
+        let mut licences: Vec<String> = sources.iter().map(|r| r.licence.clone()).collect();
+        licences.sort();
+        licences.dedup();
+        SampleMeta {
+            version: SIDECAR_VERSION,
+            kind: kind.into(),
+            seed,
+            index,
+            sources,
+            licences,
+            scene,
+        }
+    }
 }
 
 /// Encodes an image, its quantised annotation and its sidecar.

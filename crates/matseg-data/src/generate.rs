@@ -175,24 +175,51 @@ fn io_err(path: &Path) -> impl Fn(std::io::Error) -> GenerateError + '_ {
     }
 }
 
-/// FNV-1a fingerprint of the source lists (names and sizes), so a resumed run
-/// notices changed sources.
+/// An FNV-1a hash, for fingerprints of source lists (names and sizes), so
+/// a resumed run notices changed sources.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Fingerprint(u64);
+
+impl Default for Fingerprint {
+    fn default() -> Self {
+        Fingerprint(0xcbf2_9ce4_8422_2325)
+    }
+}
+
+impl Fingerprint {
+    /// Hashes `bytes` in.
+    pub fn add(&mut self, bytes: impl IntoIterator<Item = u8>) {
+        for b in bytes {
+            self.0 = (self.0 ^ b as u64).wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+
+    /// Marks the end of one list, so moving an entry between lists counts.
+    pub fn end_list(&mut self) {
+        self.add([0xff]);
+    }
+
+    /// The hash as 16 hex digits.
+    pub fn hex(&self) -> String {
+        format!("{:016x}", self.0)
+    }
+}
+
+/// The fingerprint of 2D sources: photo and texture names and sizes.
 pub fn sources_fingerprint(sources: Sources<'_>) -> String {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut h = Fingerprint::default();
     for lib in [sources.photos, sources.textures] {
         for e in lib.entries() {
-            for b in e
-                .name
-                .bytes()
-                .chain(e.width.to_le_bytes())
-                .chain(e.height.to_le_bytes())
-            {
-                h = (h ^ b as u64).wrapping_mul(0x0100_0000_01b3);
-            }
+            h.add(
+                e.name
+                    .bytes()
+                    .chain(e.width.to_le_bytes())
+                    .chain(e.height.to_le_bytes()),
+            );
         }
-        h = (h ^ 0xff).wrapping_mul(0x0100_0000_01b3);
+        h.end_list();
     }
-    format!("{h:016x}")
+    h.hex()
 }
 
 /// True when `dir` holds anything besides the manifest (samples, shards or

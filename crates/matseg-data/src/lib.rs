@@ -16,6 +16,6 @@ pub use generate::{
     generate_dataset, generate_with, DatasetManifest, Format, GenerateError, GenerateOptions,
     GenerateReport, JobSlice,
 };
-pub use maker::{files_with_extensions, Generator2d, Generator3d, SampleMaker};
+pub use maker::{Generator2d, Generator3d, SampleMaker};
 pub use reader::{Dataset, ReadError, Sample, TrainingTargets};
 pub use seed::sample_rng;

@@ -2,10 +2,8 @@
 //! and renderer, behind one interface so the writer (folders or shards,
 //! resume, sharding) is shared.
 
-use crate::encode::{
-    distinct_licences, encode_sample, encode_scene, EncodedSample, SampleMeta, SIDECAR_VERSION,
-};
-use crate::generate::sources_fingerprint;
+use crate::encode::{encode_sample, encode_scene, EncodedSample, SampleMeta};
+use crate::generate::{sources_fingerprint, Fingerprint};
 use crate::seed::sample_rng;
 use matseg_image::licence_of;
 use matseg_render::cache::AssetCache;
@@ -16,7 +14,7 @@ use matseg_scene::{
     Sources3d,
 };
 use rand::Rng;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// Makes sample `index` of a dataset seeded with `seed`; sample i depends
 /// only on (seed, i) and the sources.
@@ -113,17 +111,15 @@ impl SampleMaker for Generator3d<'_> {
 
     fn sources_fingerprint(&self) -> String {
         let s = self.sources;
-        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        let mut h = Fingerprint::default();
         for list in [s.photos, s.materials, s.meshes, s.hdris] {
             for p in list {
                 let size = std::fs::metadata(p).map(|m| m.len()).unwrap_or(0);
-                for b in p.to_string_lossy().bytes().chain(size.to_le_bytes()) {
-                    h = (h ^ b as u64).wrapping_mul(0x0100_0000_01b3);
-                }
+                h.add(p.to_string_lossy().bytes().chain(size.to_le_bytes()));
             }
-            h = (h ^ 0xff).wrapping_mul(0x0100_0000_01b3);
+            h.end_list();
         }
-        format!("{h:016x}")
+        h.hex()
     }
 
     fn make(&self, seed: u64, index: u64) -> Result<EncodedSample, String> {
@@ -135,55 +131,8 @@ impl SampleMaker for Generator3d<'_> {
         let (w, h) = (out.width, out.height);
         let image = tone_map(&out.radiance, w, h, scene.exposure_ev);
         let annotation = quantise_fractions(w, h, &out.fractions, &out.roi);
-        let refs = scene_sources(&scene);
-        let meta = SampleMeta {
-            version: SIDECAR_VERSION,
-            kind: "3d".into(),
-            seed,
-            index,
-            licences: distinct_licences(&refs),
-            sources: refs,
-            scene: serde_json::to_value(&scene).map_err(|e| e.to_string())?,
-        };
+        let scene_json = serde_json::to_value(&scene).map_err(|e| e.to_string())?;
+        let meta = SampleMeta::new("3d", seed, index, scene_sources(&scene), scene_json);
         Ok(encode_sample(index, &image, &annotation, &meta))
     }
-}
-
-/// The paths below `roots` whose extension is one of `extensions`
-/// (case-insensitive), sorted; a root that is such a file counts itself.
-pub fn files_with_extensions(
-    roots: &[PathBuf],
-    extensions: &[&str],
-) -> Result<Vec<PathBuf>, String> {
-    fn walk(dir: &Path, extensions: &[&str], out: &mut Vec<PathBuf>) -> Result<(), String> {
-        let listing =
-            std::fs::read_dir(dir).map_err(|e| format!("{}: cannot list: {e}", dir.display()))?;
-        for entry in listing.filter_map(|e| e.ok()) {
-            let path = entry.path();
-            if path.is_dir() {
-                walk(&path, extensions, out)?;
-            } else if has_extension(&path, extensions) {
-                out.push(path);
-            }
-        }
-        Ok(())
-    }
-    let mut out = Vec::new();
-    for root in roots {
-        if root.is_dir() {
-            walk(root, extensions, &mut out)?;
-        } else if root.is_file() && has_extension(root, extensions) {
-            out.push(root.clone());
-        } else {
-            return Err(format!("{}: no such folder", root.display()));
-        }
-    }
-    out.sort();
-    Ok(out)
-}
-
-fn has_extension(path: &Path, extensions: &[&str]) -> bool {
-    path.extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| extensions.iter().any(|x| x.eq_ignore_ascii_case(e)))
 }

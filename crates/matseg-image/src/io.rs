@@ -30,10 +30,45 @@ pub const IMAGE_EXTENSIONS: [&str; 3] = ["jpg", "jpeg", "png"];
 
 /// True when the path has one of [`IMAGE_EXTENSIONS`].
 pub fn has_image_extension(path: &Path) -> bool {
+    has_extension(path, &IMAGE_EXTENSIONS)
+}
+
+/// True when the path's extension is one of `extensions` (given in lower
+/// case; the path's may be in any case).
+pub fn has_extension(path: &Path, extensions: &[&str]) -> bool {
     path.extension()
         .and_then(|e| e.to_str())
-        .map(|e| IMAGE_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
-        .unwrap_or(false)
+        .is_some_and(|e| extensions.contains(&e.to_ascii_lowercase().as_str()))
+}
+
+/// The files below `roots` (walked recursively) whose extension is one of
+/// `extensions`, sorted; a root that is such a file stands for itself. An
+/// error names a root that is neither, or a folder that cannot be listed.
+pub fn find_files(roots: &[PathBuf], extensions: &[&str]) -> Result<Vec<PathBuf>, String> {
+    fn walk(dir: &Path, extensions: &[&str], out: &mut Vec<PathBuf>) -> Result<(), String> {
+        let listing =
+            std::fs::read_dir(dir).map_err(|e| format!("{}: cannot list: {e}", dir.display()))?;
+        for path in listing.filter_map(|e| e.ok().map(|e| e.path())) {
+            if path.is_dir() {
+                walk(&path, extensions, out)?;
+            } else if has_extension(&path, extensions) {
+                out.push(path);
+            }
+        }
+        Ok(())
+    }
+    let mut out = Vec::new();
+    for root in roots {
+        if root.is_dir() {
+            walk(root, extensions, &mut out)?;
+        } else if root.is_file() && has_extension(root, extensions) {
+            out.push(root.clone());
+        } else {
+            return Err(format!("{}: no such folder", root.display()));
+        }
+    }
+    out.sort();
+    Ok(out)
 }
 
 /// Width and height from the file header, without decoding the pixels.

@@ -276,13 +276,26 @@ impl PhotoLibrary {
 pub fn licence_of(path: &Path) -> String {
     let inside = path.is_dir().then(|| read_licences(path).ok()).flatten();
     let from_inside = inside.and_then(|l| l.get("*").cloned());
-    from_inside
-        .or_else(|| {
-            let dir = path.parent()?;
-            let licences = read_licences(dir).ok()?;
-            let name = path.file_name()?.to_str()?;
-            licences.get(name).or_else(|| licences.get("*")).cloned()
-        })
+    from_inside.unwrap_or_else(|| {
+        let licences = path
+            .parent()
+            .and_then(|d| read_licences(d).ok())
+            .unwrap_or_default();
+        let name = path
+            .file_name()
+            .and_then(|n| n.to_str())
+            .unwrap_or_default();
+        licence_in(&licences, name)
+    })
+}
+
+/// The licence a folder's `licenses.json` gives `file_name`: its own entry,
+/// else the `"*"` entry, else [`UNKNOWN_LICENCE`].
+fn licence_in(licences: &BTreeMap<String, String>, file_name: &str) -> String {
+    licences
+        .get(file_name)
+        .or_else(|| licences.get("*"))
+        .cloned()
         .unwrap_or_else(|| UNKNOWN_LICENCE.to_string())
 }
 
@@ -317,11 +330,7 @@ fn add_file(
         .unwrap_or(path)
         .to_string_lossy()
         .into_owned();
-    let licence = licences
-        .get(file_name)
-        .or_else(|| licences.get("*"))
-        .cloned()
-        .unwrap_or_else(|| UNKNOWN_LICENCE.to_string());
+    let licence = licence_in(licences, file_name);
     match read_dimensions(path) {
         Ok((width, height)) if width > 0 && height > 0 => entries.push(PhotoEntry {
             path: path.to_path_buf(),

@@ -194,14 +194,7 @@ pub const MAX_SCENE_SIDE: usize = 8192;
 impl Recipe2d {
     /// Reads a TOML recipe; keys left out keep their defaults.
     pub fn from_toml_file(path: &Path) -> Result<Self, RecipeError> {
-        let text = std::fs::read_to_string(path).map_err(|e| RecipeError::Read {
-            path: path.to_path_buf(),
-            reason: e.to_string(),
-        })?;
-        let recipe: Self = toml::from_str(&text).map_err(|e| RecipeError::Parse {
-            path: path.to_path_buf(),
-            reason: e.message().replace('\n', " "),
-        })?;
+        let recipe: Self = read_toml(path)?;
         recipe.validate(&path.display().to_string())?;
         Ok(recipe)
     }
@@ -278,6 +271,18 @@ impl Recipe2d {
 
 /// Most materials a scene may have (one palette colour each in previews).
 pub const PALETTE_LIMIT: usize = crate::annotation::PALETTE.len();
+
+/// A recipe of any kind from a TOML file; errors name the file.
+pub(crate) fn read_toml<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, RecipeError> {
+    let text = std::fs::read_to_string(path).map_err(|e| RecipeError::Read {
+        path: path.to_path_buf(),
+        reason: e.to_string(),
+    })?;
+    toml::from_str(&text).map_err(|e| RecipeError::Parse {
+        path: path.to_path_buf(),
+        reason: e.message().replace('\n', " "),
+    })
+}
 
 #[cfg(test)]
 mod tests {

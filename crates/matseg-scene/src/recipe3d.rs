@@ -1,7 +1,9 @@
 //! The 3D recipe: every probability and range of SPEC section 3 as a named
 //! field with the SPEC's value as default, overridable from TOML.
 
+use crate::recipe::{read_toml, RecipeError};
 use serde::{Deserialize, Serialize};
+use std::path::Path;
 
 /// How 3D scenes are drawn.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -143,6 +145,17 @@ impl Default for Recipe3d {
 }
 
 impl Recipe3d {
+    /// Reads a recipe from a TOML file (missing fields take their defaults,
+    /// unknown ones are refused) and validates it; errors name the file.
+    pub fn from_toml_file(path: &Path) -> Result<Self, RecipeError> {
+        let recipe: Self = read_toml(path)?;
+        recipe.validate().map_err(|reason| RecipeError::Invalid {
+            origin: path.display().to_string(),
+            reason,
+        })?;
+        Ok(recipe)
+    }
+
     /// Checks probabilities, ranges and sizes; the message names the field.
     pub fn validate(&self) -> Result<(), String> {
         let probabilities = [
