@@ -61,7 +61,7 @@ pub fn run(args: Args) -> Result<()> {
     // Read the samples back through the dataset reader, so the report shows
     // what a training run would see.
     let dataset = Dataset::open(&samples_dir)?;
-    let cards = sample_cards(&dataset, &args.out, "samples-2d", |meta| {
+    let cards = sample_cards(&dataset, &args.out, "samples-2d", "", |meta| {
         let hard = meta["scene"]["hard"].as_bool().unwrap_or(false);
         (if hard { "hard" } else { "soft" }).to_string()
     })?;
@@ -120,12 +120,14 @@ figcaption { font-size: .8em; color: #444; margin-top: .3em; }
 </style>"#;
 
 /// One figure per sample of `dataset` (stored under `out/sub`): the image
-/// beside its colour annotation (written to `out/previews/SUB_KEY_annotation.png`),
-/// captioned with size, material count, `describe(sidecar)` and licences.
+/// beside its colour annotation (written to
+/// `out/previews/{preview_prefix}KEY_annotation.png`), captioned with size,
+/// material count, `describe(sidecar)` and licences.
 pub fn sample_cards(
     dataset: &Dataset,
     out: &Path,
     sub: &str,
+    preview_prefix: &str,
     describe: impl Fn(&serde_json::Value) -> String,
 ) -> Result<String> {
     let previews = out.join("previews");
@@ -140,12 +142,7 @@ pub fn sample_cards(
             .map(|m| m.as_raw().iter().map(|&v| v as f32 / 255.0).collect())
             .collect();
         let slices: Vec<&[f32]> = masks.iter().map(Vec::as_slice).collect();
-        let prefix = if sub == "samples-2d" {
-            String::new()
-        } else {
-            format!("{sub}_")
-        };
-        let name = format!("{prefix}{}_annotation.png", sample.key);
+        let name = format!("{preview_prefix}{}_annotation.png", sample.key);
         let path = previews.join(&name);
         write_atomic(
             &path,

@@ -34,7 +34,7 @@ pub fn scenes_page(out: &Path, n: u64, size: u32, seed: u64) -> Result<()> {
     generate_with(&opts, &maker, &|k| bar.inc(k))?;
     bar.finish_and_clear();
     let dataset = Dataset::open(&samples)?;
-    let cards = sample_cards(&dataset, out, "samples-3d", |meta| {
+    let cards = sample_cards(&dataset, out, "samples-3d", "samples-3d_", |meta| {
         let scene = &meta["scene"];
         let count = |key: &str| scene[key].as_array().map_or(0, Vec::len);
         let main = scene["objects"]
