@@ -86,11 +86,6 @@ impl CameraRays {
             dir: (self.forward + self.right * dx + self.up * dy).normalized(),
         }
     }
-
-    /// The unit direction the camera looks along.
-    pub fn forward(&self) -> Vec3 {
-        self.forward
-    }
 }
 
 #[cfg(test)]

@@ -162,16 +162,6 @@ impl AliasTable {
         }
     }
 
-    /// Number of entries.
-    pub fn len(&self) -> usize {
-        self.pmf.len()
-    }
-
-    /// Whether there are no entries.
-    pub fn is_empty(&self) -> bool {
-        self.pmf.is_empty()
-    }
-
     /// The sum of the weights.
     pub fn total(&self) -> f64 {
         self.total
