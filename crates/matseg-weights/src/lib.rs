@@ -5,6 +5,7 @@
 #![warn(missing_docs)]
 
 pub mod arch;
+pub mod fixtures;
 pub mod pickle;
 pub mod safetensors;
 pub mod torch;
