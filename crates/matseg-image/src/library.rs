@@ -2,6 +2,7 @@
 //! memory-bounded cache shared by all worker threads.
 
 use crate::io::{has_image_extension, read_dimensions, read_rgb};
+use crate::licence::LicenceFilter;
 use crate::resample::Pyramid;
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
@@ -41,6 +42,14 @@ pub enum LibraryError {
     /// Every image failed to decode when drawn.
     #[error("{0}: every image failed to decode")]
     AllFailed(String),
+    /// No image's licence passes the licence filter.
+    #[error("{label}: no image has a licence in {filter}")]
+    NoneLicensed {
+        /// The sources.
+        label: String,
+        /// The filter, as the user wrote it.
+        filter: String,
+    },
 }
 
 /// One listed photo.
@@ -168,6 +177,19 @@ impl PhotoLibrary {
             failed: Mutex::new(BTreeMap::new()),
         };
         Ok((lib, report))
+    }
+
+    /// Keeps only the photos whose licence `filter` accepts; an error when
+    /// none is left.
+    pub fn retain_licences(mut self, filter: &LicenceFilter) -> Result<Self, LibraryError> {
+        self.entries.retain(|e| filter.accepts(&e.licence));
+        if self.entries.is_empty() {
+            return Err(LibraryError::NoneLicensed {
+                label: self.label,
+                filter: filter.to_string(),
+            });
+        }
+        Ok(self)
     }
 
     /// The sources the library was scanned from, for messages.

@@ -155,10 +155,11 @@ fn parse_obj(text: &str) -> Result<Mesh, String> {
                     });
                     poly.push(id);
                 }
-                if poly.len() < 3 {
-                    return Err(bad("face with fewer than 3 corners"));
+                // Exporters write edges as two-corner faces; like other
+                // readers, skip them: they have no surface.
+                if poly.len() >= 3 {
+                    fan(&poly, &mut mesh.triangles);
                 }
-                fan(&poly, &mut mesh.triangles);
             }
             _ => {}
         }
@@ -535,6 +536,23 @@ mod tests {
             assert!(m.normals.iter().all(|&n| n == Vec3::Z));
             assert_eq!(m.uvs[2], [1.0, 1.0]);
         }
+    }
+
+    #[test]
+    fn obj_two_corner_faces_are_skipped_not_fatal() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = write(
+            dir.path(),
+            "e.obj",
+            b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2\nf 1 2 3\n",
+        );
+        let mesh = read_mesh(&path).unwrap();
+        assert_eq!(mesh.triangles.len(), 1);
+        let only_edges = write(dir.path(), "f.obj", b"v 0 0 0\nv 1 0 0\nf 1 2\n");
+        assert!(
+            read_mesh(&only_edges).is_err(),
+            "no triangle at all is still an error"
+        );
     }
 
     #[test]
