@@ -1,10 +1,11 @@
 //! `matseg bench`: generator throughput at the SPEC's scene-size distribution.
 
-use crate::common::{Libraries, DEFAULT_CACHE_MB};
+use crate::common::{Defaults, Libraries, DEFAULT_CACHE_MB};
 use crate::cpu_time::process_cpu_seconds;
 use anyhow::Result;
 use matseg_data::{encode_scene, generate_dataset, sample_rng, Format, GenerateOptions, JobSlice};
 use matseg_extract::make_soft_maps;
+use matseg_image::LicenceFilter;
 use matseg_scene::{generate_2d, Recipe2d};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -76,7 +77,13 @@ struct Row {
 /// Runs `matseg bench`: measures each row and prints the table.
 pub fn run(args: Args) -> Result<()> {
     anyhow::ensure!(args.scenes >= 1, "--scenes must be at least 1");
-    let libs = Libraries::load(&args.sources, &args.textures, args.cache_mb)?;
+    let libs = Libraries::load(
+        &args.sources,
+        &args.textures,
+        args.cache_mb,
+        Defaults::Bundled,
+        &LicenceFilter::default(),
+    )?;
     let recipe = Recipe2d::default();
     let sources = libs.sources();
     let threads = args.threads.unwrap_or_else(num_threads);

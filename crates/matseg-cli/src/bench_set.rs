@@ -1,7 +1,7 @@
 //! `matseg bench-set make`: a point benchmark from generated scenes, so the
 //! evaluation can run end to end without external data.
 
-use crate::common::{Libraries, DEFAULT_CACHE_MB};
+use crate::common::{licence_filter, Defaults, Libraries, DEFAULT_CACHE_MB};
 use anyhow::{ensure, Context, Result};
 use clap::Subcommand;
 use matseg_data::sample_rng;
@@ -32,19 +32,29 @@ pub struct MakeArgs {
     /// Points per material.
     #[arg(long, default_value_t = 5)]
     points: usize,
-    /// Folders of natural photos; default: bundled assets.
+    /// Folders of natural photos; default: the fetched corpus, else bundled assets.
     #[arg(long, num_args = 1..)]
     sources: Vec<PathBuf>,
-    /// Folders of textures; default: bundled assets.
+    /// Folders of textures; default: the fetched corpus, else bundled assets.
     #[arg(long, num_args = 1..)]
     textures: Vec<PathBuf>,
+    /// Use only sources under these licence families (comma-separated:
+    /// cc0, public-domain, mit, bsd, apache, cc-by, cc-by-sa, lgpl, gpl, unknown).
+    #[arg(long)]
+    licences: Option<String>,
 }
 
 /// Runs `matseg bench-set`.
 pub fn run(command: Command) -> Result<()> {
     let Command::Make(args) = command;
     ensure!(args.points >= 1, "--points must be at least 1");
-    let libs = Libraries::load(&args.sources, &args.textures, DEFAULT_CACHE_MB)?;
+    let libs = Libraries::load(
+        &args.sources,
+        &args.textures,
+        DEFAULT_CACHE_MB,
+        Defaults::CorpusOrBundled,
+        &licence_filter(args.licences.as_deref())?,
+    )?;
     let recipe = Recipe2d::default();
     let options = SyntheticOptions {
         points_per_material: args.points,

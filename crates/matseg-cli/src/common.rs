@@ -3,7 +3,7 @@
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use matseg_extract::material_library::{colour_map, find_materials};
-use matseg_image::{PhotoLibrary, SkippedFile};
+use matseg_image::{LicenceFilter, PhotoLibrary, SkippedFile};
 use matseg_scene::Recipe2d;
 use std::path::{Path, PathBuf};
 
@@ -88,6 +88,48 @@ pub fn assets_dir() -> PathBuf {
         .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets"))
 }
 
+/// Where a command's sources come from when the user names none.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Defaults {
+    /// The corpus `matseg assets fetch` made, for each kind it holds; the
+    /// bundled sample set otherwise (generators and training).
+    CorpusOrBundled,
+    /// Always the bundled sample set (the demo and the benchmarks, whose
+    /// results must not depend on what a machine has fetched).
+    Bundled,
+}
+
+impl Defaults {
+    /// The default folders of `kind` (`photos`, `textures`, `hdris`,
+    /// `meshes`); empty when there are none (the bundled set has no meshes).
+    pub fn folders(self, kind: &str) -> Vec<PathBuf> {
+        if self == Defaults::CorpusOrBundled {
+            if let Some(dir) = corpus_dir().map(|c| c.join(kind)).filter(|d| d.is_dir()) {
+                return vec![dir];
+            }
+        }
+        let bundled = assets_dir().join(kind);
+        if bundled.is_dir() {
+            vec![bundled]
+        } else {
+            Vec::new()
+        }
+    }
+}
+
+/// The fetched corpus (`CACHE/corpus`), when it has a catalogue.
+pub fn corpus_dir() -> Option<PathBuf> {
+    let dir = cache_root().ok()?.join("corpus");
+    dir.join(matseg_assets::catalog::CATALOG_FILE)
+        .is_file()
+        .then_some(dir)
+}
+
+/// Parses `--licences` (empty: every licence).
+pub fn licence_filter(list: Option<&str>) -> Result<LicenceFilter> {
+    Ok(LicenceFilter::parse(list.unwrap_or_default())?)
+}
+
 /// Texture sources: a folder of PBR material folders (from `matseg pbr`,
 /// ambientCG, MatSeg or MatSynth) stands for the colour maps of its
 /// materials; anything else (a texture library, image files) for itself.
@@ -117,21 +159,29 @@ pub struct Libraries {
 }
 
 impl Libraries {
-    /// Scans `photos` and `textures` (bundled assets when empty), printing a
-    /// warning for each unreadable file.
-    pub fn load(photos: &[PathBuf], textures: &[PathBuf], cache_mb: usize) -> Result<Self> {
-        let bundled = assets_dir();
-        let pick = |given: &[PathBuf], sub: &str| {
+    /// Scans `photos` and `textures` (the `defaults` when empty), keeps the
+    /// files whose licence `licences` accepts, and prints a warning for each
+    /// unreadable file.
+    pub fn load(
+        photos: &[PathBuf],
+        textures: &[PathBuf],
+        cache_mb: usize,
+        defaults: Defaults,
+        licences: &LicenceFilter,
+    ) -> Result<Self> {
+        let pick = |given: &[PathBuf], kind: &str| {
             if given.is_empty() {
-                vec![bundled.join(sub)]
+                defaults.folders(kind)
             } else {
                 given.to_vec()
             }
         };
         let budget = cache_mb.saturating_mul(1 << 20);
         let (photos, r1) = PhotoLibrary::scan(&pick(photos, "photos"), budget / 2)?;
+        let photos = photos.retain_licences(licences)?;
         let textures = texture_sources(&pick(textures, "textures"))?;
         let (textures, r2) = PhotoLibrary::scan(&textures, budget / 2)?;
+        let textures = textures.retain_licences(licences)?;
         let scan_skipped: Vec<SkippedFile> = r1.skipped.into_iter().chain(r2.skipped).collect();
         for s in &scan_skipped {
             eprintln!("warning: skipped {}: {}", s.path.display(), s.reason);

@@ -1,14 +1,14 @@
 //! `matseg demo`: the pipeline on the bundled assets, with an HTML report.
 
 use crate::common::{
-    assets_dir, flat_stem, init_threads, progress_bar, Libraries, DEFAULT_CACHE_MB,
+    assets_dir, flat_stem, init_threads, progress_bar, Defaults, Libraries, DEFAULT_CACHE_MB,
 };
 use anyhow::{Context, Result};
 use matseg_data::{generate_dataset, sample_rng, Dataset, Format, GenerateOptions, JobSlice};
 use matseg_extract::pbr::{make_pbr, preview_sphere, PbrRecipe};
 use matseg_extract::textures::{extract_textures, TextureOptions};
 use matseg_image::io::{encode_png_gray, encode_png_rgb, read_rgb, write_atomic};
-use matseg_image::PhotoLibrary;
+use matseg_image::{LicenceFilter, PhotoLibrary};
 use matseg_scene::{colorize, Recipe2d};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -43,7 +43,13 @@ pub struct Args {
 /// Runs `matseg demo`: generates samples from the bundled assets and writes the HTML report.
 pub fn run(args: Args) -> Result<()> {
     init_threads(args.threads)?;
-    let libs = Libraries::load(&[], &[], DEFAULT_CACHE_MB)?;
+    let libs = Libraries::load(
+        &[],
+        &[],
+        DEFAULT_CACHE_MB,
+        Defaults::Bundled,
+        &LicenceFilter::default(),
+    )?;
     let samples_dir = args.out.join("samples-2d");
     let opts = GenerateOptions {
         out: samples_dir.clone(),

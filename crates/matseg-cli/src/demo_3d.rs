@@ -2,11 +2,13 @@
 //! photos, materials and HDRIs, path traced, and shown beside their exact
 //! annotations (`scenes-3d.html`).
 
+use crate::common::Defaults;
 use crate::demo::sample_cards;
 use crate::generate::{load_recipe_3d, Files3d};
 use anyhow::{Context, Result};
 use matseg_data::{generate_with, Dataset, Format, GenerateOptions, Generator3d, JobSlice};
 use matseg_image::io::write_atomic;
+use matseg_image::LicenceFilter;
 use matseg_render::cache::{AssetCache, DEFAULT_CACHE_BYTES};
 use std::path::Path;
 
@@ -15,7 +17,15 @@ use std::path::Path;
 pub fn scenes_page(out: &Path, n: u64, size: u32, seed: u64) -> Result<()> {
     let recipe = load_recipe_3d(None, Some(size), None)?;
     let cache = AssetCache::new(DEFAULT_CACHE_BYTES);
-    let files = Files3d::load(&[], &[], &[], &[], &cache)?;
+    let files = Files3d::load(
+        &[],
+        &[],
+        &[],
+        &[],
+        &cache,
+        Defaults::Bundled,
+        &LicenceFilter::default(),
+    )?;
     let samples = out.join("samples-3d");
     let opts = GenerateOptions {
         out: samples.clone(),

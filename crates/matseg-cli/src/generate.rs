@@ -1,7 +1,8 @@
 //! `matseg generate`.
 
 use crate::common::{
-    assets_dir, cache_root, init_threads, load_recipe, progress_bar, Libraries, DEFAULT_CACHE_MB,
+    assets_dir, cache_root, init_threads, licence_filter, load_recipe, progress_bar, Defaults,
+    Libraries, DEFAULT_CACHE_MB,
 };
 use anyhow::{bail, Result};
 use clap::ValueEnum;
@@ -11,7 +12,7 @@ use matseg_data::{
 };
 use matseg_extract::material_library::find_materials;
 use matseg_image::io::find_files;
-use matseg_image::PhotoLibrary;
+use matseg_image::{licence_of, LicenceFilter, PhotoLibrary};
 use matseg_render::cache::AssetCache;
 use matseg_render::hdr_io::HDR_EXTENSIONS;
 use matseg_render::mesh_io::MESH_EXTENSIONS;
@@ -56,22 +57,29 @@ pub struct Args {
     /// Dataset seed: sample i depends only on (seed, i).
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Folders of natural photos (maps, backgrounds, shading); default: bundled assets.
+    /// Folders of natural photos (maps, backgrounds, shading); default: the
+    /// fetched corpus (`matseg assets fetch`), else the bundled assets.
     #[arg(long, num_args = 1..)]
     sources: Vec<PathBuf>,
-    /// Folders of uniform textures (2d); default: bundled assets.
+    /// Folders of uniform textures (2d); default: the fetched corpus, else the bundled assets.
     #[arg(long, num_args = 1..)]
     textures: Vec<PathBuf>,
     /// Folders of PBR material folders (3d); default: materials made once
-    /// from the bundled textures into the cache ($MATSEG_CACHE/materials).
+    /// from the default textures into the cache ($MATSEG_CACHE/materials).
     #[arg(long, num_args = 1..)]
     materials: Vec<PathBuf>,
-    /// Mesh files or folders of them, OBJ/OFF/PLY (3d); default: procedural shapes only.
+    /// Mesh files or folders of them, OBJ/OFF/PLY (3d); default: the fetched
+    /// corpus's meshes, else procedural shapes only.
     #[arg(long, num_args = 1..)]
     meshes: Vec<PathBuf>,
-    /// HDRI files or folders of them, .hdr/.exr (3d); default: the bundled HDRIs.
+    /// HDRI files or folders of them, .hdr/.exr (3d); default: the fetched
+    /// corpus's HDRIs, else the bundled ones.
     #[arg(long, num_args = 1..)]
     hdris: Vec<PathBuf>,
+    /// Use only sources under these licence families (comma-separated:
+    /// cc0, public-domain, mit, bsd, apache, cc-by, cc-by-sa, lgpl, gpl, unknown).
+    #[arg(long)]
+    licences: Option<String>,
     /// Samples per pixel (3d), overriding the recipe.
     #[arg(long)]
     spp: Option<u32>,
@@ -134,11 +142,18 @@ pub fn run(args: Args) -> Result<()> {
         shard_size: args.shard_size,
         job,
     };
+    let licences = licence_filter(args.licences.as_deref())?;
     let start = Instant::now();
     let report = match args.kind {
         Kind::TwoD => {
             let recipe = load_recipe(args.config.as_deref(), args.size_range.as_deref())?;
-            let libs = Libraries::load(&args.sources, &args.textures, args.cache_mb)?;
+            let libs = Libraries::load(
+                &args.sources,
+                &args.textures,
+                args.cache_mb,
+                Defaults::CorpusOrBundled,
+                &licences,
+            )?;
             let report = with_progress(
                 &opts,
                 &Generator2d {
@@ -158,6 +173,8 @@ pub fn run(args: Args) -> Result<()> {
                 &args.meshes,
                 &args.hdris,
                 &cache,
+                Defaults::CorpusOrBundled,
+                &licences,
             )?;
             with_progress(
                 &opts,
@@ -218,27 +235,32 @@ pub struct Files3d {
 }
 
 impl Files3d {
-    /// Finds and checks the files; empty lists take the defaults.
+    /// Finds and checks the files whose licence `licences` accepts; empty
+    /// lists take the `defaults`.
     pub fn load(
         photos: &[PathBuf],
         materials: &[PathBuf],
         meshes: &[PathBuf],
         hdris: &[PathBuf],
         cache: &AssetCache,
+        defaults: Defaults,
+        licences: &LicenceFilter,
     ) -> Result<Self> {
-        let bundled = assets_dir();
-        let photo_roots = if photos.is_empty() {
-            vec![bundled.join("photos")]
-        } else {
-            photos.to_vec()
+        let or_default = |given: &[PathBuf], kind: &str| {
+            if given.is_empty() {
+                defaults.folders(kind)
+            } else {
+                given.to_vec()
+            }
         };
-        let (library, report) = PhotoLibrary::scan(&photo_roots, 0)?;
+        let (library, report) = PhotoLibrary::scan(&or_default(photos, "photos"), 0)?;
+        let library = library.retain_licences(licences)?;
         for s in &report.skipped {
             eprintln!("warning: skipped {}: {}", s.path.display(), s.reason);
         }
         let photos: Vec<PathBuf> = library.entries().iter().map(|e| e.path.clone()).collect();
         let material_roots = if materials.is_empty() {
-            vec![bundled_materials()?]
+            vec![default_materials(defaults)?]
         } else {
             materials.to_vec()
         };
@@ -249,15 +271,19 @@ impl Files3d {
             }
             found.extend(find_materials(root).map_err(anyhow::Error::msg)?);
         }
-        let materials = keep_readable(found, |p| cache.material(p).map(drop));
-        let meshes = find_files(meshes, &MESH_EXTENSIONS).map_err(anyhow::Error::msg)?;
-        let meshes = keep_readable(meshes, |p| cache.mesh(p).map(drop));
-        let hdri_roots = if hdris.is_empty() {
-            vec![bundled.join("hdris")]
+        let materials = licensed(found, licences, "materials")?;
+        let materials = keep_readable(materials, |p| cache.material(p).map(drop));
+        let meshes = find_files(&or_default(meshes, "meshes"), &MESH_EXTENSIONS)
+            .map_err(anyhow::Error::msg)?;
+        let meshes = if meshes.is_empty() {
+            meshes
         } else {
-            hdris.to_vec()
+            licensed(meshes, licences, "meshes")?
         };
-        let hdris = find_files(&hdri_roots, &HDR_EXTENSIONS).map_err(anyhow::Error::msg)?;
+        let meshes = keep_readable(meshes, |p| cache.mesh(p).map(drop));
+        let hdris =
+            find_files(&or_default(hdris, "hdris"), &HDR_EXTENSIONS).map_err(anyhow::Error::msg)?;
+        let hdris = licensed(hdris, licences, "HDRIs")?;
         let hdris = keep_readable(hdris, |p| cache.hdri(p).map(drop));
         Ok(Files3d {
             photos,
@@ -276,6 +302,22 @@ impl Files3d {
             hdris: &self.hdris,
         }
     }
+}
+
+/// The paths whose licence (from the `licenses.json` beside or inside
+/// them) `filter` accepts; an error naming `what` when none is left.
+fn licensed(paths: Vec<PathBuf>, filter: &LicenceFilter, what: &str) -> Result<Vec<PathBuf>> {
+    if filter.accepts_all() {
+        return Ok(paths);
+    }
+    let kept: Vec<PathBuf> = paths
+        .into_iter()
+        .filter(|p| filter.accepts(&licence_of(p)))
+        .collect();
+    if kept.is_empty() {
+        bail!("--licences {filter}: none of the {what} has such a licence");
+    }
+    Ok(kept)
 }
 
 /// The paths `check` accepts, warning about the others (in parallel: the
@@ -313,5 +355,18 @@ fn keep_readable(
 pub fn bundled_materials() -> Result<PathBuf> {
     let dir = cache_root()?.join("materials/bundled-textures-seed0");
     crate::pbr::make_library(&[assets_dir().join("textures")], &dir, 1, 0, true)?;
+    Ok(dir)
+}
+
+/// The 3D materials when none are given: made once (seed 0) from the
+/// corpus's textures when `defaults` takes the corpus and it has textures,
+/// else [`bundled_materials`].
+fn default_materials(defaults: Defaults) -> Result<PathBuf> {
+    let textures = defaults.folders("textures");
+    if textures.first() == Some(&assets_dir().join("textures")) || textures.is_empty() {
+        return bundled_materials();
+    }
+    let dir = cache_root()?.join("materials/corpus-textures-seed0");
+    crate::pbr::make_library(&textures, &dir, 1, 0, true)?;
     Ok(dir)
 }

