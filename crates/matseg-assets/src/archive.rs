@@ -152,9 +152,10 @@ fn unzip(bytes: &[u8], want: &dyn Fn(&str) -> bool) -> Result<Vec<Entry>, String
         .collect()
 }
 
-/// Test fixtures: archives of every supported format built in memory.
-#[cfg(test)]
-pub(crate) mod fixtures {
+/// Archives of the supported formats built in memory (a `.deb` with
+/// gzipped members, tarballs, stored zips), for tests across the workspace:
+/// the reader is only trusted on files it did not write.
+pub mod fixtures {
     use flate2::write::GzEncoder;
     use std::io::Write;
 

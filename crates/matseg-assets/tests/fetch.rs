@@ -5,7 +5,7 @@
 //! download failures. The real registries are exercised by the opt-in test
 //! at the end (`cargo test -p matseg-assets -- --ignored`).
 
-use flate2::write::GzEncoder;
+use matseg_assets::archive::fixtures::{self as archive_fixtures, gzip, tar};
 use matseg_assets::fetch::CacheLayout;
 use matseg_assets::{
     fetch, Catalog, Downloader, Kind, Manifest, PackageSpec, Progress, RegistryClients,
@@ -14,53 +14,19 @@ use matseg_weights::fixtures::{legacy, Storage};
 use matseg_weights::zip::write_stored;
 use std::cell::RefCell;
 use std::collections::BTreeMap;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
+/// Borrowed (path, bytes) pairs, as the archive fixtures take them.
+fn borrowed<'a>(files: &'a [(&'a str, Vec<u8>)]) -> Vec<(&'a str, &'a [u8])> {
+    files.iter().map(|(p, b)| (*p, b.as_slice())).collect()
+}
+
 fn tar_gz(files: &[(&str, Vec<u8>)]) -> Vec<u8> {
-    let mut builder = tar::Builder::new(Vec::new());
-    for (path, bytes) in files {
-        let mut header = tar::Header::new_gnu();
-        header.set_size(bytes.len() as u64);
-        header.set_mode(0o644);
-        header.set_cksum();
-        builder
-            .append_data(&mut header, path, bytes.as_slice())
-            .unwrap();
-    }
-    let mut gz = GzEncoder::new(Vec::new(), flate2::Compression::fast());
-    gz.write_all(&builder.into_inner().unwrap()).unwrap();
-    gz.finish().unwrap()
+    gzip(&tar(&borrowed(files)))
 }
 
 fn deb(files: &[(&str, Vec<u8>)]) -> Vec<u8> {
-    let members = [
-        ("debian-binary", b"2.0\n".to_vec()),
-        (
-            "control.tar.gz",
-            tar_gz(&[("./control", b"Package: x\n".to_vec())]),
-        ),
-        ("data.tar.gz", tar_gz(files)),
-    ];
-    let mut out = b"!<arch>\n".to_vec();
-    for (name, data) in members {
-        out.extend(
-            format!(
-                "{name:<16}{:<12}{:<6}{:<6}{:<8}{:<10}`\n",
-                0,
-                0,
-                0,
-                100644,
-                data.len()
-            )
-            .bytes(),
-        );
-        out.extend(&data);
-        if data.len() % 2 == 1 {
-            out.push(b'\n');
-        }
-    }
-    out
+    archive_fixtures::deb(&borrowed(files))
 }
 
 fn jpeg(w: u32, h: u32) -> Vec<u8> {
