@@ -1,5 +1,5 @@
-"""Converts DWAB-compressed OpenEXR environment maps (which the Rust `exr`
-crate cannot decode) into ZIP-compressed half-float EXRs that matseg reads,
+"""Converts DWAB-compressed OpenEXR environment maps into ZIP-compressed
+half-float EXRs (the lossless form of the bundled copies in assets/hdris/),
 keeping every value (no tone mapping, no resizing; only the slightly negative
 values DWAB's lossy coding leaves in dark pixels become 0), and prints a JSON line per
 file with the source's largest and mean (solid-angle weighted) luminance so

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Converts the CC0 world HDRIs of Debian's blender-data package (DWAB-compressed
-# OpenEXR, which the Rust exr crate cannot read) into ZIP half-float EXRs.
+# OpenEXR) into ZIP half-float EXRs, the lossless form the bundled copies in
+# assets/hdris/ take (matseg reads both; `matseg assets fetch` keeps the DWAB files).
 # Usage: scripts/convert-hdris.sh OUT_DIR [NAME...]   (names without .exr;
 # default: all eight). Prints one JSON line of source statistics per file.
 # Needs apt-get (download only, no root needed for the unpack) and PyPI; the

@@ -211,17 +211,8 @@ impl Environment {
 
     /// Largest and mean radiance over the sphere (solid-angle weighted).
     pub fn radiance_stats(&self) -> (f32, f32) {
-        let (w, h) = (self.map.image.width, self.map.image.height);
-        let (mut sum, mut weight, mut max) = (0f64, 0f64, 0f32);
-        for y in 0..h {
-            let sin = (PI * (y as f32 + 0.5) / h as f32).sin() as f64;
-            for p in &self.map.image.pixels[y * w..(y + 1) * w] {
-                sum += p.luminance() as f64 * sin;
-                weight += sin;
-                max = max.max(p.luminance());
-            }
-        }
-        (max * self.strength, (sum / weight) as f32 * self.strength)
+        let (max, mean) = self.map.image.luminance_stats();
+        (max * self.strength, mean * self.strength)
     }
 }
 

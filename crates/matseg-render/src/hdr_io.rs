@@ -1,6 +1,6 @@
 //! High-dynamic-range images: Radiance `.hdr` (RGBE, flat or run-length
-//! encoded) read and written here, and OpenEXR (ZIP, PIZ, RLE, ... but not
-//! DWAA/DWAB) read through the `exr` crate. Values are linear float RGB.
+//! encoded) read and written here, and OpenEXR (ZIP, PIZ, RLE, B44, DWAA,
+//! DWAB, ...) read through the `exr` crate. Values are linear float RGB.
 
 use crate::math::Vec3;
 use std::path::Path;
@@ -14,6 +14,24 @@ pub struct HdrImage {
     pub height: usize,
     /// Pixels.
     pub pixels: Vec<Vec3>,
+}
+
+impl HdrImage {
+    /// Largest and mean luminance (Rec. 709) of an equirectangular map, the
+    /// mean weighted by each row's solid angle.
+    pub fn luminance_stats(&self) -> (f32, f32) {
+        let (w, h) = (self.width, self.height);
+        let (mut sum, mut weight, mut max) = (0f64, 0f64, 0f32);
+        for y in 0..h {
+            let sin = (std::f32::consts::PI * (y as f32 + 0.5) / h as f32).sin() as f64;
+            for p in &self.pixels[y * w..(y + 1) * w] {
+                sum += p.luminance() as f64 * sin;
+                weight += sin;
+                max = max.max(p.luminance());
+            }
+        }
+        (max, (sum / weight.max(f64::MIN_POSITIVE)) as f32)
+    }
 }
 
 /// An HDR file that could not be read or written.
@@ -72,9 +90,7 @@ fn read_exr(path: &Path) -> Result<HdrImage, String> {
         },
     )
     .map_err(|e| match e {
-        Error::NotSupported(what) => {
-            format!("unsupported EXR feature: {what} (DWAA/DWAB files need converting first)")
-        }
+        Error::NotSupported(what) => format!("unsupported EXR feature: {what}"),
         other => other.to_string(),
     })?;
     Ok(image.layer_data.channel_data.pixels)
@@ -276,6 +292,43 @@ mod tests {
                     )
                 })
                 .collect(),
+        }
+    }
+
+    #[test]
+    fn dwab_exrs_read_within_their_lossy_precision() {
+        use exr::prelude::*;
+        let (w, h) = (96, 64);
+        let value =
+            |x: usize, y: usize| Vec3::new(x as f32 * 0.25 + 1.0, y as f32 * 0.5 + 0.1, 3.0);
+        let channels = SpecificChannels::rgb(|p: Vec2<usize>| {
+            let v = value(p.x(), p.y());
+            (f16::from_f32(v.x), f16::from_f32(v.y), f16::from_f32(v.z))
+        });
+        let encoding = Encoding {
+            compression: Compression::DWAB(None),
+            ..Encoding::default()
+        };
+        let layer = Layer::new((w, h), LayerAttributes::named("rgb"), encoding, channels);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("dwab.exr");
+        Image::from_layer(layer).write().to_file(&path).unwrap();
+        let raw = (w * h * 3 * 2) as u64;
+        assert!(
+            std::fs::metadata(&path).unwrap().len() < raw / 2,
+            "really DWAB-compressed"
+        );
+        let img = read_hdr(&path).unwrap();
+        assert_eq!((img.width, img.height), (w, h));
+        for y in 0..h {
+            for x in 0..w {
+                let (got, want) = (img.pixels[y * w + x], value(x, y));
+                let errors = [got.x - want.x, got.y - want.y, got.z - want.z];
+                assert!(
+                    errors.iter().all(|e| e.abs() <= 0.02 * want.max_elem()),
+                    "({x}, {y}): {got:?} vs {want:?}"
+                );
+            }
         }
     }
 
