@@ -2,7 +2,8 @@
 //! images checked, GIMP patterns to PNG, base64 EXRs decoded, furniture
 //! catalogues split into OBJ models, JavaScript meshes to OBJ, PyTorch
 //! checkpoints to safetensors; each with a little information for the
-//! catalogue. DWAB-compressed EXRs are flagged for [`crate::hdri`].
+//! catalogue. EXRs of any compression (DWAB included) are kept as they are:
+//! matseg's HDR reader reads them.
 
 use crate::manifest::Kind;
 use serde_json::{json, Value};
@@ -21,8 +22,6 @@ pub struct Converted {
     /// Whether this is a file other files belong to (a mesh, not its
     /// material or textures): the catalogue lists only these.
     pub primary: bool,
-    /// An EXR that must go through the OpenEXR helper first.
-    pub needs_dwab_conversion: bool,
 }
 
 impl Converted {
@@ -32,7 +31,6 @@ impl Converted {
             bytes,
             info,
             primary: true,
-            needs_dwab_conversion: false,
         }
     }
 }
@@ -57,25 +55,20 @@ pub fn convert(kind: Kind, name: &str, bytes: Vec<u8>) -> Result<Vec<Converted>,
             }
         }
         Kind::Hdris => {
-            let (name, bytes) = if lower.ends_with(".exr.js") {
-                (name[..name.len() - 3].to_string(), base64_data_url(&bytes)?)
+            if lower.ends_with(".exr.js") {
+                let exr = base64_data_url(&bytes)?;
+                Ok(vec![Converted::primary(
+                    replace_ext(name, ".exr.js", ".exr"),
+                    exr,
+                    Value::Null,
+                )])
             } else {
-                (name.to_string(), bytes)
-            };
-            let compression = exr_compression(&bytes)?;
-            let dwab = matches!(compression, 8 | 9);
-            let info = if dwab {
-                json!({ "source_compression": if compression == 8 { "DWAA" } else { "DWAB" } })
-            } else {
-                Value::Null
-            };
-            Ok(vec![Converted {
-                name,
-                bytes,
-                info,
-                primary: true,
-                needs_dwab_conversion: dwab,
-            }])
+                Ok(vec![Converted::primary(
+                    name.to_string(),
+                    bytes,
+                    Value::Null,
+                )])
+            }
         }
         Kind::Meshes => {
             if lower.ends_with(".sh3f") {
@@ -210,44 +203,6 @@ fn base64_decode(text: &str) -> Result<Vec<u8>, String> {
     Ok(out)
 }
 
-/// The compression code of an OpenEXR file's header (0 none ... 3 ZIP, 4
-/// PIZ, 8 DWAA, 9 DWAB).
-pub fn exr_compression(bytes: &[u8]) -> Result<u8, String> {
-    if !bytes.starts_with(&[0x76, 0x2f, 0x31, 0x01]) {
-        return Err("not an OpenEXR file".into());
-    }
-    let mut at = 8;
-    let cstr = |at: &mut usize| -> Result<String, String> {
-        let rest = bytes.get(*at..).ok_or("OpenEXR: truncated header")?;
-        let len = rest
-            .iter()
-            .position(|&b| b == 0)
-            .ok_or("OpenEXR: truncated header")?;
-        let s = String::from_utf8_lossy(&rest[..len]).into_owned();
-        *at += len + 1;
-        Ok(s)
-    };
-    loop {
-        let name = cstr(&mut at)?;
-        if name.is_empty() {
-            return Err("OpenEXR: no compression attribute".into());
-        }
-        let _type = cstr(&mut at)?;
-        let size = bytes
-            .get(at..at + 4)
-            .map(|b| u32::from_le_bytes(b.try_into().expect("4 bytes")) as usize)
-            .ok_or("OpenEXR: truncated header")?;
-        at += 4;
-        if name == "compression" {
-            return bytes
-                .get(at)
-                .copied()
-                .ok_or_else(|| "OpenEXR: truncated header".into());
-        }
-        at += size;
-    }
-}
-
 /// A JavaScript mesh module (`exports.positions=[[x,y,z],...]` and
 /// `exports.cells=[[i,j,k],...]`, as the npm `bunny` and `teapot` packages
 /// ship them) as OBJ text.
@@ -308,7 +263,7 @@ pub fn furniture_models(name: &str, bytes: &[u8]) -> Result<Vec<Converted>, Stri
         }
         let obj = zip.read(&model)?;
         let dir = model.rsplit_once('/').map_or("", |(d, _)| d);
-        let mut files = vec![(model.clone(), obj.clone(), true)];
+        let mut files = Vec::new();
         for mtl in referenced(&obj, &["mtllib"]) {
             let mtl_path = join(dir, &mtl);
             let Ok(mtl_bytes) = zip.read(&mtl_path) else {
@@ -327,6 +282,7 @@ pub fn furniture_models(name: &str, bytes: &[u8]) -> Result<Vec<Converted>, Stri
             }
             files.push((mtl_path, mtl_bytes, false));
         }
+        files.insert(0, (model.clone(), obj, true));
         for (path, data, primary) in files {
             if taken.insert(path.clone()) {
                 out.push(Converted {
@@ -334,7 +290,6 @@ pub fn furniture_models(name: &str, bytes: &[u8]) -> Result<Vec<Converted>, Stri
                     bytes: data,
                     info: Value::Null,
                     primary,
-                    needs_dwab_conversion: false,
                 });
             }
         }
@@ -452,18 +407,5 @@ mod tests {
         )
         .unwrap_err();
         assert!(e.contains("no model#N"), "{e}");
-    }
-
-    #[test]
-    fn exr_compression_is_read_from_the_header() {
-        let mut exr = vec![0x76, 0x2f, 0x31, 0x01, 2, 0, 0, 0];
-        exr.extend(b"compression\0compression\0");
-        exr.extend(1u32.to_le_bytes());
-        exr.push(9);
-        exr.push(0);
-        assert_eq!(exr_compression(&exr).unwrap(), 9);
-        assert!(exr_compression(b"#?RADIANCE")
-            .unwrap_err()
-            .contains("not an OpenEXR"));
     }
 }

@@ -5,7 +5,6 @@
 //! not fetched again; an interrupted one is redone from its download.
 
 use crate::catalog::{Catalog, PackageRecord, PACKAGES_DIR};
-use crate::hdri::OpenExrHelper;
 use crate::install::install;
 use crate::manifest::{Kind, Manifest, PackageSpec, Registry};
 use std::path::{Path, PathBuf};
@@ -31,7 +30,7 @@ pub struct CacheLayout {
     pub downloads: PathBuf,
     /// The corpus: `KIND/PACKAGE/...`, `packages/`, `catalog.json`.
     pub corpus: PathBuf,
-    /// Helper tools (the OpenEXR venv, a private apt list).
+    /// Helper state (a private apt package list).
     pub tools: PathBuf,
 }
 
@@ -83,7 +82,6 @@ pub fn fetch(
     downloader: &dyn Downloader,
     progress: &mut dyn FnMut(Progress<'_>),
 ) -> Result<FetchReport, String> {
-    let helper = OpenExrHelper::new(&layout.tools);
     let selected = manifest.select(kinds);
     let mut report = FetchReport::default();
     for (index, spec) in selected.iter().enumerate() {
@@ -103,9 +101,7 @@ pub fn fetch(
             let result = std::fs::create_dir_all(&dir)
                 .map_err(|e| format!("{}: {e}", dir.display()))
                 .and_then(|()| downloader.download(spec, &dir))
-                .and_then(|(file, version)| {
-                    install(spec, &file, &version, &layout.corpus, &helper)
-                });
+                .and_then(|(file, version)| install(spec, &file, &version, &layout.corpus));
             match result {
                 Ok(r) => report.installed.push(r),
                 Err(e) => report.failed.push((spec.name.clone(), e)),
@@ -257,14 +253,13 @@ pub fn find_download(spec: &PackageSpec, dir: &Path) -> Option<(PathBuf, String)
             .max_by_key(|(p, _)| p.metadata().and_then(|m| m.modified()).ok()),
         Registry::Pypi => {
             let version = spec.version.clone()?;
-            let stem = format!("{}-{version}", spec.name.replace('-', "_").to_lowercase());
+            // Wheel and sdist names spell `-` as `_`, case aside.
+            let normal = |s: &str| s.to_lowercase().replace('-', "_");
+            let stem = normal(&format!("{}-{version}", spec.name));
             names
                 .into_iter()
                 .find(|n| {
-                    n.to_lowercase()
-                        .replace('-', "_")
-                        .starts_with(&stem.replace('-', "_"))
-                        && (n.ends_with(".whl") || n.ends_with(".tar.gz"))
+                    normal(n).starts_with(&stem) && (n.ends_with(".whl") || n.ends_with(".tar.gz"))
                 })
                 .map(|n| (dir.join(n), version))
         }

@@ -5,10 +5,9 @@
 
 use crate::archive::{extract, Entry};
 use crate::catalog::{CatalogEntry, PackageRecord, PACKAGES_DIR};
-use crate::convert::{convert, Converted};
+use crate::convert::convert;
 use crate::dep5::Copyright;
 use crate::glob::{glob_match, literal_prefix};
-use crate::hdri::{HdriStats, OpenExrHelper};
 use crate::manifest::{Kind, PackageSpec, Registry};
 use matseg_image::library::{LICENSES_FILE, UNKNOWN_LICENCE};
 use matseg_image::licence_family;
@@ -26,9 +25,16 @@ struct Taken {
     bytes: Vec<u8>,
 }
 
-/// A converted file written into the staging folder.
+/// A converted file written (and checked) in the staging folder.
 struct Staged {
-    converted: Converted,
+    /// Name below the package's corpus folder.
+    name: String,
+    /// Its size.
+    bytes: u64,
+    /// What the catalogue says of it.
+    info: serde_json::Value,
+    /// Whether the catalogue lists it (a mesh, not its material files).
+    primary: bool,
     source: String,
     licence: String,
 }
@@ -42,7 +48,6 @@ pub fn install(
     archive: &Path,
     version: &str,
     corpus: &Path,
-    helper: &OpenExrHelper,
 ) -> Result<PackageRecord, String> {
     let label = archive.display().to_string();
     let bytes = std::fs::read(archive).map_err(|e| format!("{label}: cannot read: {e}"))?;
@@ -71,8 +76,29 @@ pub fn install(
                     std::fs::create_dir_all(path.parent().expect("inside staging"))
                         .map_err(|e| io(e, &path))?;
                     std::fs::write(&path, &converted.bytes).map_err(|e| io(e, &path))?;
+                    let info = if converted.primary {
+                        match check(spec.kind, &path, converted.info) {
+                            Ok(info) => info,
+                            Err(e) => {
+                                let inner = (!t.source.ends_with(&converted.name))
+                                    .then(|| format!(" ({})", converted.name));
+                                warnings.push(format!(
+                                    "{}{}: {e}",
+                                    t.source,
+                                    inner.unwrap_or_default()
+                                ));
+                                std::fs::remove_file(&path).map_err(|e| io(e, &path))?;
+                                continue;
+                            }
+                        }
+                    } else {
+                        converted.info
+                    };
                     staged.push(Staged {
-                        converted,
+                        name: converted.name,
+                        bytes: converted.bytes.len() as u64,
+                        info,
+                        primary: converted.primary,
                         source: t.source.clone(),
                         licence: t.licence.clone(),
                     });
@@ -81,8 +107,7 @@ pub fn install(
             Err(e) => warnings.push(format!("{}: {e}", t.source)),
         }
     }
-    check_staged(spec.kind, &staging, &mut staged, &mut warnings, helper);
-    if !staged.iter().any(|s| s.converted.primary) {
+    if !staged.iter().any(|s| s.primary) {
         let _ = std::fs::remove_dir_all(&staging);
         let why = warnings.first().map_or(
             "it holds none of the files the manifest names".to_string(),
@@ -101,18 +126,18 @@ pub fn install(
 
     let files = staged
         .iter()
-        .filter(|s| s.converted.primary)
+        .filter(|s| s.primary)
         .map(|s| CatalogEntry {
-            path: format!("{}/{folder}/{}", spec.kind, s.converted.name),
+            path: format!("{}/{folder}/{}", spec.kind, s.name),
             kind: spec.kind,
-            bytes: s.converted.bytes.len() as u64,
+            bytes: s.bytes,
             package: spec.name.clone(),
             registry: spec.registry,
             version: version.to_string(),
             source: s.source.clone(),
             licence: s.licence.clone(),
             family: licence_family(&s.licence).to_string(),
-            info: s.converted.info.clone(),
+            info: s.info.clone(),
         })
         .collect();
     let record = PackageRecord {
@@ -157,36 +182,31 @@ fn take_files(spec: &PackageSpec, file_name: &str, bytes: &[u8]) -> Result<Vec<T
             .unwrap_or_else(|| UNKNOWN_LICENCE.to_string())
     };
     let mut taken = Vec::new();
-    for entry in &entries {
-        if let Some(pattern) = spec.taken_by(&entry.path) {
-            taken.push(Taken {
-                source: entry.path.clone(),
-                name: entry.path[literal_prefix(pattern).len()..].to_string(),
-                licence: licence_of(&entry.path),
-                bytes: entry.bytes.clone(),
-            });
-        }
-        for nested in spec
-            .nested
-            .iter()
-            .filter(|n| glob_match(&n.archive, &entry.path))
-        {
+    for Entry { path, bytes } in entries {
+        for nested in spec.nested.iter().filter(|n| glob_match(&n.archive, &path)) {
             let inner_take = |p: &str| nested.take.iter().any(|t| glob_match(t, p));
-            let inner = extract(&entry.path, &entry.bytes, &inner_take)
-                .map_err(|e| format!("{}: {e}", entry.path))?;
-            for Entry { path, bytes } in inner {
+            let inner = extract(&path, &bytes, &inner_take).map_err(|e| format!("{path}: {e}"))?;
+            for inner in inner {
                 let pattern = nested
                     .take
                     .iter()
-                    .find(|t| glob_match(t, &path))
+                    .find(|t| glob_match(t, &inner.path))
                     .expect("taken");
                 taken.push(Taken {
-                    source: format!("{}!{path}", entry.path),
-                    name: path[literal_prefix(pattern).len()..].to_string(),
-                    licence: licence_of(&entry.path),
-                    bytes,
+                    source: format!("{path}!{}", inner.path),
+                    name: inner.path[literal_prefix(pattern).len()..].to_string(),
+                    licence: licence_of(&path),
+                    bytes: inner.bytes,
                 });
             }
+        }
+        if let Some(pattern) = spec.taken_by(&path) {
+            taken.push(Taken {
+                name: path[literal_prefix(pattern).len()..].to_string(),
+                licence: licence_of(&path),
+                source: path,
+                bytes,
+            });
         }
     }
     Ok(taken)
@@ -194,11 +214,11 @@ fn take_files(spec: &PackageSpec, file_name: &str, bytes: &[u8]) -> Result<Vec<T
 
 /// The licence the package itself gives a path: its DEP-5 copyright file
 /// (Debian) or its `package.json` `license` (npm).
-fn package_licence<'a>(
+fn package_licence(
     spec: &PackageSpec,
-    entries: &'a [Entry],
+    entries: &[Entry],
     copyright: &str,
-) -> impl Fn(&str) -> Option<String> + 'a {
+) -> impl Fn(&str) -> Option<String> {
     let dep5 = entries
         .iter()
         .find(|e| e.path == copyright)
@@ -216,89 +236,22 @@ fn package_licence<'a>(
     }
 }
 
-/// Checks the staged files of kind `kind` by reading them as matseg will:
-/// meshes through the mesh reader, HDRIs through the HDR reader (after the
-/// DWAB conversion where needed). Files that fail are removed, with a warning.
-fn check_staged(
-    kind: Kind,
-    staging: &Path,
-    staged: &mut Vec<Staged>,
-    warnings: &mut Vec<String>,
-    helper: &OpenExrHelper,
-) {
-    let mut keep = vec![true; staged.len()];
-    let dwab: Vec<usize> = (0..staged.len())
-        .filter(|&i| staged[i].converted.needs_dwab_conversion)
-        .collect();
-    if !dwab.is_empty() {
-        let inputs: Vec<PathBuf> = dwab
-            .iter()
-            .map(|&i| staging.join(&staged[i].converted.name))
-            .collect();
-        let out_dir = staging.join(".converted");
-        let converted = helper.convert(&inputs, &out_dir);
-        for (&i, input) in dwab.iter().zip(&inputs) {
-            let result = match &converted {
-                Err(e) => Err(e.clone()),
-                Ok(list) => convert_back(list, input),
-            };
-            match result {
-                Ok(stats) => {
-                    staged[i].converted.info = json!({ "width": stats.width, "height": stats.height, "max_luminance": stats.max_luminance, "mean_luminance": stats.mean_luminance, "converted_from": "DWAB" })
-                }
-                Err(e) => {
-                    warnings.push(format!("{}: DWAB EXR not converted: {e}", staged[i].source));
-                    keep[i] = false;
-                }
-            }
-        }
-        let _ = std::fs::remove_dir_all(&out_dir);
+/// Checks a staged file of kind `kind` by reading it as matseg will:
+/// meshes through the mesh reader, HDRIs through the HDR reader (any EXR
+/// compression, DWAB included). The catalogue's information for it.
+fn check(kind: Kind, path: &Path, info: serde_json::Value) -> Result<serde_json::Value, String> {
+    match kind {
+        Kind::Meshes => matseg_render::mesh_io::read_mesh(path)
+            .map(|m| json!({ "vertices": m.positions.len(), "triangles": m.triangles.len() }))
+            .map_err(|e| e.message),
+        Kind::Hdris => matseg_render::hdr_io::read_hdr(path)
+            .map(|img| {
+                let (max, mean) = img.luminance_stats();
+                json!({ "width": img.width, "height": img.height, "max_luminance": max, "mean_luminance": mean })
+            })
+            .map_err(|e| e.message),
+        _ => Ok(info),
     }
-    for (i, s) in staged.iter_mut().enumerate() {
-        if !keep[i] || !s.converted.primary || s.converted.needs_dwab_conversion {
-            continue;
-        }
-        let path = staging.join(&s.converted.name);
-        let checked = match kind {
-            Kind::Meshes => matseg_render::mesh_io::read_mesh(&path)
-                .map(|m| json!({ "vertices": m.positions.len(), "triangles": m.triangles.len() }))
-                .map_err(|e| e.message),
-            Kind::Hdris => HdriStats::read(&path).map(|s| json!({ "width": s.width, "height": s.height, "max_luminance": s.max_luminance, "mean_luminance": s.mean_luminance })),
-            _ => Ok(s.converted.info.clone()),
-        };
-        match checked {
-            Ok(info) => s.converted.info = info,
-            Err(e) => {
-                let inner = (!s.source.ends_with(&s.converted.name))
-                    .then(|| format!(" ({})", s.converted.name));
-                warnings.push(format!("{}{}: {e}", s.source, inner.unwrap_or_default()));
-                keep[i] = false;
-            }
-        }
-    }
-    let mut i = 0;
-    staged.retain(|s| {
-        let k = keep[i];
-        i += 1;
-        if !k {
-            let _ = std::fs::remove_file(staging.join(&s.converted.name));
-        }
-        k
-    });
-}
-
-/// Moves the converted copy of `input` over it after checking that it keeps
-/// the source's size and luminance; the converted file's statistics.
-fn convert_back(list: &[(PathBuf, HdriStats)], input: &Path) -> Result<HdriStats, String> {
-    let name = input.file_name().expect("a file");
-    let (out, source) = list
-        .iter()
-        .find(|(p, _)| p.file_name() == Some(name))
-        .ok_or("the OpenEXR helper skipped it (non-finite pixels?)")?;
-    let converted = HdriStats::read(out)?;
-    source.check_kept_by(&converted)?;
-    std::fs::rename(out, input).map_err(|e| e.to_string())?;
-    Ok(converted)
 }
 
 /// One `licenses.json` per staged folder, naming each file's licence, so
@@ -306,7 +259,7 @@ fn convert_back(list: &[(PathBuf, HdriStats)], input: &Path) -> Result<HdriStats
 fn write_licence_lists(staging: &Path, staged: &[Staged]) -> Result<(), String> {
     let mut lists: BTreeMap<PathBuf, BTreeMap<String, String>> = BTreeMap::new();
     for s in staged {
-        let path = staging.join(&s.converted.name);
+        let path = staging.join(&s.name);
         let dir = path.parent().expect("inside staging").to_path_buf();
         let file = path
             .file_name()

