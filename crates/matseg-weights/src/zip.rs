@@ -124,7 +124,9 @@ pub fn write_stored(entries: &[(&str, &[u8])]) -> Vec<u8> {
         let offset = out.len() as u32;
         let mut fields = Vec::with_capacity(26);
         fields.extend([20, 0, 0, 0, 0, 0, 0, 0, 0, 0]); // version, flags, stored, time, date
-        fields.extend(crc32(data).to_le_bytes());
+        let mut crc = flate2::Crc::new();
+        crc.update(data);
+        fields.extend(crc.sum().to_le_bytes());
         fields.extend((data.len() as u32).to_le_bytes());
         fields.extend((data.len() as u32).to_le_bytes());
         fields.extend((name.len() as u16).to_le_bytes());
@@ -149,20 +151,4 @@ pub fn write_stored(entries: &[(&str, &[u8])]) -> Vec<u8> {
     out.extend(start.to_le_bytes());
     out.extend([0, 0]);
     out
-}
-
-/// The zip (IEEE) CRC-32 of `data`.
-fn crc32(data: &[u8]) -> u32 {
-    let mut crc = !0u32;
-    for &b in data {
-        crc ^= b as u32;
-        for _ in 0..8 {
-            crc = if crc & 1 == 1 {
-                (crc >> 1) ^ 0xEDB8_8320
-            } else {
-                crc >> 1
-            };
-        }
-    }
-    !crc
 }
