@@ -1,7 +1,7 @@
 //! `matseg bench-set make`: a point benchmark from generated scenes, so the
 //! evaluation can run end to end without external data.
 
-use crate::common::{licence_filter, Defaults, Libraries, DEFAULT_CACHE_MB};
+use crate::common::{Defaults, Libraries, LicenceArgs, DEFAULT_CACHE_MB};
 use anyhow::{ensure, Context, Result};
 use clap::Subcommand;
 use matseg_data::sample_rng;
@@ -38,10 +38,8 @@ pub struct MakeArgs {
     /// Folders of textures; default: the fetched corpus, else bundled assets.
     #[arg(long, num_args = 1..)]
     textures: Vec<PathBuf>,
-    /// Use only sources under these licence families (comma-separated:
-    /// cc0, public-domain, mit, bsd, apache, cc-by, cc-by-sa, lgpl, gpl, unknown).
-    #[arg(long)]
-    licences: Option<String>,
+    #[command(flatten)]
+    licences: LicenceArgs,
 }
 
 /// Runs `matseg bench-set`.
@@ -53,7 +51,7 @@ pub fn run(command: Command) -> Result<()> {
         &args.textures,
         DEFAULT_CACHE_MB,
         Defaults::CorpusOrBundled,
-        &licence_filter(args.licences.as_deref())?,
+        &args.licences.filter()?,
     )?;
     let recipe = Recipe2d::default();
     let options = SyntheticOptions {

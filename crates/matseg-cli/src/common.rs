@@ -100,19 +100,30 @@ pub enum Defaults {
 }
 
 impl Defaults {
+    /// The corpus folder of `kind` when these defaults take the corpus and
+    /// it holds that kind.
+    pub fn corpus_folder(self, kind: &str) -> Option<PathBuf> {
+        if self != Defaults::CorpusOrBundled {
+            return None;
+        }
+        corpus_dir().map(|c| c.join(kind)).filter(|d| d.is_dir())
+    }
+
     /// The default folders of `kind` (`photos`, `textures`, `hdris`,
     /// `meshes`); empty when there are none (the bundled set has no meshes).
     pub fn folders(self, kind: &str) -> Vec<PathBuf> {
-        if self == Defaults::CorpusOrBundled {
-            if let Some(dir) = corpus_dir().map(|c| c.join(kind)).filter(|d| d.is_dir()) {
-                return vec![dir];
-            }
-        }
-        let bundled = assets_dir().join(kind);
-        if bundled.is_dir() {
-            vec![bundled]
+        let folder = self
+            .corpus_folder(kind)
+            .or_else(|| Some(assets_dir().join(kind)).filter(|d| d.is_dir()));
+        folder.into_iter().collect()
+    }
+
+    /// `given` when the user named any, else the default folders of `kind`.
+    pub fn or(self, given: &[PathBuf], kind: &str) -> Vec<PathBuf> {
+        if given.is_empty() {
+            self.folders(kind)
         } else {
-            Vec::new()
+            given.to_vec()
         }
     }
 }
@@ -125,9 +136,22 @@ pub fn corpus_dir() -> Option<PathBuf> {
         .then_some(dir)
 }
 
-/// Parses `--licences` (empty: every licence).
-pub fn licence_filter(list: Option<&str>) -> Result<LicenceFilter> {
-    Ok(LicenceFilter::parse(list.unwrap_or_default())?)
+/// The `--licences` option of the commands that draw from source folders.
+#[derive(clap::Args)]
+pub struct LicenceArgs {
+    /// Use only sources under these licence families (comma-separated:
+    /// cc0, public-domain, mit, bsd, apache, cc-by, cc-by-sa, lgpl, gpl, unknown).
+    #[arg(long)]
+    licences: Option<String>,
+}
+
+impl LicenceArgs {
+    /// The filter (every licence when the option is absent).
+    pub fn filter(&self) -> Result<LicenceFilter> {
+        Ok(LicenceFilter::parse(
+            self.licences.as_deref().unwrap_or_default(),
+        )?)
+    }
 }
 
 /// Texture sources: a folder of PBR material folders (from `matseg pbr`,
@@ -169,17 +193,10 @@ impl Libraries {
         defaults: Defaults,
         licences: &LicenceFilter,
     ) -> Result<Self> {
-        let pick = |given: &[PathBuf], kind: &str| {
-            if given.is_empty() {
-                defaults.folders(kind)
-            } else {
-                given.to_vec()
-            }
-        };
         let budget = cache_mb.saturating_mul(1 << 20);
-        let (photos, r1) = PhotoLibrary::scan(&pick(photos, "photos"), budget / 2)?;
+        let (photos, r1) = PhotoLibrary::scan(&defaults.or(photos, "photos"), budget / 2)?;
         let photos = photos.retain_licences(licences)?;
-        let textures = texture_sources(&pick(textures, "textures"))?;
+        let textures = texture_sources(&defaults.or(textures, "textures"))?;
         let (textures, r2) = PhotoLibrary::scan(&textures, budget / 2)?;
         let textures = textures.retain_licences(licences)?;
         let scan_skipped: Vec<SkippedFile> = r1.skipped.into_iter().chain(r2.skipped).collect();

@@ -1,8 +1,8 @@
 //! `matseg generate`.
 
 use crate::common::{
-    assets_dir, cache_root, init_threads, licence_filter, load_recipe, progress_bar, Defaults,
-    Libraries, DEFAULT_CACHE_MB,
+    assets_dir, cache_root, init_threads, load_recipe, progress_bar, Defaults, Libraries,
+    LicenceArgs, DEFAULT_CACHE_MB,
 };
 use anyhow::{bail, Result};
 use clap::ValueEnum;
@@ -76,10 +76,8 @@ pub struct Args {
     /// corpus's HDRIs, else the bundled ones.
     #[arg(long, num_args = 1..)]
     hdris: Vec<PathBuf>,
-    /// Use only sources under these licence families (comma-separated:
-    /// cc0, public-domain, mit, bsd, apache, cc-by, cc-by-sa, lgpl, gpl, unknown).
-    #[arg(long)]
-    licences: Option<String>,
+    #[command(flatten)]
+    licences: LicenceArgs,
     /// Samples per pixel (3d), overriding the recipe.
     #[arg(long)]
     spp: Option<u32>,
@@ -142,7 +140,7 @@ pub fn run(args: Args) -> Result<()> {
         shard_size: args.shard_size,
         job,
     };
-    let licences = licence_filter(args.licences.as_deref())?;
+    let licences = args.licences.filter()?;
     let start = Instant::now();
     let report = match args.kind {
         Kind::TwoD => {
@@ -246,14 +244,7 @@ impl Files3d {
         defaults: Defaults,
         licences: &LicenceFilter,
     ) -> Result<Self> {
-        let or_default = |given: &[PathBuf], kind: &str| {
-            if given.is_empty() {
-                defaults.folders(kind)
-            } else {
-                given.to_vec()
-            }
-        };
-        let (library, report) = PhotoLibrary::scan(&or_default(photos, "photos"), 0)?;
+        let (library, report) = PhotoLibrary::scan(&defaults.or(photos, "photos"), 0)?;
         let library = library.retain_licences(licences)?;
         for s in &report.skipped {
             eprintln!("warning: skipped {}: {}", s.path.display(), s.reason);
@@ -273,16 +264,12 @@ impl Files3d {
         }
         let materials = licensed(found, licences, "materials")?;
         let materials = keep_readable(materials, |p| cache.material(p).map(drop));
-        let meshes = find_files(&or_default(meshes, "meshes"), &MESH_EXTENSIONS)
+        let meshes = find_files(&defaults.or(meshes, "meshes"), &MESH_EXTENSIONS)
             .map_err(anyhow::Error::msg)?;
-        let meshes = if meshes.is_empty() {
-            meshes
-        } else {
-            licensed(meshes, licences, "meshes")?
-        };
+        let meshes = licensed(meshes, licences, "meshes")?;
         let meshes = keep_readable(meshes, |p| cache.mesh(p).map(drop));
-        let hdris =
-            find_files(&or_default(hdris, "hdris"), &HDR_EXTENSIONS).map_err(anyhow::Error::msg)?;
+        let hdris = find_files(&defaults.or(hdris, "hdris"), &HDR_EXTENSIONS)
+            .map_err(anyhow::Error::msg)?;
         let hdris = licensed(hdris, licences, "HDRIs")?;
         let hdris = keep_readable(hdris, |p| cache.hdri(p).map(drop));
         Ok(Files3d {
@@ -305,9 +292,10 @@ impl Files3d {
 }
 
 /// The paths whose licence (from the `licenses.json` beside or inside
-/// them) `filter` accepts; an error naming `what` when none is left.
+/// them) `filter` accepts; an error naming `what` when the filter removed
+/// every one.
 fn licensed(paths: Vec<PathBuf>, filter: &LicenceFilter, what: &str) -> Result<Vec<PathBuf>> {
-    if filter.accepts_all() {
+    if filter.accepts_all() || paths.is_empty() {
         return Ok(paths);
     }
     let kept: Vec<PathBuf> = paths
@@ -362,11 +350,10 @@ pub fn bundled_materials() -> Result<PathBuf> {
 /// corpus's textures when `defaults` takes the corpus and it has textures,
 /// else [`bundled_materials`].
 fn default_materials(defaults: Defaults) -> Result<PathBuf> {
-    let textures = defaults.folders("textures");
-    if textures.first() == Some(&assets_dir().join("textures")) || textures.is_empty() {
+    let Some(textures) = defaults.corpus_folder("textures") else {
         return bundled_materials();
-    }
+    };
     let dir = cache_root()?.join("materials/corpus-textures-seed0");
-    crate::pbr::make_library(&textures, &dir, 1, 0, true)?;
+    crate::pbr::make_library(&[textures], &dir, 1, 0, true)?;
     Ok(dir)
 }

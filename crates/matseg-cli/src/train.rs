@@ -2,7 +2,7 @@
 //! dataset or straight from the 2D generator, into a run folder that
 //! `--resume` continues exactly.
 
-use crate::common::{licence_filter, Defaults, Libraries};
+use crate::common::{Defaults, Libraries, LicenceArgs};
 use crate::weights::{fetched, ArchArg};
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -33,10 +33,8 @@ pub struct Args {
     /// Texture folders for --online; default: the fetched corpus, else bundled assets.
     #[arg(long, num_args = 1..)]
     textures: Vec<PathBuf>,
-    /// Use only sources under these licence families (comma-separated:
-    /// cc0, public-domain, mit, bsd, apache, cc-by, cc-by-sa, lgpl, gpl, unknown).
-    #[arg(long)]
-    licences: Option<String>,
+    #[command(flatten)]
+    licences: LicenceArgs,
     /// Encoder: mobilenet-v2, convnext-tiny or convnext-base.
     #[arg(long, default_value = "mobilenet-v2")]
     encoder: String,
@@ -125,7 +123,7 @@ pub fn run(args: Args) -> Result<()> {
         &args.textures,
         1024,
         Defaults::CorpusOrBundled,
-        &licence_filter(args.licences.as_deref())?,
+        &args.licences.filter()?,
     )?;
     let generator = |seed| GeneratorSource {
         sources: libraries.sources(),
