@@ -39,71 +39,60 @@ impl Converted {
 /// conversion. An error says what is wrong with the file.
 pub fn convert(kind: Kind, name: &str, bytes: Vec<u8>) -> Result<Vec<Converted>, String> {
     let lower = name.to_ascii_lowercase();
-    match kind {
-        Kind::Photos | Kind::Textures => {
-            if lower.ends_with(".pat") {
-                let png = gimp_pattern_to_png(&bytes)?;
-                let info = image_info(&png)?;
-                Ok(vec![Converted::primary(
-                    replace_ext(name, ".pat", ".png"),
-                    png,
-                    info,
-                )])
-            } else {
-                let info = image_info(&bytes)?;
-                Ok(vec![Converted::primary(name.to_string(), bytes, info)])
-            }
-        }
-        Kind::Hdris => {
-            if lower.ends_with(".exr.js") {
-                let exr = base64_data_url(&bytes)?;
-                Ok(vec![Converted::primary(
-                    replace_ext(name, ".exr.js", ".exr"),
-                    exr,
-                    Value::Null,
-                )])
-            } else {
-                Ok(vec![Converted::primary(
-                    name.to_string(),
-                    bytes,
-                    Value::Null,
-                )])
-            }
-        }
-        Kind::Meshes => {
-            if lower.ends_with(".sh3f") {
-                furniture_models(name, &bytes)
-            } else if lower.ends_with(".js") {
-                let obj = js_mesh_to_obj(&bytes)?;
-                Ok(vec![Converted::primary(
-                    replace_ext(name, ".js", ".obj"),
-                    obj,
-                    Value::Null,
-                )])
-            } else {
-                Ok(vec![Converted::primary(
-                    name.to_string(),
-                    bytes,
-                    Value::Null,
-                )])
-            }
-        }
-        Kind::Weights => {
-            let tensors =
-                matseg_weights::read_checkpoint(&bytes, name).map_err(|e| e.to_string())?;
-            let parameters: usize = tensors
-                .iter()
-                .map(|t| t.shape.iter().product::<usize>())
-                .sum();
-            let file = matseg_weights::write_safetensors(&tensors, &[("source", name)]);
-            let out = match name.rsplit_once('.') {
-                Some((stem, _)) => format!("{stem}.safetensors"),
-                None => format!("{name}.safetensors"),
-            };
-            let info = json!({ "tensors": tensors.len(), "parameters": parameters });
-            Ok(vec![Converted::primary(out, file, info)])
-        }
+    if kind == Kind::Meshes && lower.ends_with(".sh3f") {
+        return furniture_models(name, &bytes);
     }
+    if kind == Kind::Weights {
+        return checkpoint_to_safetensors(name, &bytes);
+    }
+    let (name, bytes) = match one_to_one(kind, &lower) {
+        Some((from, to, decode)) => (replace_ext(name, from, to), decode(&bytes)?),
+        None => (name.to_string(), bytes),
+    };
+    let info = match kind {
+        Kind::Photos | Kind::Textures => image_info(&bytes)?,
+        _ => Value::Null,
+    };
+    Ok(vec![Converted::primary(name, bytes, info)])
+}
+
+/// A PyTorch checkpoint (legacy or zip) as a safetensors file of the same
+/// stem.
+fn checkpoint_to_safetensors(name: &str, bytes: &[u8]) -> Result<Vec<Converted>, String> {
+    let tensors = matseg_weights::read_checkpoint(bytes, name).map_err(|e| e.to_string())?;
+    let parameters: usize = tensors
+        .iter()
+        .map(|t| t.shape.iter().product::<usize>())
+        .sum();
+    let file = matseg_weights::write_safetensors(&tensors, &[("source", name)]);
+    let out = match name.rsplit_once('.') {
+        Some((stem, _)) => format!("{stem}.safetensors"),
+        None => format!("{name}.safetensors"),
+    };
+    let info = json!({ "tensors": tensors.len(), "parameters": parameters });
+    Ok(vec![Converted::primary(out, file, info)])
+}
+
+/// Turns one file's bytes into another's.
+type Decode = fn(&[u8]) -> Result<Vec<u8>, String>;
+
+/// A file-to-file conversion: its extension in, its extension out, how.
+type OneToOne = (&'static str, &'static str, Decode);
+
+/// The conversion a file of kind `kind` named `lower` (lowercase) needs,
+/// if any: GIMP patterns to PNG, base64 EXR modules to EXR, JavaScript
+/// meshes to OBJ.
+fn one_to_one(kind: Kind, lower: &str) -> Option<OneToOne> {
+    let table: [(Kind, &str, &str, Decode); 4] = [
+        (Kind::Photos, ".pat", ".png", gimp_pattern_to_png),
+        (Kind::Textures, ".pat", ".png", gimp_pattern_to_png),
+        (Kind::Hdris, ".exr.js", ".exr", base64_data_url),
+        (Kind::Meshes, ".js", ".obj", js_mesh_to_obj),
+    ];
+    table
+        .into_iter()
+        .find(|(k, from, _, _)| *k == kind && lower.ends_with(from))
+        .map(|(_, from, to, f)| (from, to, f))
 }
 
 fn replace_ext(name: &str, old: &str, new: &str) -> String {
