@@ -2,7 +2,7 @@
 
 use anyhow::{Context, Result};
 use matseg_data::sample_rng;
-use matseg_extract::{combine_maps, draw_channel_map, MapRecord};
+use matseg_extract::{combine_maps, draw_channel_map, CombinedMaps, MapRecord};
 use matseg_image::io::{encode_png_gray, encode_png_rgb, read_rgb, write_atomic};
 use matseg_image::PhotoLibrary;
 use matseg_scene::colorize;
@@ -72,7 +72,12 @@ pub fn run(args: Args) -> Result<()> {
         raw.push(plane);
         records.push(record);
     }
-    let (weights, background, combine) = combine_maps(&mut rng, raw.clone(), hard, &recipe.maps);
+    let CombinedMaps {
+        weights,
+        background,
+        record: combine,
+        ..
+    } = combine_maps(&mut rng, raw.clone(), hard, &recipe.maps);
 
     std::fs::create_dir_all(&args.out).with_context(|| args.out.display().to_string())?;
     let write = |name: String, bytes: Vec<u8>| {

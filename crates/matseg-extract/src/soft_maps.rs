@@ -2,7 +2,7 @@
 //! gives a map with natural-image shapes; K of them become material weights.
 
 use matseg_image::{
-    gaussian_blur, level_values, Channel, ChannelWindow, LevelTable, LibraryError, Photo,
+    gaussian_blur, level_values, Channel, ChannelWindow, Coverage, LevelTable, LibraryError, Photo,
     PhotoLibrary, Placement, Plane, Ramp,
 };
 use rand::Rng;
@@ -149,15 +149,24 @@ pub struct CombineRecord {
 
 /// K material weight maps and the background weight: per pixel they sum to 1.
 #[derive(Clone, Debug)]
-pub struct SoftMaps {
+pub struct CombinedMaps {
     /// One weight map per material.
     pub weights: Vec<Plane>,
+    /// Where each weight is positive.
+    pub coverage: Vec<Coverage>,
     /// Background weight, `1 - sum(weights)`.
     pub background: Plane,
+    /// How they were combined.
+    pub record: CombineRecord,
+}
+
+/// A scene's weights and how each map was drawn.
+#[derive(Clone, Debug)]
+pub struct SoftMaps {
+    /// The weights.
+    pub combined: CombinedMaps,
     /// How each map was drawn.
     pub maps: Vec<MapRecord>,
-    /// How they were combined.
-    pub combine: CombineRecord,
 }
 
 /// Failure to draw maps.
@@ -320,13 +329,13 @@ pub fn draw_channel_map<R: Rng + ?Sized>(
 
 /// Combines raw maps into material weights (SPEC 1, step 6): optional blur,
 /// sum or priority normalisation, one-hot for hard scenes; returns the weights,
-/// the background weight and the record of what was drawn.
+/// where they are positive, the background weight and the record of what was drawn.
 pub fn combine_maps<R: Rng + ?Sized>(
     rng: &mut R,
     mut maps: Vec<Plane>,
     hard: bool,
     recipe: &SoftMapRecipe,
-) -> (Vec<Plane>, Plane, CombineRecord) {
+) -> CombinedMaps {
     let blur_kernel = rng
         .random_bool(recipe.p_blur)
         .then(|| recipe.blur_kernels[rng.random_range(0..recipe.blur_kernels.len())]);
@@ -338,43 +347,94 @@ pub fn combine_maps<R: Rng + ?Sized>(
     } else {
         MapNormalisation::Priority
     };
-    match normalisation {
-        MapNormalisation::Sum => normalise_by_sum(&mut maps),
-        MapNormalisation::Priority => normalise_by_priority(&mut maps),
-    }
-    if hard {
-        make_one_hot(&mut maps, recipe.hard_min_weight as f32);
-    }
-    let background = background_weight(&maps);
-    let record = CombineRecord {
-        blur_kernel,
+    let steps = RowSteps {
         normalisation,
-        hard,
+        one_hot_min: hard.then_some(recipe.hard_min_weight as f32),
     };
-    (maps, background, record)
+    let (w, h) = (maps[0].width, maps[0].height);
+    let mut background = Plane::new(w, h, 1.0);
+    let mut coverage: Vec<Coverage> = maps.iter().map(|_| Coverage::empty(w, h)).collect();
+    // Row by row: each row of every map is read from memory once and all
+    // steps work on it in cache.
+    let mut scratch = [vec![0.0f32; w], vec![0.0f32; w]];
+    for (y, bg) in background.data.chunks_exact_mut(w.max(1)).enumerate() {
+        let mut rows: Vec<&mut [f32]> = maps
+            .iter_mut()
+            .map(|m| &mut m.data[y * w..(y + 1) * w])
+            .collect();
+        combine_row(steps, y, &mut rows, bg, &mut coverage, &mut scratch);
+    }
+    CombinedMaps {
+        weights: maps,
+        coverage,
+        background,
+        record: CombineRecord {
+            blur_kernel,
+            normalisation,
+            hard,
+        },
+    }
 }
 
-// The plane-wise loops of combine_maps. Each runs over whole planes, so it
-// vectorises.
+/// What [`combine_row`] does to a row.
+#[derive(Clone, Copy)]
+struct RowSteps {
+    normalisation: MapNormalisation,
+    /// One-hot, with this minimum top weight.
+    one_hot_min: Option<f32>,
+}
+
+/// All steps of [`combine_maps`] on row `y` of each map of each map and of the
+/// background; compiled also for AVX2, picked at run time when the CPU has
+/// it (the arithmetic is the same, so are the results).
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+fn combine_row(
+    steps: RowSteps,
+    y: usize,
+    rows: &mut [&mut [f32]],
+    background: &mut [f32],
+    coverage: &mut [Coverage],
+    [a, b]: &mut [Vec<f32>; 2],
+) {
+    match steps.normalisation {
+        MapNormalisation::Sum => normalise_by_sum(rows, a),
+        MapNormalisation::Priority => normalise_by_priority(rows, a),
+    }
+    if let Some(min) = steps.one_hot_min {
+        make_one_hot(rows, min, a, b);
+    }
+    background_weight(rows, background);
+    for (c, row) in coverage.iter_mut().zip(rows.iter()) {
+        c.add_row(y, row);
+    }
+}
+
+// The steps of combine_row, on one row of each map (equal lengths); each
+// loop runs over a whole row, branch-free, so it vectorises. `total`,
+// `remaining`, `top` and `best` are scratch rows.
 
 /// Divides the maps by their sum wherever it is positive.
-fn normalise_by_sum(maps: &mut [Plane]) {
-    let mut total = vec![0.0f32; maps[0].len()];
+#[inline(always)]
+fn normalise_by_sum(maps: &mut [&mut [f32]], total: &mut [f32]) {
+    total.fill(0.0);
     for m in maps.iter() {
-        total.iter_mut().zip(&m.data).for_each(|(t, v)| *t += v);
+        total.iter_mut().zip(m.iter()).for_each(|(t, v)| *t += v);
     }
     for m in maps.iter_mut() {
-        for (v, &t) in m.data.iter_mut().zip(&total) {
-            *v = if t > 0.0 { *v / t } else { *v };
+        for (v, &t) in m.iter_mut().zip(total.iter()) {
+            // Dividing by 1 keeps the value: every lane is stored (a
+            // conditional store becomes a slow masked store).
+            *v /= if t > 0.0 { t } else { 1.0 };
         }
     }
 }
 
 /// Each map keeps its share of what the earlier maps left.
-fn normalise_by_priority(maps: &mut [Plane]) {
-    let mut remaining = vec![1.0f32; maps[0].len()];
+#[inline(always)]
+fn normalise_by_priority(maps: &mut [&mut [f32]], remaining: &mut [f32]) {
+    remaining.fill(1.0);
     for m in maps.iter_mut() {
-        for (v, r) in m.data.iter_mut().zip(remaining.iter_mut()) {
+        for (v, r) in m.iter_mut().zip(remaining.iter_mut()) {
             *v *= *r;
             *r = (*r - *v).max(0.0);
         }
@@ -382,43 +442,40 @@ fn normalise_by_priority(maps: &mut [Plane]) {
 }
 
 /// One-hot of the per-pixel arg-max (the first map wins ties); pixels whose
-/// top weight is below `min` become background.
-fn make_one_hot(maps: &mut [Plane], min: f32) {
-    let n = maps[0].len();
-    let mut top = vec![f32::MIN; n];
-    let mut best = vec![0u8; n];
+/// top weight is below `min` become background. `best` holds map indices as
+/// floats, so that the arg-max works on equal-width lanes.
+#[inline(always)]
+fn make_one_hot(maps: &mut [&mut [f32]], min: f32, top: &mut [f32], best: &mut [f32]) {
+    top.fill(f32::MIN);
+    best.fill(0.0);
     for (k, m) in maps.iter().enumerate() {
-        for ((t, b), &v) in top.iter_mut().zip(best.iter_mut()).zip(&m.data) {
-            if v > *t {
-                *t = v;
-                *b = k as u8;
-            }
+        let k = k as f32;
+        for ((t, b), &v) in top.iter_mut().zip(best.iter_mut()).zip(m.iter()) {
+            // Written as arithmetic so that every lane is stored (a
+            // conditional store becomes a slow masked store); exact, as
+            // indices are small whole numbers.
+            let above = f32::from(u8::from(v > *t));
+            *b += (k - *b) * above;
+            *t = t.max(v);
         }
     }
     for (k, m) in maps.iter_mut().enumerate() {
-        for ((v, &b), &t) in m.data.iter_mut().zip(&best).zip(&top) {
-            *v = if b as usize == k && t >= min {
-                1.0
-            } else {
-                0.0
-            };
+        let k = k as f32;
+        for ((v, &b), &t) in m.iter_mut().zip(best.iter()).zip(top.iter()) {
+            *v = if b == k && t >= min { 1.0 } else { 0.0 };
         }
     }
 }
 
-/// `1 - sum(maps)`, clamped to `[0, 1]`.
-fn background_weight(maps: &[Plane]) -> Plane {
-    let mut background = Plane::new(maps[0].width, maps[0].height, 1.0);
+/// `background = 1 - sum(maps)`, clamped to `[0, 1]` (`background` starts at 1).
+#[inline(always)]
+fn background_weight(maps: &[&mut [f32]], background: &mut [f32]) {
     for m in maps {
-        for (b, v) in background.data.iter_mut().zip(&m.data) {
+        for (b, v) in background.iter_mut().zip(m.iter()) {
             *b -= v;
         }
     }
-    background
-        .data
-        .iter_mut()
-        .for_each(|b| *b = b.clamp(0.0, 1.0));
-    background
+    background.iter_mut().for_each(|b| *b = b.clamp(0.0, 1.0));
 }
 
 /// Draws `k` soft maps for a `w x h` scene and combines them (all of SPEC 1).
@@ -440,11 +497,8 @@ pub fn make_soft_maps<R: Rng + ?Sized>(
         planes.push(plane);
         maps.push(record);
     }
-    let (weights, background, combine) = combine_maps(rng, planes, hard, recipe);
     Ok(SoftMaps {
-        weights,
-        background,
+        combined: combine_maps(rng, planes, hard, recipe),
         maps,
-        combine,
     })
 }

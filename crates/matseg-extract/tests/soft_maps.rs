@@ -1,7 +1,7 @@
 //! Soft-map invariants over many seeds, on the bundled photos.
 
 use matseg_extract::{combine_maps, draw_channel_map, MapNormalisation, SoftMapRecipe};
-use matseg_image::{level_values, PhotoLibrary, Plane};
+use matseg_image::{level_values, Coverage, PhotoLibrary, Plane};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::path::Path;
@@ -82,8 +82,11 @@ fn combined_weights_sum_to_one_and_hard_is_one_hot() {
     for seed in 0..40u64 {
         for hard in [false, true] {
             let mut rng = ChaCha8Rng::seed_from_u64(seed);
-            let (weights, bg, rec) =
-                combine_maps(&mut rng, maps.clone(), hard, &SoftMapRecipe::default());
+            let combined = combine_maps(&mut rng, maps.clone(), hard, &SoftMapRecipe::default());
+            let (weights, bg, rec) = (&combined.weights, &combined.background, &combined.record);
+            for (w, c) in weights.iter().zip(&combined.coverage) {
+                assert_eq!(c, &Coverage::of(w), "coverage built with the weights");
+            }
             seen[(rec.normalisation == MapNormalisation::Sum) as usize] = true;
             assert_eq!(weights.len(), 3);
             for i in 0..w * h {

@@ -1,5 +1,6 @@
 //! Separable Gaussian blur with OpenCV's kernel-size-to-sigma rule.
 
+use crate::coverage::Coverage;
 use crate::plane::Plane;
 
 /// The sigma OpenCV uses for a kernel of odd size `ksize` when none is given:
@@ -38,22 +39,25 @@ fn reflect101(i: isize, n: usize) -> usize {
     j as usize
 }
 
-/// Appends `k0 * centre[x] + sum over pairs (k, a, b) of k * (a[x] + b[x])`
-/// for every `x` of `centre` to `out`, over equal-length slices so the
-/// compiler vectorises it; also compiled for AVX2, picked at run time when
-/// the CPU has it.
+/// Writes `k0 * centre[x] + sum over pairs (k, a, b) of k * (a[x] + b[x])`
+/// to `out[x]` for every `x` of `columns` (all slices index the same
+/// columns), over equal-length slices so the compiler vectorises it; also
+/// compiled for AVX2, picked at run time when the CPU has it.
 #[multiversion::multiversion(targets("x86_64+avx2+fma"))]
-fn append_symmetric_taps(
-    out: &mut Vec<f32>,
+fn symmetric_taps(
+    out: &mut [f32],
     centre: &[f32],
     k0: f32,
     pairs: &[(f32, &[f32], &[f32])],
+    columns: std::ops::Range<usize>,
 ) {
-    let start = out.len();
-    out.extend(centre.iter().map(|&c| k0 * c));
-    let out = &mut out[start..];
+    let out = &mut out[columns.clone()];
+    out.iter_mut()
+        .zip(&centre[columns.clone()])
+        .for_each(|(o, &c)| *o = k0 * c);
     let n = out.len();
     for &(k, a, b) in pairs {
+        let (a, b) = (&a[columns.clone()], &b[columns.clone()]);
         let (a, b) = (&a[..n], &b[..n]);
         for x in 0..n {
             out[x] += k * (a[x] + b[x]);
@@ -63,116 +67,77 @@ fn append_symmetric_taps(
 
 /// Blurs a plane with an odd Gaussian kernel of size `ksize` (1 = copy).
 pub fn gaussian_blur(src: &Plane, ksize: usize) -> Plane {
-    gaussian_blur_region(src, ksize, Region::whole(src))
+    let (w, h) = (src.width, src.height);
+    let mut out = Vec::with_capacity(w * h);
+    gaussian_blur_covered(
+        w,
+        h,
+        ksize,
+        &Coverage::full(w, h),
+        |y, row| row.copy_from_slice(&src.data[y * w..(y + 1) * w]),
+        |_, row| out.extend_from_slice(row),
+    );
+    Plane::from_vec(w, h, out)
 }
 
-/// A rectangle of a plane: columns `x0..x1`, rows `y0..y1`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Region {
-    /// First column.
-    pub x0: usize,
-    /// One past the last column.
-    pub x1: usize,
-    /// First row.
-    pub y0: usize,
-    /// One past the last row.
-    pub y1: usize,
-}
-
-impl Region {
-    /// No pixel at all.
-    pub const EMPTY: Region = Region {
-        x0: 0,
-        x1: 0,
-        y0: 0,
-        y1: 0,
-    };
-
-    /// All of `plane`.
-    pub fn whole(plane: &Plane) -> Self {
-        Region {
-            x0: 0,
-            x1: plane.width,
-            y0: 0,
-            y1: plane.height,
+/// Blurs the `width x height` plane whose row `y` `source_row(y, row)`
+/// writes (all `width` values), with an odd Gaussian kernel of size `ksize`
+/// (1 = none) and reflected borders, computing only the blocks `coverage`
+/// covers: each row with a covered block goes to `emit(y, row)` in order,
+/// its covered columns exactly as the whole blur has them (the rest of
+/// `row` is unspecified). Source rows are asked for once each, in order,
+/// only where the blur reads them; the horizontal pass keeps `ksize` rows.
+pub fn gaussian_blur_covered(
+    width: usize,
+    height: usize,
+    ksize: usize,
+    coverage: &Coverage,
+    mut source_row: impl FnMut(usize, &mut [f32]),
+    mut emit: impl FnMut(usize, &[f32]),
+) {
+    let (w, h) = (width, height);
+    let r = ksize / 2;
+    let mut out = vec![0.0f32; w];
+    if r == 0 || w == 0 {
+        for y in (0..h).filter(|&y| coverage.row_is_covered(y)) {
+            source_row(y, &mut out);
+            emit(y, &out);
         }
-    }
-
-    /// The bounding box of the pixels where `plane > 0`, if any.
-    pub fn support(plane: &Plane) -> Option<Self> {
-        let w = plane.width;
-        let mut region: Option<Region> = None;
-        for (y, row) in plane.data.chunks_exact(w).enumerate() {
-            // Blocks of 16 are tested whole (vectorised); positions are
-            // looked for only in the first and last positive block.
-            let positive = |block: &[f32]| block.iter().fold(0.0f32, |m, &v| m.max(v)) > 0.0;
-            let Some(first) = row.chunks(16).position(positive) else {
-                continue;
-            };
-            let last = row
-                .chunks(16)
-                .rposition(positive)
-                .expect("a positive block");
-            let x0 = first * 16
-                + row[first * 16..]
-                    .iter()
-                    .position(|&v| v > 0.0)
-                    .expect("in block");
-            let tail = &row[..(last * 16 + 16).min(w)];
-            let x1 = tail.iter().rposition(|&v| v > 0.0).expect("in block") + 1;
-            let r = region.get_or_insert(Region {
-                x0,
-                x1,
-                y0: y,
-                y1: y + 1,
-            });
-            r.x0 = r.x0.min(x0);
-            r.x1 = r.x1.max(x1);
-            r.y1 = y + 1;
-        }
-        region
-    }
-}
-
-/// Like [`gaussian_blur`], but only the pixels inside `region` are computed
-/// (exactly as the whole blur would); the rest of the result is 0.
-pub fn gaussian_blur_region(src: &Plane, ksize: usize, region: Region) -> Plane {
-    if ksize <= 1 || src.is_empty() {
-        return src.clone();
+        return;
     }
     let taps = gaussian_kernel(ksize);
-    let r = ksize / 2;
-    let (w, h) = (src.width, src.height);
-    let Region { x0, x1, y0, y1 } = region;
-    let span = x1 - x0;
-
-    // Horizontal pass over the rows the vertical pass will read (only the
-    // region's columns): pad each row by reflection, then add mirrored taps
-    // in pairs (the kernel is symmetric).
-    let (first_row, end_row) = (y0.saturating_sub(r), (y1 + r).min(h));
-    let mut horiz = Vec::with_capacity((end_row - first_row) * span);
+    // Horizontal pass, into a ring of the last 2r + 1 rows: pad each source
+    // row by reflection, then add mirrored taps in pairs (the kernel is
+    // symmetric), on the columns any output row within r rows covers.
+    let read = coverage.dilated_rows(r);
+    let slots = 2 * r + 1;
+    let mut ring = vec![0.0f32; slots * w];
     let mut padded = vec![0.0f32; w + 2 * r];
-    for y in first_row..end_row {
-        let row = &src.data[y * w..(y + 1) * w];
-        padded[r..r + w].copy_from_slice(row);
-        for i in 0..r {
-            padded[i] = row[reflect101(i as isize - r as isize, w)];
-            padded[r + w + i] = row[reflect101((w + i) as isize, w)];
+    let mut next = 0;
+    for y in 0..h {
+        while next < h && next <= y + r {
+            if read.row_is_covered(next) {
+                source_row(next, &mut padded[r..r + w]);
+                for i in 0..r {
+                    padded[i] = padded[r + reflect101(i as isize - r as isize, w)];
+                    padded[r + w + i] = padded[r + reflect101((w + i) as isize, w)];
+                }
+                let pairs: Vec<_> = (0..r)
+                    .map(|t| (taps[t], &padded[t..], &padded[2 * r - t..]))
+                    .collect();
+                let slot = &mut ring[(next % slots) * w..][..w];
+                for (x0, x1) in read.runs(next) {
+                    symmetric_taps(slot, &padded[r..], taps[r], &pairs, x0..x1);
+                }
+            }
+            next += 1;
         }
-        let pairs: Vec<_> = (0..r)
-            .map(|t| (taps[t], &padded[x0 + t..], &padded[x0 + 2 * r - t..]))
-            .collect();
-        append_symmetric_taps(&mut horiz, &padded[x0 + r..x0 + r + span], taps[r], &pairs);
-    }
-
-    // Vertical pass: each output row is a weighted sum of input rows
-    // (reflected rows stay inside the horizontal pass's rows). Rows and
-    // columns outside the region are 0.
-    let row = |y: isize| &horiz[(reflect101(y, h) - first_row) * span..];
-    let mut out = Vec::with_capacity(w * h);
-    out.resize(y0 * w, 0.0);
-    for y in y0..y1 {
-        out.resize(out.len() + x0, 0.0);
+        if !coverage.row_is_covered(y) {
+            continue;
+        }
+        // Vertical pass: a weighted sum of ring rows (reflected rows stay
+        // within r rows of y, so inside the ring).
+        let row = |y: isize| &ring[(reflect101(y, h) % slots) * w..][..w];
         let yi = y as isize;
         let pairs: Vec<_> = (0..r)
             .map(|t| {
@@ -180,11 +145,11 @@ pub fn gaussian_blur_region(src: &Plane, ksize: usize, region: Region) -> Plane 
                 (taps[t], row(yi - d), row(yi + d))
             })
             .collect();
-        append_symmetric_taps(&mut out, &row(yi)[..span], taps[r], &pairs);
-        out.resize(out.len() + w - x1, 0.0);
+        for (x0, x1) in coverage.runs(y) {
+            symmetric_taps(&mut out, row(yi), taps[r], &pairs, x0..x1);
+        }
+        emit(y, &out);
     }
-    out.resize(w * h, 0.0);
-    Plane::from_vec(w, h, out)
 }
 
 #[cfg(test)]
@@ -209,65 +174,80 @@ mod tests {
         }
     }
 
+    /// The blur on covered blocks equals a direct 2D convolution there.
     #[test]
-    fn region_blur_equals_the_whole_blur_inside_the_region() {
+    fn covered_blur_equals_the_direct_convolution_on_covered_blocks() {
+        let (w, h) = (41, 23);
         let src = Plane::from_vec(
-            23,
-            17,
-            (0..23 * 17)
+            w,
+            h,
+            (0..w * h)
                 .map(|i| ((i * 37) % 101) as f32 / 100.0)
                 .collect(),
         );
-        for k in [3, 9, 21] {
-            let whole = gaussian_blur(&src, k);
-            for region in [
-                Region {
-                    x0: 0,
-                    x1: 5,
-                    y0: 0,
-                    y1: 4,
-                },
-                Region {
-                    x0: 7,
-                    x1: 16,
-                    y0: 5,
-                    y1: 12,
-                },
-                Region {
-                    x0: 18,
-                    x1: 23,
-                    y0: 13,
-                    y1: 17,
-                },
-            ] {
-                let part = gaussian_blur_region(&src, k, region);
-                for y in 0..17 {
-                    for x in 0..23 {
-                        let inside = (region.x0..region.x1).contains(&x)
-                            && (region.y0..region.y1).contains(&y);
-                        let want = if inside { whole.get(x, y) } else { 0.0 };
-                        assert_eq!(part.get(x, y), want, "k {k} {region:?} ({x}, {y})");
+        // Covered: one pixel's block near the top edge, one in the middle
+        // and one block at the bottom right.
+        let mut mask = Plane::new(w, h, 0.0);
+        for (x, y) in [(3, 0), (20, 11), (40, 22)] {
+            mask.data[y * w + x] = 1.0;
+        }
+        let coverage = Coverage::of(&mask);
+        for k in [1, 3, 9, 21] {
+            let taps = gaussian_kernel(k);
+            let r = (k / 2) as isize;
+            let direct = |x: usize, y: usize| -> f32 {
+                let mut sum = 0.0f64;
+                for dy in -r..=r {
+                    for dx in -r..=r {
+                        let sx = reflect101(x as isize + dx, w);
+                        let sy = reflect101(y as isize + dy, h);
+                        let t = taps[(dx + r) as usize] as f64 * taps[(dy + r) as usize] as f64;
+                        sum += t * src.get(sx, sy) as f64;
                     }
                 }
-            }
+                sum as f32
+            };
+            let (mut rows, mut asked) = (Vec::new(), Vec::new());
+            gaussian_blur_covered(
+                w,
+                h,
+                k,
+                &coverage,
+                |y, row| {
+                    asked.push(y);
+                    row.copy_from_slice(&src.data[y * w..(y + 1) * w]);
+                },
+                |y, row| {
+                    for x in coverage.runs(y).flat_map(|(a, b)| a..b) {
+                        assert!((row[x] - direct(x, y)).abs() < 1e-5, "k {k} ({x}, {y})");
+                    }
+                    rows.push(y);
+                },
+            );
+            assert_eq!(rows, vec![0, 11, 22], "k {k}");
+            // Source rows are read once each, in order, and only near covered ones.
+            assert!(asked.windows(2).all(|p| p[0] < p[1]), "k {k}: {asked:?}");
+            let near = |y: usize| rows.iter().any(|&c| c.abs_diff(y) <= k / 2);
+            assert!(asked.iter().all(|&y| near(y)), "k {k}: {asked:?}");
         }
-    }
-
-    #[test]
-    fn support_is_the_bounding_box_of_positive_values() {
-        let mut p = Plane::new(10, 8, 0.0);
-        assert_eq!(Region::support(&p), None);
-        p.data[2 * 10 + 7] = 0.5;
-        p.data[5 * 10 + 3] = 1.0;
-        assert_eq!(
-            Region::support(&p),
-            Some(Region {
-                x0: 3,
-                x1: 8,
-                y0: 2,
-                y1: 6
-            })
+        // The whole blur has the covered blur's values, bit for bit.
+        let whole = gaussian_blur(&src, 9);
+        let mut checked = 0;
+        gaussian_blur_covered(
+            w,
+            h,
+            9,
+            &coverage,
+            |y, row| row.copy_from_slice(&src.data[y * w..(y + 1) * w]),
+            |y, row| {
+                for x in coverage.runs(y).flat_map(|(a, b)| a..b) {
+                    assert_eq!(row[x], whole.get(x, y), "({x}, {y})");
+                    checked += 1;
+                }
+            },
         );
+        // The three covered blocks are the three column blocks of a row.
+        assert_eq!(checked, w);
     }
 
     #[test]

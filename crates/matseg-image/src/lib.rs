@@ -8,6 +8,7 @@
 pub mod bilinear;
 pub mod blur;
 pub mod channel;
+pub mod coverage;
 pub mod io;
 pub mod levels;
 pub mod library;
@@ -18,8 +19,9 @@ pub mod ramp;
 pub mod resample;
 pub mod rgb;
 
-pub use blur::{gaussian_blur, gaussian_blur_region, Region};
+pub use blur::{gaussian_blur, gaussian_blur_covered};
 pub use channel::Channel;
+pub use coverage::{Coverage, Region};
 pub use io::ImageIoError;
 pub use levels::{level_values, ChannelWindow, LevelHistogram, LevelTable};
 pub use library::{licence_of, LibraryError, Photo, PhotoLibrary, ScanReport, SkippedFile};

@@ -105,19 +105,21 @@ pub fn generate_2d<R: Rng + ?Sized>(
         true,
     );
     let mut acc = photo.pyramid.sample_rgb(&placement, width, height);
+    let weights = maps.combined;
     for plane in &mut acc.planes {
-        for (v, &wb) in plane.iter_mut().zip(&maps.background.data) {
+        for (v, &wb) in plane.iter_mut().zip(&weights.background.data) {
             *v *= wb;
         }
     }
     let mut materials = Vec::with_capacity(k);
-    for weight in &maps.weights {
+    for (weight, coverage) in weights.weights.iter().zip(&weights.coverage) {
         materials.push(add_material(
             rng,
             &recipe.composition,
             sources.photos,
             sources.textures,
             weight,
+            coverage,
             &mut acc,
         )?);
     }
@@ -127,7 +129,7 @@ pub fn generate_2d<R: Rng + ?Sized>(
         hard,
         max_occupancy,
         maps: maps.maps,
-        combine: maps.combine,
+        combine: weights.record,
         background: BackgroundRecord {
             photo: photo.index,
             placement,
@@ -136,8 +138,8 @@ pub fn generate_2d<R: Rng + ?Sized>(
     };
     Ok(Scene2d {
         image: acc.to_rgb8(),
-        weights: maps.weights,
-        background: maps.background,
+        weights: weights.weights,
+        background: weights.background,
         record,
     })
 }

@@ -4,8 +4,8 @@
 use crate::recipe::CompositionRecipe;
 use matseg_extract::random_photo_channel;
 use matseg_image::{
-    gaussian_blur_region, level_values, Channel, LibraryError, Mirrors, Photo, PhotoLibrary,
-    Placement, Plane, Pyramid, Region, RgbF32,
+    gaussian_blur_covered, level_values, Channel, ChannelWindow, Coverage, LevelTable,
+    LibraryError, Mirrors, Photo, PhotoLibrary, Placement, Plane, Pyramid, Region, RgbF32,
 };
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -88,13 +88,15 @@ pub struct MaterialRecord {
 }
 
 /// Draws one material and adds it, weighted by `weight`, into `acc`. Only
-/// the bounding box of the pixels where `weight > 0` is shaded and blended.
+/// the blocks of pixels where `weight > 0` (its `coverage`) are shaded and
+/// blended.
 pub fn add_material<R: Rng + ?Sized>(
     rng: &mut R,
     recipe: &CompositionRecipe,
     photos: &PhotoLibrary,
     textures: &PhotoLibrary,
     weight: &Plane,
+    coverage: &Coverage,
     acc: &mut RgbF32,
 ) -> Result<MaterialRecord, LibraryError> {
     let (w, h) = (weight.width, weight.height);
@@ -105,45 +107,76 @@ pub fn add_material<R: Rng + ?Sized>(
         let rgb = [rng.random::<u8>(), rng.random::<u8>(), rng.random::<u8>()];
         (None, MaterialSource::FlatColour { rgb })
     };
-    // Pixels outside the weight's support add nothing, so the shading blur
-    // and the blending skip them.
-    let support = Region::support(weight).unwrap_or(Region::EMPTY);
     let shading = if rng.random_bool(recipe.p_shading) {
-        Some(draw_shading(rng, recipe, photos, support, w, h)?)
+        Some(draw_shading(rng, recipe, photos, w, h)?)
     } else {
         None
     };
-
-    if support == Region::EMPTY {
-        return Ok(MaterialRecord {
-            source,
-            shading: shading.map(|(_, record)| record),
-        });
-    }
-    let colour = Colour::new(&source, texture.as_deref(), support);
-    let span = support.x1 - support.x0;
-    let mut rgb = [vec![0f32; span], vec![0f32; span], vec![0f32; span]];
-    let mut factor = vec![0f32; span];
-    for y in support.y0..support.y1 {
-        let row = y * w + support.x0..y * w + support.x1;
-        factor.copy_from_slice(&weight.data[row.clone()]);
-        if let Some((shade, record)) = &shading {
-            let s = record.strength;
-            for (f, &v) in factor.iter_mut().zip(&shade.data[row.clone()]) {
-                *f *= (1.0 - s) + s * v;
-            }
-        }
-        colour.fill_row(y, support.x0, &mut rgb);
-        for (plane, values) in acc.planes.iter_mut().zip(&rgb) {
-            for ((a, &v), &f) in plane[row.clone()].iter_mut().zip(values).zip(&factor) {
-                *a += v * f;
-            }
-        }
-    }
-    Ok(MaterialRecord {
+    let record = MaterialRecord {
         source,
-        shading: shading.map(|(_, record)| record),
-    })
+        shading: shading.as_ref().map(|s| s.record.clone()),
+    };
+    // Pixels where the weight is 0 add nothing, so the shading blur and the
+    // blending skip every block without one.
+    let Some(support) = coverage.support() else {
+        return Ok(record);
+    };
+    let colour = Colour::new(&record.source, texture.as_deref(), support);
+    let mut layer = Layer {
+        weight,
+        coverage,
+        colour: &colour,
+        rgb: [vec![0f32; w], vec![0f32; w], vec![0f32; w]],
+        factor: vec![0f32; w],
+    };
+    match &shading {
+        Some(shading) => gaussian_blur_covered(
+            w,
+            h,
+            shading.record.kernel,
+            coverage,
+            |y, row| shading.source_row(y, row),
+            |y, shade| layer.add_row(y, Some((shade, shading.record.strength)), acc),
+        ),
+        None => (support.y0..support.y1).for_each(|y| layer.add_row(y, None, acc)),
+    }
+    Ok(record)
+}
+
+/// One material's blending: its weight, where it is positive, its colour,
+/// and row buffers.
+struct Layer<'a> {
+    weight: &'a Plane,
+    coverage: &'a Coverage,
+    colour: &'a Colour,
+    rgb: [Vec<f32>; 3],
+    factor: Vec<f32>,
+}
+
+impl Layer<'_> {
+    /// Adds row `y` of the layer into `acc` on its covered blocks: colour
+    /// times weight, times `(1 - strength) + strength * shade` when shaded
+    /// (`shade` is the row of the blurred shade).
+    fn add_row(&mut self, y: usize, shade: Option<(&[f32], f32)>, acc: &mut RgbF32) {
+        let w = self.weight.width;
+        for (x0, x1) in self.coverage.runs(y) {
+            let row = y * w + x0..y * w + x1;
+            let factor = &mut self.factor[..x1 - x0];
+            factor.copy_from_slice(&self.weight.data[row.clone()]);
+            if let Some((shade, s)) = shade {
+                for (f, &v) in factor.iter_mut().zip(&shade[x0..x1]) {
+                    *f *= (1.0 - s) + s * v;
+                }
+            }
+            let rgb = self.rgb.each_mut().map(|c| &mut c[..x1 - x0]);
+            self.colour.fill_row(y, x0, rgb);
+            for (plane, values) in acc.planes.iter_mut().zip(&self.rgb) {
+                for ((a, &v), &f) in plane[row.clone()].iter_mut().zip(values).zip(&*factor) {
+                    *a += v * f;
+                }
+            }
+        }
+    }
 }
 
 /// A texture's pixels before mirroring: the photo's cached quarter-turned
@@ -297,10 +330,10 @@ impl Colour {
 
     /// Writes the colours of scene row `y` from column `x0` on into `rgb`
     /// (one slice per channel, all of the same length).
-    fn fill_row(&self, y: usize, x0: usize, rgb: &mut [Vec<f32>; 3]) {
+    fn fill_row(&self, y: usize, x0: usize, rgb: [&mut [f32]; 3]) {
         match self {
             Colour::Flat(c) => {
-                for (out, &v) in rgb.iter_mut().zip(c) {
+                for (out, &v) in rgb.into_iter().zip(c) {
                     out.fill(v);
                 }
             }
@@ -312,7 +345,7 @@ impl Colour {
             } => {
                 let (w, h) = (image.width, image.height);
                 let (_, row) = mirrors.source(0, (y + phase_y) % h, w, h);
-                for (out, plane) in rgb.iter_mut().zip(&image.planes) {
+                for (out, plane) in rgb.into_iter().zip(&image.planes) {
                     let row = &plane[row * w..(row + 1) * w];
                     // Copy runs of the (mirrored) image row, wrapping at its end.
                     let (mut col, mut done) = ((x0 + phase_x) % w, 0);
@@ -336,16 +369,33 @@ impl Colour {
     }
 }
 
-/// Draws the shading of one material: the max-normalised photo channel,
-/// blurred inside `support` (elsewhere 0), and its record (which holds the strength).
+/// A material's shading before its blur: the photo channel window and the
+/// table that divides it by its maximum.
+struct Shading {
+    window: ChannelWindow,
+    values: LevelTable,
+    record: ShadingRecord,
+}
+
+impl Shading {
+    /// Row `y` of the max-normalised channel.
+    fn source_row(&self, y: usize, row: &mut [f32]) {
+        let w = self.window.width;
+        for (v, &l) in row.iter_mut().zip(&self.window.levels[y * w..(y + 1) * w]) {
+            *v = self.values[l as usize];
+        }
+    }
+}
+
+/// Draws the shading of one material of a `w x h` scene (the blur is
+/// applied as the material is blended).
 fn draw_shading<R: Rng + ?Sized>(
     rng: &mut R,
     recipe: &CompositionRecipe,
     photos: &PhotoLibrary,
-    support: Region,
     w: usize,
     h: usize,
-) -> Result<(Plane, ShadingRecord), LibraryError> {
+) -> Result<Shading, LibraryError> {
     let photo = photos.pick(|n| rng.random_range(0..n))?;
     let (window, placement) = random_photo_channel(
         rng,
@@ -355,9 +405,8 @@ fn draw_shading<R: Rng + ?Sized>(
         recipe.p_shading_downscale,
         recipe.p_shading_hsv,
     );
-    let shade = window.map_levels(&level_values(window.max_level()));
+    let values = level_values(window.max_level());
     let kernel = recipe.shading_kernels[rng.random_range(0..recipe.shading_kernels.len())];
-    let shade = gaussian_blur_region(&shade, kernel, support);
     let strength = if rng.random_bool(recipe.p_shading_full_strength) {
         1.0
     } else {
@@ -370,7 +419,11 @@ fn draw_shading<R: Rng + ?Sized>(
         kernel,
         strength,
     };
-    Ok((shade, record))
+    Ok(Shading {
+        window,
+        values,
+        record,
+    })
 }
 
 #[cfg(test)]
@@ -443,7 +496,7 @@ mod tests {
                 let span = support.x1 - support.x0;
                 let mut rgb = [vec![0f32; span], vec![0f32; span], vec![0f32; span]];
                 for y in support.y0..support.y1 {
-                    colour.fill_row(y, support.x0, &mut rgb);
+                    colour.fill_row(y, support.x0, rgb.each_mut().map(|c| &mut c[..]));
                     for x in support.x0..support.x1 {
                         let px = want.get_pixel((x + ox) as u32 % tw, (y + oy) as u32 % th);
                         let got = [0, 1, 2].map(|c| rgb[c][x - support.x0] as u8);

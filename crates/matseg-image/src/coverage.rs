@@ -1,0 +1,307 @@
+//! Where a plane is positive, block by block: the part of a material's
+//! weight that shading and blending must compute. A 2D scene's weights are
+//! sparse (a material is visible on 5-15% of the scene on average, though its
+//! bounding box spans most of it), so the work follows the blocks instead of
+//! the box.
+
+use crate::plane::Plane;
+
+/// Columns per block of a [`Coverage`].
+pub const BLOCK: usize = 16;
+
+/// A rectangle of a plane: columns `x0..x1`, rows `y0..y1`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Region {
+    /// First column.
+    pub x0: usize,
+    /// One past the last column.
+    pub x1: usize,
+    /// First row.
+    pub y0: usize,
+    /// One past the last row.
+    pub y1: usize,
+}
+
+impl Region {
+    /// No pixel at all.
+    pub const EMPTY: Region = Region {
+        x0: 0,
+        x1: 0,
+        y0: 0,
+        y1: 0,
+    };
+}
+
+/// For each row of a `width x height` plane, the set of [`BLOCK`]-column
+/// blocks that hold a positive value, and the exact bounding box of those
+/// values.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Coverage {
+    width: usize,
+    height: usize,
+    /// 64-bit words per row of the block bit set.
+    words: usize,
+    /// Row by row, bit `b` of the row's words: block `b` is covered.
+    bits: Vec<u64>,
+    support: Option<Region>,
+}
+
+impl Coverage {
+    /// No block of a `width x height` plane; rows are added with
+    /// [`Coverage::add_row`].
+    pub fn empty(width: usize, height: usize) -> Self {
+        let words = width.div_ceil(BLOCK).div_ceil(64);
+        Self {
+            width,
+            height,
+            words,
+            bits: vec![0; words * height],
+            support: None,
+        }
+    }
+
+    /// Every block of a `width x height` plane.
+    pub fn full(width: usize, height: usize) -> Self {
+        let mut c = Self::empty(width, height);
+        let blocks = width.div_ceil(BLOCK);
+        for row in c.bits.chunks_exact_mut(c.words.max(1)).take(height) {
+            for b in 0..blocks {
+                row[b / 64] |= 1 << (b % 64);
+            }
+        }
+        if width > 0 && height > 0 {
+            c.support = Some(Region {
+                x0: 0,
+                x1: width,
+                y0: 0,
+                y1: height,
+            });
+        }
+        c
+    }
+
+    /// The blocks of `plane` that hold a value `> 0`, in one pass.
+    pub fn of(plane: &Plane) -> Self {
+        let mut c = Self::empty(plane.width, plane.height);
+        for (y, row) in plane.data.chunks_exact(plane.width.max(1)).enumerate() {
+            c.add_row(y, row);
+        }
+        c
+    }
+
+    /// Records row `y` of the plane (`width` values; rows may come in any
+    /// order, each once). Inlined so that a caller compiled for AVX2 tests
+    /// the blocks with it.
+    #[inline(always)]
+    pub fn add_row(&mut self, y: usize, row: &[f32]) {
+        let mask = &mut self.bits[y * self.words..(y + 1) * self.words];
+        let (mut first, mut last) = (None, 0);
+        for (b, block) in row.chunks(BLOCK).enumerate() {
+            // The whole block is tested at once (vectorised).
+            if block.iter().fold(0.0f32, |m, &v| m.max(v)) > 0.0 {
+                mask[b / 64] |= 1 << (b % 64);
+                first.get_or_insert(b);
+                last = b;
+            }
+        }
+        let Some(first) = first else { return };
+        let x0 = first * BLOCK
+            + row[first * BLOCK..]
+                .iter()
+                .position(|&v| v > 0.0)
+                .expect("a positive value in the block");
+        let x1 = last * BLOCK
+            + row[last * BLOCK..((last + 1) * BLOCK).min(row.len())]
+                .iter()
+                .rposition(|&v| v > 0.0)
+                .expect("a positive value in the block")
+            + 1;
+        let r = self.support.get_or_insert(Region {
+            x0,
+            x1,
+            y0: y,
+            y1: y + 1,
+        });
+        r.x0 = r.x0.min(x0);
+        r.x1 = r.x1.max(x1);
+        r.y0 = r.y0.min(y);
+        r.y1 = r.y1.max(y + 1);
+    }
+
+    /// The bounding box of the positive pixels, if there is any.
+    pub fn support(&self) -> Option<Region> {
+        self.support
+    }
+
+    /// The coverage of every pixel within `r` rows of a covered one: the
+    /// rows a vertical filter of radius `r` reads to fill this coverage.
+    pub fn dilated_rows(&self, r: usize) -> Self {
+        let mut out = Self::empty(self.width, self.height);
+        for y in 0..self.height {
+            let (from, to) = (y.saturating_sub(r), (y + r + 1).min(self.height));
+            for src in from..to {
+                for i in 0..self.words {
+                    out.bits[y * self.words + i] |= self.bits[src * self.words + i];
+                }
+            }
+        }
+        out.support = self.support.map(|s| Region {
+            y0: s.y0.saturating_sub(r),
+            y1: (s.y1 + r).min(self.height),
+            ..s
+        });
+        out
+    }
+
+    /// Whether row `y` has a covered block.
+    pub fn row_is_covered(&self, y: usize) -> bool {
+        self.row(y).iter().any(|&w| w != 0)
+    }
+
+    /// The covered columns of row `y` as maximal runs `(x0, x1)` of
+    /// consecutive covered blocks, left to right (`x1` clamped to the width).
+    pub fn runs(&self, y: usize) -> Runs<'_> {
+        let words = self.row(y);
+        Runs {
+            words,
+            index: 0,
+            current: words.first().copied().unwrap_or(0),
+            width: self.width,
+        }
+    }
+
+    fn row(&self, y: usize) -> &[u64] {
+        &self.bits[y * self.words..(y + 1) * self.words]
+    }
+}
+
+/// The runs of covered blocks of one row; see [`Coverage::runs`].
+pub struct Runs<'a> {
+    words: &'a [u64],
+    /// The word being scanned.
+    index: usize,
+    /// Its bits not yet returned.
+    current: u64,
+    width: usize,
+}
+
+impl Iterator for Runs<'_> {
+    type Item = (usize, usize);
+
+    fn next(&mut self) -> Option<(usize, usize)> {
+        while self.current == 0 {
+            self.index += 1;
+            self.current = *self.words.get(self.index)?;
+        }
+        let start = self.index * 64 + self.current.trailing_zeros() as usize;
+        // Bits at and above the run's start that are clear.
+        let clear_above = !self.current & (!0u64 << self.current.trailing_zeros());
+        let end = if clear_above != 0 {
+            let e = clear_above.trailing_zeros();
+            self.current &= !0u64 << e;
+            self.index * 64 + e as usize
+        } else {
+            // The run goes on into the next words.
+            self.index += 1;
+            while self.words.get(self.index) == Some(&!0) {
+                self.index += 1;
+            }
+            match self.words.get(self.index) {
+                None => {
+                    self.current = 0;
+                    self.words.len() * 64
+                }
+                Some(&w) => {
+                    let e = (!w).trailing_zeros();
+                    self.current = w & (!0u64 << e);
+                    self.index * 64 + e as usize
+                }
+            }
+        };
+        Some((start * BLOCK, (end * BLOCK).min(self.width)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The covered columns of row `y`, pixel by pixel.
+    fn covered_columns(c: &Coverage, y: usize) -> Vec<usize> {
+        c.runs(y).flat_map(|(a, b)| a..b).collect()
+    }
+
+    #[test]
+    fn support_is_the_bounding_box_of_positive_values() {
+        let mut p = Plane::new(10, 8, 0.0);
+        assert_eq!(Coverage::of(&p).support(), None);
+        p.data[2 * 10 + 7] = 0.5;
+        p.data[5 * 10 + 3] = 1.0;
+        assert_eq!(
+            Coverage::of(&p).support(),
+            Some(Region {
+                x0: 3,
+                x1: 8,
+                y0: 2,
+                y1: 6
+            })
+        );
+    }
+
+    #[test]
+    fn runs_are_the_blocks_holding_positive_values() {
+        // 70 blocks: the bit set spans two words, and one run crosses them.
+        let w = 70 * BLOCK - 5;
+        let mut p = Plane::new(w, 3, 0.0);
+        let positive_blocks = [0usize, 1, 5, 62, 63, 64, 65, 69];
+        for &b in &positive_blocks {
+            p.data[w + b * BLOCK + 3] = 0.25;
+        }
+        p.data[2 * w + 40] = -1.0;
+        let c = Coverage::of(&p);
+        assert!(!c.row_is_covered(0) && c.row_is_covered(1) && !c.row_is_covered(2));
+        let runs: Vec<_> = c.runs(1).collect();
+        let b = |i: usize| i * BLOCK;
+        assert_eq!(
+            runs,
+            vec![(0, b(2)), (b(5), b(6)), (b(62), b(66)), (b(69), w)]
+        );
+        let want: Vec<usize> = positive_blocks
+            .iter()
+            .flat_map(|&i| b(i)..b(i + 1).min(w))
+            .collect();
+        assert_eq!(covered_columns(&c, 1), want);
+        assert_eq!(c.runs(0).count(), 0);
+
+        let full = Coverage::full(w, 3);
+        assert_eq!(full.runs(2).collect::<Vec<_>>(), vec![(0, w)]);
+        // A run to the last block of a row whose last word is full.
+        let whole_words = Coverage::full(128 * BLOCK, 1);
+        assert_eq!(
+            whole_words.runs(0).collect::<Vec<_>>(),
+            vec![(0, 128 * BLOCK)]
+        );
+    }
+
+    #[test]
+    fn dilation_covers_every_row_within_the_radius() {
+        let mut p = Plane::new(40, 9, 0.0);
+        p.data[4 * 40 + 20] = 1.0;
+        let c = Coverage::of(&p).dilated_rows(2);
+        let covered: Vec<bool> = (0..9).map(|y| c.row_is_covered(y)).collect();
+        assert_eq!(
+            covered,
+            [false, false, true, true, true, true, true, false, false]
+        );
+        assert_eq!(covered_columns(&c, 6), (16..32).collect::<Vec<_>>());
+        assert_eq!(
+            c.support(),
+            Some(Region {
+                x0: 20,
+                x1: 21,
+                y0: 2,
+                y1: 7
+            })
+        );
+    }
+}
