@@ -161,17 +161,21 @@ impl Layer<'_> {
         let w = self.weight.width;
         for (x0, x1) in self.coverage.runs(y) {
             let row = y * w + x0..y * w + x1;
-            let factor = &mut self.factor[..x1 - x0];
-            factor.copy_from_slice(&self.weight.data[row.clone()]);
-            if let Some((shade, s)) = shade {
-                for (f, &v) in factor.iter_mut().zip(&shade[x0..x1]) {
-                    *f *= (1.0 - s) + s * v;
+            let weight = &self.weight.data[row.clone()];
+            let factor = match shade {
+                Some((shade, s)) => {
+                    let factor = &mut self.factor[..x1 - x0];
+                    for ((f, &wt), &v) in factor.iter_mut().zip(weight).zip(&shade[x0..x1]) {
+                        *f = wt * ((1.0 - s) + s * v);
+                    }
+                    factor
                 }
-            }
+                None => weight,
+            };
             let rgb = self.rgb.each_mut().map(|c| &mut c[..x1 - x0]);
             self.colour.fill_row(y, x0, rgb);
             for (plane, values) in acc.planes.iter_mut().zip(&self.rgb) {
-                for ((a, &v), &f) in plane[row.clone()].iter_mut().zip(values).zip(&*factor) {
+                for ((a, &v), &f) in plane[row.clone()].iter_mut().zip(values).zip(factor) {
                     *a += v * f;
                 }
             }
