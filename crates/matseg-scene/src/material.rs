@@ -165,20 +165,40 @@ impl Layer<'_> {
             let factor = match shade {
                 Some((shade, s)) => {
                     let factor = &mut self.factor[..x1 - x0];
-                    for ((f, &wt), &v) in factor.iter_mut().zip(weight).zip(&shade[x0..x1]) {
-                        *f = wt * ((1.0 - s) + s * v);
-                    }
+                    shade_weights(factor, weight, &shade[x0..x1], s);
                     factor
                 }
                 None => weight,
             };
             let rgb = self.rgb.each_mut().map(|c| &mut c[..x1 - x0]);
             self.colour.fill_row(y, x0, rgb);
-            for (plane, values) in acc.planes.iter_mut().zip(&self.rgb) {
-                for ((a, &v), &f) in plane[row.clone()].iter_mut().zip(values).zip(factor) {
-                    *a += v * f;
-                }
-            }
+            let [r, g, b] = &mut acc.planes;
+            let target = [
+                &mut r[row.clone()],
+                &mut g[row.clone()],
+                &mut b[row.clone()],
+            ];
+            add_weighted(target, &self.rgb, factor);
+        }
+    }
+}
+
+/// `factor = weight * ((1 - strength) + strength * shade)`, element-wise;
+/// also compiled for AVX2, picked at run time (same arithmetic, same results).
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+fn shade_weights(factor: &mut [f32], weight: &[f32], shade: &[f32], strength: f32) {
+    for ((f, &wt), &v) in factor.iter_mut().zip(weight).zip(shade) {
+        *f = wt * ((1.0 - strength) + strength * v);
+    }
+}
+
+/// `acc[c] += colour[c] * factor` for each channel `c` over the length of
+/// `factor`; also compiled for AVX2, picked at run time.
+#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
+fn add_weighted(acc: [&mut [f32]; 3], colour: &[Vec<f32>; 3], factor: &[f32]) {
+    for (plane, values) in acc.into_iter().zip(colour) {
+        for ((a, &v), &f) in plane.iter_mut().zip(values).zip(factor) {
+            *a += v * f;
         }
     }
 }
