@@ -384,7 +384,7 @@ struct RowSteps {
     one_hot_min: Option<f32>,
 }
 
-/// All steps of [`combine_maps`] on row `y` of each map of each map and of the
+/// All steps of [`combine_maps`] on row `y` of each map and of the
 /// background; compiled also for AVX2, picked at run time when the CPU has
 /// it (the arithmetic is the same, so are the results).
 #[multiversion::multiversion(targets("x86_64+avx2+fma"))]

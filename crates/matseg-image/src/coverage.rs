@@ -22,16 +22,6 @@ pub struct Region {
     pub y1: usize,
 }
 
-impl Region {
-    /// No pixel at all.
-    pub const EMPTY: Region = Region {
-        x0: 0,
-        x1: 0,
-        y0: 0,
-        y1: 0,
-    };
-}
-
 /// For each row of a `width x height` plane, the set of [`BLOCK`]-column
 /// blocks that hold a positive value, and the exact bounding box of those
 /// values.

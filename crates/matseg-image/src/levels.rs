@@ -37,6 +37,15 @@ impl ChannelWindow {
         let data = self.levels.iter().map(|&l| table[l as usize]).collect();
         Plane::from_vec(self.width, self.height, data)
     }
+
+    /// Row `y` of [`ChannelWindow::map_levels`], written into `row`
+    /// (`width` values), for callers that stream rows.
+    pub fn map_row(&self, y: usize, table: &LevelTable, row: &mut [f32]) {
+        let levels = &self.levels[y * self.width..(y + 1) * self.width];
+        for (v, &l) in row.iter_mut().zip(levels) {
+            *v = table[l as usize];
+        }
+    }
 }
 
 /// The channel's values on `[0, 1]`: `level / divisor` (`divisor` 255 for
@@ -144,6 +153,9 @@ mod tests {
         assert_eq!(hist.count_above(&by_max, 0.0), 6);
         let plane = w.map_levels(&full);
         assert_eq!(plane.data[4], 200.0 / 255.0);
+        let mut row = vec![0.0; 7];
+        w.map_row(0, &full, &mut row);
+        assert_eq!(row, plane.data);
         assert!((hist.weighted_sum(&full) - plane.sum()).abs() < 1e-9);
         // A black window stays black when normalised by its maximum.
         let black = window(vec![0; 5]);

@@ -135,7 +135,7 @@ pub fn add_material<R: Rng + ?Sized>(
             h,
             shading.record.kernel,
             coverage,
-            |y, row| shading.source_row(y, row),
+            |y, row| shading.window.map_row(y, &shading.values, row),
             |y, shade| layer.add_row(y, Some((shade, shading.record.strength)), acc),
         ),
         None => (support.y0..support.y1).for_each(|y| layer.add_row(y, None, acc)),
@@ -399,16 +399,6 @@ struct Shading {
     window: ChannelWindow,
     values: LevelTable,
     record: ShadingRecord,
-}
-
-impl Shading {
-    /// Row `y` of the max-normalised channel.
-    fn source_row(&self, y: usize, row: &mut [f32]) {
-        let w = self.window.width;
-        for (v, &l) in row.iter_mut().zip(&self.window.levels[y * w..(y + 1) * w]) {
-            *v = self.values[l as usize];
-        }
-    }
 }
 
 /// Draws the shading of one material of a `w x h` scene (the blur is
