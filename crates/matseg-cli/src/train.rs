@@ -93,8 +93,11 @@ pub struct Args {
 pub fn parse_device(name: &str) -> Result<Device> {
     match name {
         "cpu" => Ok(Device::Cpu),
+        "cuda" if !cfg!(feature = "cuda") => bail!(
+            "--device cuda: this matseg was built without CUDA; build it with `--features cuda` (docs/gpu.md)"
+        ),
         "cuda" if tch::Cuda::is_available() => Ok(Device::Cuda(0)),
-        "cuda" => bail!("--device cuda: no CUDA device is available to libtorch here"),
+        "cuda" => bail!("--device cuda: libtorch sees no CUDA device here"),
         other => bail!("--device {other}: expected cpu or cuda"),
     }
 }

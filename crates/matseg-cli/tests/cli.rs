@@ -650,7 +650,7 @@ fn segment_refuses_points_outside_the_photo_and_missing_runs() {
 }
 
 #[test]
-fn train_refuses_a_folder_that_holds_a_run_and_unknown_encoders() {
+fn train_refuses_held_runs_unknown_encoders_and_devices() {
     let dir = tempfile::tempdir().unwrap();
     let run = dir.path().to_str().unwrap();
     let unknown = matseg(&[
@@ -670,6 +670,14 @@ fn train_refuses_a_folder_that_holds_a_run_and_unknown_encoders() {
     std::fs::write(dir.path().join("run.json"), "{}").unwrap();
     let again = matseg(&["train", "--online", "--init", "scratch", "--out", run]);
     assert_one_line_error(&again, "already holds a run");
+    // The test build has no CUDA (docs/gpu.md): --device cuda says so.
+    let cuda = matseg(&["bench-net", "--device", "cuda"]);
+    assert_one_line_error(
+        &cuda,
+        "--device cuda: this matseg was built without CUDA; build it with `--features cuda` (docs/gpu.md)",
+    );
+    let other = matseg(&["bench-net", "--device", "tpu"]);
+    assert_one_line_error(&other, "--device tpu: expected cpu or cuda");
 }
 
 /// The 8-bit grey values of a PNG.
