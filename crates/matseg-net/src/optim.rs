@@ -28,71 +28,131 @@ impl Default for AdamWConfig {
     }
 }
 
-/// AdamW over every trainable variable of a `VarStore`.
+/// AdamW over every trainable variable of a `VarStore`. The variables are
+/// moved into one flat buffer (each keeps its name and shape as a view of
+/// it), and so are the moments and, each step, the gradients: an update is
+/// about ten whole-buffer operations instead of about fourteen per variable,
+/// which on a GPU are kernel launches (MobileNetV2's net has 158 variables).
 #[derive(Debug)]
 pub struct AdamW {
     config: AdamWConfig,
     /// Steps taken.
     steps: i64,
-    /// (name, parameter, first moment, second moment), sorted by name.
-    slots: Vec<(String, Tensor, Tensor, Tensor)>,
+    /// The variables, sorted by name, with where their data start in
+    /// `params` (offsets aligned to [`ALIGN`] elements).
+    slots: Vec<Slot>,
+    /// Zeros filling the gap after each variable up to the next aligned
+    /// offset (`None`: no gap), for assembling the flat gradient.
+    gaps: Vec<Option<Tensor>>,
+    /// All trainable variables, flat.
+    params: Tensor,
+    /// First moments, laid out as `params`.
+    m: Tensor,
+    /// Second moments, laid out as `params`.
+    v: Tensor,
 }
 
+/// One trainable variable in the flat buffers.
+#[derive(Debug)]
+struct Slot {
+    name: String,
+    variable: Tensor,
+    offset: i64,
+}
+
+impl Slot {
+    /// This variable's part of `flat`, shaped as the variable.
+    fn view(&self, flat: &Tensor) -> Tensor {
+        flat.narrow(0, self.offset, self.variable.numel() as i64)
+            .view(self.variable.size().as_slice())
+    }
+}
+
+/// Each variable starts at a multiple of this many elements (256 bytes),
+/// as separately allocated tensors do: cuDNN picks slower kernels for
+/// weights that are less aligned.
+const ALIGN: i64 = 64;
+
 impl AdamW {
-    /// Zero moments for the trainable variables of `vs`.
+    /// Zero moments for the trainable variables of `vs`, whose data move
+    /// into the optimizer's flat buffer (their values are kept, and later
+    /// copies into them, such as loaded weights, land there too).
     pub fn new(vs: &nn::VarStore, config: AdamWConfig) -> Self {
         // Trainable variables require gradients; BatchNorm's running
         // statistics do not.
-        let mut slots: Vec<(String, Tensor, Tensor, Tensor)> = vs
+        let mut variables: Vec<(String, Tensor)> = vs
             .variables()
             .into_iter()
             .filter(|(_, t)| t.requires_grad())
-            .map(|(name, t)| {
-                let zeros = || t.zeros_like().detach();
-                (name, t.shallow_clone(), zeros(), zeros())
-            })
             .collect();
-        slots.sort_by(|a, b| a.0.cmp(&b.0));
+        variables.sort_by(|a, b| a.0.cmp(&b.0));
+        let device = vs.device();
+        let mut total = 0;
+        let mut slots = Vec::with_capacity(variables.len());
+        let mut gaps = Vec::with_capacity(variables.len());
+        for (name, variable) in variables {
+            let numel = variable.numel() as i64;
+            let gap = (ALIGN - numel % ALIGN) % ALIGN;
+            gaps.push((gap > 0).then(|| Tensor::zeros([gap], (Kind::Float, device))));
+            slots.push(Slot {
+                name,
+                variable,
+                offset: total,
+            });
+            total += numel + gap;
+        }
+        let params = Tensor::zeros([total], (Kind::Float, device));
+        for slot in &mut slots {
+            let mut view = slot.view(&params);
+            tch::no_grad(|| view.copy_(&slot.variable));
+            slot.variable.set_data(&view);
+        }
         Self {
             config,
             steps: 0,
             slots,
+            gaps,
+            m: params.zeros_like(),
+            v: params.zeros_like(),
+            params,
         }
     }
 
-    /// One update with learning rate `lr` from the gradients in place; then
-    /// clears the gradients.
-    pub fn step(&mut self, lr: f64) {
+    /// Back-propagates `loss` to the variables and takes one update with
+    /// learning rate `lr`. The gradients are computed for this step only
+    /// (nothing accumulates in the variables' `grad`).
+    pub fn step(&mut self, loss: &Tensor, lr: f64) {
+        let variables: Vec<&Tensor> = self.slots.iter().map(|s| &s.variable).collect();
+        let grads = Tensor::run_backward(&[loss], &variables, false, false);
+        let mut flat = Vec::with_capacity(2 * grads.len());
+        for ((g, variable), gap) in grads.iter().zip(&variables).zip(&self.gaps) {
+            flat.push(if g.defined() {
+                g.reshape([-1])
+            } else {
+                // A variable the loss does not depend on.
+                variable.detach().zeros_like().reshape([-1])
+            });
+            if let Some(zeros) = gap {
+                flat.push(zeros.shallow_clone());
+            }
+        }
         self.steps += 1;
         let c = self.config;
         let bias1 = 1.0 - c.beta1.powi(self.steps as i32);
         let bias2 = 1.0 - c.beta2.powi(self.steps as i32);
         tch::no_grad(|| {
-            for (_, p, m, v) in &mut self.slots {
-                let g = p.grad();
-                if !g.defined() {
-                    continue;
-                }
-                let _ = p.g_mul_scalar_(1.0 - lr * c.weight_decay);
-                let _ = m.g_mul_scalar_(c.beta1);
-                let _ = m.g_add_(&(&g * (1.0 - c.beta1)));
-                let _ = v.g_mul_scalar_(c.beta2);
-                let _ = v.g_add_(&(&g * &g * (1.0 - c.beta2)));
-                let denom = (&*v / bias2).sqrt() + c.eps;
-                let _ = p.g_sub_(&(&*m / &denom * (lr / bias1)));
-                let _ = p.grad().zero_();
-            }
+            let mut g = Tensor::cat(&flat, 0);
+            let _ = self.params.g_mul_scalar_(1.0 - lr * c.weight_decay);
+            let _ = self.m.lerp_(&g, 1.0 - c.beta1);
+            let _ = g.square_();
+            let _ = self.v.lerp_(&g, 1.0 - c.beta2);
+            let mut denom = self.v.sqrt();
+            let _ = denom.g_div_scalar_(bias2.sqrt());
+            let _ = denom.g_add_scalar_(c.eps);
+            let mut update = self.m.divide(&denom);
+            let _ = update.g_mul_scalar_(lr / bias1);
+            let _ = self.params.g_sub_(&update);
         });
-    }
-
-    /// Clears the gradients without a step (a skipped batch).
-    pub fn zero_grad(&mut self) {
-        for (_, p, _, _) in &mut self.slots {
-            let mut g = p.grad();
-            if g.defined() {
-                let _ = g.zero_();
-            }
-        }
     }
 
     /// The state as named tensors (`m.NAME`, `v.NAME`, `steps`).
@@ -101,9 +161,9 @@ impl AdamW {
             "steps".to_string(),
             Tensor::from_slice(&[self.steps]).to_kind(Kind::Int64),
         )];
-        for (name, _, m, v) in &self.slots {
-            state.push((format!("m.{name}"), m.shallow_clone()));
-            state.push((format!("v.{name}"), v.shallow_clone()));
+        for slot in &self.slots {
+            state.push((format!("m.{}", slot.name), slot.view(&self.m)));
+            state.push((format!("v.{}", slot.name), slot.view(&self.v)));
         }
         state
     }
@@ -119,19 +179,139 @@ impl AdamW {
                 .ok_or_else(|| format!("optimizer state has no {key}"))
         };
         self.steps = find("steps")?.int64_value(&[0]);
-        for (name, _, m, v) in &mut self.slots {
-            for (prefix, slot) in [("m", &mut *m), ("v", &mut *v)] {
-                let key = format!("{prefix}.{name}");
+        for slot in &self.slots {
+            for (prefix, flat) in [("m", &self.m), ("v", &self.v)] {
+                let key = format!("{prefix}.{}", slot.name);
                 let saved = find(&key)?;
-                if saved.size() != slot.size() {
+                if saved.size() != slot.variable.size() {
                     return Err(format!(
                         "optimizer state {key} has shape {:?}",
                         saved.size()
                     ));
                 }
-                tch::no_grad(|| slot.copy_(saved));
+                let mut part = slot.view(flat);
+                tch::no_grad(|| part.copy_(saved));
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tch::Device;
+
+    /// A store with two variables, `a` (2 values) and `b` (1x1).
+    fn store() -> nn::VarStore {
+        let vs = nn::VarStore::new(Device::Cpu);
+        let _ = vs
+            .root()
+            .var_copy("b", &Tensor::from_slice(&[0.5f32]).view([1, 1]));
+        let _ = vs
+            .root()
+            .var_copy("a", &Tensor::from_slice(&[1.0f32, -2.0]));
+        vs
+    }
+
+    fn values(vs: &nn::VarStore, name: &str) -> Vec<f32> {
+        Vec::<f32>::try_from(vs.variables()[name].reshape([-1])).unwrap()
+    }
+
+    /// loss = 3 a0 - a1 + b^2: gradients (3, -1) and 2b.
+    fn loss(vs: &nn::VarStore) -> Tensor {
+        let v = vs.variables();
+        let a = &v["a"];
+        (a * Tensor::from_slice(&[3.0f32, -1.0])).sum(Kind::Float)
+            + (&v["b"] * &v["b"]).sum(Kind::Float)
+    }
+
+    /// AdamW by the book (PyTorch's formula), in f64.
+    fn reference(mut x: f64, grad: impl Fn(f64) -> f64, lrs: &[f64], c: AdamWConfig) -> f64 {
+        let (mut m, mut v) = (0.0, 0.0);
+        for (t, &lr) in lrs.iter().enumerate() {
+            let g = grad(x);
+            let t = t as i32 + 1;
+            x *= 1.0 - lr * c.weight_decay;
+            m = c.beta1 * m + (1.0 - c.beta1) * g;
+            v = c.beta2 * v + (1.0 - c.beta2) * g * g;
+            let denom = v.sqrt() / (1.0 - c.beta2.powi(t)).sqrt() + c.eps;
+            x -= lr / (1.0 - c.beta1.powi(t)) * m / denom;
+        }
+        x
+    }
+
+    #[test]
+    fn steps_match_adamw_by_the_book_through_the_flat_buffer() {
+        let vs = store();
+        let config = AdamWConfig {
+            weight_decay: 0.1,
+            ..Default::default()
+        };
+        let mut optimizer = AdamW::new(&vs, config);
+        let base = optimizer.params.data_ptr() as usize;
+        for slot in &optimizer.slots {
+            let offset = slot.variable.data_ptr() as usize - base;
+            assert_eq!(
+                offset % (4 * ALIGN as usize),
+                0,
+                "{} at byte {offset}",
+                slot.name
+            );
+        }
+        let lrs = [0.1, 0.05, 0.2];
+        for &lr in &lrs {
+            optimizer.step(&loss(&vs), lr);
+        }
+        let expected = [
+            reference(1.0, |_| 3.0, &lrs, config),
+            reference(-2.0, |_| -1.0, &lrs, config),
+            reference(0.5, |b| 2.0 * b, &lrs, config),
+        ];
+        let got: Vec<f32> = [values(&vs, "a"), values(&vs, "b")].concat();
+        for (g, e) in got.iter().zip(expected) {
+            assert!((*g as f64 - e).abs() < 1e-5, "{got:?} vs {expected:?}");
+        }
+        // Nothing accumulates in the variables' own gradients.
+        assert!(!vs.variables()["a"].grad().defined());
+    }
+
+    #[test]
+    fn copies_into_the_variables_after_creation_are_optimised() {
+        let vs = store();
+        let mut optimizer = AdamW::new(&vs, AdamWConfig::default());
+        let mut a = vs.variables()["a"].shallow_clone();
+        tch::no_grad(|| a.copy_(&Tensor::from_slice(&[10.0f32, 20.0])));
+        optimizer.step(&loss(&vs), 0.5);
+        // The first Adam step moves each value by about lr against its
+        // gradient's sign.
+        let after = values(&vs, "a");
+        assert!(
+            (after[0] - 9.5).abs() < 0.01 && (after[1] - 20.5).abs() < 0.01,
+            "{after:?}"
+        );
+    }
+
+    #[test]
+    fn a_restored_state_takes_the_same_next_step() {
+        let (first, second) = (store(), store());
+        let mut a = AdamW::new(&first, AdamWConfig::default());
+        a.step(&loss(&first), 0.1);
+        let mut b = AdamW::new(&second, AdamWConfig::default());
+        for (name, mut variable) in second.variables() {
+            tch::no_grad(|| variable.copy_(&first.variables()[&name]));
+        }
+        b.load_state(&a.state()).unwrap();
+        a.step(&loss(&first), 0.1);
+        b.step(&loss(&second), 0.1);
+        for name in ["a", "b"] {
+            assert_eq!(values(&first, name), values(&second, name), "{name}");
+        }
+        let mut state = a.state();
+        state.retain(|(n, _)| n != "v.b");
+        assert_eq!(
+            b.load_state(&state).unwrap_err(),
+            "optimizer state has no v.b"
+        );
     }
 }

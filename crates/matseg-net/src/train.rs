@@ -186,14 +186,10 @@ impl Trainer {
         self.step += 1;
         match matseg_loss(&descriptors, &batch.targets) {
             Some(loss) => {
-                loss.backward();
-                self.optimizer.step(lr);
+                self.optimizer.step(&loss, lr);
                 Some(loss.double_value(&[]))
             }
-            None => {
-                self.optimizer.zero_grad();
-                None
-            }
+            None => None,
         }
     }
 
