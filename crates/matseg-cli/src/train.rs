@@ -10,11 +10,13 @@ use matseg_data::Dataset;
 use matseg_eval::{evaluate_points, load_point_benchmark};
 use matseg_net::data::{BatchPlan, DatasetSource, GeneratorSource, SampleSource};
 use matseg_net::infer::{NetModel, TrainedNet};
+use matseg_net::loader::default_workers;
 use matseg_net::train::{self, NetScore, RunConfig, TrainOptions, Trainer, Validation};
 use matseg_net::{load_named, EncoderConfig, NetConfig, PRESETS};
 use matseg_scene::Recipe2d;
 use matseg_weights::read_safetensors;
 use std::path::{Path, PathBuf};
+use std::time::Instant;
 use tch::Device;
 
 /// Arguments of `matseg train`.
@@ -78,6 +80,10 @@ pub struct Args {
     /// Longer side of the --val-points images, in pixels (0: as they are).
     #[arg(long, default_value_t = 700)]
     val_max_side: u32,
+    /// Threads preparing batches ahead (default: 1 on the CPU, all cores
+    /// but one with --device cuda); the batches do not depend on it.
+    #[arg(long)]
+    loader_threads: Option<usize>,
     /// Seed of the batch stream and of the generator.
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -162,29 +168,59 @@ pub fn run(args: Args) -> Result<()> {
     );
     bar.set_position(trainer.step);
     let mut recent: Vec<f64> = Vec::new();
-    train::run(&mut trainer, source.as_ref(), validation, &dir, |m| {
-        if let Some(l) = m.loss {
-            recent.push(l);
-        }
-        let tail = &recent[recent.len().saturating_sub(20)..];
-        let mean = tail.iter().sum::<f64>() / tail.len().max(1) as f64;
-        let val = m
-            .validation
-            .map(|v| format!(" val {v:.4}"))
-            .unwrap_or_default();
-        let points = m
-            .val_points
-            .map(|v| format!(" points {v:.4}"))
-            .unwrap_or_default();
-        bar.set_message(format!("loss {mean:.4}{val}{points}"));
-        bar.inc(1);
-    })?;
+    let loader_threads = args
+        .loader_threads
+        .unwrap_or_else(|| default_workers(device.is_cuda()));
+    if device.is_cuda() {
+        // On a GPU the trainer's CPU work is converting each batch: one
+        // libtorch thread, so that its thread pool does not fight the
+        // loader threads for the cores (which made steps 10x slower).
+        tch::set_num_threads(1);
+    }
+    let (first_step, started) = (trainer.step, Instant::now());
+    let (mut images, mut pixels, mut waited) = (0usize, 0usize, 0.0);
+    train::run(
+        &mut trainer,
+        source.as_ref(),
+        validation,
+        &dir,
+        loader_threads,
+        |m| {
+            images += m.images;
+            pixels += m.images * m.width * m.height;
+            waited += m.data_seconds;
+            if let Some(l) = m.loss {
+                recent.push(l);
+            }
+            let tail = &recent[recent.len().saturating_sub(20)..];
+            let mean = tail.iter().sum::<f64>() / tail.len().max(1) as f64;
+            let val = m
+                .validation
+                .map(|v| format!(" val {v:.4}"))
+                .unwrap_or_default();
+            let points = m
+                .val_points
+                .map(|v| format!(" points {v:.4}"))
+                .unwrap_or_default();
+            bar.set_message(format!("loss {mean:.4}{val}{points}"));
+            bar.inc(1);
+        },
+    )?;
     bar.finish();
+    let seconds = started.elapsed().as_secs_f64();
     println!(
         "{}: {} steps; model {}",
         dir.display(),
         trainer.step,
         dir.join(train::MODEL_FILE).display()
+    );
+    println!(
+        "{} steps in {seconds:.1} s on {}: {:.1} images/s, {:.2} Mpixel/s (checkpoints and validation included); \
+         {waited:.1} s waiting for batches from {loader_threads} loader thread(s)",
+        trainer.step - first_step,
+        args.device,
+        images as f64 / seconds,
+        pixels as f64 / seconds / 1e6
     );
     Ok(())
 }

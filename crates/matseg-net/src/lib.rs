@@ -15,6 +15,7 @@ pub mod data;
 pub mod decoder;
 pub mod encoder;
 pub mod infer;
+pub mod loader;
 pub mod loss;
 pub mod mobilenet_v2;
 pub mod net;

@@ -10,6 +10,7 @@
 
 use crate::batch::{Batch, TrainingSample};
 use crate::data::{batch_samples, BatchPlan, SampleSource};
+use crate::loader::BatchLoader;
 use crate::loss::matseg_loss;
 use crate::net::{MaterialNet, NetConfig};
 use crate::optim::{AdamW, AdamWConfig};
@@ -20,7 +21,7 @@ use matseg_image::io::temporary_path;
 use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::Path;
-use std::sync::mpsc;
+use std::time::Instant;
 use tch::{nn, Device, Tensor};
 
 /// The run's settings, stored in `run.json`.
@@ -82,6 +83,14 @@ pub struct StepMetrics {
     pub width: usize,
     /// Batch image height.
     pub height: usize,
+    /// Wall seconds of the step: waiting for its batch, then the forward,
+    /// loss, backward and update (validation and checkpoints not counted).
+    #[serde(default)]
+    pub seconds: f64,
+    /// Of `seconds`, those spent waiting for the batch (when the loader
+    /// threads fall behind the net).
+    #[serde(default)]
+    pub data_seconds: f64,
     /// Mean validation loss, on validation steps.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub validation: Option<f64>,
@@ -275,12 +284,14 @@ fn write_tensors(path: &Path, named: &[(String, Tensor)]) -> Result<(), NetError
 
 /// Trains `trainer` on `source` until `options.steps`, writing into `dir`;
 /// `progress(step, loss)` is called after every step. Batches are prepared
-/// one ahead in a background thread.
+/// ahead in `loader_threads` background threads (the same batches whatever
+/// their number: [`BatchLoader`]).
 pub fn run(
     trainer: &mut Trainer,
     source: &dyn SampleSource,
     validation: Validation,
     dir: &Path,
+    loader_threads: usize,
     mut progress: impl FnMut(&StepMetrics),
 ) -> Result<(), NetError> {
     let options = trainer.config.options.clone();
@@ -295,25 +306,24 @@ pub fn run(
         None => Vec::new(),
     };
     std::thread::scope(|scope| -> Result<(), NetError> {
-        let (tx, rx) = mpsc::sync_channel(1);
-        let first = trainer.step;
-        scope.spawn(move || {
-            for step in first..options.steps {
-                let batch = batch_samples(source, &options.plan, options.seed, step);
-                let failed = batch.is_err();
-                if tx.send(batch).is_err() || failed {
-                    return;
-                }
-            }
-        });
+        let loader = BatchLoader::spawn(
+            scope,
+            source,
+            options.plan,
+            options.seed,
+            (trainer.step, options.steps),
+            loader_threads,
+        );
         while trainer.step < options.steps {
-            let samples = rx
-                .recv()
-                .expect("the batch thread sends until the last step")
-                .map_err(|message| NetError::Data { message })?;
             let step = trainer.step;
+            let started = Instant::now();
+            let samples = loader
+                .batch(step)
+                .map_err(|message| NetError::Data { message })?;
+            let data_seconds = started.elapsed().as_secs_f64();
             let lr = trainer.lr(step);
             let loss = trainer.train_step(&samples);
+            let seconds = started.elapsed().as_secs_f64();
             let checkpoint = trainer.step % options.checkpoint_every.max(1) == 0
                 || trainer.step == options.steps;
             let val_points = match validation.points.filter(|_| checkpoint) {
@@ -336,6 +346,8 @@ pub fn run(
                 images: samples.len(),
                 width: samples[0].width,
                 height: samples[0].height,
+                seconds,
+                data_seconds,
                 validation,
                 val_points,
             };
