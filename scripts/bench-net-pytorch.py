@@ -223,13 +223,15 @@ def synthetic_batch(batch, side, generator):
     return (rgb - mean) / 65.0, weights.contiguous(), torch.ones(batch, side, side)
 
 
-def timed(warmup, repeats, f):
+def timed(warmup, repeats, f, sync):
     for _ in range(warmup):
         f()
+    sync()
     out = []
     for _ in range(repeats):
         start = time.perf_counter()
         f()
+        sync()
         out.append((time.perf_counter() - start) * 1e3)
     return statistics.median(out)
 
@@ -249,11 +251,18 @@ def main():
     parser.add_argument("--batch", type=int, default=4)
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--warmup", type=int, default=1)
+    parser.add_argument("--device", default="cpu")
     args = parser.parse_args()
     torch.manual_seed(0)
-    net = preset(args.encoder)
+    device = torch.device(args.device)
+    net = preset(args.encoder).to(device)
     optimizer = torch.optim.AdamW(net.parameters(), lr=1e-4, weight_decay=4e-5)
-    images, weights, roi = synthetic_batch(args.batch, args.side, torch.Generator().manual_seed(1))
+    batch = synthetic_batch(args.batch, args.side, torch.Generator().manual_seed(1))
+    images, weights, roi = (t.to(device) for t in batch)
+
+    def sync():
+        if device.type == "cuda":
+            torch.cuda.synchronize()
 
     def forward():
         net.eval()
@@ -267,10 +276,10 @@ def main():
         loss.backward()
         optimizer.step()
 
-    f = timed(args.warmup, args.repeats, forward)
-    s = timed(args.warmup, args.repeats, step)
+    f = timed(args.warmup, args.repeats, forward, sync)
+    s = timed(args.warmup, args.repeats, step, sync)
     print(json.dumps({
-        "encoder": args.encoder, "side": args.side, "batch": args.batch,
+        "encoder": args.encoder, "side": args.side, "batch": args.batch, "device": args.device,
         "threads": torch.get_num_threads(), "torch": torch.__version__,
         "forward_ms": f, "train_step_ms": s, "peak_rss_mib": peak_rss_mib(),
     }))
