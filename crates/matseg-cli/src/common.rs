@@ -110,7 +110,7 @@ impl Defaults {
     }
 
     /// The default folders of `kind` (`photos`, `textures`, `hdris`,
-    /// `meshes`); empty when there are none (the bundled set has no meshes).
+    /// `meshes`); empty when there are none.
     pub fn folders(self, kind: &str) -> Vec<PathBuf> {
         let folder = self
             .corpus_folder(kind)

@@ -69,7 +69,7 @@ pub struct Args {
     #[arg(long, num_args = 1..)]
     materials: Vec<PathBuf>,
     /// Mesh files or folders of them, OBJ/OFF/PLY (3d); default: the fetched
-    /// corpus's meshes, else procedural shapes only.
+    /// corpus's meshes, else the bundled ones (besides procedural shapes).
     #[arg(long, num_args = 1..)]
     meshes: Vec<PathBuf>,
     /// HDRI files or folders of them, .hdr/.exr (3d); default: the fetched

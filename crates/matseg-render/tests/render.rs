@@ -307,3 +307,39 @@ fn denoising_brings_a_noisy_render_closer_to_the_converged_one() {
     }
     assert!(count > 100);
 }
+
+#[test]
+fn bundled_meshes_read_and_are_cc0_or_public_domain() {
+    let dir = assets().join("meshes");
+    let text = std::fs::read_to_string(dir.join("licenses.json")).unwrap();
+    let licences: std::collections::BTreeMap<String, String> = serde_json::from_str(&text).unwrap();
+    let mut found = Vec::new();
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        let name = path.file_name().unwrap().to_str().unwrap().to_string();
+        if !matseg_render::mesh_io::MESH_EXTENSIONS
+            .iter()
+            .any(|e| name.ends_with(&format!(".{e}")))
+        {
+            continue;
+        }
+        let mesh = matseg_render::mesh_io::read_mesh(&path).unwrap();
+        assert!(
+            mesh.triangles.len() >= 100,
+            "{name}: {} triangles",
+            mesh.triangles.len()
+        );
+        assert_eq!(mesh.uvs.len(), mesh.positions.len(), "{name}");
+        let licence = licences
+            .get(&name)
+            .unwrap_or_else(|| panic!("{name}: no licence"));
+        assert!(
+            ["CC0-1.0", "public-domain"].contains(&licence.as_str()),
+            "{name}: {licence}"
+        );
+        found.push(name);
+    }
+    found.sort();
+    let listed: Vec<String> = licences.keys().cloned().collect();
+    assert_eq!(found, listed, "meshes and licenses.json differ");
+}
