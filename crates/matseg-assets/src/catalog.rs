@@ -37,6 +37,10 @@ pub struct CatalogEntry {
     /// Sizes, counts, statistics (kind-specific).
     #[serde(default, skip_serializing_if = "serde_json::Value::is_null")]
     pub info: serde_json::Value,
+    /// The corpus path of the file this one belongs to (a model's material
+    /// library or texture); absent for a file of its own.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub part_of: Option<String>,
 }
 
 /// What fetching one package produced.
@@ -105,12 +109,13 @@ impl Catalog {
             .map_err(|e| format!("{}: cannot write: {e}", path.display()))
     }
 
-    /// Count and bytes per (kind, licence family).
+    /// Per (kind, licence family): the count of files of their own and
+    /// the bytes of all files (those belonging to them included).
     pub fn summary(&self) -> BTreeMap<(Kind, String), (usize, u64)> {
         let mut out = BTreeMap::new();
         for f in &self.files {
             let e = out.entry((f.kind, f.family.clone())).or_insert((0, 0));
-            e.0 += 1;
+            e.0 += usize::from(f.part_of.is_none());
             e.1 += f.bytes;
         }
         out

@@ -19,9 +19,9 @@ pub struct Converted {
     pub bytes: Vec<u8>,
     /// Sizes, counts, statistics.
     pub info: Value,
-    /// Whether this is a file other files belong to (a mesh, not its
-    /// material or textures): the catalogue lists only these.
-    pub primary: bool,
+    /// The name of the file this one belongs to (a model's material
+    /// library or texture), `None` for a file of its own.
+    pub part_of: Option<String>,
 }
 
 impl Converted {
@@ -30,7 +30,7 @@ impl Converted {
             name,
             bytes,
             info,
-            primary: true,
+            part_of: None,
         }
     }
 }
@@ -266,19 +266,23 @@ pub fn furniture_models(name: &str, bytes: &[u8]) -> Result<Vec<Converted>, Stri
             ) {
                 let tex_path = join(dir, &texture);
                 if let Ok(tex) = zip.read(&tex_path) {
-                    files.push((tex_path, tex, false));
+                    files.push((tex_path, tex));
                 }
             }
-            files.push((mtl_path, mtl_bytes, false));
+            files.push((mtl_path, mtl_bytes));
         }
-        files.insert(0, (model.clone(), obj, true));
-        for (path, data, primary) in files {
+        let model_name = format!("{stem}/{model}");
+        if taken.insert(model.clone()) {
+            out.push(Converted::primary(model_name.clone(), obj, Value::Null));
+        }
+        // A material or texture several models share belongs to the first.
+        for (path, data) in files {
             if taken.insert(path.clone()) {
                 out.push(Converted {
                     name: format!("{stem}/{path}"),
                     bytes: data,
                     info: Value::Null,
-                    primary,
+                    part_of: Some(model_name.clone()),
                 });
             }
         }
@@ -381,13 +385,17 @@ mod tests {
             ("set/chair/unused.png", b"png"),
         ]);
         let out = furniture_models("Set.sh3f", &sh3f).unwrap();
-        let names: Vec<(&str, bool)> = out.iter().map(|c| (c.name.as_str(), c.primary)).collect();
+        let names: Vec<(&str, Option<&str>)> = out
+            .iter()
+            .map(|c| (c.name.as_str(), c.part_of.as_deref()))
+            .collect();
+        let chair = Some("Set/set/chair/chair.obj");
         assert_eq!(
             names,
             [
-                ("Set/set/chair/chair.obj", true),
-                ("Set/set/chair/wood.png", false),
-                ("Set/set/chair/chair.mtl", false)
+                ("Set/set/chair/chair.obj", None),
+                ("Set/set/chair/wood.png", chair),
+                ("Set/set/chair/chair.mtl", chair)
             ]
         );
         let e = furniture_models(

@@ -33,8 +33,8 @@ struct Staged {
     bytes: u64,
     /// What the catalogue says of it.
     info: serde_json::Value,
-    /// Whether the catalogue lists it (a mesh, not its material files).
-    primary: bool,
+    /// The name of the file it belongs to (a model's material or texture).
+    part_of: Option<String>,
     source: String,
     licence: String,
 }
@@ -76,7 +76,7 @@ pub fn install(
                     std::fs::create_dir_all(path.parent().expect("inside staging"))
                         .map_err(|e| io(e, &path))?;
                     std::fs::write(&path, &converted.bytes).map_err(|e| io(e, &path))?;
-                    let info = if converted.primary {
+                    let info = if converted.part_of.is_none() {
                         match check(spec.kind, &path, converted.info) {
                             Ok(info) => info,
                             Err(e) => {
@@ -98,7 +98,7 @@ pub fn install(
                         name: converted.name,
                         bytes: converted.bytes.len() as u64,
                         info,
-                        primary: converted.primary,
+                        part_of: converted.part_of,
                         source: t.source.clone(),
                         licence: t.licence.clone(),
                     });
@@ -107,7 +107,7 @@ pub fn install(
             Err(e) => warnings.push(format!("{}: {e}", t.source)),
         }
     }
-    if !staged.iter().any(|s| s.primary) {
+    if !staged.iter().any(|s| s.part_of.is_none()) {
         let _ = std::fs::remove_dir_all(&staging);
         let why = warnings.first().map_or(
             "it holds none of the files the manifest names".to_string(),
@@ -124,11 +124,12 @@ pub fn install(
     std::fs::create_dir_all(target.parent().expect("below corpus")).map_err(|e| io(e, &target))?;
     std::fs::rename(&staging, &target).map_err(|e| io(e, &target))?;
 
+    let corpus_path = |name: &str| format!("{}/{folder}/{name}", spec.kind);
     let files = staged
         .iter()
-        .filter(|s| s.primary)
         .map(|s| CatalogEntry {
-            path: format!("{}/{folder}/{}", spec.kind, s.name),
+            path: corpus_path(&s.name),
+            part_of: s.part_of.as_deref().map(corpus_path),
             kind: spec.kind,
             bytes: s.bytes,
             package: spec.name.clone(),

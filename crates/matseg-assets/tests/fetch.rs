@@ -285,7 +285,19 @@ fn fetch_builds_the_corpus_with_licences_and_a_catalogue() {
             ("hdris/test-hdris/plain.exr", "CC0-1.0", "cc0", "1.0.0"),
             ("hdris/test-hdris/sky.exr", "CC0-1.0", "cc0", "1.0.0"),
             (
+                "meshes/shapes/Free/free/chair/chair.mtl",
+                "CC0-1.0",
+                "cc0",
+                "1.2-3"
+            ),
+            (
                 "meshes/shapes/Free/free/chair/chair.obj",
+                "CC0-1.0",
+                "cc0",
+                "1.2-3"
+            ),
+            (
+                "meshes/shapes/Free/free/chair/wood.png",
                 "CC0-1.0",
                 "cc0",
                 "1.2-3"
@@ -309,6 +321,25 @@ fn fetch_builds_the_corpus_with_licences_and_a_catalogue() {
         assert_eq!(on_disk, f.bytes, "{}", f.path);
     }
     let by_path = |p: &str| catalog.files.iter().find(|f| f.path == p).unwrap();
+    // A model's material library and texture are listed as its parts, and
+    // the summary counts the model once with the bytes of all three.
+    let chair = "meshes/shapes/Free/free/chair/chair.obj";
+    assert_eq!(by_path(chair).part_of, None);
+    for part in ["chair.mtl", "wood.png"] {
+        let entry = by_path(&format!("meshes/shapes/Free/free/chair/{part}"));
+        assert_eq!(entry.part_of.as_deref(), Some(chair), "{part}");
+    }
+    let chair_bytes: u64 = catalog
+        .files
+        .iter()
+        .filter(|f| f.path.starts_with("meshes/shapes/Free/"))
+        .map(|f| f.bytes)
+        .sum();
+    let summary = catalog.summary();
+    assert_eq!(
+        summary[&(matseg_assets::manifest::Kind::Meshes, "cc0".to_string())],
+        (1, chair_bytes)
+    );
     assert_eq!(by_path("photos/wallpapers/gpl.jpg").info["width"], 16);
     assert_eq!(
         by_path("photos/wallpapers/gpl.jpg").source,

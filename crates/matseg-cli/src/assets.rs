@@ -115,12 +115,10 @@ fn run_fetch(args: FetchArgs) -> Result<()> {
         for w in &record.warnings {
             eprintln!("warning: {}: skipped {w}", record.package);
         }
+        let own = record.files.iter().filter(|f| f.part_of.is_none()).count();
         println!(
-            "{} {}: {} {} files",
-            record.package,
-            record.version,
-            record.files.len(),
-            record.kind
+            "{} {}: {own} {} files",
+            record.package, record.version, record.kind
         );
     }
     if !report.already.is_empty() {
@@ -153,8 +151,13 @@ fn run_list(args: ListArgs) -> Result<()> {
 /// The table of files and megabytes per kind and licence family.
 fn print_summary(corpus: &Path) -> Result<()> {
     let catalog = Catalog::read(corpus).map_err(anyhow::Error::msg)?;
-    println!("{}: {} files", corpus.display(), catalog.files.len());
-    println!("| kind | licence | files | MB |");
+    let parts = catalog.files.iter().filter(|f| f.part_of.is_some()).count();
+    println!(
+        "{}: {} files, and {parts} materials and textures of models",
+        corpus.display(),
+        catalog.files.len() - parts
+    );
+    println!("| kind | licence | files | MB (with their parts) |");
     println!("|---|---|---|---|");
     for ((kind, family), (count, bytes)) in catalog.summary() {
         println!(
