@@ -41,9 +41,6 @@ pub struct AdamW {
     /// The variables, sorted by name, with where their data start in
     /// `params` (offsets aligned to [`ALIGN`] elements).
     slots: Vec<Slot>,
-    /// Zeros filling the gap after each variable up to the next aligned
-    /// offset (`None`: no gap), for assembling the flat gradient.
-    gaps: Vec<Option<Tensor>>,
     /// All trainable variables, flat.
     params: Tensor,
     /// First moments, laid out as `params`.
@@ -58,6 +55,9 @@ struct Slot {
     name: String,
     variable: Tensor,
     offset: i64,
+    /// Zeros filling the gap after the variable up to the next aligned
+    /// offset (`None`: no gap), for assembling the flat gradient.
+    gap: Option<Tensor>,
 }
 
 impl Slot {
@@ -89,15 +89,14 @@ impl AdamW {
         let device = vs.device();
         let mut total = 0;
         let mut slots = Vec::with_capacity(variables.len());
-        let mut gaps = Vec::with_capacity(variables.len());
         for (name, variable) in variables {
             let numel = variable.numel() as i64;
             let gap = (ALIGN - numel % ALIGN) % ALIGN;
-            gaps.push((gap > 0).then(|| Tensor::zeros([gap], (Kind::Float, device))));
             slots.push(Slot {
                 name,
                 variable,
                 offset: total,
+                gap: (gap > 0).then(|| Tensor::zeros([gap], (Kind::Float, device))),
             });
             total += numel + gap;
         }
@@ -111,7 +110,6 @@ impl AdamW {
             config,
             steps: 0,
             slots,
-            gaps,
             m: params.zeros_like(),
             v: params.zeros_like(),
             params,
@@ -125,14 +123,14 @@ impl AdamW {
         let variables: Vec<&Tensor> = self.slots.iter().map(|s| &s.variable).collect();
         let grads = Tensor::run_backward(&[loss], &variables, false, false);
         let mut flat = Vec::with_capacity(2 * grads.len());
-        for ((g, variable), gap) in grads.iter().zip(&variables).zip(&self.gaps) {
+        for (g, slot) in grads.iter().zip(&self.slots) {
             flat.push(if g.defined() {
                 g.reshape([-1])
             } else {
                 // A variable the loss does not depend on.
-                variable.detach().zeros_like().reshape([-1])
+                slot.variable.detach().zeros_like().reshape([-1])
             });
-            if let Some(zeros) = gap {
+            if let Some(zeros) = &slot.gap {
                 flat.push(zeros.shallow_clone());
             }
         }
