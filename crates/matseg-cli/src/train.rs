@@ -81,7 +81,7 @@ pub struct Args {
     #[arg(long, default_value_t = 700)]
     val_max_side: u32,
     /// Threads preparing batches ahead (default: 1 on the CPU, all cores
-    /// but one with --device cuda); the batches do not depend on it.
+    /// but two with --device cuda); the batches do not depend on it.
     #[arg(long)]
     loader_threads: Option<usize>,
     /// Seed of the batch stream and of the generator.
