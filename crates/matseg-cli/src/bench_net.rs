@@ -45,7 +45,7 @@ const MATERIALS: usize = 3;
 /// Runs `matseg bench-net`.
 pub fn run(args: Args) -> Result<()> {
     let net = preset(&args.encoder)?;
-    if args.side == 0 || args.side % 32 != 0 || args.batch == 0 || args.repeats == 0 {
+    if args.side == 0 || !args.side.is_multiple_of(32) || args.batch == 0 || args.repeats == 0 {
         bail!("--side must be a positive multiple of 32, --batch and --repeats positive");
     }
     let device = parse_device(&args.device)?;

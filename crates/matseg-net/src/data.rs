@@ -107,7 +107,10 @@ impl BatchPlan {
 
     /// Checks the plan; the message says what is wrong.
     pub fn validate(&self) -> Result<(), String> {
-        if self.min_side < 32 || self.min_side % 32 != 0 || self.max_side % 32 != 0 {
+        if self.min_side < 32
+            || !self.min_side.is_multiple_of(32)
+            || !self.max_side.is_multiple_of(32)
+        {
             return Err(format!(
                 "batch sides {}..{} must be multiples of 32, at least 32",
                 self.min_side, self.max_side

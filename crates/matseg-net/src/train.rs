@@ -324,7 +324,7 @@ pub fn run(
             let lr = trainer.lr(step);
             let loss = trainer.train_step(&samples);
             let seconds = started.elapsed().as_secs_f64();
-            let checkpoint = trainer.step % options.checkpoint_every.max(1) == 0
+            let checkpoint = trainer.step.is_multiple_of(options.checkpoint_every.max(1))
                 || trainer.step == options.steps;
             let val_points = match validation.points.filter(|_| checkpoint) {
                 Some(score) => {

@@ -171,7 +171,7 @@ impl Machine<'_> {
     }
 
     fn set_items(&mut self, at: usize, items: Vec<Value>) -> Result<(), PickleError> {
-        if items.len() % 2 != 0 {
+        if !items.len().is_multiple_of(2) {
             return self.fail(at, "odd number of dict items");
         }
         match self.top(at)? {

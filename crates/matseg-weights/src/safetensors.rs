@@ -30,7 +30,7 @@ pub fn write_safetensors(tensors: &[Tensor], metadata: &[(&str, &str)]) -> Vec<u
     }
     let mut text = serde_json::to_string(&Value::Object(header)).expect("JSON");
     // Pad the header with spaces so the data starts 8-byte aligned.
-    while (8 + text.len()) % 8 != 0 {
+    while !(8 + text.len()).is_multiple_of(8) {
         text.push(' ');
     }
     let mut out = Vec::with_capacity(8 + text.len() + offset);
