@@ -21,7 +21,8 @@ pub const FAMILIES: [&str; 10] = [
 /// The family of a licence string (case and punctuation ignored):
 /// `CC0-1.0` and `Creative Commons Zero` are `cc0`; `CC-BY-SA-4.0` is
 /// `cc-by-sa`; `Creative Commons Attribution 3.0` is `cc-by`; `GPL-2+` is
-/// `gpl`; `LGPL-2.1+` is `lgpl`; `BSD-3-Clause (torchvision)` is `bsd`;
+/// `gpl`, and so is `GPL-3+ and LGPL-3+`; `LGPL-2.1+` is `lgpl`;
+/// `BSD-3-Clause (torchvision)` is `bsd`;
 /// anything unrecognised is `unknown`.
 pub fn licence_family(licence: &str) -> &'static str {
     let s: String = licence
@@ -42,10 +43,11 @@ pub fn licence_family(licence: &str) -> &'static str {
         } else {
             "cc-by"
         }
+    } else if has("gpl") || has("agpl") {
+        // Before LGPL: "GPL-3+ and LGPL-3+" (files under both) is GPL.
+        "gpl"
     } else if has("lgpl") {
         "lgpl"
-    } else if has("gpl") || has("agpl") {
-        "gpl"
     } else if starts("mit") || has("expat") {
         "mit"
     } else if starts("bsd") || has("bsd") {
@@ -122,6 +124,8 @@ mod tests {
             ("CC-BY-SA-3.0", "cc-by-sa"),
             ("GPL-2+", "gpl"),
             ("LGPL-2.1+", "lgpl"),
+            ("GPL-3+ and GPL-2+ and LGPL-3+ and MIT and Expat", "gpl"),
+            ("GPL-and-LGPL", "gpl"),
             ("BSD-3-Clause (torchvision)", "bsd"),
             ("Apache-2.0", "apache"),
             ("Expat", "mit"),
