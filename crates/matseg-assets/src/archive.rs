@@ -1,12 +1,13 @@
 //! Reading the files out of registry packages without installing them:
 //! Debian `.deb` (an `ar` archive holding `data.tar.{gz,xz}`), Python wheels
 //! and other zips (`.whl`, `.zip`, `.sh3f`), and tarballs (`.tgz`,
-//! `.tar.gz`, `.tar.xz`, `.tar`), e.g. npm packages. Archives are read in
-//! memory; only the entries a caller wants are kept.
+//! `.tar.gz`, `.tar.xz`, `.tar`), e.g. npm packages. Archives are streamed
+//! from any seekable source (a file, or bytes in memory): a package of
+//! gigabytes needs no more memory than the entries a caller keeps.
 
 use flate2::read::GzDecoder;
-use matseg_weights::zip::ZipArchive;
-use std::io::Read;
+use matseg_weights::zip::ZipFile;
+use std::io::{BufReader, Cursor, Read, Seek, SeekFrom};
 
 /// One file taken out of an archive: its path inside and its bytes.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -17,25 +18,54 @@ pub struct Entry {
     pub bytes: Vec<u8>,
 }
 
+/// What [`visit`] calls with each wanted file: its path inside the archive
+/// and a reader of its contents.
+pub type OnEntry<'a> = dyn FnMut(&str, &mut dyn Read) -> Result<(), String> + 'a;
+
 /// The regular files of the archive `name` (its format comes from the file
-/// name) whose path `want` accepts, in archive order.
+/// name) whose path `want` accepts, in archive order, read into memory.
 pub fn extract(
     name: &str,
     bytes: &[u8],
     want: &dyn Fn(&str) -> bool,
 ) -> Result<Vec<Entry>, String> {
+    let mut entries = Vec::new();
+    visit(name, Cursor::new(bytes), want, &mut |path, reader| {
+        let mut bytes = Vec::new();
+        reader
+            .read_to_end(&mut bytes)
+            .map_err(|e| format!("{path}: {e}"))?;
+        entries.push(Entry {
+            path: path.to_string(),
+            bytes,
+        });
+        Ok(())
+    })?;
+    Ok(entries)
+}
+
+/// Calls `on_entry` with each regular file of the archive `name` (its
+/// format comes from the file name), read from `source`, whose path `want`
+/// accepts, in archive order. Compressed tar streams are decompressed as
+/// they are read (xz on a second thread).
+pub fn visit<R: Read + Seek + Send>(
+    name: &str,
+    mut source: R,
+    want: &dyn Fn(&str) -> bool,
+    on_entry: &mut OnEntry<'_>,
+) -> Result<(), String> {
     let lower = name.to_ascii_lowercase();
     if lower.ends_with(".deb") {
-        let data = deb_member(bytes, "data.tar")?;
-        untar(data.0, data.1, want)
+        let (size, compression) = deb_member(&mut source, "data.tar")?;
+        untar(source.take(size), compression, want, on_entry)
     } else if [".whl", ".zip", ".sh3f"].iter().any(|e| lower.ends_with(e)) {
-        unzip(bytes, want)
+        unzip(source, want, on_entry)
     } else if lower.ends_with(".tgz") || lower.ends_with(".tar.gz") {
-        untar(bytes, Compression::Gzip, want)
+        untar(source, Compression::Gzip, want, on_entry)
     } else if lower.ends_with(".tar.xz") {
-        untar(bytes, Compression::Xz, want)
+        untar(source, Compression::Xz, want, on_entry)
     } else if lower.ends_with(".tar") {
-        untar(bytes, Compression::None, want)
+        untar(source, Compression::None, want, on_entry)
     } else {
         Err(format!(
             "{name}: not a known archive (.deb, .whl, .zip, .sh3f, .tgz, .tar.gz, .tar.xz, .tar)"
@@ -51,27 +81,32 @@ enum Compression {
     Xz,
 }
 
-/// The member of a `.deb` whose name starts with `prefix`, with the
-/// compression its suffix names.
-fn deb_member<'a>(bytes: &'a [u8], prefix: &str) -> Result<(&'a [u8], Compression), String> {
-    let body = bytes
-        .strip_prefix(b"!<arch>\n")
-        .ok_or("not a Debian package (no ar signature)")?;
-    let mut at = 0;
-    while at + 60 <= body.len() {
-        let header = &body[at..at + 60];
+/// Moves `source` (a `.deb`) to the start of its member whose name starts
+/// with `prefix`; that member's size and the compression its suffix names.
+fn deb_member<R: Read + Seek>(source: &mut R, prefix: &str) -> Result<(u64, Compression), String> {
+    let io = |e: std::io::Error| format!("cannot read: {e}");
+    let len = source.seek(SeekFrom::End(0)).map_err(io)?;
+    source.seek(SeekFrom::Start(0)).map_err(io)?;
+    let mut magic = [0u8; 8];
+    if source.read_exact(&mut magic).is_err() || &magic != b"!<arch>\n" {
+        return Err("not a Debian package (no ar signature)".into());
+    }
+    let mut at = 8u64;
+    while at + 60 <= len {
+        let mut header = [0u8; 60];
+        source.read_exact(&mut header).map_err(io)?;
         let member = String::from_utf8_lossy(&header[..16])
             .trim_end()
             .trim_end_matches('/')
             .to_string();
-        let size: usize = String::from_utf8_lossy(&header[48..58])
+        let size: u64 = String::from_utf8_lossy(&header[48..58])
             .trim()
             .parse()
             .map_err(|_| format!("ar member {member}: bad size field"))?;
         let start = at + 60;
-        let data = body
-            .get(start..start + size)
-            .ok_or_else(|| format!("ar member {member} is truncated"))?;
+        if start + size > len {
+            return Err(format!("ar member {member} is truncated"));
+        }
         if member.starts_with(prefix) {
             let compression = match member.rsplit('.').next() {
                 Some("tar") => Compression::None,
@@ -83,73 +118,85 @@ fn deb_member<'a>(bytes: &'a [u8], prefix: &str) -> Result<(&'a [u8], Compressio
                     ))
                 }
             };
-            return Ok((data, compression));
+            return Ok((size, compression));
         }
         at = start + size + size % 2;
+        source.seek(SeekFrom::Start(at)).map_err(io)?;
     }
     Err(format!("no {prefix}.* member"))
 }
 
-fn untar(
-    bytes: &[u8],
+/// The wanted files of a tar stream compressed with `compression`.
+fn untar<R: Read + Send>(
+    source: R,
     compression: Compression,
     want: &dyn Fn(&str) -> bool,
-) -> Result<Vec<Entry>, String> {
-    let plain: Vec<u8>;
-    let tar_bytes: &[u8] = match compression {
-        Compression::None => bytes,
-        Compression::Gzip => {
-            let mut out = Vec::new();
-            GzDecoder::new(bytes)
-                .read_to_end(&mut out)
-                .map_err(|e| format!("gzip: {e}"))?;
-            plain = out;
-            &plain
-        }
-        Compression::Xz => {
-            let mut out = Vec::new();
-            lzma_rs::xz_decompress(&mut std::io::BufReader::new(bytes), &mut out)
-                .map_err(|e| format!("xz: {e}"))?;
-            plain = out;
-            &plain
-        }
-    };
-    let mut archive = tar::Archive::new(tar_bytes);
-    let mut entries = Vec::new();
-    for entry in archive.entries().map_err(|e| format!("tar: {e}"))? {
-        let mut entry = entry.map_err(|e| format!("tar: {e}"))?;
+    on_entry: &mut OnEntry<'_>,
+) -> Result<(), String> {
+    match compression {
+        Compression::None => read_tar(source, "tar", want, on_entry),
+        Compression::Gzip => read_tar(GzDecoder::new(source), "gzip", want, on_entry),
+        Compression::Xz => std::thread::scope(|scope| {
+            let (plain, mut sink) = std::io::pipe().map_err(|e| format!("xz: {e}"))?;
+            let decompress = scope.spawn(move || {
+                lzma_rs::xz_decompress(&mut BufReader::with_capacity(1 << 20, source), &mut sink)
+            });
+            let read = read_tar(plain, "xz", want, on_entry);
+            match decompress.join().expect("the xz thread does not panic") {
+                // The tar reader stops at the end-of-archive blocks and may
+                // leave padding unread: a closed pipe then is no error.
+                Err(lzma_rs::error::Error::IoError(e))
+                    if e.kind() == std::io::ErrorKind::BrokenPipe && read.is_ok() =>
+                {
+                    read
+                }
+                Err(e) => Err(format!("xz: {e}")),
+                Ok(()) => read,
+            }
+        }),
+    }
+}
+
+/// The wanted files of the plain tar stream `reader`; `format` names the
+/// outer format in errors.
+fn read_tar(
+    reader: impl Read,
+    format: &str,
+    want: &dyn Fn(&str) -> bool,
+    on_entry: &mut OnEntry<'_>,
+) -> Result<(), String> {
+    let mut archive = tar::Archive::new(reader);
+    let error = |e: std::io::Error| format!("{format}: {e}");
+    for entry in archive.entries().map_err(error)? {
+        let mut entry = entry.map_err(error)?;
         if !entry.header().entry_type().is_file() {
             continue;
         }
-        let path = entry
-            .path()
-            .map_err(|e| format!("tar: {e}"))?
-            .to_string_lossy()
-            .into_owned();
+        let path = entry.path().map_err(error)?.to_string_lossy().into_owned();
         let path = path.trim_start_matches("./").to_string();
-        if !want(&path) {
-            continue;
+        if want(&path) {
+            on_entry(&path, &mut entry)?;
         }
-        let mut data = Vec::with_capacity(entry.size() as usize);
-        entry
-            .read_to_end(&mut data)
-            .map_err(|e| format!("tar: {path}: {e}"))?;
-        entries.push(Entry { path, bytes: data });
     }
-    Ok(entries)
+    Ok(())
 }
 
-fn unzip(bytes: &[u8], want: &dyn Fn(&str) -> bool) -> Result<Vec<Entry>, String> {
-    let archive = ZipArchive::new(bytes)?;
+fn unzip<R: Read + Seek>(
+    source: R,
+    want: &dyn Fn(&str) -> bool,
+    on_entry: &mut OnEntry<'_>,
+) -> Result<(), String> {
+    let mut archive = ZipFile::new(source)?;
     let names: Vec<String> = archive
         .names()
         .filter(|n| !n.ends_with('/') && want(n))
         .map(String::from)
         .collect();
-    names
-        .into_iter()
-        .map(|path| archive.read(&path).map(|bytes| Entry { path, bytes }))
-        .collect()
+    for name in names {
+        let bytes = archive.read(&name)?;
+        on_entry(&name, &mut bytes.as_slice())?;
+    }
+    Ok(())
 }
 
 /// Archives of the supported formats built in memory (a `.deb` with
@@ -179,15 +226,32 @@ pub mod fixtures {
         e.finish().unwrap()
     }
 
+    /// Xz of `bytes`.
+    pub fn xz(bytes: &[u8]) -> Vec<u8> {
+        let mut out = Vec::new();
+        lzma_rs::xz_compress(&mut std::io::Cursor::new(bytes), &mut out).unwrap();
+        out
+    }
+
     /// A `.deb`: `debian-binary`, `control.tar.gz` and `data.tar.gz` of `files`.
     pub fn deb(files: &[(&str, &[u8])]) -> Vec<u8> {
+        deb_with("data.tar.gz", gzip(&tar(files)))
+    }
+
+    /// A `.deb` whose data member is `data.tar.xz`, as Debian's large
+    /// packages are.
+    pub fn deb_xz(files: &[(&str, &[u8])]) -> Vec<u8> {
+        deb_with("data.tar.xz", xz(&tar(files)))
+    }
+
+    fn deb_with(data_name: &str, data: Vec<u8>) -> Vec<u8> {
         let members: [(&str, Vec<u8>); 3] = [
             ("debian-binary", b"2.0\n".to_vec()),
             (
                 "control.tar.gz",
                 gzip(&tar(&[("./control", b"Package: x\n")])),
             ),
-            ("data.tar.gz", gzip(&tar(files))),
+            (data_name, data),
         ];
         let mut out = b"!<arch>\n".to_vec();
         for (name, data) in members {
@@ -266,14 +330,61 @@ mod tests {
 
     #[test]
     fn xz_tarballs_read_like_gzip_ones() {
-        let mut xz = Vec::new();
-        lzma_rs::xz_compress(&mut std::io::Cursor::new(tar(&FILES)), &mut xz).unwrap();
-        let got = extract("p.tar.xz", &xz, &under_share).unwrap();
+        let got = extract("p.tar.xz", &xz(&tar(&FILES)), &under_share).unwrap();
         assert_eq!(
             got,
             extract("p.tgz", &gzip(&tar(&FILES)), &under_share).unwrap()
         );
         assert_eq!(got.len(), 2);
+        assert_eq!(
+            extract("p.deb", &deb_xz(&FILES), &under_share).unwrap(),
+            got
+        );
+        // The reader may stop before the decompressor is done (an error in
+        // the consumer): the error is the consumer's, and nothing hangs.
+        let mut calls = 0;
+        let e = visit(
+            "p.deb",
+            Cursor::new(deb_xz(&FILES)),
+            &|_| true,
+            &mut |path, _| {
+                calls += 1;
+                Err(format!("{path}: refused"))
+            },
+        )
+        .unwrap_err();
+        assert_eq!((calls, e.as_str()), (1, "usr/share/a.jpg: refused"));
+        let whole = xz(&tar(&FILES));
+        let e = extract("p.tar.xz", &whole[..whole.len() / 2], &under_share).unwrap_err();
+        assert!(e.starts_with("xz: "), "{e}");
+    }
+
+    #[test]
+    fn archives_on_disk_stream_like_archives_in_memory() {
+        let dir = tempfile::tempdir().unwrap();
+        let zipped = zip(&[("a/b.png", b"one"), ("a/c.txt", b"two"), ("d/", b"")]);
+        for (name, bytes) in [("p.zip", zipped), ("p.deb", deb_xz(&FILES))] {
+            let path = dir.path().join(name);
+            std::fs::write(&path, &bytes).unwrap();
+            let mut from_file = Vec::new();
+            let file = std::io::BufReader::new(std::fs::File::open(&path).unwrap());
+            visit(name, file, &|_| true, &mut |p, r| {
+                let mut b = Vec::new();
+                r.read_to_end(&mut b).unwrap();
+                from_file.push(Entry {
+                    path: p.into(),
+                    bytes: b,
+                });
+                Ok(())
+            })
+            .unwrap();
+            assert_eq!(
+                from_file,
+                extract(name, &bytes, &|_| true).unwrap(),
+                "{name}"
+            );
+            assert!(!from_file.is_empty());
+        }
     }
 
     #[test]

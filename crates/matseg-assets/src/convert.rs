@@ -50,7 +50,8 @@ pub fn convert(kind: Kind, name: &str, bytes: Vec<u8>) -> Result<Vec<Converted>,
         None => (name.to_string(), bytes),
     };
     let info = match kind {
-        Kind::Photos | Kind::Textures => image_info(&bytes)?,
+        Kind::Photos => image_info(&bytes)?,
+        Kind::Textures => texture_info(&bytes)?,
         _ => Value::Null,
     };
     Ok(vec![Converted::primary(name, bytes, info)])
@@ -83,9 +84,12 @@ type OneToOne = (&'static str, &'static str, Decode);
 /// if any: GIMP patterns to PNG, base64 EXR modules to EXR, JavaScript
 /// meshes to OBJ.
 fn one_to_one(kind: Kind, lower: &str) -> Option<OneToOne> {
-    let table: [(Kind, &str, &str, Decode); 4] = [
+    let table: [(Kind, &str, &str, Decode); 6] = [
         (Kind::Photos, ".pat", ".png", gimp_pattern_to_png),
         (Kind::Textures, ".pat", ".png", gimp_pattern_to_png),
+        // `.dds.png`: packages ship some textures as both `x.png` and `x.dds`.
+        (Kind::Photos, ".dds", ".dds.png", dds_to_png),
+        (Kind::Textures, ".dds", ".dds.png", dds_to_png),
         (Kind::Hdris, ".exr.js", ".exr", base64_data_url),
         (Kind::Meshes, ".js", ".obj", js_mesh_to_obj),
     ];
@@ -111,6 +115,65 @@ fn image_info(bytes: &[u8]) -> Result<Value, String> {
         return Err("image has no pixels".into());
     }
     Ok(json!({ "width": w, "height": h }))
+}
+
+/// The smallest side a texture may have: smaller ones are icons or
+/// placeholders, and would be magnified into blur.
+pub const MIN_TEXTURE_SIDE: u32 = 32;
+
+/// Width, height and mean colour of a texture, after checking that it is
+/// one: at least [`MIN_TEXTURE_SIDE`] pixels a side, not flat, and not a
+/// tangent-space normal map (games ship those beside their colour maps,
+/// often without a telling name: bluish, red and green about mid-grey, and
+/// blue at least half on nearly every pixel).
+fn texture_info(bytes: &[u8]) -> Result<Value, String> {
+    let img = image::load_from_memory(bytes)
+        .map_err(|e| format!("not a readable image: {e}"))?
+        .into_rgb8();
+    let (w, h) = img.dimensions();
+    if w.min(h) < MIN_TEXTURE_SIDE {
+        return Err(format!(
+            "{w}x{h} is too small for a texture (sides of at least {MIN_TEXTURE_SIDE})"
+        ));
+    }
+    let n = f64::from(w) * f64::from(h);
+    let mut sum = [0f64; 3];
+    let mut sum_sq = 0f64;
+    let mut blue_half = 0u64;
+    for p in img.pixels() {
+        for (s, &v) in sum.iter_mut().zip(&p.0) {
+            *s += f64::from(v);
+        }
+        let grey = p.0.iter().map(|&v| f64::from(v)).sum::<f64>() / 3.0;
+        sum_sq += grey * grey;
+        blue_half += u64::from(p.0[2] >= 128);
+    }
+    let mean = sum.map(|s| s / n);
+    let grey_mean = mean.iter().sum::<f64>() / 3.0;
+    let grey_sd = (sum_sq / n - grey_mean * grey_mean).max(0.0).sqrt();
+    let rounded = mean.map(|m| m.round() as u8);
+    if grey_sd < 1.0 {
+        return Err(format!(
+            "flat: one colour {rounded:?} (a placeholder, not a texture)"
+        ));
+    }
+    let near_mid = |m: f64| (m - 128.0).abs() < 32.0;
+    if mean[2] >= 180.0 && near_mid(mean[0]) && near_mid(mean[1]) && blue_half as f64 >= 0.99 * n {
+        return Err(format!(
+            "looks like a normal map (mean colour {rounded:?}), not a colour texture"
+        ));
+    }
+    Ok(json!({ "width": w, "height": h, "mean_rgb": rounded }))
+}
+
+/// A `.dds` texture (its largest mipmap level) as an RGB PNG.
+pub fn dds_to_png(bytes: &[u8]) -> Result<Vec<u8>, String> {
+    let dds = crate::dds::decode_dds(bytes)?;
+    let img = image::RgbImage::from_raw(dds.width, dds.height, dds.rgb).expect("w * h * 3 bytes");
+    let mut out = Vec::new();
+    img.write_to(&mut Cursor::new(&mut out), image::ImageFormat::Png)
+        .map_err(|e| format!("PNG: {e}"))?;
+    Ok(out)
 }
 
 /// A GIMP pattern (`.pat`: a big-endian header, magic `GPAT`, then 1-4
@@ -348,6 +411,47 @@ mod tests {
         assert!(gimp_pattern_to_png(b"0123456789012345678901234")
             .unwrap_err()
             .contains("GPAT"));
+    }
+
+    fn png(w: u32, h: u32, pixel: impl Fn(u32, u32) -> [u8; 3]) -> Vec<u8> {
+        let img = image::RgbImage::from_fn(w, h, |x, y| image::Rgb(pixel(x, y)));
+        let mut out = Vec::new();
+        img.write_to(&mut Cursor::new(&mut out), image::ImageFormat::Png)
+            .unwrap();
+        out
+    }
+
+    #[test]
+    fn textures_are_checked_for_size_flatness_and_normal_maps() {
+        let stone = |x: u32, y: u32| [90 + (x * 7 % 50) as u8, 80 + (y * 3 % 40) as u8, 70];
+        let info = texture_info(&png(40, 32, stone)).unwrap();
+        assert_eq!(
+            (info["width"].as_u64(), info["height"].as_u64()),
+            (Some(40), Some(32))
+        );
+        let e = texture_info(&png(40, 31, stone)).unwrap_err();
+        assert!(e.starts_with("40x31 is too small"), "{e}");
+        let e = texture_info(&png(64, 64, |_, _| [200, 10, 10])).unwrap_err();
+        assert!(e.starts_with("flat: one colour [200, 10, 10]"), "{e}");
+        // A normal map: R and G vary about 128, B high everywhere.
+        let normal = |x: u32, y: u32| {
+            [
+                100 + (x % 56) as u8,
+                110 + (y % 40) as u8,
+                200 + (x % 50) as u8,
+            ]
+        };
+        let e = texture_info(&png(64, 64, normal)).unwrap_err();
+        assert!(e.starts_with("looks like a normal map"), "{e}");
+        // A blue texture with dark patches is not one (blue < 128 on them).
+        let tiles = |x: u32, y: u32| {
+            if (x / 8 + y / 8).is_multiple_of(4) {
+                [20, 20, 60]
+            } else {
+                normal(x, y)
+            }
+        };
+        assert!(texture_info(&png(64, 64, tiles)).is_ok());
     }
 
     #[test]

@@ -6,10 +6,11 @@
 //! `usr/share/backgrounds/x.jpg`). A pattern therefore applies to an
 //! installed path when it matches a whole trailing part of it (`nature/*.jpg`
 //! matches `usr/share/backgrounds/mate/nature/Dune.jpg`), or when its last
-//! component has no wildcard and equals the file's name. As in DEP-5, the
-//! last stanza that applies wins.
+//! component has no wildcard and equals the file's name. As in DEP-5, `*`
+//! and `?` match slashes too (`data/trak/*` covers `data/trak/trak5/x.jpg`),
+//! and the last stanza that applies wins.
 
-use crate::glob::glob_match;
+use crate::glob::glob_match_across;
 
 /// One `Files:` stanza: its patterns and its licence's short name.
 #[derive(Clone, Debug, PartialEq)]
@@ -73,7 +74,7 @@ impl Copyright {
 fn applies(pattern: &str, path: &str, file_name: &str) -> bool {
     let suffix_match = std::iter::once(path)
         .chain(path.match_indices('/').map(|(i, _)| &path[i + 1..]))
-        .any(|tail| glob_match(pattern, tail));
+        .any(|tail| glob_match_across(pattern, tail));
     let last = pattern.rsplit('/').next().unwrap_or(pattern);
     suffix_match || (!last.contains(['*', '?']) && last == file_name)
 }

@@ -3,7 +3,7 @@
 //! staging folder, then move the folder into place and write the package's
 //! record last.
 
-use crate::archive::{extract, Entry};
+use crate::archive::{visit, Entry};
 use crate::catalog::{CatalogEntry, PackageRecord, PACKAGES_DIR};
 use crate::convert::convert;
 use crate::dep5::Copyright;
@@ -13,6 +13,7 @@ use matseg_image::library::{LICENSES_FILE, UNKNOWN_LICENCE};
 use matseg_image::licence_family;
 use serde_json::json;
 use std::collections::BTreeMap;
+use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
 /// A file taken from the package, before conversion.
@@ -50,17 +51,19 @@ pub fn install(
     corpus: &Path,
 ) -> Result<PackageRecord, String> {
     let label = archive.display().to_string();
-    let bytes = std::fs::read(archive).map_err(|e| format!("{label}: cannot read: {e}"))?;
-    let file_name = archive
-        .file_name()
-        .and_then(|n| n.to_str())
-        .unwrap_or_default();
-    let taken = take_files(spec, file_name, &bytes).map_err(|e| format!("{label}: {e}"))?;
     let folder = spec.folder();
     let staging = corpus
         .join(".staging")
         .join(format!("{}-{folder}", spec.kind));
     let io = |e: std::io::Error, p: &Path| format!("{}: {e}", p.display());
+    let spill = corpus
+        .join(".staging")
+        .join(format!("{}-{folder}.nested", spec.kind));
+    let staging_root = corpus.join(".staging");
+    std::fs::create_dir_all(&staging_root).map_err(|e| io(e, &staging_root))?;
+    let taken = take_files(spec, archive, &spill);
+    let _ = std::fs::remove_file(&spill);
+    let taken = taken.map_err(|e| format!("{label}: {e}"))?;
     if staging.exists() {
         std::fs::remove_dir_all(&staging).map_err(|e| io(e, &staging))?;
     }
@@ -160,21 +163,59 @@ pub fn install(
     Ok(record)
 }
 
-/// The files `spec` takes from the package `file_name`, with their corpus
-/// names and licences.
-fn take_files(spec: &PackageSpec, file_name: &str, bytes: &[u8]) -> Result<Vec<Taken>, String> {
+/// The files `spec` takes from the package file `archive`, with their
+/// corpus names and licences. The package is streamed; a nested archive is
+/// copied to the file `spill` and read from there.
+fn take_files(spec: &PackageSpec, archive: &Path, spill: &Path) -> Result<Vec<Taken>, String> {
     let copyright = format!("usr/share/doc/{}/copyright", spec.name);
     let metadata = |p: &str| match spec.registry {
         Registry::Deb => p == copyright,
         Registry::Npm => p == "package/package.json",
         Registry::Pypi => false,
     };
-    let want = |p: &str| {
-        spec.taken_by(p).is_some()
-            || spec.nested.iter().any(|n| glob_match(&n.archive, p))
-            || metadata(p)
-    };
-    let entries = extract(file_name, bytes, &want)?;
+    let nested_in = |p: &str| spec.nested.iter().find(|n| glob_match(&n.archive, p));
+    let want = |p: &str| spec.taken_by(p).is_some() || nested_in(p).is_some() || metadata(p);
+    let file_name = archive
+        .file_name()
+        .and_then(|n| n.to_str())
+        .unwrap_or_default();
+    let file = std::fs::File::open(archive).map_err(|e| format!("cannot read: {e}"))?;
+    // Files of the package itself, and (outer path, file) of nested archives.
+    let mut entries = Vec::new();
+    let mut inner_entries = Vec::new();
+    visit(
+        file_name,
+        BufReader::new(file),
+        &want,
+        &mut |path, reader| {
+            let mut bytes = Vec::new();
+            if let Some(nested) = nested_in(path) {
+                let io = |e: std::io::Error| format!("{}: {e}", spill.display());
+                let mut copy = std::fs::File::create(spill).map_err(io)?;
+                std::io::copy(reader, &mut copy).map_err(|e| format!("{path}: {e}"))?;
+                drop(copy);
+                let inner_take = |p: &str| nested.takes(p) && !spec.skips(p);
+                let inner = std::fs::File::open(spill).map_err(io)?;
+                for inner in extract_from(path, inner, &inner_take)? {
+                    inner_entries.push((path.to_string(), inner));
+                }
+                if spec.taken_by(path).is_some() {
+                    bytes = std::fs::read(spill).map_err(io)?;
+                }
+            } else {
+                reader
+                    .read_to_end(&mut bytes)
+                    .map_err(|e| format!("{path}: {e}"))?;
+            }
+            if spec.taken_by(path).is_some() || metadata(path) {
+                entries.push(Entry {
+                    path: path.to_string(),
+                    bytes,
+                });
+            }
+            Ok(())
+        },
+    )?;
     let package_licence = package_licence(spec, &entries, &copyright);
     let licence_of = |path: &str| -> String {
         spec.manifest_licence(path)
@@ -183,24 +224,21 @@ fn take_files(spec: &PackageSpec, file_name: &str, bytes: &[u8]) -> Result<Vec<T
             .unwrap_or_else(|| UNKNOWN_LICENCE.to_string())
     };
     let mut taken = Vec::new();
+    for (outer, inner) in inner_entries {
+        let nested = nested_in(&outer).expect("taken from a nested archive");
+        let pattern = nested
+            .take
+            .iter()
+            .find(|t| glob_match(t, &inner.path))
+            .expect("taken");
+        taken.push(Taken {
+            source: format!("{outer}!{}", inner.path),
+            name: inner.path[literal_prefix(pattern).len()..].to_string(),
+            licence: licence_of(&outer),
+            bytes: inner.bytes,
+        });
+    }
     for Entry { path, bytes } in entries {
-        for nested in spec.nested.iter().filter(|n| glob_match(&n.archive, &path)) {
-            let inner_take = |p: &str| nested.take.iter().any(|t| glob_match(t, p));
-            let inner = extract(&path, &bytes, &inner_take).map_err(|e| format!("{path}: {e}"))?;
-            for inner in inner {
-                let pattern = nested
-                    .take
-                    .iter()
-                    .find(|t| glob_match(t, &inner.path))
-                    .expect("taken");
-                taken.push(Taken {
-                    source: format!("{path}!{}", inner.path),
-                    name: inner.path[literal_prefix(pattern).len()..].to_string(),
-                    licence: licence_of(&path),
-                    bytes: inner.bytes,
-                });
-            }
-        }
         if let Some(pattern) = spec.taken_by(&path) {
             taken.push(Taken {
                 name: path[literal_prefix(pattern).len()..].to_string(),
@@ -211,6 +249,29 @@ fn take_files(spec: &PackageSpec, file_name: &str, bytes: &[u8]) -> Result<Vec<T
         }
     }
     Ok(taken)
+}
+
+/// The wanted files of the archive `name` read from `file`, into memory;
+/// errors name the archive.
+fn extract_from(
+    name: &str,
+    file: std::fs::File,
+    want: &dyn Fn(&str) -> bool,
+) -> Result<Vec<Entry>, String> {
+    let mut entries = Vec::new();
+    visit(name, BufReader::new(file), want, &mut |path, reader| {
+        let mut bytes = Vec::new();
+        reader
+            .read_to_end(&mut bytes)
+            .map_err(|e| format!("{name}!{path}: {e}"))?;
+        entries.push(Entry {
+            path: path.to_string(),
+            bytes,
+        });
+        Ok(())
+    })
+    .map_err(|e| format!("{name}: {e}"))?;
+    Ok(entries)
 }
 
 /// The licence the package itself gives a path: its DEP-5 copyright file

@@ -10,6 +10,7 @@
 pub mod archive;
 pub mod catalog;
 pub mod convert;
+pub mod dds;
 pub mod dep5;
 pub mod fetch;
 pub mod glob;

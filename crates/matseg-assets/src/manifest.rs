@@ -83,6 +83,13 @@ pub struct Nested {
     pub take: Vec<String>,
 }
 
+impl Nested {
+    /// Whether a pattern of `take` matches the inner path `path`.
+    pub fn takes(&self, path: &str) -> bool {
+        self.take.iter().any(|t| glob_match(t, path))
+    }
+}
+
 /// One package of the manifest.
 #[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -102,6 +109,11 @@ pub struct PackageSpec {
     /// Archives inside the package to take files from.
     #[serde(default)]
     pub nested: Vec<Nested>,
+    /// Patterns of files to leave out although `take` (or a nested `take`)
+    /// matches them: a pattern with a `/` is matched on the whole path, one
+    /// without on the file name alone (`*_n.png`).
+    #[serde(default)]
+    pub skip: Vec<String>,
     /// One licence for every taken file.
     #[serde(default)]
     pub licence: Option<String>,
@@ -126,12 +138,23 @@ impl PackageSpec {
         }
     }
 
-    /// The pattern of `take` that `path` matches, if any.
+    /// The pattern of `take` that `path` matches, if any and if `skip`
+    /// does not leave the file out.
     pub fn taken_by(&self, path: &str) -> Option<&str> {
         self.take
             .iter()
             .find(|p| glob_match(p, path))
             .map(String::as_str)
+            .filter(|_| !self.skips(path))
+    }
+
+    /// Whether a pattern of `skip` leaves `path` out.
+    pub fn skips(&self, path: &str) -> bool {
+        let file_name = path.rsplit('/').next().unwrap_or(path);
+        self.skip.iter().any(|p| {
+            let subject = if p.contains('/') { path } else { file_name };
+            glob_match(p, subject)
+        })
     }
 
     /// The licence the manifest gives `path` (fixed or overridden), if any.
@@ -219,6 +242,45 @@ mod tests {
             .unwrap();
         assert_eq!(pmndrs.folder(), "pmndrs-assets");
         assert_eq!(pmndrs.requirement(), "@pmndrs/assets@1.7.0");
+    }
+
+    #[test]
+    fn skip_patterns_leave_files_out_by_name_or_path() {
+        let m = Manifest::parse(
+            r#"[[package]]
+name = "x"
+registry = "deb"
+kind = "textures"
+take = ["data/*/*.png"]
+skip = ["*_n.*", "data/sky/*"]
+"#,
+            "m.toml",
+        )
+        .unwrap();
+        let p = &m.packages[0];
+        assert_eq!(p.taken_by("data/rock/a.png"), Some("data/*/*.png"));
+        assert_eq!(p.taken_by("data/rock/a_n.png"), None, "by file name");
+        assert_eq!(p.taken_by("data/sky/a.png"), None, "by whole path");
+        assert!(!p.skips("data/rock/a_nn.png") && p.skips("other/a_n.jpg"));
+        // The built-in manifest leaves out the game packages' other maps.
+        let builtin = Manifest::builtin();
+        let redeclipse = builtin
+            .packages
+            .iter()
+            .find(|p| p.name == "redeclipse-data")
+            .unwrap();
+        let set = "usr/share/games/redeclipse/data/trak/trak5/";
+        assert!(redeclipse.taken_by(&format!("{set}brick1.jpg")).is_some());
+        assert!(redeclipse
+            .taken_by(&format!("{set}brick1_nm.png"))
+            .is_none());
+        let wicked = "usr/share/games/redeclipse/data/wicked/";
+        assert!(redeclipse
+            .taken_by(&format!("{wicked}wickedstone8.jpg"))
+            .is_some());
+        assert!(redeclipse
+            .taken_by(&format!("{wicked}wickedstone8z.jpg"))
+            .is_none());
     }
 
     #[test]

