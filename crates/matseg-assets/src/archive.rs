@@ -23,14 +23,23 @@ pub struct Entry {
 pub type OnEntry<'a> = dyn FnMut(&str, &mut dyn Read) -> Result<(), String> + 'a;
 
 /// The regular files of the archive `name` (its format comes from the file
-/// name) whose path `want` accepts, in archive order, read into memory.
+/// name) held in `bytes` whose path `want` accepts, in archive order.
 pub fn extract(
     name: &str,
     bytes: &[u8],
     want: &dyn Fn(&str) -> bool,
 ) -> Result<Vec<Entry>, String> {
+    extract_from(name, Cursor::new(bytes), want)
+}
+
+/// [`extract`] from any seekable source (a file).
+pub fn extract_from<R: Read + Seek + Send>(
+    name: &str,
+    source: R,
+    want: &dyn Fn(&str) -> bool,
+) -> Result<Vec<Entry>, String> {
     let mut entries = Vec::new();
-    visit(name, Cursor::new(bytes), want, &mut |path, reader| {
+    visit(name, source, want, &mut |path, reader| {
         let mut bytes = Vec::new();
         reader
             .read_to_end(&mut bytes)

@@ -3,7 +3,7 @@
 //! staging folder, then move the folder into place and write the package's
 //! record last.
 
-use crate::archive::{visit, Entry};
+use crate::archive::{extract_from, visit, Entry};
 use crate::catalog::{CatalogEntry, PackageRecord, PACKAGES_DIR};
 use crate::convert::convert;
 use crate::dep5::Copyright;
@@ -195,8 +195,10 @@ fn take_files(spec: &PackageSpec, archive: &Path, spill: &Path) -> Result<Vec<Ta
                 std::io::copy(reader, &mut copy).map_err(|e| format!("{path}: {e}"))?;
                 drop(copy);
                 let inner_take = |p: &str| nested.takes(p) && !spec.skips(p);
-                let inner = std::fs::File::open(spill).map_err(io)?;
-                for inner in extract_from(path, inner, &inner_take)? {
+                let inner = BufReader::new(std::fs::File::open(spill).map_err(io)?);
+                let inner =
+                    extract_from(path, inner, &inner_take).map_err(|e| format!("{path}: {e}"))?;
+                for inner in inner {
                     inner_entries.push((path.to_string(), inner));
                 }
                 if spec.taken_by(path).is_some() {
@@ -249,29 +251,6 @@ fn take_files(spec: &PackageSpec, archive: &Path, spill: &Path) -> Result<Vec<Ta
         }
     }
     Ok(taken)
-}
-
-/// The wanted files of the archive `name` read from `file`, into memory;
-/// errors name the archive.
-fn extract_from(
-    name: &str,
-    file: std::fs::File,
-    want: &dyn Fn(&str) -> bool,
-) -> Result<Vec<Entry>, String> {
-    let mut entries = Vec::new();
-    visit(name, BufReader::new(file), want, &mut |path, reader| {
-        let mut bytes = Vec::new();
-        reader
-            .read_to_end(&mut bytes)
-            .map_err(|e| format!("{name}!{path}: {e}"))?;
-        entries.push(Entry {
-            path: path.to_string(),
-            bytes,
-        });
-        Ok(())
-    })
-    .map_err(|e| format!("{name}: {e}"))?;
-    Ok(entries)
 }
 
 /// The licence the package itself gives a path: its DEP-5 copyright file
