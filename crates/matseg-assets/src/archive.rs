@@ -152,10 +152,11 @@ fn untar<R: Read + Send>(
             });
             let read = read_tar(plain, "xz", want, on_entry);
             match decompress.join().expect("the xz thread does not panic") {
-                // The tar reader stops at the end-of-archive blocks and may
-                // leave padding unread: a closed pipe then is no error.
+                // The reader closed the pipe: it stopped at the end-of-archive
+                // blocks (padding left unread) or on an error of its own,
+                // which is the one to report.
                 Err(lzma_rs::error::Error::IoError(e))
-                    if e.kind() == std::io::ErrorKind::BrokenPipe && read.is_ok() =>
+                    if e.kind() == std::io::ErrorKind::BrokenPipe =>
                 {
                     read
                 }
@@ -363,6 +364,18 @@ mod tests {
         )
         .unwrap_err();
         assert_eq!((calls, e.as_str()), (1, "usr/share/a.jpg: refused"));
+        // So with an archive larger than the pipe's buffer, whose decompressor
+        // then finds the pipe closed.
+        let big = vec![7u8; 1 << 20];
+        let files: Vec<(&str, &[u8])> = vec![("a.bin", &big), ("b.bin", &big)];
+        let e = visit(
+            "p.deb",
+            Cursor::new(deb_xz(&files)),
+            &|_| true,
+            &mut |path, _| Err(format!("{path}: refused")),
+        )
+        .unwrap_err();
+        assert_eq!(e, "a.bin: refused");
         let whole = xz(&tar(&FILES));
         let e = extract("p.tar.xz", &whole[..whole.len() / 2], &under_share).unwrap_err();
         assert!(e.starts_with("xz: "), "{e}");
