@@ -52,14 +52,10 @@ pub fn install(
 ) -> Result<PackageRecord, String> {
     let label = archive.display().to_string();
     let folder = spec.folder();
-    let staging = corpus
-        .join(".staging")
-        .join(format!("{}-{folder}", spec.kind));
-    let io = |e: std::io::Error, p: &Path| format!("{}: {e}", p.display());
-    let spill = corpus
-        .join(".staging")
-        .join(format!("{}-{folder}.nested", spec.kind));
     let staging_root = corpus.join(".staging");
+    let staging = staging_root.join(format!("{}-{folder}", spec.kind));
+    let spill = staging_root.join(format!("{}-{folder}.nested", spec.kind));
+    let io = |e: std::io::Error, p: &Path| format!("{}: {e}", p.display());
     std::fs::create_dir_all(&staging_root).map_err(|e| io(e, &staging_root))?;
     let taken = take_files(spec, archive, &spill);
     let _ = std::fs::remove_file(&spill);
