@@ -1,5 +1,6 @@
 //! Turning the files taken from a package into corpus files matseg reads:
-//! images checked, GIMP patterns to PNG, base64 EXRs decoded, furniture
+//! images checked (textures: size, flatness, not a normal map), GIMP
+//! patterns and DDS textures to PNG, base64 EXRs decoded, furniture
 //! catalogues split into OBJ models, JavaScript meshes to OBJ, PyTorch
 //! checkpoints to safetensors; each with a little information for the
 //! catalogue. EXRs of any compression (DWAB included) are kept as they are:
@@ -81,8 +82,8 @@ type Decode = fn(&[u8]) -> Result<Vec<u8>, String>;
 type OneToOne = (&'static str, &'static str, Decode);
 
 /// The conversion a file of kind `kind` named `lower` (lowercase) needs,
-/// if any: GIMP patterns to PNG, base64 EXR modules to EXR, JavaScript
-/// meshes to OBJ.
+/// if any: GIMP patterns and DDS textures to PNG, base64 EXR modules to
+/// EXR, JavaScript meshes to OBJ.
 fn one_to_one(kind: Kind, lower: &str) -> Option<OneToOne> {
     let table: [(Kind, &str, &str, Decode); 6] = [
         (Kind::Photos, ".pat", ".png", gimp_pattern_to_png),

