@@ -86,14 +86,18 @@ fn draw(history: &[StepMetrics]) -> RgbImage {
     img
 }
 
+/// Pixel `(x, y)` set to `colour` when it is inside the image.
+fn put(img: &mut RgbImage, x: i64, y: i64, colour: Rgb<u8>) {
+    if (0..WIDTH as i64).contains(&x) && (0..HEIGHT as i64).contains(&y) {
+        img.put_pixel(x as u32, y as u32, colour);
+    }
+}
+
 /// A square of side `2 * radius + 1` centred on `(x, y)`, clipped.
 fn dot(img: &mut RgbImage, (x, y): (i64, i64), colour: Rgb<u8>, radius: i64) {
     for dy in -radius..=radius {
         for dx in -radius..=radius {
-            let (px, py) = (x + dx, y + dy);
-            if (0..WIDTH as i64).contains(&px) && (0..HEIGHT as i64).contains(&py) {
-                img.put_pixel(px as u32, py as u32, colour);
-            }
+            put(img, x + dx, y + dy, colour);
         }
     }
 }
@@ -131,10 +135,7 @@ fn draw_text(img: &mut RgbImage, text: &str, x: i64, y: i64, colour: Rgb<u8>) {
             for column in 0..3 {
                 if bits >> (2 - column) & 1 == 1 {
                     for (dx, dy) in (0..s).flat_map(|dx| (0..s).map(move |dy| (dx, dy))) {
-                        let (px, py) = (left + column * s + dx, y + row as i64 * s + dy);
-                        if (0..WIDTH as i64).contains(&px) && (0..HEIGHT as i64).contains(&py) {
-                            img.put_pixel(px as u32, py as u32, colour);
-                        }
+                        put(img, left + column * s + dx, y + row as i64 * s + dy, colour);
                     }
                 }
             }
