@@ -184,6 +184,7 @@ fn take_files(spec: &PackageSpec, archive: &Path, spill: &Path) -> Result<Vec<Ta
         BufReader::new(file),
         &want,
         &mut |path, reader| {
+            let taken = spec.taken_by(path).is_some();
             let mut bytes = Vec::new();
             if let Some(nested) = nested_in(path) {
                 let io = |e: std::io::Error| format!("{}: {e}", spill.display());
@@ -194,10 +195,8 @@ fn take_files(spec: &PackageSpec, archive: &Path, spill: &Path) -> Result<Vec<Ta
                 let inner = BufReader::new(std::fs::File::open(spill).map_err(io)?);
                 let inner =
                     extract_from(path, inner, &inner_take).map_err(|e| format!("{path}: {e}"))?;
-                for inner in inner {
-                    inner_entries.push((path.to_string(), inner));
-                }
-                if spec.taken_by(path).is_some() {
+                inner_entries.extend(inner.into_iter().map(|e| (path.to_string(), e)));
+                if taken {
                     bytes = std::fs::read(spill).map_err(io)?;
                 }
             } else {
@@ -205,7 +204,7 @@ fn take_files(spec: &PackageSpec, archive: &Path, spill: &Path) -> Result<Vec<Ta
                     .read_to_end(&mut bytes)
                     .map_err(|e| format!("{path}: {e}"))?;
             }
-            if spec.taken_by(path).is_some() || metadata(path) {
+            if taken || metadata(path) {
                 entries.push(Entry {
                     path: path.to_string(),
                     bytes,
