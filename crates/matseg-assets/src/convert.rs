@@ -7,6 +7,7 @@
 //! matseg's HDR reader reads them.
 
 use crate::manifest::Kind;
+use image::RgbImage;
 use serde_json::{json, Value};
 use std::io::Cursor;
 
@@ -46,16 +47,46 @@ pub fn convert(kind: Kind, name: &str, bytes: Vec<u8>) -> Result<Vec<Converted>,
     if kind == Kind::Weights {
         return checkpoint_to_safetensors(name, &bytes);
     }
+    if matches!(kind, Kind::Photos | Kind::Textures) {
+        return convert_image(kind, name, &lower, bytes).map(|c| vec![c]);
+    }
     let (name, bytes) = match one_to_one(kind, &lower) {
         Some((from, to, decode)) => (replace_ext(name, from, to), decode(&bytes)?),
         None => (name.to_string(), bytes),
     };
-    let info = match kind {
-        Kind::Photos => image_info(&bytes)?,
-        Kind::Textures => texture_info(&bytes)?,
-        _ => Value::Null,
-    };
-    Ok(vec![Converted::primary(name, bytes, info)])
+    Ok(vec![Converted::primary(name, bytes, Value::Null)])
+}
+
+/// A photo or texture: formats matseg does not read (GIMP patterns, DDS)
+/// decoded once to pixels, checked (textures) and written as PNG; JPEG
+/// and PNG files checked and kept as they are.
+fn convert_image(kind: Kind, name: &str, lower: &str, bytes: Vec<u8>) -> Result<Converted, String> {
+    let textures = kind == Kind::Textures;
+    match image_conversion(lower) {
+        Some((from, to, decode)) => {
+            let img = decode(&bytes)?;
+            let info = if textures {
+                texture_info(&img)?
+            } else {
+                json!({ "width": img.width(), "height": img.height() })
+            };
+            Ok(Converted::primary(
+                replace_ext(name, from, to),
+                png(&img)?,
+                info,
+            ))
+        }
+        None => {
+            let info = if textures {
+                let img = image::load_from_memory(&bytes)
+                    .map_err(|e| format!("not a readable image: {e}"))?;
+                texture_info(&img.into_rgb8())?
+            } else {
+                image_info(&bytes)?
+            };
+            Ok(Converted::primary(name.to_string(), bytes, info))
+        }
+    }
 }
 
 /// A PyTorch checkpoint (legacy or zip) as a safetensors file of the same
@@ -81,16 +112,25 @@ type Decode = fn(&[u8]) -> Result<Vec<u8>, String>;
 /// A file-to-file conversion: its extension in, its extension out, how.
 type OneToOne = (&'static str, &'static str, Decode);
 
-/// The conversion a file of kind `kind` named `lower` (lowercase) needs,
-/// if any: GIMP patterns and DDS textures to PNG, base64 EXR modules to
-/// EXR, JavaScript meshes to OBJ.
-fn one_to_one(kind: Kind, lower: &str) -> Option<OneToOne> {
-    let table: [(Kind, &str, &str, Decode); 6] = [
-        (Kind::Photos, ".pat", ".png", gimp_pattern_to_png),
-        (Kind::Textures, ".pat", ".png", gimp_pattern_to_png),
+/// Turns an image file's bytes into pixels.
+type DecodeImage = fn(&[u8]) -> Result<RgbImage, String>;
+
+/// The decoder a photo or texture named `lower` (lowercase) needs, if any,
+/// with its extension in and the PNG's extension out.
+fn image_conversion(lower: &str) -> Option<(&'static str, &'static str, DecodeImage)> {
+    let table: [(&str, &str, DecodeImage); 2] = [
+        (".pat", ".png", gimp_pattern),
         // `.dds.png`: packages ship some textures as both `x.png` and `x.dds`.
-        (Kind::Photos, ".dds", ".dds.png", dds_to_png),
-        (Kind::Textures, ".dds", ".dds.png", dds_to_png),
+        (".dds", ".dds.png", dds_image),
+    ];
+    table.into_iter().find(|(from, _, _)| lower.ends_with(from))
+}
+
+/// The conversion a file of kind `kind` named `lower` (lowercase) needs,
+/// if any, besides images: base64 EXR modules to EXR, JavaScript meshes to
+/// OBJ.
+fn one_to_one(kind: Kind, lower: &str) -> Option<OneToOne> {
+    let table: [(Kind, &str, &str, Decode); 2] = [
         (Kind::Hdris, ".exr.js", ".exr", base64_data_url),
         (Kind::Meshes, ".js", ".obj", js_mesh_to_obj),
     ];
@@ -127,10 +167,7 @@ pub const MIN_TEXTURE_SIDE: u32 = 32;
 /// tangent-space normal map (games ship those beside their colour maps,
 /// often without a telling name: bluish, red and green about mid-grey, and
 /// blue at least half on nearly every pixel).
-fn texture_info(bytes: &[u8]) -> Result<Value, String> {
-    let img = image::load_from_memory(bytes)
-        .map_err(|e| format!("not a readable image: {e}"))?
-        .into_rgb8();
+fn texture_info(img: &RgbImage) -> Result<Value, String> {
     let (w, h) = img.dimensions();
     if w.min(h) < MIN_TEXTURE_SIDE {
         return Err(format!(
@@ -167,10 +204,14 @@ fn texture_info(bytes: &[u8]) -> Result<Value, String> {
     Ok(json!({ "width": w, "height": h, "mean_rgb": rounded }))
 }
 
-/// A `.dds` texture (its largest mipmap level) as an RGB PNG.
-pub fn dds_to_png(bytes: &[u8]) -> Result<Vec<u8>, String> {
+/// A `.dds` texture's largest mipmap level.
+pub fn dds_image(bytes: &[u8]) -> Result<RgbImage, String> {
     let dds = crate::dds::decode_dds(bytes)?;
-    let img = image::RgbImage::from_raw(dds.width, dds.height, dds.rgb).expect("w * h * 3 bytes");
+    Ok(RgbImage::from_raw(dds.width, dds.height, dds.rgb).expect("w * h * 3 bytes"))
+}
+
+/// `img` encoded as PNG.
+fn png(img: &RgbImage) -> Result<Vec<u8>, String> {
     let mut out = Vec::new();
     img.write_to(&mut Cursor::new(&mut out), image::ImageFormat::Png)
         .map_err(|e| format!("PNG: {e}"))?;
@@ -178,9 +219,9 @@ pub fn dds_to_png(bytes: &[u8]) -> Result<Vec<u8>, String> {
 }
 
 /// A GIMP pattern (`.pat`: a big-endian header, magic `GPAT`, then 1-4
-/// bytes per pixel: grey, grey+alpha, RGB, RGBA) as an RGB PNG; alpha is
+/// bytes per pixel: grey, grey+alpha, RGB, RGBA) as RGB pixels; alpha is
 /// dropped, grey repeated.
-pub fn gimp_pattern_to_png(bytes: &[u8]) -> Result<Vec<u8>, String> {
+pub fn gimp_pattern(bytes: &[u8]) -> Result<RgbImage, String> {
     let word = |i: usize| {
         bytes
             .get(4 * i..4 * i + 4)
@@ -210,11 +251,7 @@ pub fn gimp_pattern_to_png(bytes: &[u8]) -> Result<Vec<u8>, String> {
             }
         })
         .collect();
-    let img = image::RgbImage::from_raw(width as u32, height as u32, rgb).expect("sized");
-    let mut png = Vec::new();
-    img.write_to(&mut Cursor::new(&mut png), image::ImageFormat::Png)
-        .map_err(|e| e.to_string())?;
-    Ok(png)
+    Ok(RgbImage::from_raw(width as u32, height as u32, rgb).expect("sized"))
 }
 
 /// The bytes of the base64 `data:` URL inside a JavaScript module
@@ -402,37 +439,30 @@ mod tests {
         pat.extend(b"GPAT");
         pat.extend(b"ab\0\0");
         pat.extend([10, 20, 30, 40, 50, 60]);
-        let png = gimp_pattern_to_png(&pat).unwrap();
-        let img = image::load_from_memory(&png).unwrap().to_rgb8();
+        let img = gimp_pattern(&pat).unwrap();
         assert_eq!(img.dimensions(), (2, 1));
         assert_eq!(img.into_raw(), vec![10, 20, 30, 40, 50, 60]);
-        assert!(gimp_pattern_to_png(&pat[..30])
-            .unwrap_err()
-            .contains("truncated"));
-        assert!(gimp_pattern_to_png(b"0123456789012345678901234")
+        assert!(gimp_pattern(&pat[..30]).unwrap_err().contains("truncated"));
+        assert!(gimp_pattern(b"0123456789012345678901234")
             .unwrap_err()
             .contains("GPAT"));
     }
 
-    fn png(w: u32, h: u32, pixel: impl Fn(u32, u32) -> [u8; 3]) -> Vec<u8> {
-        let img = image::RgbImage::from_fn(w, h, |x, y| image::Rgb(pixel(x, y)));
-        let mut out = Vec::new();
-        img.write_to(&mut Cursor::new(&mut out), image::ImageFormat::Png)
-            .unwrap();
-        out
+    fn rgb_image(w: u32, h: u32, pixel: impl Fn(u32, u32) -> [u8; 3]) -> RgbImage {
+        RgbImage::from_fn(w, h, |x, y| image::Rgb(pixel(x, y)))
     }
 
     #[test]
     fn textures_are_checked_for_size_flatness_and_normal_maps() {
         let stone = |x: u32, y: u32| [90 + (x * 7 % 50) as u8, 80 + (y * 3 % 40) as u8, 70];
-        let info = texture_info(&png(40, 32, stone)).unwrap();
+        let info = texture_info(&rgb_image(40, 32, stone)).unwrap();
         assert_eq!(
             (info["width"].as_u64(), info["height"].as_u64()),
             (Some(40), Some(32))
         );
-        let e = texture_info(&png(40, 31, stone)).unwrap_err();
+        let e = texture_info(&rgb_image(40, 31, stone)).unwrap_err();
         assert!(e.starts_with("40x31 is too small"), "{e}");
-        let e = texture_info(&png(64, 64, |_, _| [200, 10, 10])).unwrap_err();
+        let e = texture_info(&rgb_image(64, 64, |_, _| [200, 10, 10])).unwrap_err();
         assert!(e.starts_with("flat: one colour [200, 10, 10]"), "{e}");
         // A normal map: R and G vary about 128, B high everywhere.
         let normal = |x: u32, y: u32| {
@@ -442,7 +472,7 @@ mod tests {
                 200 + (x % 50) as u8,
             ]
         };
-        let e = texture_info(&png(64, 64, normal)).unwrap_err();
+        let e = texture_info(&rgb_image(64, 64, normal)).unwrap_err();
         assert!(e.starts_with("looks like a normal map"), "{e}");
         // A blue texture with dark patches is not one (blue < 128 on them).
         let tiles = |x: u32, y: u32| {
@@ -452,7 +482,7 @@ mod tests {
                 normal(x, y)
             }
         };
-        assert!(texture_info(&png(64, 64, tiles)).is_ok());
+        assert!(texture_info(&rgb_image(64, 64, tiles)).is_ok());
     }
 
     #[test]
