@@ -2,7 +2,7 @@
 
 use anyhow::{Context, Result};
 use matseg_data::sample_rng;
-use matseg_extract::{combine_maps, draw_channel_map, CombinedMaps, MapRecord};
+use matseg_extract::{combine_maps, draw_channel_map, CombinedMaps, MapRecord, MAX_MAPS};
 use matseg_image::io::{encode_png_gray, encode_png_rgb, read_rgb, write_atomic};
 use matseg_image::PhotoLibrary;
 use matseg_scene::colorize;
@@ -48,7 +48,10 @@ struct MapsFile {
 
 /// Runs `matseg maps`: draws the maps of one photo and writes them.
 pub fn run(args: Args) -> Result<()> {
-    anyhow::ensure!(args.n >= 1, "-n must be at least 1");
+    anyhow::ensure!(
+        (1..=MAX_MAPS).contains(&args.n),
+        "-n must be between 1 and {MAX_MAPS}"
+    );
     anyhow::ensure!(args.max_side >= 16, "--max-side must be at least 16");
     let recipe = crate::common::load_recipe(args.config.as_deref(), None)?;
     let img = read_rgb(&args.photo)?;
@@ -66,10 +69,10 @@ pub fn run(args: Args) -> Result<()> {
     let mut raw = Vec::with_capacity(args.n);
     let mut records = Vec::with_capacity(args.n);
     for _ in 0..args.n {
-        let (plane, record) =
+        let (map, record) =
             draw_channel_map(&mut rng, &library, w, h, max_occupancy, hard, &recipe.maps)
                 .with_context(|| args.photo.display().to_string())?;
-        raw.push(plane);
+        raw.push(map);
         records.push(record);
     }
     let CombinedMaps {
@@ -78,6 +81,7 @@ pub fn run(args: Args) -> Result<()> {
         record: combine,
         ..
     } = combine_maps(&mut rng, raw.clone(), hard, &recipe.maps);
+    let raw: Vec<_> = raw.iter().map(|m| m.to_plane()).collect();
 
     std::fs::create_dir_all(&args.out).with_context(|| args.out.display().to_string())?;
     let write = |name: String, bytes: Vec<u8>| {

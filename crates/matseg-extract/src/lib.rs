@@ -11,6 +11,6 @@ pub mod textures;
 
 pub use soft_maps::{
     check_probabilities, combine_maps, draw_channel_map, make_soft_maps, random_photo_channel,
-    random_placement, CombineRecord, CombinedMaps, MapNormalisation, MapRecord, SoftMapError,
-    SoftMapRecipe, SoftMaps,
+    random_placement, CombineRecord, CombinedMaps, MapNormalisation, MapRecord, RawMap,
+    SoftMapError, SoftMapRecipe, SoftMaps, MAX_MAPS,
 };

@@ -1,9 +1,10 @@
 //! Soft maps (SPEC section 1): a random photo channel through a random ramp
 //! gives a map with natural-image shapes; K of them become material weights.
 
+use matseg_image::coverage::BLOCK;
 use matseg_image::{
-    gaussian_blur, level_values, Channel, ChannelWindow, Coverage, LevelTable, LibraryError, Photo,
-    PhotoLibrary, Placement, Plane, Ramp,
+    gaussian_blur_covered, level_values, Channel, ChannelWindow, Coverage, LevelTable,
+    LibraryError, Photo, PhotoLibrary, Placement, Plane, Ramp,
 };
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -125,6 +126,83 @@ pub struct MapRecord {
     /// The thresholds.
     pub ramp: Ramp,
 }
+
+/// A map drawn from a photo (SPEC 1, steps 1-5), before combination: its
+/// channel window's levels and the table that takes each level to the map's
+/// value (normalisation and ramp together), with the blocks where that value
+/// is positive. A map is positive on a few percent of the scene, so only
+/// those blocks are ever turned into floats.
+#[derive(Clone, Debug)]
+pub struct RawMap {
+    window: ChannelWindow,
+    table: LevelTable,
+    coverage: Coverage,
+}
+
+impl RawMap {
+    /// The map `table[level]` of `window`.
+    pub fn new(window: ChannelWindow, table: LevelTable) -> Self {
+        let coverage = window.coverage(&table);
+        Self {
+            window,
+            table,
+            coverage,
+        }
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> usize {
+        self.window.width
+    }
+
+    /// Height in pixels.
+    pub fn height(&self) -> usize {
+        self.window.height
+    }
+
+    /// The blocks where the map is positive.
+    pub fn coverage(&self) -> &Coverage {
+        &self.coverage
+    }
+
+    /// The whole map as a float plane.
+    pub fn to_plane(&self) -> Plane {
+        self.window.map_levels(&self.table)
+    }
+
+    /// Writes the map, blurred with `kernel` if any, into `plane` (zeros)
+    /// on the blocks where it can be positive, and returns those blocks;
+    /// elsewhere it is exactly zero, blurred or not.
+    fn write_into(&self, kernel: Option<usize>, plane: &mut Plane) -> Coverage {
+        let w = self.width();
+        let Some(kernel) = kernel else {
+            for y in 0..self.height() {
+                for (x0, x1) in self.coverage.runs(y) {
+                    let run = &mut plane.data[y * w + x0..y * w + x1];
+                    self.window.map_run(y, x0, &self.table, run);
+                }
+            }
+            return self.coverage.clone();
+        };
+        let reach = self.coverage.dilated(kernel / 2);
+        gaussian_blur_covered(
+            w,
+            self.height(),
+            kernel,
+            &reach,
+            |y, row| self.window.map_row(y, &self.table, row),
+            |y, row| {
+                for (x0, x1) in reach.runs(y) {
+                    plane.data[y * w + x0..y * w + x1].copy_from_slice(&row[x0..x1]);
+                }
+            },
+        );
+        reach
+    }
+}
+
+/// The most maps [`combine_maps`] takes (one bit each per block).
+pub const MAX_MAPS: usize = 64;
 
 /// How a scene's maps were combined into weights.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -253,7 +331,7 @@ fn try_map_from_photo<R: Rng + ?Sized>(
     max_occupancy: f64,
     hard: bool,
     recipe: &SoftMapRecipe,
-) -> Option<(Plane, MapRecord)> {
+) -> Option<(RawMap, MapRecord)> {
     let (window, placement) =
         random_photo_channel(rng, photo, w, h, recipe.p_downscale, recipe.p_hsv_channel);
     let histogram = window.histogram();
@@ -301,7 +379,7 @@ fn try_map_from_photo<R: Rng + ?Sized>(
         normalised_by_max,
         ramp,
     };
-    Some((window.map_levels(&table), record))
+    Some((RawMap::new(window, table), record))
 }
 
 /// Draws one soft map of size `w x h` (SPEC 1, steps 1-5), redrawing photos
@@ -314,7 +392,7 @@ pub fn draw_channel_map<R: Rng + ?Sized>(
     max_occupancy: f64,
     hard: bool,
     recipe: &SoftMapRecipe,
-) -> Result<(Plane, MapRecord), SoftMapError> {
+) -> Result<(RawMap, MapRecord), SoftMapError> {
     for _ in 0..recipe.max_map_draws {
         let photo = library.pick(|n| rng.random_range(0..n))?;
         if let Some(found) = try_map_from_photo(rng, &photo, w, h, max_occupancy, hard, recipe) {
@@ -330,18 +408,22 @@ pub fn draw_channel_map<R: Rng + ?Sized>(
 /// Combines raw maps into material weights (SPEC 1, step 6): optional blur,
 /// sum or priority normalisation, one-hot for hard scenes; returns the weights,
 /// where they are positive, the background weight and the record of what was drawn.
+///
+/// A weight is zero wherever its map is, so every step works only on the
+/// blocks where some map can be positive, with just the maps positive there.
+///
+/// # Panics
+/// With no maps, more than [`MAX_MAPS`], or maps of different sizes.
 pub fn combine_maps<R: Rng + ?Sized>(
     rng: &mut R,
-    mut maps: Vec<Plane>,
+    maps: Vec<RawMap>,
     hard: bool,
     recipe: &SoftMapRecipe,
 ) -> CombinedMaps {
+    assert!((1..=MAX_MAPS).contains(&maps.len()), "1 to {MAX_MAPS} maps");
     let blur_kernel = rng
         .random_bool(recipe.p_blur)
         .then(|| recipe.blur_kernels[rng.random_range(0..recipe.blur_kernels.len())]);
-    if let Some(k) = blur_kernel {
-        maps = maps.iter().map(|m| gaussian_blur(m, k)).collect();
-    }
     let normalisation = if rng.random_bool(recipe.p_sum_normalise) {
         MapNormalisation::Sum
     } else {
@@ -351,21 +433,51 @@ pub fn combine_maps<R: Rng + ?Sized>(
         normalisation,
         one_hot_min: hard.then_some(recipe.hard_min_weight as f32),
     };
-    let (w, h) = (maps[0].width, maps[0].height);
+    let (w, h) = (maps[0].width(), maps[0].height());
+    assert!(
+        maps.iter().all(|m| (m.width(), m.height()) == (w, h)),
+        "maps of one size"
+    );
+    let mut weights: Vec<Plane> = maps.iter().map(|_| Plane::new(w, h, 0.0)).collect();
+    let reach: Vec<Coverage> = maps
+        .iter()
+        .zip(&mut weights)
+        .map(|(m, plane)| m.write_into(blur_kernel, plane))
+        .collect();
+    drop(maps);
     let mut background = Plane::new(w, h, 1.0);
-    let mut coverage: Vec<Coverage> = maps.iter().map(|_| Coverage::empty(w, h)).collect();
-    // Row by row: each row of every map is read from memory once and all
-    // steps work on it in cache.
+    let mut coverage: Vec<Coverage> = reach.iter().map(|_| Coverage::empty(w, h)).collect();
     let mut scratch = [vec![0.0f32; w], vec![0.0f32; w]];
-    for (y, bg) in background.data.chunks_exact_mut(w.max(1)).enumerate() {
-        let mut rows: Vec<&mut [f32]> = maps
-            .iter_mut()
-            .map(|m| &mut m.data[y * w..(y + 1) * w])
-            .collect();
-        combine_row(steps, y, &mut rows, bg, &mut coverage, &mut scratch);
+    let mut rows: Vec<&mut [f32]> = Vec::with_capacity(weights.len());
+    for y in 0..h {
+        for (x0, x1, members) in member_runs(&reach, y) {
+            let span = y * w + x0..y * w + x1;
+            rows = recycled(rows);
+            rows.extend(
+                weights
+                    .iter_mut()
+                    .enumerate()
+                    .filter(|(k, _)| members & (1 << k) != 0)
+                    .map(|(_, p)| &mut p.data[span.clone()]),
+            );
+            let [a, b] = &mut scratch;
+            combine_row(
+                steps,
+                &mut rows,
+                &mut background.data[span.clone()],
+                [&mut a[..x1 - x0], &mut b[..x1 - x0]],
+            );
+            let covers = coverage
+                .iter_mut()
+                .enumerate()
+                .filter(|(k, _)| members & (1 << k) != 0);
+            for ((_, c), row) in covers.zip(&rows) {
+                c.add_run(y, x0, row);
+            }
+        }
     }
     CombinedMaps {
-        weights: maps,
+        weights,
         coverage,
         background,
         record: CombineRecord {
@@ -374,6 +486,39 @@ pub fn combine_maps<R: Rng + ?Sized>(
             hard,
         },
     }
+}
+
+/// The runs of row `y` where some map of `reach` is positive, as
+/// `(x0, x1, members)`: consecutive blocks with the same maps, bit `k` of
+/// `members` set for map `k`.
+fn member_runs(reach: &[Coverage], y: usize) -> Vec<(usize, usize, u64)> {
+    let width = reach[0].width();
+    let mut runs: Vec<(usize, usize, u64)> = Vec::new();
+    for b in 0..reach[0].blocks_per_row() {
+        let members = reach
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| c.block_is_covered(y, b))
+            .fold(0u64, |m, (k, _)| m | 1 << k);
+        if members == 0 {
+            continue;
+        }
+        let (x0, x1) = (b * BLOCK, ((b + 1) * BLOCK).min(width));
+        match runs.last_mut() {
+            Some(last) if last.1 == x0 && last.2 == members => last.1 = x1,
+            _ => runs.push((x0, x1, members)),
+        }
+    }
+    runs
+}
+
+/// An empty vector with `v`'s allocation, free of its borrows (so one
+/// buffer of row slices serves every run).
+fn recycled<'b>(mut v: Vec<&mut [f32]>) -> Vec<&'b mut [f32]> {
+    v.clear();
+    v.into_iter()
+        .map(|_| unreachable!("the vector is empty"))
+        .collect()
 }
 
 /// What [`combine_row`] does to a row.
@@ -390,11 +535,9 @@ struct RowSteps {
 #[multiversion::multiversion(targets("x86_64+avx2+fma"))]
 fn combine_row(
     steps: RowSteps,
-    y: usize,
     rows: &mut [&mut [f32]],
     background: &mut [f32],
-    coverage: &mut [Coverage],
-    [a, b]: &mut [Vec<f32>; 2],
+    [a, b]: [&mut [f32]; 2],
 ) {
     match steps.normalisation {
         MapNormalisation::Sum => normalise_by_sum(rows, a),
@@ -404,9 +547,6 @@ fn combine_row(
         make_one_hot(rows, min, a, b);
     }
     background_weight(rows, background);
-    for (c, row) in coverage.iter_mut().zip(rows.iter()) {
-        c.add_row(y, row);
-    }
 }
 
 // The steps of combine_row, on one row of each map (equal lengths); each
@@ -442,7 +582,7 @@ fn normalise_by_priority(maps: &mut [&mut [f32]], remaining: &mut [f32]) {
 }
 
 /// One-hot of the per-pixel arg-max (the first map wins ties); pixels whose
-/// top weight is below `min` become background. `best` holds map indices as
+/// top weight is below `min`, or zero, become background. `best` holds map indices as
 /// floats, so that the arg-max works on equal-width lanes.
 #[inline(always)]
 fn make_one_hot(maps: &mut [&mut [f32]], min: f32, top: &mut [f32], best: &mut [f32]) {
@@ -462,7 +602,11 @@ fn make_one_hot(maps: &mut [&mut [f32]], min: f32, top: &mut [f32], best: &mut [
     for (k, m) in maps.iter_mut().enumerate() {
         let k = k as f32;
         for ((v, &b), &t) in m.iter_mut().zip(best.iter()).zip(top.iter()) {
-            *v = if b == k && t >= min { 1.0 } else { 0.0 };
+            *v = if b == k && t >= min && t > 0.0 {
+                1.0
+            } else {
+                0.0
+            };
         }
     }
 }
@@ -490,15 +634,136 @@ pub fn make_soft_maps<R: Rng + ?Sized>(
     max_occupancy: f64,
     recipe: &SoftMapRecipe,
 ) -> Result<SoftMaps, SoftMapError> {
-    let mut planes = Vec::with_capacity(k);
+    let mut raw = Vec::with_capacity(k);
     let mut maps = Vec::with_capacity(k);
     for _ in 0..k {
-        let (plane, record) = draw_channel_map(rng, library, w, h, max_occupancy, hard, recipe)?;
-        planes.push(plane);
+        let (map, record) = draw_channel_map(rng, library, w, h, max_occupancy, hard, recipe)?;
+        raw.push(map);
         maps.push(record);
     }
     Ok(SoftMaps {
-        combined: combine_maps(rng, planes, hard, recipe),
+        combined: combine_maps(rng, raw, hard, recipe),
         maps,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use matseg_image::gaussian_blur;
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+
+    /// SPEC 1 step 6 pixel by pixel on whole planes: the reference the
+    /// block-sparse [`combine_maps`] must equal bit for bit.
+    fn reference(maps: &[Plane], record: &CombineRecord, min: f32) -> (Vec<Plane>, Plane) {
+        let mut maps: Vec<Plane> = match record.blur_kernel {
+            Some(k) => maps.iter().map(|m| gaussian_blur(m, k)).collect(),
+            None => maps.to_vec(),
+        };
+        let mut background = Plane::new(maps[0].width, maps[0].height, 1.0);
+        for i in 0..background.len() {
+            let mut v: Vec<f32> = maps.iter().map(|m| m.data[i]).collect();
+            match record.normalisation {
+                MapNormalisation::Sum => {
+                    let total = v.iter().fold(0.0f32, |t, &x| t + x);
+                    v.iter_mut()
+                        .for_each(|x| *x /= if total > 0.0 { total } else { 1.0 });
+                }
+                MapNormalisation::Priority => {
+                    let mut remaining = 1.0f32;
+                    for x in v.iter_mut() {
+                        *x *= remaining;
+                        remaining = (remaining - *x).max(0.0);
+                    }
+                }
+            }
+            if record.hard {
+                let (mut best, mut top) = (0, f32::MIN);
+                for (k, &x) in v.iter().enumerate() {
+                    if x > top {
+                        (best, top) = (k, x);
+                    }
+                }
+                for (k, x) in v.iter_mut().enumerate() {
+                    *x = f32::from(u8::from(k == best && top >= min && top > 0.0));
+                }
+            }
+            let rest = v.iter().fold(1.0f32, |b, &x| b - x);
+            background.data[i] = rest.clamp(0.0, 1.0);
+            for (m, x) in maps.iter_mut().zip(v) {
+                m.data[i] = x;
+            }
+        }
+        (maps, background)
+    }
+
+    /// A map that is zero but for a few rectangles of random levels, so
+    /// that whole blocks and rows are empty; with a ramp table (or, for
+    /// `k == 2`, a table that is not monotone).
+    fn sparse_map(rng: &mut ChaCha8Rng, w: usize, h: usize, k: usize) -> RawMap {
+        let mut levels = vec![0u8; w * h];
+        for _ in 0..rng.random_range(1..4) {
+            let (x0, y0) = (rng.random_range(0..w), rng.random_range(0..h));
+            let (x1, y1) = (
+                (x0 + rng.random_range(1..30)).min(w),
+                (y0 + rng.random_range(1..12)).min(h),
+            );
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    levels[y * w + x] = rng.random_range(0..=255);
+                }
+            }
+        }
+        let table: LevelTable = if k == 2 {
+            std::array::from_fn(|l| if l % 3 == 1 { 0.5 } else { 0.0 })
+        } else {
+            let low: f32 = rng.random_range(0.0..0.5);
+            let ramp = Ramp {
+                low,
+                high: low + rng.random_range(0.0..0.5),
+            };
+            level_values(255).map(|v| ramp.apply(v))
+        };
+        let window = ChannelWindow {
+            width: w,
+            height: h,
+            channel: Channel::R,
+            levels,
+        };
+        RawMap::new(window, table)
+    }
+
+    #[test]
+    fn sparse_combination_equals_the_whole_plane_reference() {
+        let mut drawn = [false; 4];
+        for seed in 0..80u64 {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let (w, h) = (rng.random_range(20..90), rng.random_range(10..60));
+            let maps: Vec<RawMap> = (0..rng.random_range(1..6))
+                .map(|k| sparse_map(&mut rng, w, h, k))
+                .collect();
+            let planes: Vec<Plane> = maps.iter().map(RawMap::to_plane).collect();
+            let hard = seed % 2 == 0;
+            let recipe = SoftMapRecipe::default();
+            let combined = combine_maps(&mut rng, maps, hard, &recipe);
+            let record = &combined.record;
+            drawn[usize::from(record.blur_kernel.is_some()) * 2
+                + usize::from(record.normalisation == MapNormalisation::Sum)] = true;
+            let (weights, background) = reference(&planes, record, recipe.hard_min_weight as f32);
+            assert_eq!(combined.background, background, "seed {seed}");
+            for (k, (got, want)) in combined.weights.iter().zip(&weights).enumerate() {
+                assert_eq!(got, want, "seed {seed}, map {k}");
+                assert_eq!(
+                    combined.coverage[k],
+                    Coverage::of(want),
+                    "seed {seed}, map {k}"
+                );
+            }
+        }
+        assert!(
+            drawn.iter().all(|&d| d),
+            "every blur and normalisation case"
+        );
+    }
 }

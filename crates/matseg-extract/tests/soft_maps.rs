@@ -1,7 +1,7 @@
 //! Soft-map invariants over many seeds, on the bundled photos.
 
-use matseg_extract::{combine_maps, draw_channel_map, MapNormalisation, SoftMapRecipe};
-use matseg_image::{level_values, Coverage, PhotoLibrary, Plane};
+use matseg_extract::{combine_maps, draw_channel_map, MapNormalisation, RawMap, SoftMapRecipe};
+use matseg_image::{level_values, Channel, ChannelWindow, Coverage, PhotoLibrary};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::path::Path;
@@ -21,9 +21,11 @@ fn maps_match_their_record_and_acceptance_rules() {
         let (w, h) = (96 + (seed as usize % 5) * 17, 80 + (seed as usize % 3) * 23);
         let max_occupancy = 0.04 + 0.5 * (seed % 7) as f64 / 7.0;
         let hard = seed % 3 == 0;
-        let (map, rec) =
+        let (raw, rec) =
             draw_channel_map(&mut rng, &lib, w, h, max_occupancy, hard, &recipe).unwrap();
+        let map = raw.to_plane();
         assert_eq!((map.width, map.height), (w, h));
+        assert_eq!(raw.coverage(), &Coverage::of(&map));
 
         // Re-derive the channel from the record: the map must be the ramp of it.
         let photo = lib.get(rec.photo).unwrap();
@@ -66,17 +68,24 @@ fn maps_match_their_record_and_acceptance_rules() {
     assert!(ramps > 5, "soft ramps should occur ({ramps})");
 }
 
-fn plane(w: usize, h: usize, f: impl Fn(usize) -> f32) -> Plane {
-    Plane::from_vec(w, h, (0..w * h).map(f).collect())
+/// A map whose pixel `i` has level `level(i)`, worth `level / top`.
+fn map(w: usize, h: usize, top: u8, level: impl Fn(usize) -> u8) -> RawMap {
+    let window = ChannelWindow {
+        width: w,
+        height: h,
+        channel: Channel::R,
+        levels: (0..w * h).map(level).collect(),
+    };
+    RawMap::new(window, level_values(top))
 }
 
 #[test]
 fn combined_weights_sum_to_one_and_hard_is_one_hot() {
     let (w, h) = (40, 30);
     let maps = vec![
-        plane(w, h, |i| (i % 7) as f32 / 6.0),
-        plane(w, h, |i| ((i / 3) % 5) as f32 / 4.0),
-        plane(w, h, |i| if i % 11 == 0 { 1.0 } else { 0.0 }),
+        map(w, h, 6, |i| (i % 7) as u8),
+        map(w, h, 4, |i| ((i / 3) % 5) as u8),
+        map(w, h, 1, |i| u8::from(i % 11 == 0)),
     ];
     let mut seen = [false; 2];
     for seed in 0..40u64 {
@@ -103,7 +112,7 @@ fn combined_weights_sum_to_one_and_hard_is_one_hot() {
             if !hard && rec.normalisation == MapNormalisation::Priority && rec.blur_kernel.is_none()
             {
                 // Priority: the first map keeps its raw values.
-                assert_eq!(weights[0].data, maps[0].data);
+                assert_eq!(weights[0].data, maps[0].to_plane().data);
             }
         }
     }

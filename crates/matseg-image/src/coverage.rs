@@ -84,28 +84,55 @@ impl Coverage {
     /// the blocks with it.
     #[inline(always)]
     pub fn add_row(&mut self, y: usize, row: &[f32]) {
+        self.add_run(y, 0, row);
+    }
+
+    /// Records the values of row `y` from column `x0` (a multiple of
+    /// [`BLOCK`]) on; the row's other columns keep what was recorded. Each
+    /// block is recorded once.
+    #[inline(always)]
+    pub fn add_run(&mut self, y: usize, x0: usize, run: &[f32]) {
+        // The whole block is tested at once (vectorised).
+        let block_positive = |block: &[f32]| block.iter().fold(0.0f32, |m, &v| m.max(v)) > 0.0;
+        self.add_run_by(y, x0, run, block_positive, |&v| v > 0.0);
+    }
+
+    /// Records a run of any kind of values: `block_positive` tells whether
+    /// a block holds a positive value, `positive` whether one value is.
+    #[inline(always)]
+    pub fn add_run_by<T>(
+        &mut self,
+        y: usize,
+        x0: usize,
+        run: &[T],
+        block_positive: impl Fn(&[T]) -> bool,
+        positive: impl Fn(&T) -> bool,
+    ) {
+        debug_assert!(x0.is_multiple_of(BLOCK), "runs start on a block");
         let mask = &mut self.bits[y * self.words..(y + 1) * self.words];
         let (mut first, mut last) = (None, 0);
-        for (b, block) in row.chunks(BLOCK).enumerate() {
-            // The whole block is tested at once (vectorised).
-            if block.iter().fold(0.0f32, |m, &v| m.max(v)) > 0.0 {
+        for (i, block) in run.chunks(BLOCK).enumerate() {
+            if block_positive(block) {
+                let b = x0 / BLOCK + i;
                 mask[b / 64] |= 1 << (b % 64);
-                first.get_or_insert(b);
-                last = b;
+                first.get_or_insert(i);
+                last = i;
             }
         }
         let Some(first) = first else { return };
-        let x0 = first * BLOCK
-            + row[first * BLOCK..]
+        let x1 = x0
+            + last * BLOCK
+            + run[last * BLOCK..((last + 1) * BLOCK).min(run.len())]
                 .iter()
-                .position(|&v| v > 0.0)
-                .expect("a positive value in the block");
-        let x1 = last * BLOCK
-            + row[last * BLOCK..((last + 1) * BLOCK).min(row.len())]
-                .iter()
-                .rposition(|&v| v > 0.0)
+                .rposition(&positive)
                 .expect("a positive value in the block")
             + 1;
+        let x0 = x0
+            + first * BLOCK
+            + run[first * BLOCK..]
+                .iter()
+                .position(positive)
+                .expect("a positive value in the block");
         let r = self.support.get_or_insert(Region {
             x0,
             x1,
@@ -116,6 +143,22 @@ impl Coverage {
         r.x1 = r.x1.max(x1);
         r.y0 = r.y0.min(y);
         r.y1 = r.y1.max(y + 1);
+    }
+
+    /// Whether block `b` (columns `b * BLOCK..`) of row `y` is covered.
+    #[inline]
+    pub fn block_is_covered(&self, y: usize, b: usize) -> bool {
+        self.bits[y * self.words + b / 64] & (1 << (b % 64)) != 0
+    }
+
+    /// Width of the plane in pixels.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Blocks per row.
+    pub fn blocks_per_row(&self) -> usize {
+        self.width.div_ceil(BLOCK)
     }
 
     /// The bounding box of the positive pixels, if there is any.
@@ -141,6 +184,32 @@ impl Coverage {
             ..s
         });
         out
+    }
+
+    /// The coverage of every pixel within `r` rows and `r` columns of a
+    /// covered one (whole blocks): what a separable filter of radius `r`
+    /// can make positive.
+    pub fn dilated(&self, r: usize) -> Self {
+        let reach = r.div_ceil(BLOCK);
+        let blocks = self.blocks_per_row();
+        let mut wide = self.clone();
+        for (row, out) in self
+            .bits
+            .chunks_exact(self.words.max(1))
+            .zip(wide.bits.chunks_exact_mut(self.words.max(1)))
+        {
+            for b in (0..blocks).filter(|&b| row[b / 64] & (1 << (b % 64)) != 0) {
+                for n in b.saturating_sub(reach)..(b + reach + 1).min(blocks) {
+                    out[n / 64] |= 1 << (n % 64);
+                }
+            }
+        }
+        wide.support = self.support.map(|s| Region {
+            x0: s.x0.saturating_sub(r),
+            x1: (s.x1 + r).min(self.width),
+            ..s
+        });
+        wide.dilated_rows(r)
     }
 
     /// Whether row `y` has a covered block.

@@ -3,6 +3,7 @@
 //! ramp) is read off 256 bins instead of a pass over the pixels.
 
 use crate::channel::Channel;
+use crate::coverage::Coverage;
 use crate::plane::Plane;
 
 /// A `width x height` window of one channel, as levels 0..=255.
@@ -41,10 +42,42 @@ impl ChannelWindow {
     /// Row `y` of [`ChannelWindow::map_levels`], written into `row`
     /// (`width` values), for callers that stream rows.
     pub fn map_row(&self, y: usize, table: &LevelTable, row: &mut [f32]) {
-        let levels = &self.levels[y * self.width..(y + 1) * self.width];
-        for (v, &l) in row.iter_mut().zip(levels) {
+        self.map_run(y, 0, table, row);
+    }
+
+    /// Columns `x0..x0 + run.len()` of row `y` of
+    /// [`ChannelWindow::map_levels`], written into `run`.
+    pub fn map_run(&self, y: usize, x0: usize, table: &LevelTable, run: &mut [f32]) {
+        let levels = &self.levels[y * self.width + x0..][..run.len()];
+        for (v, &l) in run.iter_mut().zip(levels) {
             *v = table[l as usize];
         }
+    }
+
+    /// Where [`ChannelWindow::map_levels`] of `table` is positive. When
+    /// the table never decreases (a channel through a ramp), a block is
+    /// tested by its top level alone.
+    pub fn coverage(&self, table: &LevelTable) -> Coverage {
+        let mut c = Coverage::empty(self.width, self.height);
+        let monotone = table.windows(2).all(|p| p[0] <= p[1]);
+        let first_positive = table.iter().position(|&v| v > 0.0);
+        for (y, row) in self.levels.chunks_exact(self.width.max(1)).enumerate() {
+            let positive = |l: &u8| table[*l as usize] > 0.0;
+            match (monotone, first_positive) {
+                (_, None) => {}
+                (true, Some(first)) => c.add_run_by(
+                    y,
+                    0,
+                    row,
+                    |block| block.iter().fold(0, |m, &l| m.max(l)) as usize >= first,
+                    positive,
+                ),
+                (false, Some(_)) => {
+                    c.add_run_by(y, 0, row, |block| block.iter().any(positive), positive)
+                }
+            }
+        }
+        c
     }
 }
 
