@@ -43,6 +43,10 @@ fn blend_pair(a: i16, b: i16, packed: i32) -> u8 {
     ((a as i32 * keep + b as i32 * weight + (1 << 13)) >> 14) as u8
 }
 
+/// Values an 8-bit row given to [`ColumnTaps::blend_unrounded`] must hold
+/// beyond the taps' reach (16-byte loads may read past the last tap).
+pub const ROW_SLACK: usize = 16;
+
 /// The column taps of one window: for each output column, the index of the
 /// first of two neighbouring row-blended values and the packed weight.
 #[derive(Clone, Debug)]
@@ -51,6 +55,32 @@ pub struct ColumnTaps {
     packed: Vec<i32>,
     /// Length a row must have: one past the largest `first + 1`.
     row_len: usize,
+    /// When every eight consecutive taps read within 16 bytes (upscaling),
+    /// per group of eight: the first byte they read, and the byte shuffle
+    /// that lays out their pairs as `i16`.
+    narrow: Option<(Vec<u32>, Vec<[u8; 32]>)>,
+}
+
+/// For each complete group of eight taps, the first byte it reads and the
+/// shuffle of the 16 bytes from there that gives each tap's pair `(row[f],
+/// row[f + 1])` as two `i16`; `None` when some group spans more.
+fn narrow_groups(firsts: &[u32]) -> Option<(Vec<u32>, Vec<[u8; 32]>)> {
+    firsts
+        .chunks_exact(8)
+        .map(|group| {
+            let base = *group.iter().min()?;
+            let reach = group.iter().max()? + 1 - base;
+            (reach < 16).then(|| {
+                let mut shuffle = [0x80u8; 32];
+                for (j, &f) in group.iter().enumerate() {
+                    shuffle[4 * j] = (f - base) as u8;
+                    shuffle[4 * j + 2] = (f - base + 1) as u8;
+                }
+                (base, shuffle)
+            })
+        })
+        .collect::<Option<Vec<_>>>()
+        .map(|groups| groups.into_iter().unzip())
 }
 
 impl ColumnTaps {
@@ -59,23 +89,38 @@ impl ColumnTaps {
         let (firsts, packed): (Vec<u32>, Vec<i32>) =
             taps.map(|(f, w)| (f as u32, pack_weight(w))).unzip();
         let row_len = firsts.iter().map(|&f| f as usize + 2).max().unwrap_or(0);
+        let narrow = narrow_groups(&firsts);
         Self {
             firsts,
             packed,
             row_len,
+            narrow,
         }
     }
 
     /// `out[i] = row[first_i] * (128 - w_i) + row[first_i + 1] * w_i` for a
-    /// row of 8-bit values widened to `i16`: the first pass when columns are
-    /// blended first (results in 128ths, at most 255 * 128).
-    pub fn blend_unrounded(&self, row: &[i16], out: &mut [i16]) {
-        assert!(row.len() >= self.row_len && out.len() == self.firsts.len());
+    /// row of 8-bit values: the first pass when columns are blended first
+    /// (results in 128ths, at most 255 * 128). `row` holds [`ROW_SLACK`]
+    /// values more than the taps read.
+    pub fn blend_unrounded(&self, row: &[u8], out: &mut [i16]) {
+        assert!(row.len() >= self.row_len + ROW_SLACK && out.len() == self.firsts.len());
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: as in `blend`.
-            unsafe { avx2::blend_columns_unrounded(row, &self.firsts, &self.packed, out) };
-            return;
+        if let Some((bases, shuffles)) = &self.narrow {
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: AVX2 is present; every 16-byte load starts at a
+                // group's first byte, at most `row_len - 2`, and `row` has
+                // `ROW_SLACK` more.
+                unsafe {
+                    avx2::blend_columns_unrounded(
+                        row,
+                        (bases, shuffles),
+                        &self.firsts,
+                        &self.packed,
+                        out,
+                    )
+                };
+                return;
+            }
         }
         blend_unrounded_portable(row, &self.firsts, &self.packed, out);
     }
@@ -94,7 +139,7 @@ impl ColumnTaps {
     }
 }
 
-fn blend_unrounded_portable(row: &[i16], firsts: &[u32], packed: &[i32], out: &mut [i16]) {
+fn blend_unrounded_portable(row: &[u8], firsts: &[u32], packed: &[i32], out: &mut [i16]) {
     for ((o, &f), &p) in out.iter_mut().zip(firsts).zip(packed) {
         let (keep, weight) = (p & 0xFFFF, p >> 16);
         *o = (row[f as usize] as i32 * keep + row[f as usize + 1] as i32 * weight) as i16;
@@ -138,29 +183,54 @@ mod avx2 {
         super::blend_columns_portable(row, &firsts[i..], &packed[i..], &mut out[i..]);
     }
 
-    /// AVX2 [`super::ColumnTaps::blend_unrounded`]: as [`blend_columns`],
-    /// without the rounding shift; the sums (at most 255 * 128) pack to `i16`.
+    /// AVX2 [`super::ColumnTaps::blend_unrounded`] for narrow taps: each
+    /// group of eight outputs loads the 16 bytes it reads into both halves
+    /// of a register, one byte shuffle lays out its pairs as `i16`, and
+    /// `pmaddwd` blends them; 16 outputs per step.
     ///
     /// # Safety
-    /// As [`blend_columns`].
+    /// The CPU must have AVX2, and `row` must hold 16 bytes from every base.
     #[target_feature(enable = "avx2")]
     pub unsafe fn blend_columns_unrounded(
-        row: &[i16],
+        row: &[u8],
+        (bases, shuffles): (&[u32], &[[u8; 32]]),
         firsts: &[u32],
         packed: &[i32],
         out: &mut [i16],
     ) {
         let n = out.len();
-        let base = row.as_ptr() as *const i32;
         let mut i = 0;
         while i + 16 <= n {
-            let lo = pairs_times_weights(base, firsts, packed, i);
-            let hi = pairs_times_weights(base, firsts, packed, i + 8);
+            let g = i / 8;
+            let lo = shuffled_pairs_times_weights(row, bases[g], &shuffles[g], packed, i);
+            let hi =
+                shuffled_pairs_times_weights(row, bases[g + 1], &shuffles[g + 1], packed, i + 8);
             let words = _mm256_permute4x64_epi64::<0b11_01_10_00>(_mm256_packs_epi32(lo, hi));
             _mm256_storeu_si256(out.as_mut_ptr().add(i) as *mut __m256i, words);
             i += 16;
         }
         super::blend_unrounded_portable(row, &firsts[i..], &packed[i..], &mut out[i..]);
+    }
+
+    /// The weighted pair sums of the eight outputs from `at` of a narrow
+    /// group reading 16 bytes from `base`, as `i32`.
+    ///
+    /// # Safety
+    /// AVX2; `row` holds 16 bytes from `base`; `at + 8 <= packed.len()`.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn shuffled_pairs_times_weights(
+        row: &[u8],
+        base: u32,
+        shuffle: &[u8; 32],
+        packed: &[i32],
+        at: usize,
+    ) -> __m256i {
+        let bytes = _mm_loadu_si128(row.as_ptr().add(base as usize) as *const __m128i);
+        let shuffle = _mm256_loadu_si256(shuffle.as_ptr() as *const __m256i);
+        let pairs = _mm256_shuffle_epi8(_mm256_broadcastsi128_si256(bytes), shuffle);
+        let w = _mm256_loadu_si256(packed.as_ptr().add(at) as *const __m256i);
+        _mm256_madd_epi16(pairs, w)
     }
 
     /// The weighted pair sums of outputs `at..at + 8`, as `i32`.
@@ -232,20 +302,44 @@ mod tests {
             let mut rows_first = vec![0u8; 30];
             taps.blend(&rows, &mut rows_first);
 
-            let widen = |r: &[u8]| -> Vec<i16> {
-                let mut v: Vec<i16> = r.iter().map(|&x| x as i16).collect();
+            let padded = |r: &[u8]| -> Vec<u8> {
+                let mut v = r.to_vec();
                 v.push(v[v.len() - 1]);
+                v.resize(v.len() + ROW_SLACK, 0);
                 v
             };
             let (mut ct, mut cb) = (vec![0i16; 30], vec![0i16; 30]);
-            taps.blend_unrounded(&widen(&top), &mut ct);
+            taps.blend_unrounded(&padded(&top), &mut ct);
             let mut portable = vec![0i16; 30];
-            blend_unrounded_portable(&widen(&top), &taps.firsts, &taps.packed, &mut portable);
+            blend_unrounded_portable(&padded(&top), &taps.firsts, &taps.packed, &mut portable);
             assert_eq!(ct, portable);
-            taps.blend_unrounded(&widen(&bottom), &mut cb);
+            taps.blend_unrounded(&padded(&bottom), &mut cb);
             let mut cols_first = vec![0u8; 30];
             blend_rows_rounded(&ct, &cb, wy, &mut cols_first);
             assert_eq!(rows_first, cols_first, "wy {wy}");
+        }
+    }
+
+    #[test]
+    fn narrow_shuffled_taps_match_the_portable_path() {
+        let row: Vec<u8> = (0..400).map(|i| (i * 37 % 256) as u8).collect();
+        // Upscaling by 1.7 reads within 16 bytes per eight taps; a 2.5x
+        // downscale does not, and takes the portable path.
+        for (step, narrow) in [(1.0 / 1.7, true), (1.0, true), (2.5, false)] {
+            let n = 147;
+            let taps = ColumnTaps::new(
+                (0..n).map(|i| ((i as f64 * step) as usize, (i * 13 % 129) as i32)),
+            );
+            assert_eq!(taps.narrow.is_some(), narrow, "step {step}");
+            let mut fast = vec![0i16; n];
+            taps.blend_unrounded(&row, &mut fast);
+            let want: Vec<i16> = (0..n)
+                .map(|i| {
+                    let (f, w) = (taps.firsts[i] as usize, (i * 13 % 129) as i32);
+                    (row[f] as i32 * (128 - w) + row[f + 1] as i32 * w) as i16
+                })
+                .collect();
+            assert_eq!(fast, want, "step {step}");
         }
     }
 

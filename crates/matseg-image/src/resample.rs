@@ -1,7 +1,7 @@
 //! Resampling through a mip pyramid: "resize to W'xH', then crop a window" done
 //! in one pass that only computes the output pixels.
 
-use crate::bilinear::{blend_rows, blend_rows_rounded, ColumnTaps, WEIGHT_ONE};
+use crate::bilinear::{blend_rows, blend_rows_rounded, ColumnTaps, ROW_SLACK, WEIGHT_ONE};
 use crate::channel::{levels_of, Channel};
 use crate::levels::ChannelWindow;
 use crate::rgb::RgbF32;
@@ -285,15 +285,13 @@ impl WindowReader<'_> {
                     // Upscaling: blend the columns of each source row once, then
                     // blend pairs of those rows (cheap, vectorised) per output row.
                     let top = rows[0].first;
-                    let mut widened = vec![0i16; span + 1];
+                    let mut padded = vec![0u8; span + 1 + ROW_SLACK];
                     let mut by_columns = vec![0i16; source_rows * out_w];
                     for (y, out_row) in by_columns.chunks_exact_mut(out_w).enumerate() {
                         let row = &src[(top + y) * level.width + first..][..span];
-                        for (w, &v) in widened.iter_mut().zip(row) {
-                            *w = v as i16;
-                        }
-                        widened[span] = widened[span - 1];
-                        taps.blend_unrounded(&widened, out_row);
+                        padded[..span].copy_from_slice(row);
+                        padded[span] = row[span - 1];
+                        taps.blend_unrounded(&padded, out_row);
                     }
                     let at = |y: usize| &by_columns[(y - top) * out_w..][..out_w];
                     for (row, out_row) in rows.iter().zip(out.chunks_exact_mut(out_w)) {
