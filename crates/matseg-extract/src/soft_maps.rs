@@ -190,7 +190,7 @@ impl RawMap {
             self.height(),
             kernel,
             &reach,
-            |y, row| self.window.map_row(y, &self.table, row),
+            |y, x0, run| self.window.map_run(y, x0, &self.table, run),
             |y, row| {
                 for (x0, x1) in reach.runs(y) {
                     plane.data[y * w + x0..y * w + x1].copy_from_slice(&row[x0..x1]);

@@ -74,69 +74,131 @@ pub fn gaussian_blur(src: &Plane, ksize: usize) -> Plane {
         h,
         ksize,
         &Coverage::full(w, h),
-        |y, row| row.copy_from_slice(&src.data[y * w..(y + 1) * w]),
+        |y, x0, run| run.copy_from_slice(&src.data[y * w + x0..][..run.len()]),
         |_, row| out.extend_from_slice(row),
     );
     Plane::from_vec(w, h, out)
 }
 
-/// Blurs the `width x height` plane whose row `y` `source_row(y, row)`
-/// writes (all `width` values), with an odd Gaussian kernel of size `ksize`
-/// (1 = none) and reflected borders, computing only the blocks `coverage`
-/// covers: each row with a covered block goes to `emit(y, row)` in order,
-/// its covered columns exactly as the whole blur has them (the rest of
-/// `row` is unspecified). Source rows are asked for once each, in order,
-/// only where the blur reads them; the horizontal pass keeps `ksize` rows.
+/// Blurs the `width x height` plane whose columns `x0..x0 + run.len()` of
+/// row `y` `source(y, x0, run)` writes, with an odd Gaussian kernel of size
+/// `ksize` (1 = none) and reflected borders, computing only the blocks
+/// `coverage` covers: each row with a covered block goes to `emit(y, row)`
+/// in order, its covered columns exactly as the whole blur has them (the
+/// rest of `row` is unspecified). Source rows are asked for in order, only
+/// where the blur reads them (the covered blocks and `ksize / 2` columns
+/// either side, within `ksize / 2` rows); the horizontal pass keeps `ksize`
+/// rows.
 pub fn gaussian_blur_covered(
     width: usize,
     height: usize,
     ksize: usize,
     coverage: &Coverage,
-    mut source_row: impl FnMut(usize, &mut [f32]),
+    mut source: impl FnMut(usize, usize, &mut [f32]),
     mut emit: impl FnMut(usize, &[f32]),
 ) {
-    let (w, h) = (width, height);
-    let r = ksize / 2;
-    let mut out = vec![0.0f32; w];
-    if r == 0 || w == 0 {
-        for y in (0..h).filter(|&y| coverage.row_is_covered(y)) {
-            source_row(y, &mut out);
-            emit(y, &out);
+    let mut blur = CoveredBlur::new(width, height, ksize, coverage);
+    for y in 0..height {
+        if let Some(row) = blur.row(y, &mut source) {
+            emit(y, row);
         }
-        return;
     }
-    let taps = gaussian_kernel(ksize);
-    // Horizontal pass, into a ring of the last 2r + 1 rows: pad each source
-    // row by reflection, then add mirrored taps in pairs (the kernel is
-    // symmetric), on the columns any output row within r rows covers.
-    let read = coverage.dilated_rows(r);
-    let slots = 2 * r + 1;
-    let mut ring = vec![0.0f32; slots * w];
-    let mut padded = vec![0.0f32; w + 2 * r];
-    let mut next = 0;
-    for y in 0..h {
-        while next < h && next <= y + r {
-            if read.row_is_covered(next) {
-                source_row(next, &mut padded[r..r + w]);
-                for i in 0..r {
-                    padded[i] = padded[r + reflect101(i as isize - r as isize, w)];
-                    padded[r + w + i] = padded[r + reflect101((w + i) as isize, w)];
-                }
-                let pairs: Vec<_> = (0..r)
-                    .map(|t| (taps[t], &padded[t..], &padded[2 * r - t..]))
-                    .collect();
-                let slot = &mut ring[(next % slots) * w..][..w];
-                for (x0, x1) in read.runs(next) {
-                    symmetric_taps(slot, &padded[r..], taps[r], &pairs, x0..x1);
-                }
-            }
-            next += 1;
+}
+
+/// [`gaussian_blur_covered`] one output row at a time, for callers that
+/// stream several blurs side by side: rows are asked for in increasing
+/// order (any may be skipped).
+pub struct CoveredBlur<'a> {
+    width: usize,
+    height: usize,
+    r: usize,
+    taps: Vec<f32>,
+    coverage: &'a Coverage,
+    /// The rows and blocks the horizontal pass computes.
+    read: Coverage,
+    /// The last `2r + 1` rows of the horizontal pass.
+    ring: Vec<f32>,
+    padded: Vec<f32>,
+    out: Vec<f32>,
+    /// The next source row the horizontal pass takes.
+    next: usize,
+}
+
+impl<'a> CoveredBlur<'a> {
+    /// The blur of a `width x height` plane with an odd kernel of size
+    /// `ksize`, on the blocks `coverage` covers.
+    pub fn new(width: usize, height: usize, ksize: usize, coverage: &'a Coverage) -> Self {
+        let r = if width == 0 { 0 } else { ksize / 2 };
+        let slots = 2 * r + 1;
+        Self {
+            width,
+            height,
+            r,
+            taps: gaussian_kernel(ksize),
+            coverage,
+            read: coverage.dilated_rows(r),
+            ring: vec![0.0; if r == 0 { 0 } else { slots * width }],
+            padded: vec![0.0; width + 2 * r],
+            out: vec![0.0; width],
+            next: 0,
         }
-        if !coverage.row_is_covered(y) {
-            continue;
+    }
+
+    /// Row `y` of the blur, its covered columns exact, or `None` when the
+    /// row has no covered block; `source(y, x0, run)` writes columns `x0..x0
+    /// + run.len()` of source row `y`.
+    pub fn row(
+        &mut self,
+        y: usize,
+        mut source: impl FnMut(usize, usize, &mut [f32]),
+    ) -> Option<&[f32]> {
+        let (w, h, r) = (self.width, self.height, self.r);
+        if r == 0 {
+            if !self.coverage.row_is_covered(y) {
+                return None;
+            }
+            for (x0, x1) in self.coverage.runs(y) {
+                source(y, x0, &mut self.out[x0..x1]);
+            }
+            return Some(&self.out);
+        }
+        let taps = &self.taps;
+        let slots = 2 * r + 1;
+        // Horizontal pass, into a ring of the last 2r + 1 rows: pad each
+        // source row by reflection, then add mirrored taps in pairs (the
+        // kernel is symmetric), on the columns any output row within r rows
+        // covers.
+        while self.next < h && self.next <= y + r {
+            let next = self.next;
+            self.next += 1;
+            if !self.read.row_is_covered(next) {
+                continue;
+            }
+            // The columns the taps read: each run and r either side (the
+            // reflected border columns lie within r of a run at the border).
+            let padded = &mut self.padded;
+            for (x0, x1) in self.read.runs(next) {
+                let (a, b) = (x0.saturating_sub(r), (x1 + r).min(w));
+                source(next, a, &mut padded[r + a..r + b]);
+            }
+            for i in 0..r {
+                padded[i] = padded[r + reflect101(i as isize - r as isize, w)];
+                padded[r + w + i] = padded[r + reflect101((w + i) as isize, w)];
+            }
+            let pairs: Vec<_> = (0..r)
+                .map(|t| (taps[t], &padded[t..], &padded[2 * r - t..]))
+                .collect();
+            let slot = &mut self.ring[(next % slots) * w..][..w];
+            for (x0, x1) in self.read.runs(next) {
+                symmetric_taps(slot, &padded[r..], taps[r], &pairs, x0..x1);
+            }
+        }
+        if !self.coverage.row_is_covered(y) {
+            return None;
         }
         // Vertical pass: a weighted sum of ring rows (reflected rows stay
         // within r rows of y, so inside the ring).
+        let ring = &self.ring;
         let row = |y: isize| &ring[(reflect101(y, h) % slots) * w..][..w];
         let yi = y as isize;
         let pairs: Vec<_> = (0..r)
@@ -145,10 +207,10 @@ pub fn gaussian_blur_covered(
                 (taps[t], row(yi - d), row(yi + d))
             })
             .collect();
-        for (x0, x1) in coverage.runs(y) {
-            symmetric_taps(&mut out, row(yi), taps[r], &pairs, x0..x1);
+        for (x0, x1) in self.coverage.runs(y) {
+            symmetric_taps(&mut self.out, row(yi), taps[r], &pairs, x0..x1);
         }
-        emit(y, &out);
+        Some(&self.out)
     }
 }
 
@@ -177,7 +239,7 @@ mod tests {
     /// The blur on covered blocks equals a direct 2D convolution there.
     #[test]
     fn covered_blur_equals_the_direct_convolution_on_covered_blocks() {
-        let (w, h) = (41, 23);
+        let (w, h) = (73, 23);
         let src = Plane::from_vec(
             w,
             h,
@@ -213,9 +275,9 @@ mod tests {
                 h,
                 k,
                 &coverage,
-                |y, row| {
-                    asked.push(y);
-                    row.copy_from_slice(&src.data[y * w..(y + 1) * w]);
+                |y, x0, run: &mut [f32]| {
+                    asked.push((y, x0, x0 + run.len()));
+                    run.copy_from_slice(&src.data[y * w + x0..][..run.len()]);
                 },
                 |y, row| {
                     for x in coverage.runs(y).flat_map(|(a, b)| a..b) {
@@ -225,10 +287,27 @@ mod tests {
                 },
             );
             assert_eq!(rows, vec![0, 11, 22], "k {k}");
-            // Source rows are read once each, in order, and only near covered ones.
-            assert!(asked.windows(2).all(|p| p[0] < p[1]), "k {k}: {asked:?}");
+            // Source rows are read in order, only near covered rows, and
+            // only on the covered blocks and k / 2 columns either side.
+            assert!(
+                asked.windows(2).all(|p| p[0].0 <= p[1].0),
+                "k {k}: {asked:?}"
+            );
             let near = |y: usize| rows.iter().any(|&c| c.abs_diff(y) <= k / 2);
-            assert!(asked.iter().all(|&y| near(y)), "k {k}: {asked:?}");
+            let column_near = |x: usize| {
+                (0..h).any(|c| {
+                    coverage
+                        .runs(c)
+                        .any(|(a, b)| x + k / 2 >= a && x < b + k / 2)
+                })
+            };
+            let blocks_near = |x0: usize, x1: usize| (x0..x1).all(column_near);
+            assert!(
+                asked
+                    .iter()
+                    .all(|&(y, x0, x1)| near(y) && blocks_near(x0, x1)),
+                "k {k}: {asked:?}"
+            );
         }
         // The whole blur has the covered blur's values, bit for bit.
         let whole = gaussian_blur(&src, 9);
@@ -238,7 +317,7 @@ mod tests {
             h,
             9,
             &coverage,
-            |y, row| row.copy_from_slice(&src.data[y * w..(y + 1) * w]),
+            |y, x0, run| run.copy_from_slice(&src.data[y * w + x0..][..run.len()]),
             |y, row| {
                 for x in coverage.runs(y).flat_map(|(a, b)| a..b) {
                     assert_eq!(row[x], whole.get(x, y), "({x}, {y})");
@@ -246,8 +325,8 @@ mod tests {
                 }
             },
         );
-        // The three covered blocks are the three column blocks of a row.
-        assert_eq!(checked, w);
+        // Three covered blocks of 16 columns each.
+        assert_eq!(checked, 3 * 16);
     }
 
     #[test]

@@ -19,7 +19,7 @@ pub mod ramp;
 pub mod resample;
 pub mod rgb;
 
-pub use blur::{gaussian_blur, gaussian_blur_covered};
+pub use blur::{gaussian_blur, gaussian_blur_covered, CoveredBlur};
 pub use channel::Channel;
 pub use coverage::{Coverage, Region};
 pub use io::ImageIoError;

@@ -1,9 +1,10 @@
 //! The 2D scene (SPEC 2): background photo and K material layers mixed by the
 //! soft maps of SPEC 1; the weights are the exact annotation.
 
-use crate::material::{add_material, MaterialRecord};
+use crate::material::{draw_material, Layer, MaterialRecord};
 use crate::recipe::{Recipe2d, SceneShape};
 use matseg_extract::{make_soft_maps, random_placement, CombineRecord, MapRecord, SoftMapError};
+use matseg_image::rgb::interleave_rounded;
 use matseg_image::{LibraryError, PhotoLibrary, Placement, Plane};
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -104,25 +105,29 @@ pub fn generate_2d<R: Rng + ?Sized>(
         recipe.composition.p_background_downscale,
         true,
     );
-    let mut acc = photo.pyramid.sample_rgb(&placement, width, height);
+    let drawn = (0..k)
+        .map(|_| {
+            draw_material(
+                rng,
+                &recipe.composition,
+                sources.photos,
+                sources.textures,
+                width,
+                height,
+            )
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     let weights = maps.combined;
-    for plane in &mut acc.planes {
-        for (v, &wb) in plane.iter_mut().zip(&weights.background.data) {
-            *v *= wb;
-        }
-    }
-    let mut materials = Vec::with_capacity(k);
-    for (weight, coverage) in weights.weights.iter().zip(&weights.coverage) {
-        materials.push(add_material(
-            rng,
-            &recipe.composition,
-            sources.photos,
-            sources.textures,
-            weight,
-            coverage,
-            &mut acc,
-        )?);
-    }
+    let mut layers: Vec<Layer> = drawn
+        .iter()
+        .zip(&weights.weights)
+        .zip(&weights.coverage)
+        .filter_map(|((material, weight), coverage)| material.layer(weight, coverage))
+        .collect();
+    let background = photo.pyramid.sample_planes(&placement, width, height);
+    let image = compose_rows(width, height, &background, &weights.background, &mut layers);
+    drop(layers);
+    let materials = drawn.into_iter().map(|m| m.into_record()).collect();
     let record = SceneRecord {
         width,
         height,
@@ -137,11 +142,44 @@ pub fn generate_2d<R: Rng + ?Sized>(
         materials,
     };
     Ok(Scene2d {
-        image: acc.to_rgb8(),
+        image,
         weights: weights.weights,
         background: weights.background,
         record,
     })
+}
+
+/// The scene image, one row at a time so that each stays in cache: the
+/// background photo's pixels times their weight `wb`, plus every layer.
+fn compose_rows(
+    w: usize,
+    h: usize,
+    background: &[Vec<u8>; 3],
+    wb: &Plane,
+    layers: &mut [Layer],
+) -> image::RgbImage {
+    let mut raw = vec![0u8; w * h * 3];
+    let mut acc = [vec![0f32; w], vec![0f32; w], vec![0f32; w]];
+    for (y, out) in raw.chunks_exact_mut(3 * w.max(1)).enumerate() {
+        let row = y * w..(y + 1) * w;
+        for (a, plane) in acc.iter_mut().zip(background) {
+            weigh_row(a, &plane[row.clone()], &wb.data[row.clone()]);
+        }
+        for layer in layers.iter_mut() {
+            layer.add_row(y, &mut acc);
+        }
+        let [r, g, b] = &acc;
+        interleave_rounded([r, g, b], out);
+    }
+    image::RgbImage::from_raw(w as u32, h as u32, raw)
+        .expect("buffer length matches the image size")
+}
+
+/// `acc = pixels * weights`, element-wise, pixels as floats.
+fn weigh_row(acc: &mut [f32], pixels: &[u8], weights: &[f32]) {
+    for ((a, &v), &wt) in acc.iter_mut().zip(pixels).zip(weights) {
+        *a = v as f32 * wt;
+    }
 }
 
 /// A source file a scene used, for sidecars and licence audits.

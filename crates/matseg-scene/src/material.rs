@@ -4,8 +4,8 @@
 use crate::recipe::CompositionRecipe;
 use matseg_extract::random_photo_channel;
 use matseg_image::{
-    gaussian_blur_covered, level_values, Channel, ChannelWindow, Coverage, LevelTable,
-    LibraryError, Mirrors, Photo, PhotoLibrary, Placement, Plane, Pyramid, Region, RgbF32,
+    level_values, Channel, ChannelWindow, Coverage, CoveredBlur, LevelTable, LibraryError, Mirrors,
+    Photo, PhotoLibrary, Placement, Plane, Pyramid, Region, RgbF32,
 };
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -87,19 +87,24 @@ pub struct MaterialRecord {
     pub shading: Option<ShadingRecord>,
 }
 
-/// Draws one material and adds it, weighted by `weight`, into `acc`. Only
-/// the blocks of pixels where `weight > 0` (its `coverage`) are shaded and
-/// blended.
-pub fn add_material<R: Rng + ?Sized>(
+/// A material drawn for a scene, not yet blended: its record, the texture
+/// photo it reads and its shading.
+pub(crate) struct DrawnMaterial {
+    record: MaterialRecord,
+    texture: Option<Arc<Photo>>,
+    shading: Option<Shading>,
+}
+
+/// Draws one material of a `w x h` scene (SPEC 2): a texture or a flat
+/// colour, and its shading; its pixels are made as it is blended.
+pub(crate) fn draw_material<R: Rng + ?Sized>(
     rng: &mut R,
     recipe: &CompositionRecipe,
     photos: &PhotoLibrary,
     textures: &PhotoLibrary,
-    weight: &Plane,
-    coverage: &Coverage,
-    acc: &mut RgbF32,
-) -> Result<MaterialRecord, LibraryError> {
-    let (w, h) = (weight.width, weight.height);
+    w: usize,
+    h: usize,
+) -> Result<DrawnMaterial, LibraryError> {
     let (texture, source) = if rng.random_bool(recipe.p_texture) {
         let (texture, source) = draw_texture(rng, recipe, textures, w, h)?;
         (Some(texture), source)
@@ -116,52 +121,78 @@ pub fn add_material<R: Rng + ?Sized>(
         source,
         shading: shading.as_ref().map(|s| s.record.clone()),
     };
-    // Pixels where the weight is 0 add nothing, so the shading blur and the
-    // blending skip every block without one.
-    let Some(support) = coverage.support() else {
-        return Ok(record);
-    };
-    let colour = Colour::new(&record.source, texture.as_deref(), support);
-    let mut layer = Layer {
-        weight,
-        coverage,
-        colour: &colour,
-        rgb: [vec![0f32; w], vec![0f32; w], vec![0f32; w]],
-        factor: vec![0f32; w],
-    };
-    match &shading {
-        Some(shading) => gaussian_blur_covered(
-            w,
-            h,
-            shading.record.kernel,
-            coverage,
-            |y, row| shading.window.map_row(y, &shading.values, row),
-            |y, shade| layer.add_row(y, Some((shade, shading.record.strength)), acc),
-        ),
-        None => (support.y0..support.y1).for_each(|y| layer.add_row(y, None, acc)),
-    }
-    Ok(record)
+    Ok(DrawnMaterial {
+        record,
+        texture,
+        shading,
+    })
 }
 
-/// One material's blending: its weight, where it is positive, its colour,
-/// and row buffers.
-struct Layer<'a> {
+impl DrawnMaterial {
+    /// What was drawn.
+    pub(crate) fn into_record(self) -> MaterialRecord {
+        self.record
+    }
+
+    /// The layer that blends this material by `weight`, whose positive
+    /// blocks `coverage` holds; `None` when the weight is zero everywhere.
+    pub(crate) fn layer<'a>(
+        &'a self,
+        weight: &'a Plane,
+        coverage: &'a Coverage,
+    ) -> Option<Layer<'a>> {
+        // Pixels where the weight is 0 add nothing, so the shading blur and
+        // the blending skip every block without one.
+        let support = coverage.support()?;
+        let w = weight.width;
+        Some(Layer {
+            weight,
+            coverage,
+            colour: Colour::new(&self.record.source, self.texture.as_deref(), support),
+            shading: self.shading.as_ref().map(|s| {
+                (
+                    s,
+                    CoveredBlur::new(w, weight.height, s.record.kernel, coverage),
+                )
+            }),
+            rgb: [vec![0f32; w], vec![0f32; w], vec![0f32; w]],
+            factor: vec![0f32; w],
+        })
+    }
+}
+
+/// One material's blending, row by row: its weight, where it is positive,
+/// its colour, its shading with the blur that streams it, and row buffers.
+pub(crate) struct Layer<'a> {
     weight: &'a Plane,
     coverage: &'a Coverage,
-    colour: &'a Colour,
+    colour: Colour,
+    shading: Option<(&'a Shading, CoveredBlur<'a>)>,
     rgb: [Vec<f32>; 3],
     factor: Vec<f32>,
 }
 
 impl Layer<'_> {
-    /// Adds row `y` of the layer into `acc` on its covered blocks: colour
-    /// times weight, times `(1 - strength) + strength * shade` when shaded
-    /// (`shade` is the row of the blurred shade).
-    fn add_row(&mut self, y: usize, shade: Option<(&[f32], f32)>, acc: &mut RgbF32) {
+    /// Adds row `y` of the layer into `acc` (row `y` of the scene, one
+    /// slice per channel) on its covered blocks: colour times weight, times
+    /// `(1 - strength) + strength * shade` when shaded. Rows come in
+    /// increasing order.
+    pub(crate) fn add_row(&mut self, y: usize, acc: &mut [Vec<f32>; 3]) {
+        let shade = match &mut self.shading {
+            Some((shading, blur)) => {
+                let source =
+                    |y, x0, run: &mut [f32]| shading.window.map_run(y, x0, &shading.values, run);
+                match blur.row(y, source) {
+                    Some(row) => Some((row, shading.record.strength)),
+                    None => return,
+                }
+            }
+            None if self.coverage.row_is_covered(y) => None,
+            None => return,
+        };
         let w = self.weight.width;
         for (x0, x1) in self.coverage.runs(y) {
-            let row = y * w + x0..y * w + x1;
-            let weight = &self.weight.data[row.clone()];
+            let weight = &self.weight.data[y * w + x0..y * w + x1];
             let factor = match shade {
                 Some((shade, s)) => {
                     let factor = &mut self.factor[..x1 - x0];
@@ -172,12 +203,8 @@ impl Layer<'_> {
             };
             let rgb = self.rgb.each_mut().map(|c| &mut c[..x1 - x0]);
             self.colour.fill_row(y, x0, rgb);
-            let [r, g, b] = &mut acc.planes;
-            let target = [
-                &mut r[row.clone()],
-                &mut g[row.clone()],
-                &mut b[row.clone()],
-            ];
+            let [r, g, b] = acc;
+            let target = [&mut r[x0..x1], &mut g[x0..x1], &mut b[x0..x1]];
             add_weighted(target, &self.rgb, factor);
         }
     }
