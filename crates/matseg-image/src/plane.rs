@@ -82,8 +82,13 @@ pub fn unit_to_u8(v: f32) -> u8 {
 /// target cannot inline.
 #[inline]
 pub fn round_to_u8(v: f32) -> u8 {
-    // `as` truncates toward zero and saturates.
-    (v + 0.5) as u8
+    // `max` drops NaN, so the value is in 0..=255 and truncates with one
+    // instruction that vectorises (`as` would check every lane for NaN and
+    // overflow, which keeps the loops scalar).
+    #[allow(clippy::manual_clamp)] // `clamp` would keep NaN.
+    let clamped = (v + 0.5).max(0.0).min(255.0);
+    // SAFETY: `clamped` is finite and within 0..=255, so it fits `i32`.
+    unsafe { clamped.to_int_unchecked::<i32>() as u8 }
 }
 
 #[cfg(test)]
@@ -99,5 +104,13 @@ mod tests {
         assert_eq!(p.to_u8(), vec![26, 128, 128, 230]);
         let rounded = [-3.0, -0.6, 0.49, 0.5, 2.5, 254.5, 300.0, f32::NAN].map(round_to_u8);
         assert_eq!(rounded, [0, 0, 0, 1, 3, 255, 255, 0]);
+        // Equal to rounding half up and saturating, on a dense sweep.
+        for i in -4000..=140_000 {
+            let v = i as f32 / 512.0;
+            let want = (v + 0.5).floor().clamp(0.0, 255.0) as u8;
+            assert_eq!(round_to_u8(v), want, "{v}");
+        }
+        assert_eq!(round_to_u8(f32::INFINITY), 255);
+        assert_eq!(round_to_u8(f32::NEG_INFINITY), 0);
     }
 }
