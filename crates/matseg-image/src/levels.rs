@@ -39,14 +39,9 @@ impl ChannelWindow {
         Plane::from_vec(self.width, self.height, data)
     }
 
-    /// Row `y` of [`ChannelWindow::map_levels`], written into `row`
-    /// (`width` values), for callers that stream rows.
-    pub fn map_row(&self, y: usize, table: &LevelTable, row: &mut [f32]) {
-        self.map_run(y, 0, table, row);
-    }
-
     /// Columns `x0..x0 + run.len()` of row `y` of
-    /// [`ChannelWindow::map_levels`], written into `run`.
+    /// [`ChannelWindow::map_levels`], written into `run`, for callers that
+    /// stream parts of rows.
     pub fn map_run(&self, y: usize, x0: usize, table: &LevelTable, run: &mut [f32]) {
         let levels = &self.levels[y * self.width + x0..][..run.len()];
         for (v, &l) in run.iter_mut().zip(levels) {
@@ -59,22 +54,18 @@ impl ChannelWindow {
     /// tested by its top level alone.
     pub fn coverage(&self, table: &LevelTable) -> Coverage {
         let mut c = Coverage::empty(self.width, self.height);
+        let Some(first) = table.iter().position(|&v| v > 0.0) else {
+            return c;
+        };
         let monotone = table.windows(2).all(|p| p[0] <= p[1]);
-        let first_positive = table.iter().position(|&v| v > 0.0);
+        let positive = |l: &u8| table[*l as usize] > 0.0;
+        let top_positive = |block: &[u8]| block.iter().fold(0, |m, &l| m.max(l)) as usize >= first;
+        let any_positive = |block: &[u8]| block.iter().any(positive);
         for (y, row) in self.levels.chunks_exact(self.width.max(1)).enumerate() {
-            let positive = |l: &u8| table[*l as usize] > 0.0;
-            match (monotone, first_positive) {
-                (_, None) => {}
-                (true, Some(first)) => c.add_run_by(
-                    y,
-                    0,
-                    row,
-                    |block| block.iter().fold(0, |m, &l| m.max(l)) as usize >= first,
-                    positive,
-                ),
-                (false, Some(_)) => {
-                    c.add_run_by(y, 0, row, |block| block.iter().any(positive), positive)
-                }
+            if monotone {
+                c.add_run_by(y, 0, row, top_positive, positive);
+            } else {
+                c.add_run_by(y, 0, row, any_positive, positive);
             }
         }
         c
@@ -187,7 +178,7 @@ mod tests {
         let plane = w.map_levels(&full);
         assert_eq!(plane.data[4], 200.0 / 255.0);
         let mut row = vec![0.0; 7];
-        w.map_row(0, &full, &mut row);
+        w.map_run(0, 0, &full, &mut row);
         assert_eq!(row, plane.data);
         assert!((hist.weighted_sum(&full) - plane.sum()).abs() < 1e-9);
         // A black window stays black when normalised by its maximum.
