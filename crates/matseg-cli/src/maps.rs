@@ -75,20 +75,20 @@ pub fn run(args: Args) -> Result<()> {
         raw.push(map);
         records.push(record);
     }
+    let raw_planes: Vec<_> = raw.iter().map(|m| m.to_plane()).collect();
     let CombinedMaps {
         weights,
         background,
         record: combine,
         ..
-    } = combine_maps(&mut rng, raw.clone(), hard, &recipe.maps);
-    let raw: Vec<_> = raw.iter().map(|m| m.to_plane()).collect();
+    } = combine_maps(&mut rng, raw, hard, &recipe.maps);
 
     std::fs::create_dir_all(&args.out).with_context(|| args.out.display().to_string())?;
     let write = |name: String, bytes: Vec<u8>| {
         let path = args.out.join(&name);
         write_atomic(&path, &bytes).with_context(|| path.display().to_string())
     };
-    for (k, (r, wgt)) in raw.iter().zip(&weights).enumerate() {
+    for (k, (r, wgt)) in raw_planes.iter().zip(&weights).enumerate() {
         write(
             format!("raw_{k:02}.png"),
             encode_png_gray(w as u32, h as u32, &r.to_u8()),
