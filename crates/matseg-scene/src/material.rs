@@ -187,8 +187,8 @@ impl Layer<'_> {
                     None => return,
                 }
             }
-            None if self.coverage.row_is_covered(y) => None,
-            None => return,
+            // An uncovered row has no runs.
+            None => None,
         };
         let w = self.weight.width;
         for (x0, x1) in self.coverage.runs(y) {
