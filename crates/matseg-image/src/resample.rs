@@ -119,6 +119,11 @@ impl Pyramid {
         self.levels[0].height as u32
     }
 
+    /// The R, G and B planes of the full-resolution image, row by row.
+    pub fn planes(&self) -> [&[u8]; 3] {
+        self.levels[0].planes.each_ref().map(|p| p.as_slice())
+    }
+
     /// Bytes held by all levels.
     pub fn bytes(&self) -> usize {
         self.levels.iter().map(|l| 3 * l.width * l.height).sum()

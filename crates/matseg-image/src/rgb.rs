@@ -70,8 +70,12 @@ pub fn interleave_rounded([r, g, b]: [&[f32]; 3], out: &mut [u8]) {
     }
 }
 
+/// Rotates the hue of every pixel of three planes of equal length by
+/// `degrees` (see [`rotate_hue`]) in one vectorised loop, also compiled for
+/// AVX2 and picked at run time; each pixel gets the same value wherever it
+/// lies in the planes.
 #[multiversion::multiversion(targets("x86_64+avx2+fma"))]
-fn rotate_hue_planes(r: &mut [f32], g: &mut [f32], b: &mut [f32], degrees: f32) {
+pub fn rotate_hue_planes(r: &mut [f32], g: &mut [f32], b: &mut [f32], degrees: f32) {
     for ((r, g), b) in r.iter_mut().zip(g.iter_mut()).zip(b.iter_mut()) {
         [*r, *g, *b] = rotate_hue([*r, *g, *b], degrees);
     }

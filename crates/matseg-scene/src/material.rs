@@ -3,12 +3,14 @@
 
 use crate::recipe::CompositionRecipe;
 use matseg_extract::random_photo_channel;
+use matseg_image::rgb::rotate_hue_planes;
 use matseg_image::{
     level_values, Channel, ChannelWindow, Coverage, CoveredBlur, LevelTable, LibraryError, Mirrors,
-    Photo, PhotoLibrary, Placement, Plane, Pyramid, Region, RgbF32,
+    Photo, PhotoLibrary, Placement, Plane, Pyramid, Region,
 };
 use rand::Rng;
 use serde::{Deserialize, Serialize};
+use std::borrow::Cow;
 use std::sync::Arc;
 
 /// How a texture covers the scene.
@@ -166,7 +168,7 @@ impl DrawnMaterial {
 pub(crate) struct Layer<'a> {
     weight: &'a Plane,
     coverage: &'a Coverage,
-    colour: Colour,
+    colour: Colour<'a>,
     shading: Option<(&'a Shading, CoveredBlur<'a>)>,
     rgb: [Vec<f32>; 3],
     factor: Vec<f32>,
@@ -300,25 +302,29 @@ fn draw_texture<R: Rng + ?Sized>(
 
 /// A material's colour before shading, over the rectangle of the scene
 /// where it is visible.
-enum Colour {
+enum Colour<'a> {
     /// One colour everywhere.
     Flat([f32; 3]),
-    /// An image of the texture as drawn (turned if it is, resized, hue
-    /// shifted), read mirrored by `mirrors` and repeated: scene pixel
+    /// An 8-bit image of the texture as drawn (turned if it is, resized),
+    /// read mirrored by `mirrors`, repeated and hue shifted: scene pixel
     /// `(x, y)` shows pixel `((x + phase_x) mod width, (y + phase_y) mod
-    /// height)` of the mirrored image.
+    /// height)` of the mirrored image, its hue turned by `hue_shift_degrees`.
+    /// A texture tiled at its own size is read from its photo, not copied.
     Image {
-        image: RgbF32,
+        planes: [Cow<'a, [u8]>; 3],
+        width: usize,
+        height: usize,
         mirrors: Mirrors,
         phase_x: usize,
         phase_y: usize,
+        hue_shift_degrees: Option<f32>,
     },
 }
 
-impl Colour {
+impl<'a> Colour<'a> {
     /// The colour of a material from its record, where it is visible in
     /// `support` (not empty); `texture` is the texture's photo for a texture.
-    fn new(source: &MaterialSource, texture: Option<&Photo>, support: Region) -> Self {
+    fn new(source: &MaterialSource, texture: Option<&'a Photo>, support: Region) -> Self {
         let (fill, rot90, flip_x, flip_y, hue_shift_degrees) = match *source {
             MaterialSource::FlatColour { rgb } => return Colour::Flat(rgb.map(f32::from)),
             MaterialSource::Texture {
@@ -334,18 +340,28 @@ impl Colour {
         // Mirrors are applied when reading rows.
         let pyramid = drawn_pixels(texture, rot90);
         let mirrors = Mirrors { flip_x, flip_y };
-        let (mut image, phase_x, phase_y) = match *fill {
+        let (planes, width, height, phase_x, phase_y) = match *fill {
             Fill::Tile {
                 tile_w,
                 tile_h,
                 offset_x,
                 offset_y,
                 ..
-            } => (
-                pyramid.resize_rgb(tile_w as usize, tile_h as usize),
-                offset_x as usize,
-                offset_y as usize,
-            ),
+            } => {
+                let (tw, th) = (tile_w as usize, tile_h as usize);
+                let planes = if (tile_w, tile_h) == (pyramid.width(), pyramid.height()) {
+                    pyramid.planes().map(Cow::Borrowed)
+                } else {
+                    let whole = Placement {
+                        resized_w: tile_w,
+                        resized_h: tile_h,
+                        x0: 0,
+                        y0: 0,
+                    };
+                    pyramid.sample_planes(&whole, tw, th).map(Cow::Owned)
+                };
+                (planes, tw, th, offset_x as usize, offset_y as usize)
+            }
             Fill::Stretch { placement } => {
                 // The visible part of the mirrored texture's window is a
                 // rectangle of the unmirrored one: sample only that.
@@ -362,26 +378,30 @@ impl Colour {
                 };
                 let phase = |start: usize, len: usize| (len - start % len) % len;
                 (
-                    pyramid.sample_rgb(&window, span_w, span_h),
+                    pyramid
+                        .sample_planes(&window, span_w, span_h)
+                        .map(Cow::Owned),
+                    span_w,
+                    span_h,
                     phase(support.x0, span_w),
                     phase(support.y0, span_h),
                 )
             }
         };
-        if let Some(degrees) = hue_shift_degrees {
-            image.rotate_hue(degrees);
-        }
         Colour::Image {
-            image,
+            planes,
+            width,
+            height,
             mirrors,
             phase_x,
             phase_y,
+            hue_shift_degrees,
         }
     }
 
     /// Writes the colours of scene row `y` from column `x0` on into `rgb`
     /// (one slice per channel, all of the same length).
-    fn fill_row(&self, y: usize, x0: usize, rgb: [&mut [f32]; 3]) {
+    fn fill_row(&self, y: usize, x0: usize, mut rgb: [&mut [f32]; 3]) {
         match self {
             Colour::Flat(c) => {
                 for (out, &v) in rgb.into_iter().zip(c) {
@@ -389,14 +409,17 @@ impl Colour {
                 }
             }
             Colour::Image {
-                image,
+                planes,
+                width: w,
+                height: h,
                 mirrors,
                 phase_x,
                 phase_y,
+                hue_shift_degrees,
             } => {
-                let (w, h) = (image.width, image.height);
+                let (w, h) = (*w, *h);
                 let (_, row) = mirrors.source(0, (y + phase_y) % h, w, h);
-                for (out, plane) in rgb.into_iter().zip(&image.planes) {
+                for (out, plane) in rgb.iter_mut().zip(planes) {
                     let row = &plane[row * w..(row + 1) * w];
                     // Copy runs of the (mirrored) image row, wrapping at its end.
                     let (mut col, mut done) = ((x0 + phase_x) % w, 0);
@@ -407,13 +430,19 @@ impl Colour {
                             let src = &row[w - col - run..w - col];
                             dst.iter_mut()
                                 .zip(src.iter().rev())
-                                .for_each(|(d, &s)| *d = s);
+                                .for_each(|(d, &s)| *d = s as f32);
                         } else {
-                            dst.copy_from_slice(&row[col..col + run]);
+                            dst.iter_mut()
+                                .zip(&row[col..col + run])
+                                .for_each(|(d, &s)| *d = s as f32);
                         }
                         done += run;
                         col = 0;
                     }
+                }
+                if let Some(degrees) = *hue_shift_degrees {
+                    let [r, g, b] = rgb;
+                    rotate_hue_planes(r, g, b, degrees);
                 }
             }
         }
@@ -471,9 +500,11 @@ fn draw_shading<R: Rng + ?Sized>(
 mod tests {
     use super::*;
     use image::RgbImage;
+    use matseg_image::rgb::rotate_hue;
 
     /// A texture's colours through `Colour` equal the texture turned and
-    /// mirrored by the image crate, then tiled or cropped.
+    /// mirrored by the image crate, then tiled or cropped, then hue shifted
+    /// pixel by pixel.
     #[test]
     fn texture_colours_follow_the_drawn_orientation() {
         let img = RgbImage::from_fn(7, 5, |x, y| image::Rgb([x as u8 * 30, y as u8 * 40, 9]));
@@ -515,10 +546,14 @@ mod tests {
                 },
             };
             // A stretched window as large as the texture: scene = texture.
-            for (fill, shown) in [
+            let fills = [
                 (tile, (w, h, 3, 2)),
                 (stretch, (tw as usize, th as usize, 0, 0)),
-            ] {
+            ];
+            for ((fill, shown), hue_shift_degrees) in fills
+                .into_iter()
+                .flat_map(|f| [(f.clone(), None), (f, Some(137.0f32))])
+            {
                 let (sw, sh, ox, oy) = shown;
                 let support = Region {
                     x1: support.x1.min(sw),
@@ -531,7 +566,7 @@ mod tests {
                     flip_x,
                     flip_y,
                     fill,
-                    hue_shift_degrees: None,
+                    hue_shift_degrees,
                 };
                 let colour = Colour::new(&source, Some(&photo), support);
                 let span = support.x1 - support.x0;
@@ -540,8 +575,10 @@ mod tests {
                     colour.fill_row(y, support.x0, rgb.each_mut().map(|c| &mut c[..]));
                     for x in support.x0..support.x1 {
                         let px = want.get_pixel((x + ox) as u32 % tw, (y + oy) as u32 % th);
-                        let got = [0, 1, 2].map(|c| rgb[c][x - support.x0] as u8);
-                        assert_eq!(got, px.0, "bits {bits} ({x}, {y})");
+                        let px = px.0.map(f32::from);
+                        let px = hue_shift_degrees.map_or(px, |d| rotate_hue(px, d));
+                        let got = [0, 1, 2].map(|c| rgb[c][x - support.x0]);
+                        assert_eq!(got, px, "bits {bits} ({x}, {y}) {hue_shift_degrees:?}");
                     }
                 }
             }
