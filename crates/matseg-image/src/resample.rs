@@ -289,17 +289,22 @@ impl WindowReader<'_> {
                 if source_rows < rows.len() {
                     // Upscaling: blend the columns of each source row once, then
                     // blend pairs of those rows (cheap, vectorised) per output row.
-                    let top = rows[0].first;
+                    // Output rows read source rows in increasing order, two
+                    // neighbours at a time: two slots (by the row's parity) hold them.
                     let mut padded = vec![0u8; span + 1 + ROW_SLACK];
-                    let mut by_columns = vec![0i16; source_rows * out_w];
-                    for (y, out_row) in by_columns.chunks_exact_mut(out_w).enumerate() {
-                        let row = &src[(top + y) * level.width + first..][..span];
-                        padded[..span].copy_from_slice(row);
-                        padded[span] = row[span - 1];
-                        taps.blend_unrounded(&padded, out_row);
-                    }
-                    let at = |y: usize| &by_columns[(y - top) * out_w..][..out_w];
+                    let mut by_columns = [vec![0i16; out_w], vec![0i16; out_w]];
+                    let mut held = [usize::MAX; 2];
                     for (row, out_row) in rows.iter().zip(out.chunks_exact_mut(out_w)) {
+                        for y in [row.first, row.second] {
+                            if held[y % 2] != y {
+                                let source = &src[y * level.width + first..][..span];
+                                padded[..span].copy_from_slice(source);
+                                padded[span] = source[span - 1];
+                                taps.blend_unrounded(&padded, &mut by_columns[y % 2]);
+                                held[y % 2] = y;
+                            }
+                        }
+                        let at = |y: usize| &by_columns[y % 2];
                         blend_rows_rounded(at(row.first), at(row.second), row.weight, out_row);
                     }
                 } else {
