@@ -23,7 +23,7 @@ pub fn resize_longer_side(image: RgbImage, max_side: u32) -> (RgbImage, f32) {
     let scale = max_side as f32 / longer as f32;
     let w = ((image.width() as f32 * scale).round() as usize).max(1);
     let h = ((image.height() as f32 * scale).round() as usize).max(1);
-    let resized = Pyramid::new(image).resize_rgb(w, h).to_rgb8();
+    let resized = Pyramid::new(image).resize(w, h);
     (resized, scale)
 }
 

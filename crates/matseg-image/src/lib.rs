@@ -30,4 +30,3 @@ pub use mirrors::Mirrors;
 pub use plane::Plane;
 pub use ramp::Ramp;
 pub use resample::{Placement, Pyramid};
-pub use rgb::RgbF32;

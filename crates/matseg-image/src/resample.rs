@@ -4,7 +4,6 @@
 use crate::bilinear::{blend_rows, blend_rows_rounded, ColumnTaps, ROW_SLACK, WEIGHT_ONE};
 use crate::channel::{levels_of, Channel};
 use crate::levels::ChannelWindow;
-use crate::rgb::RgbF32;
 use image::RgbImage;
 use serde::{Deserialize, Serialize};
 
@@ -183,9 +182,20 @@ impl Pyramid {
         std::array::from_fn(|lane| window.plane(lane))
     }
 
-    /// The selected window as a float RGB image (whole 0..255 values).
-    pub fn sample_rgb(&self, placement: &Placement, out_w: usize, out_h: usize) -> RgbF32 {
-        RgbF32::from_planes8(out_w, out_h, &self.sample_planes(placement, out_w, out_h))
+    /// The whole image resized to `w x h`, as an 8-bit RGB image.
+    pub fn resize(&self, w: usize, h: usize) -> RgbImage {
+        let whole = Placement {
+            resized_w: w as u32,
+            resized_h: h as u32,
+            x0: 0,
+            y0: 0,
+        };
+        let planes = self.sample_planes(&whole, w, h);
+        let mut raw = vec![0u8; 3 * w * h];
+        for (i, px) in raw.chunks_exact_mut(3).enumerate() {
+            px.copy_from_slice(&planes.each_ref().map(|plane| plane[i]));
+        }
+        RgbImage::from_raw(w as u32, h as u32, raw).expect("buffer length matches the image size")
     }
 
     /// One channel of the selected window, as 8-bit levels: the RGB window
@@ -212,17 +222,6 @@ impl Pyramid {
             channel,
             levels,
         }
-    }
-
-    /// The whole image resized to `w x h`.
-    pub fn resize_rgb(&self, w: usize, h: usize) -> RgbF32 {
-        let whole = Placement {
-            resized_w: w as u32,
-            resized_h: h as u32,
-            x0: 0,
-            y0: 0,
-        };
-        self.sample_rgb(&whole, w, h)
     }
 }
 
@@ -406,14 +405,12 @@ mod tests {
             x0: 5,
             y0: 7,
         };
-        let out = p.sample_rgb(&place, 10, 8);
+        let out = p.sample_planes(&place, 10, 8);
         for y in 0..8 {
             for x in 0..10 {
                 let src = img.get_pixel(x as u32 + 5, y as u32 + 7);
-                let got = out.pixel(y * 10 + x);
-                for c in 0..3 {
-                    assert!((got[c] - src[c] as f32).abs() < 1e-4);
-                }
+                let got = out.each_ref().map(|plane| plane[y * 10 + x]);
+                assert_eq!(got, src.0);
             }
         }
     }
@@ -426,8 +423,8 @@ mod tests {
         assert_eq!((p.levels[1].width, p.levels[1].height), (64, 32));
         assert!(p.levels[1].planes[0].iter().all(|&v| v == 100));
         // A 4x downscale reads the averaged level, not aliased columns.
-        let out = p.resize_rgb(32, 16);
-        assert!(out.planes[0].iter().all(|&v| v == 100.0));
+        let out = p.resize(32, 16);
+        assert!(out.pixels().all(|px| px.0 == [100, 0, 0]));
     }
 
     #[test]
@@ -437,8 +434,7 @@ mod tests {
         let want = image::imageops::rotate270(&img);
         let (w, h) = (turned.width(), turned.height());
         assert_eq!((w, h), want.dimensions());
-        let got = turned.resize_rgb(w as usize, h as usize).to_rgb8();
-        assert_eq!(got, want);
+        assert_eq!(turned.resize(w as usize, h as usize), want);
         assert_eq!(turned.levels.len(), Pyramid::new(want).levels.len());
     }
 

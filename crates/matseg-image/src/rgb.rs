@@ -1,53 +1,7 @@
-//! Float RGB images (values on the 0..255 scale) for composition, stored as
-//! three planes so that per-pixel arithmetic vectorises.
+//! RGB on three `f32` planes (values on the 0..255 scale), as composition
+//! works: hue rotation, and rounding into interleaved 8-bit RGB.
 
 use crate::plane::round_to_u8;
-use image::RgbImage;
-
-/// A row-major RGB image with `f32` channels on the 0..255 scale, one plane
-/// per channel.
-#[derive(Clone, Debug, PartialEq)]
-pub struct RgbF32 {
-    /// Width in pixels.
-    pub width: usize,
-    /// Height in pixels.
-    pub height: usize,
-    /// The R, G and B planes, `width * height` values each, row by row.
-    pub planes: [Vec<f32>; 3],
-}
-
-impl RgbF32 {
-    /// Planes of 8-bit values.
-    pub fn from_planes8(width: usize, height: usize, planes: &[Vec<u8>; 3]) -> Self {
-        Self {
-            width,
-            height,
-            planes: planes
-                .each_ref()
-                .map(|p| p.iter().map(|&v| v as f32).collect()),
-        }
-    }
-
-    /// The colour of pixel `i` (row-major index).
-    pub fn pixel(&self, i: usize) -> [f32; 3] {
-        self.planes.each_ref().map(|p| p[i])
-    }
-
-    /// Rounds and clamps to an 8-bit RGB image.
-    pub fn to_rgb8(&self) -> RgbImage {
-        let [r, g, b] = &self.planes;
-        let mut raw = vec![0u8; r.len() * 3];
-        interleave_rounded([r, g, b], &mut raw);
-        RgbImage::from_raw(self.width as u32, self.height as u32, raw)
-            .expect("buffer length matches the image size")
-    }
-
-    /// Rotates the hue of every pixel by `degrees` (see [`rotate_hue`]).
-    pub fn rotate_hue(&mut self, degrees: f32) {
-        let [r, g, b] = &mut self.planes;
-        rotate_hue_planes(r, g, b, degrees);
-    }
-}
 
 /// Rounds and clamps three planes of equal length into interleaved 8-bit
 /// RGB (`out` holds three values per pixel): 64 pixels at a time, each
@@ -153,14 +107,19 @@ mod tests {
     }
 
     #[test]
-    fn planes_round_trip_and_rotate_like_pixels() {
-        let planes = [vec![255u8, 12, 0], vec![0, 200, 7], vec![0, 99, 7]];
-        let mut img = RgbF32::from_planes8(3, 1, &planes);
-        assert_eq!(img.to_rgb8().as_raw(), &[255, 0, 0, 12, 200, 99, 0, 7, 7]);
-        let before: Vec<[f32; 3]> = (0..3).map(|i| img.pixel(i)).collect();
-        img.rotate_hue(33.0);
+    fn planes_interleave_and_rotate_like_pixels() {
+        let [mut r, mut g, mut b] = [
+            vec![255.0f32, 12.0, 0.0],
+            vec![0.0, 200.0, 7.0],
+            vec![0.0, 99.0, 7.0],
+        ];
+        let mut raw = [0u8; 9];
+        interleave_rounded([&r, &g, &b], &mut raw);
+        assert_eq!(raw, [255, 0, 0, 12, 200, 99, 0, 7, 7]);
+        let before: Vec<[f32; 3]> = (0..3).map(|i| [r[i], g[i], b[i]]).collect();
+        rotate_hue_planes(&mut r, &mut g, &mut b, 33.0);
         for (i, px) in before.into_iter().enumerate() {
-            assert!(close(img.pixel(i), rotate_hue(px, 33.0)));
+            assert_eq!([r[i], g[i], b[i]], rotate_hue(px, 33.0));
         }
     }
 }
