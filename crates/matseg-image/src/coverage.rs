@@ -92,8 +92,10 @@ impl Coverage {
     /// block is recorded once.
     #[inline(always)]
     pub fn add_run(&mut self, y: usize, x0: usize, run: &[f32]) {
-        // The whole block is tested at once (vectorised).
-        let block_positive = |block: &[f32]| block.iter().fold(0.0f32, |m, &v| m.max(v)) > 0.0;
+        // The whole block is tested at once: an OR of comparisons vectorises
+        // (a floating-point maximum, NaN-aware, does not).
+        let block_positive =
+            |block: &[f32]| block.iter().fold(false, |any, &v| any | (v > 0.0));
         self.add_run_by(y, x0, run, block_positive, |&v| v > 0.0);
     }
 
@@ -111,13 +113,23 @@ impl Coverage {
         debug_assert!(x0.is_multiple_of(BLOCK), "runs start on a block");
         let mask = &mut self.bits[y * self.words..(y + 1) * self.words];
         let (mut first, mut last) = (None, 0);
-        for (i, block) in run.chunks(BLOCK).enumerate() {
+        let mut record = |i: usize, block: &[T]| {
             if block_positive(block) {
                 let b = x0 / BLOCK + i;
                 mask[b / 64] |= 1 << (b % 64);
                 first.get_or_insert(i);
                 last = i;
             }
+        };
+        // Whole blocks apart, so that their test is compiled for 16 values.
+        let blocks = run.chunks_exact(BLOCK);
+        let tail = blocks.remainder();
+        for (i, block) in blocks.enumerate() {
+            let block: &[T; BLOCK] = block.try_into().expect("a whole block");
+            record(i, block);
+        }
+        if !tail.is_empty() {
+            record(run.len() / BLOCK, tail);
         }
         let Some(first) = first else { return };
         let x1 = x0
