@@ -10,7 +10,7 @@ pub mod soft_maps;
 pub mod textures;
 
 pub use soft_maps::{
-    check_probabilities, combine_maps, draw_channel_map, make_soft_maps, random_photo_channel,
-    random_placement, CombineRecord, CombinedMaps, MapNormalisation, MapRecord, RawMap,
-    SoftMapError, SoftMapRecipe, SoftMaps, MAX_MAPS,
+    check_probabilities, combine_maps, draw_channel_map, make_soft_maps, random_channel_placement,
+    random_photo_channel, random_placement, CombineRecord, CombinedMaps, MapNormalisation,
+    MapRecord, RawMap, SoftMapError, SoftMapRecipe, SoftMaps, MAX_MAPS,
 };

@@ -295,9 +295,27 @@ pub fn random_placement<R: Rng + ?Sized>(
     }
 }
 
-/// A `w x h` window of one channel of `photo`: placed by [`random_placement`]
-/// (native resolution by default), the channel one of H, S, V with
-/// probability `p_hsv`, else one of R, G, B.
+/// Where a `w x h` window of one channel of `photo` comes from: placed by
+/// [`random_placement`] (native resolution by default), the channel one of
+/// H, S, V with probability `p_hsv`, else one of R, G, B.
+pub fn random_channel_placement<R: Rng + ?Sized>(
+    rng: &mut R,
+    photo: &Photo,
+    w: usize,
+    h: usize,
+    p_downscale: f64,
+    p_hsv: f64,
+) -> (Placement, Channel) {
+    let placement = random_placement(rng, photo, w, h, p_downscale, false);
+    let channels = if rng.random_bool(p_hsv) {
+        Channel::HSV
+    } else {
+        Channel::RGB
+    };
+    (placement, channels[rng.random_range(0..3)])
+}
+
+/// The window [`random_channel_placement`] draws, made whole.
 pub fn random_photo_channel<R: Rng + ?Sized>(
     rng: &mut R,
     photo: &Photo,
@@ -306,13 +324,7 @@ pub fn random_photo_channel<R: Rng + ?Sized>(
     p_downscale: f64,
     p_hsv: f64,
 ) -> (ChannelWindow, Placement) {
-    let placement = random_placement(rng, photo, w, h, p_downscale, false);
-    let channels = if rng.random_bool(p_hsv) {
-        Channel::HSV
-    } else {
-        Channel::RGB
-    };
-    let channel = channels[rng.random_range(0..3)];
+    let (placement, channel) = random_channel_placement(rng, photo, w, h, p_downscale, p_hsv);
     (
         photo.pyramid.sample_channel(&placement, w, h, channel),
         placement,

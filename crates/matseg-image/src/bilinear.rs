@@ -140,15 +140,29 @@ impl ColumnTaps {
 
     /// `out[i] = blend_pair(row[first_i], row[first_i + 1], packed_i)`.
     pub fn blend(&self, row: &[i16], out: &mut [u8]) {
-        assert!(row.len() >= self.row_len && out.len() == self.firsts.len());
+        self.blend_range(row, 0, out);
+    }
+
+    /// [`ColumnTaps::blend`] for the output columns `x0..x0 + out.len()`
+    /// only: it reads `row` from the first tap of `x0` to one past the
+    /// first tap of the last column.
+    pub fn blend_range(&self, row: &[i16], x0: usize, out: &mut [u8]) {
+        let columns = x0..x0 + out.len();
+        assert!(row.len() >= self.row_len && columns.end <= self.firsts.len());
+        let (firsts, packed) = (&self.firsts[columns.clone()], &self.packed[columns]);
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: AVX2 is present, and every index read (first, first + 1)
             // lies inside `row`, which is at least `row_len` long.
-            unsafe { avx2::blend_columns(row, &self.firsts, &self.packed, out) };
+            unsafe { avx2::blend_columns(row, firsts, packed, out) };
             return;
         }
-        blend_columns_portable(row, &self.firsts, &self.packed, out);
+        blend_columns_portable(row, firsts, packed, out);
+    }
+
+    /// The first of the two row values output column `x` reads.
+    pub fn first(&self, x: usize) -> usize {
+        self.firsts[x] as usize
     }
 }
 

@@ -94,8 +94,7 @@ impl Coverage {
     pub fn add_run(&mut self, y: usize, x0: usize, run: &[f32]) {
         // The whole block is tested at once: an OR of comparisons vectorises
         // (a floating-point maximum, NaN-aware, does not).
-        let block_positive =
-            |block: &[f32]| block.iter().fold(false, |any, &v| any | (v > 0.0));
+        let block_positive = |block: &[f32]| block.iter().fold(false, |any, &v| any | (v > 0.0));
         self.add_run_by(y, x0, run, block_positive, |&v| v > 0.0);
     }
 

@@ -8,6 +8,7 @@
 pub mod bilinear;
 pub mod blur;
 pub mod channel;
+pub mod channel_rows;
 pub mod coverage;
 pub mod io;
 pub mod levels;
@@ -21,6 +22,7 @@ pub mod rgb;
 
 pub use blur::{gaussian_blur, gaussian_blur_covered, CoveredBlur};
 pub use channel::Channel;
+pub use channel_rows::ChannelRows;
 pub use coverage::{Coverage, Region};
 pub use io::ImageIoError;
 pub use levels::{level_values, ChannelWindow, LevelHistogram, LevelTable};

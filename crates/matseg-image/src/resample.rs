@@ -12,10 +12,10 @@ const MIN_LEVEL_SIDE: usize = 32;
 
 /// One level of a pyramid: the R, G and B planes of an 8-bit image.
 #[derive(Clone, Debug)]
-struct Level {
-    width: usize,
-    height: usize,
-    planes: [Vec<u8>; 3],
+pub(crate) struct Level {
+    pub(crate) width: usize,
+    pub(crate) height: usize,
+    pub(crate) planes: [Vec<u8>; 3],
 }
 
 impl Level {
@@ -130,7 +130,12 @@ impl Pyramid {
 
     /// How to read the window `placement` selects, `out_w x out_h` pixels:
     /// worked out once and shared by every plane read from it.
-    fn window(&self, placement: &Placement, out_w: usize, out_h: usize) -> WindowReader<'_> {
+    pub(crate) fn window(
+        &self,
+        placement: &Placement,
+        out_w: usize,
+        out_h: usize,
+    ) -> WindowReader<'_> {
         let fx = self.width() as f64 / placement.resized_w as f64;
         let fy = self.height() as f64 / placement.resized_h as f64;
         if out_w == 0 || out_h == 0 || (fx == 1.0 && fy == 1.0) {
@@ -226,7 +231,7 @@ impl Pyramid {
 }
 
 /// A window of a pyramid, ready to read plane by plane.
-enum WindowReader<'a> {
+pub(crate) enum WindowReader<'a> {
     /// A crop of the full-resolution level.
     Crop {
         level: &'a Level,
@@ -254,7 +259,7 @@ impl WindowReader<'_> {
     /// OpenCV resizes `uint8` images. Rows are blended first, then columns;
     /// when upscaling, columns first, so each source row is blended once
     /// (the same integer sums, so the same bytes; see [`crate::bilinear`]).
-    fn plane(&self, lane: usize) -> Vec<u8> {
+    pub(crate) fn plane(&self, lane: usize) -> Vec<u8> {
         match self {
             WindowReader::Crop {
                 level,
@@ -328,10 +333,10 @@ impl WindowReader<'_> {
 
 /// Two source indices along one axis and the weight of the second, in 128ths.
 #[derive(Clone, Copy, Debug)]
-struct Tap {
-    first: usize,
-    second: usize,
-    weight: i32,
+pub(crate) struct Tap {
+    pub(crate) first: usize,
+    pub(crate) second: usize,
+    pub(crate) weight: i32,
 }
 
 /// For each output index along one axis: the two source indices and the

@@ -2,10 +2,10 @@
 //! rotated, mirrored, hue-shifted) or a flat colour, with optional shading.
 
 use crate::recipe::CompositionRecipe;
-use matseg_extract::random_photo_channel;
+use matseg_extract::random_channel_placement;
 use matseg_image::rgb::rotate_hue_planes;
 use matseg_image::{
-    level_values, Channel, ChannelWindow, Coverage, CoveredBlur, LevelTable, LibraryError, Mirrors,
+    level_values, Channel, ChannelRows, Coverage, CoveredBlur, LevelTable, LibraryError, Mirrors,
     Photo, PhotoLibrary, Placement, Plane, Pyramid, Region,
 };
 use rand::Rng;
@@ -146,15 +146,15 @@ impl DrawnMaterial {
         // Pixels where the weight is 0 add nothing, so the shading blur and
         // the blending skip every block without one.
         let support = coverage.support()?;
-        let w = weight.width;
+        let (w, h) = (weight.width, weight.height);
         Some(Layer {
             weight,
             coverage,
             colour: Colour::new(&self.record.source, self.texture.as_deref(), support),
             shading: self.shading.as_ref().map(|s| {
                 (
-                    s,
-                    CoveredBlur::new(w, weight.height, s.record.kernel, coverage),
+                    Shade::new(s, w, h),
+                    CoveredBlur::new(w, h, s.record.kernel, coverage),
                 )
             }),
             rgb: [vec![0f32; w], vec![0f32; w], vec![0f32; w]],
@@ -169,7 +169,7 @@ pub(crate) struct Layer<'a> {
     weight: &'a Plane,
     coverage: &'a Coverage,
     colour: Colour<'a>,
-    shading: Option<(&'a Shading, CoveredBlur<'a>)>,
+    shading: Option<(Shade<'a>, CoveredBlur<'a>)>,
     rgb: [Vec<f32>; 3],
     factor: Vec<f32>,
 }
@@ -181,11 +181,10 @@ impl Layer<'_> {
     /// increasing order.
     pub(crate) fn add_row(&mut self, y: usize, acc: &mut [Vec<f32>; 3]) {
         let shade = match &mut self.shading {
-            Some((shading, blur)) => {
-                let source =
-                    |y, x0, run: &mut [f32]| shading.window.map_run(y, x0, &shading.values, run);
-                match blur.row(y, source) {
-                    Some(row) => Some((row, shading.record.strength)),
+            Some((shade, blur)) => {
+                let strength = shade.strength;
+                match blur.row(y, |y, x0, run| shade.run(y, x0, run)) {
+                    Some(row) => Some((row, strength)),
                     None => return,
                 }
             }
@@ -449,12 +448,50 @@ impl<'a> Colour<'a> {
     }
 }
 
-/// A material's shading before its blur: the photo channel window and the
-/// table that divides it by its maximum.
+/// A material's shading as drawn: its photo and how it is read.
 struct Shading {
-    window: ChannelWindow,
-    values: LevelTable,
+    photo: Arc<Photo>,
     record: ShadingRecord,
+}
+
+/// A shading as it is blended, before its blur: the photo channel's
+/// window, made only on the runs the blur reads, and the table that
+/// divides it by its maximum.
+struct Shade<'a> {
+    rows: ChannelRows<'a>,
+    values: LevelTable,
+    levels: Vec<u8>,
+    strength: f32,
+}
+
+impl<'a> Shade<'a> {
+    /// The shading of a `w x h` scene.
+    fn new(shading: &'a Shading, w: usize, h: usize) -> Self {
+        let record = &shading.record;
+        let mut rows = ChannelRows::new(
+            &shading.photo.pyramid,
+            &record.placement,
+            w,
+            h,
+            record.channel,
+        );
+        let values = level_values(rows.max_level());
+        Self {
+            rows,
+            values,
+            levels: vec![0; w],
+            strength: record.strength,
+        }
+    }
+
+    /// Columns `x0..x0 + run.len()` of row `y` of the shading.
+    fn run(&mut self, y: usize, x0: usize, run: &mut [f32]) {
+        let levels = &mut self.levels[..run.len()];
+        self.rows.run(y, x0, levels);
+        for (v, &l) in run.iter_mut().zip(levels.iter()) {
+            *v = self.values[l as usize];
+        }
+    }
 }
 
 /// Draws the shading of one material of a `w x h` scene (the blur is
@@ -467,7 +504,7 @@ fn draw_shading<R: Rng + ?Sized>(
     h: usize,
 ) -> Result<Shading, LibraryError> {
     let photo = photos.pick(|n| rng.random_range(0..n))?;
-    let (window, placement) = random_photo_channel(
+    let (placement, channel) = random_channel_placement(
         rng,
         &photo,
         w,
@@ -475,7 +512,6 @@ fn draw_shading<R: Rng + ?Sized>(
         recipe.p_shading_downscale,
         recipe.p_shading_hsv,
     );
-    let values = level_values(window.max_level());
     let kernel = recipe.shading_kernels[rng.random_range(0..recipe.shading_kernels.len())];
     let strength = if rng.random_bool(recipe.p_shading_full_strength) {
         1.0
@@ -485,15 +521,11 @@ fn draw_shading<R: Rng + ?Sized>(
     let record = ShadingRecord {
         photo: photo.index,
         placement,
-        channel: window.channel,
+        channel,
         kernel,
         strength,
     };
-    Ok(Shading {
-        window,
-        values,
-        record,
-    })
+    Ok(Shading { photo, record })
 }
 
 #[cfg(test)]
