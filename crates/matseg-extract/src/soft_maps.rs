@@ -505,13 +505,19 @@ pub fn combine_maps<R: Rng + ?Sized>(
 /// `members` set for map `k`.
 fn member_runs(reach: &[Coverage], y: usize) -> Vec<(usize, usize, u64)> {
     let width = reach[0].width();
+    // Each map's covered blocks set its bit (maps cover a few blocks each).
+    let mut members = vec![0u64; reach[0].blocks_per_row()];
+    for (k, c) in reach.iter().enumerate() {
+        for (i, &word) in c.row(y).iter().enumerate() {
+            let mut bits = word;
+            while bits != 0 {
+                members[i * 64 + bits.trailing_zeros() as usize] |= 1 << k;
+                bits &= bits - 1;
+            }
+        }
+    }
     let mut runs: Vec<(usize, usize, u64)> = Vec::new();
-    for b in 0..reach[0].blocks_per_row() {
-        let members = reach
-            .iter()
-            .enumerate()
-            .filter(|(_, c)| c.block_is_covered(y, b))
-            .fold(0u64, |m, (k, _)| m | 1 << k);
+    for (b, &members) in members.iter().enumerate() {
         if members == 0 {
             continue;
         }

@@ -156,12 +156,6 @@ impl Coverage {
         r.y1 = r.y1.max(y + 1);
     }
 
-    /// Whether block `b` (columns `b * BLOCK..`) of row `y` is covered.
-    #[inline]
-    pub fn block_is_covered(&self, y: usize, b: usize) -> bool {
-        self.bits[y * self.words + b / 64] & (1 << (b % 64)) != 0
-    }
-
     /// Width of the plane in pixels.
     pub fn width(&self) -> usize {
         self.width
@@ -240,7 +234,8 @@ impl Coverage {
         }
     }
 
-    fn row(&self, y: usize) -> &[u64] {
+    /// Row `y`'s block bit set: bit `b % 64` of word `b / 64` is block `b`.
+    pub fn row(&self, y: usize) -> &[u64] {
         &self.bits[y * self.words..(y + 1) * self.words]
     }
 }
