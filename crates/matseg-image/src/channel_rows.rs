@@ -1,13 +1,37 @@
-//! One channel of a window of a pyramid, made on demand: any run of any row,
-//! with the same levels as [`Pyramid::sample_channel`] gives, and the
-//! window's exact maximum found without making every pixel. For consumers
-//! that read a few blocks of a scene-sized window (a shading, under the
-//! blur of a material that covers a tenth of the scene).
+//! Windows of a pyramid made on demand: any run of any row of the R, G or B
+//! plane ([`WindowRows`]) or of one channel ([`ChannelRows`], with the
+//! window's exact maximum found without making every pixel), with the same
+//! values as the whole window. For consumers that read a few blocks of a
+//! scene-sized window (a shading or a stretched texture, where a material
+//! that covers a tenth of the scene is visible).
 
 use crate::bilinear::blend_rows;
 use crate::channel::Channel;
 use crate::levels::ChannelWindow;
 use crate::resample::{Placement, Pyramid, WindowReader};
+
+/// The R, G and B planes of a window, read run by run.
+pub struct WindowRows<'a> {
+    reader: WindowReader<'a>,
+    /// Scratch: a row blend.
+    blended: Vec<i16>,
+}
+
+impl<'a> WindowRows<'a> {
+    /// The `w x h` window `placement` selects from `pyramid`.
+    pub fn new(pyramid: &'a Pyramid, placement: &Placement, w: usize, h: usize) -> Self {
+        Self {
+            reader: pyramid.window(placement, w, h),
+            blended: Vec::new(),
+        }
+    }
+
+    /// Writes columns `x0..x0 + out.len()` of row `y` of plane `lane` (0 =
+    /// R, 1 = G, 2 = B), as [`Pyramid::sample_planes`] has them.
+    pub fn run(&mut self, lane: usize, y: usize, x0: usize, out: &mut [u8]) {
+        self.reader.run(lane, y, x0, out, &mut self.blended);
+    }
+}
 
 /// A channel window read row run by row run; see the module documentation.
 pub struct ChannelRows<'a> {
@@ -21,11 +45,10 @@ enum Source<'a> {
     /// is made whole.
     Whole(ChannelWindow),
     /// R, G or B (one lane), or V (the largest of the three), resampled
-    /// run by run. `blended` holds a row blend, `lane` one lane's run of V.
+    /// run by run; `lane` holds one lane's run of V.
     OnDemand {
-        reader: WindowReader<'a>,
+        rows: WindowRows<'a>,
         lanes: &'static [usize],
-        blended: Vec<i16>,
         lane: Vec<u8>,
     },
 }
@@ -56,9 +79,8 @@ impl<'a> ChannelRows<'a> {
             width: w,
             height: h,
             source: Source::OnDemand {
-                reader: pyramid.window(placement, w, h),
+                rows: WindowRows::new(pyramid, placement, w, h),
                 lanes,
-                blended: Vec::new(),
                 lane: Vec::new(),
             },
         }
@@ -70,16 +92,11 @@ impl<'a> ChannelRows<'a> {
             Source::Whole(window) => {
                 out.copy_from_slice(&window.levels[y * self.width + x0..][..out.len()]);
             }
-            Source::OnDemand {
-                reader,
-                lanes,
-                blended,
-                lane,
-            } => {
-                reader.run(lanes[0], y, x0, out, blended);
+            Source::OnDemand { rows, lanes, lane } => {
+                rows.run(lanes[0], y, x0, out);
                 for &other in &lanes[1..] {
                     lane.resize(out.len(), 0);
-                    reader.run(other, y, x0, lane, blended);
+                    rows.run(other, y, x0, lane);
                     for (o, &l) in out.iter_mut().zip(lane.iter()) {
                         *o = (*o).max(l);
                     }
@@ -97,11 +114,11 @@ impl<'a> ChannelRows<'a> {
         let (w, h) = (self.width, self.height);
         let bounds = match &self.source {
             Source::Whole(window) => return window.max_level(),
-            Source::OnDemand { reader, lanes, .. } => {
+            Source::OnDemand { rows, lanes, .. } => {
                 if w == 0 || h == 0 {
                     return 0;
                 }
-                reader.row_bounds(lanes)
+                rows.reader.row_bounds(lanes)
             }
         };
         let mut order: Vec<usize> = (0..h).collect();

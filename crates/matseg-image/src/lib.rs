@@ -22,7 +22,7 @@ pub mod rgb;
 
 pub use blur::{gaussian_blur, gaussian_blur_covered, CoveredBlur};
 pub use channel::Channel;
-pub use channel_rows::ChannelRows;
+pub use channel_rows::{ChannelRows, WindowRows};
 pub use coverage::{Coverage, Region};
 pub use io::ImageIoError;
 pub use levels::{level_values, ChannelWindow, LevelHistogram, LevelTable};

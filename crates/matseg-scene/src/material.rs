@@ -6,7 +6,7 @@ use matseg_extract::random_channel_placement;
 use matseg_image::rgb::rotate_hue_planes;
 use matseg_image::{
     level_values, Channel, ChannelRows, Coverage, CoveredBlur, LevelTable, LibraryError, Mirrors,
-    Photo, PhotoLibrary, Placement, Plane, Pyramid, Region,
+    Photo, PhotoLibrary, Placement, Plane, Pyramid, WindowRows,
 };
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -145,12 +145,12 @@ impl DrawnMaterial {
     ) -> Option<Layer<'a>> {
         // Pixels where the weight is 0 add nothing, so the shading blur and
         // the blending skip every block without one.
-        let support = coverage.support()?;
+        coverage.support()?;
         let (w, h) = (weight.width, weight.height);
         Some(Layer {
             weight,
             coverage,
-            colour: Colour::new(&self.record.source, self.texture.as_deref(), support),
+            colour: Colour::new(&self.record.source, self.texture.as_deref(), w, h),
             shading: self.shading.as_ref().map(|s| {
                 (
                     Shade::new(s, w, h),
@@ -299,17 +299,17 @@ fn draw_texture<R: Rng + ?Sized>(
     Ok((texture, source))
 }
 
-/// A material's colour before shading, over the rectangle of the scene
-/// where it is visible.
+/// A material's colour before shading, made row run by row run; its hue
+/// turned by `hue_shift_degrees` if any.
 enum Colour<'a> {
     /// One colour everywhere.
     Flat([f32; 3]),
-    /// An 8-bit image of the texture as drawn (turned if it is, resized),
-    /// read mirrored by `mirrors`, repeated and hue shifted: scene pixel
-    /// `(x, y)` shows pixel `((x + phase_x) mod width, (y + phase_y) mod
-    /// height)` of the mirrored image, its hue turned by `hue_shift_degrees`.
-    /// A texture tiled at its own size is read from its photo, not copied.
-    Image {
+    /// A tile: an 8-bit image of the texture as drawn (turned if it is,
+    /// resized), read mirrored by `mirrors` and repeated: scene pixel `(x,
+    /// y)` shows pixel `((x + phase_x) mod width, (y + phase_y) mod height)`
+    /// of the mirrored image. A tile at the texture's own size is read from
+    /// its photo, not copied.
+    Tiled {
         planes: [Cow<'a, [u8]>; 3],
         width: usize,
         height: usize,
@@ -318,12 +318,24 @@ enum Colour<'a> {
         phase_y: usize,
         hue_shift_degrees: Option<f32>,
     },
+    /// A stretched texture: a scene-sized window of it, made only on the
+    /// runs blended (a material is visible on a few blocks of the scene)
+    /// and read mirrored: scene pixel `(x, y)` shows the window's pixel
+    /// `mirrors.source(x, y)`. `levels` is scratch.
+    Stretched {
+        rows: WindowRows<'a>,
+        width: usize,
+        height: usize,
+        mirrors: Mirrors,
+        hue_shift_degrees: Option<f32>,
+        levels: Vec<u8>,
+    },
 }
 
 impl<'a> Colour<'a> {
-    /// The colour of a material from its record, where it is visible in
-    /// `support` (not empty); `texture` is the texture's photo for a texture.
-    fn new(source: &MaterialSource, texture: Option<&'a Photo>, support: Region) -> Self {
+    /// The colour of a material of a `w x h` scene from its record;
+    /// `texture` is the texture's photo for a texture.
+    fn new(source: &MaterialSource, texture: Option<&'a Photo>, w: usize, h: usize) -> Self {
         let (fill, rot90, flip_x, flip_y, hue_shift_degrees) = match *source {
             MaterialSource::FlatColour { rgb } => return Colour::Flat(rgb.map(f32::from)),
             MaterialSource::Texture {
@@ -340,6 +352,26 @@ impl<'a> Colour<'a> {
         let pyramid = drawn_pixels(texture, rot90);
         let mirrors = Mirrors { flip_x, flip_y };
         let (planes, width, height, phase_x, phase_y) = match *fill {
+            Fill::Stretch { placement } => {
+                // The texture is mirrored before it is resized and cropped:
+                // the crop of the mirrored image is the mirrored crop of the
+                // unmirrored one at the mirrored corner.
+                let (rw, rh) = (placement.resized_w as usize, placement.resized_h as usize);
+                let (x0, y0) = (placement.x0 as usize, placement.y0 as usize);
+                let window = Placement {
+                    x0: if flip_x { rw - x0 - w } else { x0 } as u32,
+                    y0: if flip_y { rh - y0 - h } else { y0 } as u32,
+                    ..placement
+                };
+                return Colour::Stretched {
+                    rows: WindowRows::new(pyramid, &window, w, h),
+                    width: w,
+                    height: h,
+                    mirrors,
+                    hue_shift_degrees,
+                    levels: vec![0; w],
+                };
+            }
             Fill::Tile {
                 tile_w,
                 tile_h,
@@ -361,33 +393,8 @@ impl<'a> Colour<'a> {
                 };
                 (planes, tw, th, offset_x as usize, offset_y as usize)
             }
-            Fill::Stretch { placement } => {
-                // The visible part of the mirrored texture's window is a
-                // rectangle of the unmirrored one: sample only that.
-                let (rw, rh) = (placement.resized_w as usize, placement.resized_h as usize);
-                let (x0, y0) = (placement.x0 as usize, placement.y0 as usize);
-                let (span_w, span_h) = (support.x1 - support.x0, support.y1 - support.y0);
-                let corner = |x, y| mirrors.source(x0 + x, y0 + y, rw, rh);
-                let (ax, ay) = corner(support.x0, support.y0);
-                let (bx, by) = corner(support.x1 - 1, support.y1 - 1);
-                let window = Placement {
-                    x0: ax.min(bx) as u32,
-                    y0: ay.min(by) as u32,
-                    ..placement
-                };
-                let phase = |start: usize, len: usize| (len - start % len) % len;
-                (
-                    pyramid
-                        .sample_planes(&window, span_w, span_h)
-                        .map(Cow::Owned),
-                    span_w,
-                    span_h,
-                    phase(support.x0, span_w),
-                    phase(support.y0, span_h),
-                )
-            }
         };
-        Colour::Image {
+        Colour::Tiled {
             planes,
             width,
             height,
@@ -400,14 +407,15 @@ impl<'a> Colour<'a> {
 
     /// Writes the colours of scene row `y` from column `x0` on into `rgb`
     /// (one slice per channel, all of the same length).
-    fn fill_row(&self, y: usize, x0: usize, mut rgb: [&mut [f32]; 3]) {
-        match self {
+    fn fill_row(&mut self, y: usize, x0: usize, mut rgb: [&mut [f32]; 3]) {
+        let hue_shift = match self {
             Colour::Flat(c) => {
-                for (out, &v) in rgb.into_iter().zip(c) {
+                for (out, &v) in rgb.into_iter().zip(c.iter()) {
                     out.fill(v);
                 }
+                return;
             }
-            Colour::Image {
+            Colour::Tiled {
                 planes,
                 width: w,
                 height: h,
@@ -417,35 +425,66 @@ impl<'a> Colour<'a> {
                 hue_shift_degrees,
             } => {
                 let (w, h) = (*w, *h);
-                let (_, row) = mirrors.source(0, (y + phase_y) % h, w, h);
-                for (out, plane) in rgb.iter_mut().zip(planes) {
+                let (_, row) = mirrors.source(0, (y + *phase_y) % h, w, h);
+                for (out, plane) in rgb.iter_mut().zip(planes.iter()) {
                     let row = &plane[row * w..(row + 1) * w];
                     // Copy runs of the (mirrored) image row, wrapping at its end.
-                    let (mut col, mut done) = ((x0 + phase_x) % w, 0);
+                    let (mut col, mut done) = ((x0 + *phase_x) % w, 0);
                     while done < out.len() {
                         let run = (w - col).min(out.len() - done);
                         let dst = &mut out[done..done + run];
                         if mirrors.flip_x {
-                            let src = &row[w - col - run..w - col];
-                            dst.iter_mut()
-                                .zip(src.iter().rev())
-                                .for_each(|(d, &s)| *d = s as f32);
+                            widen_reversed(&row[w - col - run..w - col], dst);
                         } else {
-                            dst.iter_mut()
-                                .zip(&row[col..col + run])
-                                .for_each(|(d, &s)| *d = s as f32);
+                            widen(&row[col..col + run], dst);
                         }
                         done += run;
                         col = 0;
                     }
                 }
-                if let Some(degrees) = *hue_shift_degrees {
-                    let [r, g, b] = rgb;
-                    rotate_hue_planes(r, g, b, degrees);
-                }
+                *hue_shift_degrees
             }
+            Colour::Stretched {
+                rows,
+                width: w,
+                height: h,
+                mirrors,
+                hue_shift_degrees,
+                levels,
+            } => {
+                let n = rgb[0].len();
+                let (_, row) = mirrors.source(0, y, *w, *h);
+                // A mirrored run reads the mirrored columns, right to left.
+                let start = if mirrors.flip_x { *w - x0 - n } else { x0 };
+                let levels = &mut levels[..n];
+                for (lane, out) in rgb.iter_mut().enumerate() {
+                    rows.run(lane, row, start, levels);
+                    if mirrors.flip_x {
+                        widen_reversed(levels, out);
+                    } else {
+                        widen(levels, out);
+                    }
+                }
+                *hue_shift_degrees
+            }
+        };
+        if let Some(degrees) = hue_shift {
+            let [r, g, b] = rgb;
+            rotate_hue_planes(r, g, b, degrees);
         }
     }
+}
+
+/// `out[i] = values[i]` as floats.
+fn widen(values: &[u8], out: &mut [f32]) {
+    out.iter_mut().zip(values).for_each(|(o, &v)| *o = v as f32);
+}
+
+/// `out[i] = values[len - 1 - i]` as floats.
+fn widen_reversed(values: &[u8], out: &mut [f32]) {
+    out.iter_mut()
+        .zip(values.iter().rev())
+        .for_each(|(o, &v)| *o = v as f32);
 }
 
 /// A material's shading as drawn: its photo and how it is read.
@@ -535,19 +574,13 @@ mod tests {
     use matseg_image::rgb::rotate_hue;
 
     /// A texture's colours through `Colour` equal the texture turned and
-    /// mirrored by the image crate, then tiled or cropped, then hue shifted
-    /// pixel by pixel.
+    /// mirrored by the image crate, then tiled or cropped (whole, or a
+    /// window off its corner), then hue shifted pixel by pixel.
     #[test]
     fn texture_colours_follow_the_drawn_orientation() {
         let img = RgbImage::from_fn(7, 5, |x, y| image::Rgb([x as u8 * 30, y as u8 * 40, 9]));
         let photo = Photo::new(0, img.clone());
         let (w, h) = (11, 9);
-        let support = Region {
-            x0: 2,
-            x1: 10,
-            y0: 1,
-            y1: 8,
-        };
         for bits in 0..8 {
             let (rot90, flip_x, flip_y) = (bits & 1 != 0, bits & 2 != 0, bits & 4 != 0);
             let mut want = if rot90 {
@@ -569,29 +602,29 @@ mod tests {
                 offset_x: 3,
                 offset_y: 2,
             };
-            let stretch = Fill::Stretch {
+            let stretch = |x0, y0| Fill::Stretch {
                 placement: Placement {
                     resized_w: tw,
                     resized_h: th,
-                    x0: 0,
-                    y0: 0,
+                    x0,
+                    y0,
                 },
             };
-            // A stretched window as large as the texture: scene = texture.
+            // Stretched at the texture's size: the scene is the texture, or
+            // a window of it one pixel off its top left corner.
+            let (tw_, th_) = (tw as usize, th as usize);
             let fills = [
                 (tile, (w, h, 3, 2)),
-                (stretch, (tw as usize, th as usize, 0, 0)),
+                (stretch(0, 0), (tw_, th_, 0, 0)),
+                (stretch(1, 1), (tw_ - 3, th_ - 1, 1, 1)),
             ];
             for ((fill, shown), hue_shift_degrees) in fills
                 .into_iter()
                 .flat_map(|f| [(f.clone(), None), (f, Some(137.0f32))])
             {
                 let (sw, sh, ox, oy) = shown;
-                let support = Region {
-                    x1: support.x1.min(sw),
-                    y1: support.y1.min(sh),
-                    ..support
-                };
+                // The columns and rows blended.
+                let (xs, ys) = (1..10.min(sw), 1..8.min(sh));
                 let source = MaterialSource::Texture {
                     texture: 0,
                     rot90,
@@ -600,16 +633,16 @@ mod tests {
                     fill,
                     hue_shift_degrees,
                 };
-                let colour = Colour::new(&source, Some(&photo), support);
-                let span = support.x1 - support.x0;
+                let mut colour = Colour::new(&source, Some(&photo), sw, sh);
+                let span = xs.len();
                 let mut rgb = [vec![0f32; span], vec![0f32; span], vec![0f32; span]];
-                for y in support.y0..support.y1 {
-                    colour.fill_row(y, support.x0, rgb.each_mut().map(|c| &mut c[..]));
-                    for x in support.x0..support.x1 {
+                for y in ys {
+                    colour.fill_row(y, xs.start, rgb.each_mut().map(|c| &mut c[..]));
+                    for x in xs.clone() {
                         let px = want.get_pixel((x + ox) as u32 % tw, (y + oy) as u32 % th);
                         let px = px.0.map(f32::from);
                         let px = hue_shift_degrees.map_or(px, |d| rotate_hue(px, d));
-                        let got = [0, 1, 2].map(|c| rgb[c][x - support.x0]);
+                        let got = [0, 1, 2].map(|c| rgb[c][x - xs.start]);
                         assert_eq!(got, px, "bits {bits} ({x}, {y}) {hue_shift_degrees:?}");
                     }
                 }
