@@ -315,22 +315,6 @@ pub fn random_channel_placement<R: Rng + ?Sized>(
     (placement, channels[rng.random_range(0..3)])
 }
 
-/// The window [`random_channel_placement`] draws, made whole.
-pub fn random_photo_channel<R: Rng + ?Sized>(
-    rng: &mut R,
-    photo: &Photo,
-    w: usize,
-    h: usize,
-    p_downscale: f64,
-    p_hsv: f64,
-) -> (ChannelWindow, Placement) {
-    let (placement, channel) = random_channel_placement(rng, photo, w, h, p_downscale, p_hsv);
-    (
-        photo.pyramid.sample_channel(&placement, w, h, channel),
-        placement,
-    )
-}
-
 /// One attempt at a map from one photo: `None` when the photo gives no
 /// acceptable threshold (the caller draws another photo). The thresholds are
 /// searched on the window's level histogram; the map is one table lookup
@@ -344,8 +328,9 @@ fn try_map_from_photo<R: Rng + ?Sized>(
     hard: bool,
     recipe: &SoftMapRecipe,
 ) -> Option<(RawMap, MapRecord)> {
-    let (window, placement) =
-        random_photo_channel(rng, photo, w, h, recipe.p_downscale, recipe.p_hsv_channel);
+    let (placement, channel) =
+        random_channel_placement(rng, photo, w, h, recipe.p_downscale, recipe.p_hsv_channel);
+    let window = photo.pyramid.sample_channel(&placement, w, h, channel);
     let histogram = window.histogram();
     let normalised_by_max = rng.random_bool(recipe.p_normalise_by_max);
     let values = level_values(if normalised_by_max {

@@ -180,8 +180,22 @@ fn blend_columns_portable(row: &[i16], firsts: &[u32], packed: &[i32], out: &mut
 }
 
 #[cfg(target_arch = "x86_64")]
-mod avx2 {
+pub(crate) mod avx2 {
     use std::arch::x86_64::*;
+
+    /// Stores sixteen `i32` lanes, `lo` then `hi` (each within 0..=255),
+    /// as sixteen bytes at `out`.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2, and `out` must be valid for 16 bytes.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    pub(crate) unsafe fn store_sixteen(lo: __m256i, hi: __m256i, out: *mut u8) {
+        // Saturating packs work per 128-bit half; the permutes restore order.
+        let words = _mm256_permute4x64_epi64::<0b11_01_10_00>(_mm256_packus_epi32(lo, hi));
+        let bytes = _mm256_permute4x64_epi64::<0b11_01_10_00>(_mm256_packus_epi16(words, words));
+        _mm_storeu_si128(out as *mut __m128i, _mm256_castsi256_si128(bytes));
+    }
 
     /// AVX2 [`super::blend_rows_rounded`] with the weight packed as by
     /// `pack_weight`: the values of the two rows are interleaved into pairs
@@ -232,14 +246,7 @@ mod avx2 {
         while i + 16 <= n {
             let lo = blend_eight(base, firsts, packed, i, round);
             let hi = blend_eight(base, firsts, packed, i + 8, round);
-            // Saturating packs work per 128-bit half; the permutes restore order.
-            let words = _mm256_permute4x64_epi64::<0b11_01_10_00>(_mm256_packus_epi32(lo, hi));
-            let bytes =
-                _mm256_permute4x64_epi64::<0b11_01_10_00>(_mm256_packus_epi16(words, words));
-            _mm_storeu_si128(
-                out.as_mut_ptr().add(i) as *mut __m128i,
-                _mm256_castsi256_si128(bytes),
-            );
+            store_sixteen(lo, hi, out.as_mut_ptr().add(i));
             i += 16;
         }
         super::blend_columns_portable(row, &firsts[i..], &packed[i..], &mut out[i..]);

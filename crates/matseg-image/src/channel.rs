@@ -101,6 +101,7 @@ pub fn levels_of(channel: Channel, r: &[u8], g: &[u8], b: &[u8]) -> Vec<u8> {
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
     use super::{hue_level, saturation_level};
+    use crate::bilinear::avx2::store_sixteen;
     use std::arch::x86_64::*;
 
     /// [`hue_level`] (`hue`) or [`saturation_level`] of every pixel of the
@@ -117,14 +118,7 @@ mod avx2 {
         while i + 16 <= n {
             let lo = eight(hue, r, g, b, i);
             let hi = eight(hue, r, g, b, i + 8);
-            // Saturating packs work per 128-bit half; the permutes restore order.
-            let words = _mm256_permute4x64_epi64::<0b11_01_10_00>(_mm256_packus_epi32(lo, hi));
-            let bytes =
-                _mm256_permute4x64_epi64::<0b11_01_10_00>(_mm256_packus_epi16(words, words));
-            _mm_storeu_si128(
-                out.as_mut_ptr().add(i) as *mut __m128i,
-                _mm256_castsi256_si128(bytes),
-            );
+            store_sixteen(lo, hi, out.as_mut_ptr().add(i));
             i += 16;
         }
         let level = if hue { hue_level } else { saturation_level };
