@@ -5,9 +5,8 @@
 //! scene-sized window (a shading or a stretched texture, where a material
 //! that covers a tenth of the scene is visible).
 
-use crate::bilinear::blend_rows;
 use crate::channel::Channel;
-use crate::levels::ChannelWindow;
+use crate::levels::{look_up, ChannelWindow, LevelTable};
 use crate::resample::{Placement, Pyramid, WindowReader};
 
 /// The R, G and B planes of a window, read run by run.
@@ -38,6 +37,8 @@ pub struct ChannelRows<'a> {
     width: usize,
     height: usize,
     source: Source<'a>,
+    /// Scratch: the levels of a run made on demand.
+    levels: Vec<u8>,
 }
 
 enum Source<'a> {
@@ -45,12 +46,53 @@ enum Source<'a> {
     /// is made whole.
     Whole(ChannelWindow),
     /// R, G or B (one lane), or V (the largest of the three), resampled
-    /// run by run; `lane` holds one lane's run of V.
-    OnDemand {
-        rows: WindowRows<'a>,
-        lanes: &'static [usize],
-        lane: Vec<u8>,
-    },
+    /// run by run.
+    OnDemand(OnDemand<'a>),
+}
+
+/// The lanes of a channel made run by run; `lane` holds one lane's run of V.
+struct OnDemand<'a> {
+    rows: WindowRows<'a>,
+    lanes: &'static [usize],
+    lane: Vec<u8>,
+}
+
+impl OnDemand<'_> {
+    /// The levels of columns `x0..x0 + out.len()` of row `y`.
+    fn run(&mut self, y: usize, x0: usize, out: &mut [u8]) {
+        self.rows.run(self.lanes[0], y, x0, out);
+        for &other in &self.lanes[1..] {
+            self.lane.resize(out.len(), 0);
+            self.rows.run(other, y, x0, &mut self.lane);
+            for (o, &l) in out.iter_mut().zip(&self.lane) {
+                *o = (*o).max(l);
+            }
+        }
+    }
+
+    /// The highest level of the `w x h` window. A resampled level never
+    /// exceeds the source pixels it blends, so each row is bounded by the
+    /// largest level of the source rows it reads; rows are made in
+    /// decreasing order of that bound until no other can exceed the largest
+    /// level found.
+    fn max_level(&mut self, w: usize, h: usize) -> u8 {
+        if w == 0 || h == 0 {
+            return 0;
+        }
+        let bounds = self.rows.reader.row_bounds(self.lanes);
+        let mut order: Vec<usize> = (0..h).collect();
+        order.sort_by_key(|&y| std::cmp::Reverse(bounds[y]));
+        let mut row = vec![0u8; w];
+        let mut best = 0;
+        for y in order {
+            if bounds[y] <= best {
+                break;
+            }
+            self.run(y, 0, &mut row);
+            best = best.max(row.iter().copied().max().unwrap_or(0));
+        }
+        best
+    }
 }
 
 impl<'a> ChannelRows<'a> {
@@ -72,171 +114,52 @@ impl<'a> ChannelRows<'a> {
                     width: w,
                     height: h,
                     source: Source::Whole(pyramid.sample_channel(placement, w, h, channel)),
+                    levels: Vec::new(),
                 };
             }
         };
         Self {
             width: w,
             height: h,
-            source: Source::OnDemand {
+            source: Source::OnDemand(OnDemand {
                 rows: WindowRows::new(pyramid, placement, w, h),
                 lanes,
                 lane: Vec::new(),
-            },
+            }),
+            levels: Vec::new(),
         }
     }
 
-    /// Writes the levels of columns `x0..x0 + out.len()` of row `y`.
-    pub fn run(&mut self, y: usize, x0: usize, out: &mut [u8]) {
+    /// Columns `x0..x0 + run.len()` of row `y` through `table`, as
+    /// [`ChannelWindow::map_run`] gives them for the whole window.
+    pub fn map_run(&mut self, y: usize, x0: usize, table: &LevelTable, run: &mut [f32]) {
+        match &mut self.source {
+            Source::Whole(window) => window.map_run(y, x0, table, run),
+            Source::OnDemand(on_demand) => {
+                self.levels.resize(run.len(), 0);
+                on_demand.run(y, x0, &mut self.levels);
+                look_up(&self.levels, table, run);
+            }
+        }
+    }
+
+    /// The levels of columns `x0..x0 + out.len()` of row `y`.
+    #[cfg(test)]
+    fn run(&mut self, y: usize, x0: usize, out: &mut [u8]) {
         match &mut self.source {
             Source::Whole(window) => {
                 out.copy_from_slice(&window.levels[y * self.width + x0..][..out.len()]);
             }
-            Source::OnDemand { rows, lanes, lane } => {
-                rows.run(lanes[0], y, x0, out);
-                for &other in &lanes[1..] {
-                    lane.resize(out.len(), 0);
-                    rows.run(other, y, x0, lane);
-                    for (o, &l) in out.iter_mut().zip(lane.iter()) {
-                        *o = (*o).max(l);
-                    }
-                }
-            }
+            Source::OnDemand(on_demand) => on_demand.run(y, x0, out),
         }
     }
 
-    /// The highest level in the window (0 when it is empty). A resampled
-    /// level never exceeds the source pixels it blends, so each row is
-    /// bounded by the largest level of the source rows it reads; rows are
-    /// made in decreasing order of that bound until no other can exceed
-    /// the largest level found.
+    /// The highest level in the window (0 when it is empty), found from
+    /// bounds of the source where the window is made on demand.
     pub fn max_level(&mut self) -> u8 {
-        let (w, h) = (self.width, self.height);
-        let bounds = match &self.source {
-            Source::Whole(window) => return window.max_level(),
-            Source::OnDemand { rows, lanes, .. } => {
-                if w == 0 || h == 0 {
-                    return 0;
-                }
-                rows.reader.row_bounds(lanes)
-            }
-        };
-        let mut order: Vec<usize> = (0..h).collect();
-        order.sort_by_key(|&y| std::cmp::Reverse(bounds[y]));
-        let mut row = vec![0u8; w];
-        let mut best = 0;
-        for y in order {
-            if bounds[y] <= best {
-                break;
-            }
-            self.run(y, 0, &mut row);
-            best = best.max(row.iter().copied().max().unwrap_or(0));
-        }
-        best
-    }
-}
-
-impl WindowReader<'_> {
-    /// Columns `x0..x0 + out.len()` of row `y` of plane `lane`, as
-    /// [`WindowReader::plane`] has them (rows blended first, then columns:
-    /// the same integer sums as either order, so the same bytes); `blended`
-    /// is scratch.
-    pub(crate) fn run(
-        &self,
-        lane: usize,
-        y: usize,
-        x0: usize,
-        out: &mut [u8],
-        blended: &mut Vec<i16>,
-    ) {
-        if out.is_empty() {
-            return;
-        }
-        match self {
-            WindowReader::Crop {
-                level,
-                x0: left,
-                y0: top,
-                ..
-            } => {
-                let start = (y + top) * level.width + left + x0;
-                out.copy_from_slice(&level.planes[lane][start..start + out.len()]);
-            }
-            WindowReader::Bilinear {
-                level,
-                first,
-                span,
-                taps,
-                rows,
-                ..
-            } => {
-                let (first, span) = (*first, *span);
-                let src = &level.planes[lane];
-                let at = |s: usize| &src[s * level.width + first..][..span];
-                // The row values the columns read: from the first tap of x0
-                // to one past the first tap of the last column (the value
-                // past the end repeats the last one, as in a whole row).
-                let lo = taps.first(x0);
-                let hi = taps.first(x0 + out.len() - 1) + 1;
-                let end = hi.min(span - 1) + 1;
-                blended.resize(span + 1, 0);
-                let tap = rows[y];
-                blend_rows(
-                    &at(tap.first)[lo..end],
-                    &at(tap.second)[lo..end],
-                    tap.weight,
-                    &mut blended[lo..end],
-                );
-                if hi == span {
-                    blended[span] = blended[span - 1];
-                }
-                taps.blend_range(blended, x0, out);
-            }
-        }
-    }
-
-    /// For each output row, the largest source level (over `lanes`) that
-    /// its pixels blend: no level of the row exceeds it.
-    pub(crate) fn row_bounds(&self, lanes: &[usize]) -> Vec<u8> {
-        let row_max = |level: &crate::resample::Level, s: usize, x: usize, n: usize| {
-            lanes
-                .iter()
-                .map(|&l| {
-                    level.planes[l][s * level.width + x..][..n]
-                        .iter()
-                        .copied()
-                        .max()
-                })
-                .max()
-                .flatten()
-                .unwrap_or(0)
-        };
-        match self {
-            WindowReader::Crop {
-                level,
-                x0,
-                y0,
-                out_w,
-                out_h,
-            } => (0..*out_h)
-                .map(|y| row_max(level, y0 + y, *x0, *out_w))
-                .collect(),
-            WindowReader::Bilinear {
-                level,
-                first,
-                span,
-                rows,
-                ..
-            } => {
-                // Source rows are shared by neighbouring output rows: each
-                // is measured once.
-                let mut measured: Vec<Option<u8>> = vec![None; level.height];
-                let mut source =
-                    |s: usize| *measured[s].get_or_insert_with(|| row_max(level, s, *first, *span));
-                rows.iter()
-                    .map(|tap| source(tap.first).max(source(tap.second)))
-                    .collect()
-            }
+        match &mut self.source {
+            Source::Whole(window) => window.max_level(),
+            Source::OnDemand(on_demand) => on_demand.max_level(self.width, self.height),
         }
     }
 }

@@ -43,10 +43,7 @@ impl ChannelWindow {
     /// [`ChannelWindow::map_levels`], written into `run`, for callers that
     /// stream parts of rows.
     pub fn map_run(&self, y: usize, x0: usize, table: &LevelTable, run: &mut [f32]) {
-        let levels = &self.levels[y * self.width + x0..][..run.len()];
-        for (v, &l) in run.iter_mut().zip(levels) {
-            *v = table[l as usize];
-        }
+        look_up(&self.levels[y * self.width + x0..][..run.len()], table, run);
     }
 
     /// Where [`ChannelWindow::map_levels`] of `table` is positive. When
@@ -69,6 +66,13 @@ impl ChannelWindow {
             }
         }
         c
+    }
+}
+
+/// `out[i] = table[levels[i]]`, over the length of `out`.
+pub fn look_up(levels: &[u8], table: &LevelTable, out: &mut [f32]) {
+    for (v, &l) in out.iter_mut().zip(levels) {
+        *v = table[l as usize];
     }
 }
 

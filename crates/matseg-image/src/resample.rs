@@ -13,9 +13,9 @@ const MIN_LEVEL_SIDE: usize = 32;
 /// One level of a pyramid: the R, G and B planes of an 8-bit image.
 #[derive(Clone, Debug)]
 pub(crate) struct Level {
-    pub(crate) width: usize,
-    pub(crate) height: usize,
-    pub(crate) planes: [Vec<u8>; 3],
+    width: usize,
+    height: usize,
+    planes: [Vec<u8>; 3],
 }
 
 impl Level {
@@ -259,7 +259,7 @@ impl WindowReader<'_> {
     /// OpenCV resizes `uint8` images. Rows are blended first, then columns;
     /// when upscaling, columns first, so each source row is blended once
     /// (the same integer sums, so the same bytes; see [`crate::bilinear`]).
-    pub(crate) fn plane(&self, lane: usize) -> Vec<u8> {
+    fn plane(&self, lane: usize) -> Vec<u8> {
         match self {
             WindowReader::Crop {
                 level,
@@ -329,14 +329,117 @@ impl WindowReader<'_> {
             }
         }
     }
+
+    /// Columns `x0..x0 + out.len()` of row `y` of plane `lane`, as
+    /// [`WindowReader::plane`] has them (rows blended first, then columns:
+    /// the same integer sums as either order, so the same bytes); `blended`
+    /// is scratch.
+    pub(crate) fn run(
+        &self,
+        lane: usize,
+        y: usize,
+        x0: usize,
+        out: &mut [u8],
+        blended: &mut Vec<i16>,
+    ) {
+        if out.is_empty() {
+            return;
+        }
+        match self {
+            WindowReader::Crop {
+                level,
+                x0: left,
+                y0: top,
+                ..
+            } => {
+                let start = (y + top) * level.width + left + x0;
+                out.copy_from_slice(&level.planes[lane][start..start + out.len()]);
+            }
+            WindowReader::Bilinear {
+                level,
+                first,
+                span,
+                taps,
+                rows,
+                ..
+            } => {
+                let (first, span) = (*first, *span);
+                let src = &level.planes[lane];
+                let at = |s: usize| &src[s * level.width + first..][..span];
+                // The row values the columns read: from the first tap of x0
+                // to one past the first tap of the last column (the value
+                // past the end repeats the last one, as in a whole row).
+                let lo = taps.first(x0);
+                let hi = taps.first(x0 + out.len() - 1) + 1;
+                let end = hi.min(span - 1) + 1;
+                blended.resize(span + 1, 0);
+                let tap = rows[y];
+                blend_rows(
+                    &at(tap.first)[lo..end],
+                    &at(tap.second)[lo..end],
+                    tap.weight,
+                    &mut blended[lo..end],
+                );
+                if hi == span {
+                    blended[span] = blended[span - 1];
+                }
+                taps.blend_range(blended, x0, out);
+            }
+        }
+    }
+
+    /// For each output row, the largest source level (over `lanes`) that
+    /// its pixels blend: no level of the row exceeds it.
+    pub(crate) fn row_bounds(&self, lanes: &[usize]) -> Vec<u8> {
+        let row_max = |level: &Level, s: usize, x: usize, n: usize| {
+            lanes
+                .iter()
+                .map(|&l| {
+                    level.planes[l][s * level.width + x..][..n]
+                        .iter()
+                        .copied()
+                        .max()
+                })
+                .max()
+                .flatten()
+                .unwrap_or(0)
+        };
+        match self {
+            WindowReader::Crop {
+                level,
+                x0,
+                y0,
+                out_w,
+                out_h,
+            } => (0..*out_h)
+                .map(|y| row_max(level, y0 + y, *x0, *out_w))
+                .collect(),
+            WindowReader::Bilinear {
+                level,
+                first,
+                span,
+                rows,
+                ..
+            } => {
+                // Source rows are shared by neighbouring output rows: each
+                // is measured once.
+                let mut measured: Vec<Option<u8>> = vec![None; level.height];
+                let mut source =
+                    |s: usize| *measured[s].get_or_insert_with(|| row_max(level, s, *first, *span));
+                rows.iter()
+                    .map(|tap| source(tap.first).max(source(tap.second)))
+                    .collect()
+            }
+        }
+    }
 }
 
 /// Two source indices along one axis and the weight of the second, in 128ths.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Tap {
-    pub(crate) first: usize,
-    pub(crate) second: usize,
-    pub(crate) weight: i32,
+    first: usize,
+    second: usize,
+    weight: i32,
 }
 
 /// For each output index along one axis: the two source indices and the

@@ -499,7 +499,6 @@ struct Shading {
 struct Shade<'a> {
     rows: ChannelRows<'a>,
     values: LevelTable,
-    levels: Vec<u8>,
     strength: f32,
 }
 
@@ -518,18 +517,13 @@ impl<'a> Shade<'a> {
         Self {
             rows,
             values,
-            levels: vec![0; w],
             strength: record.strength,
         }
     }
 
     /// Columns `x0..x0 + run.len()` of row `y` of the shading.
     fn run(&mut self, y: usize, x0: usize, run: &mut [f32]) {
-        let levels = &mut self.levels[..run.len()];
-        self.rows.run(y, x0, levels);
-        for (v, &l) in run.iter_mut().zip(levels.iter()) {
-            *v = self.values[l as usize];
-        }
+        self.rows.map_run(y, x0, &self.values, run);
     }
 }
 
