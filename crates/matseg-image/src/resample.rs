@@ -19,6 +19,11 @@ pub(crate) struct Level {
 }
 
 impl Level {
+    /// Columns `x..x + n` of row `y` of plane `lane`.
+    fn row(&self, lane: usize, y: usize, x: usize, n: usize) -> &[u8] {
+        &self.planes[lane][y * self.width + x..][..n]
+    }
+
     fn from_rgb8(img: &RgbImage) -> Self {
         let raw = img.as_raw();
         Self {
@@ -268,11 +273,9 @@ impl WindowReader<'_> {
                 out_w,
                 out_h,
             } => {
-                let src = &level.planes[lane];
                 let mut out = Vec::with_capacity(out_w * out_h);
                 for y in 0..*out_h {
-                    let start = (y + y0) * level.width + x0;
-                    out.extend_from_slice(&src[start..start + out_w]);
+                    out.extend_from_slice(level.row(lane, y + y0, *x0, *out_w));
                 }
                 out
             }
@@ -285,7 +288,6 @@ impl WindowReader<'_> {
                 out_w,
             } => {
                 let (first, span, out_w) = (*first, *span, *out_w);
-                let src = &level.planes[lane];
                 let mut out = vec![0u8; out_w * rows.len()];
                 // Each row blend ends with one copy of its last value, so that
                 // every column tap reads a pair (at the right edge: that value twice).
@@ -301,7 +303,7 @@ impl WindowReader<'_> {
                     for (row, out_row) in rows.iter().zip(out.chunks_exact_mut(out_w)) {
                         for y in [row.first, row.second] {
                             if held[y % 2] != y {
-                                let source = &src[y * level.width + first..][..span];
+                                let source = level.row(lane, y, first, span);
                                 padded[..span].copy_from_slice(source);
                                 padded[span] = source[span - 1];
                                 taps.blend_unrounded(&padded, &mut by_columns[y % 2]);
@@ -314,7 +316,7 @@ impl WindowReader<'_> {
                 } else {
                     let mut blended = vec![0i16; span + 1];
                     for (row, out_row) in rows.iter().zip(out.chunks_exact_mut(out_w)) {
-                        let at = |y: usize| &src[y * level.width + first..][..span];
+                        let at = |y: usize| level.row(lane, y, first, span);
                         blend_rows(
                             at(row.first),
                             at(row.second),
@@ -352,8 +354,7 @@ impl WindowReader<'_> {
                 y0: top,
                 ..
             } => {
-                let start = (y + top) * level.width + left + x0;
-                out.copy_from_slice(&level.planes[lane][start..start + out.len()]);
+                out.copy_from_slice(level.row(lane, y + top, left + x0, out.len()));
             }
             WindowReader::Bilinear {
                 level,
@@ -364,8 +365,7 @@ impl WindowReader<'_> {
                 ..
             } => {
                 let (first, span) = (*first, *span);
-                let src = &level.planes[lane];
-                let at = |s: usize| &src[s * level.width + first..][..span];
+                let at = |s: usize| level.row(lane, s, first, span);
                 // The row values the columns read: from the first tap of x0
                 // to one past the first tap of the last column (the value
                 // past the end repeats the last one, as in a whole row).
@@ -394,12 +394,7 @@ impl WindowReader<'_> {
         let row_max = |level: &Level, s: usize, x: usize, n: usize| {
             lanes
                 .iter()
-                .map(|&l| {
-                    level.planes[l][s * level.width + x..][..n]
-                        .iter()
-                        .copied()
-                        .max()
-                })
+                .map(|&l| level.row(l, s, x, n).iter().copied().max())
                 .max()
                 .flatten()
                 .unwrap_or(0)
