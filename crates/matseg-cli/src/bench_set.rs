@@ -62,7 +62,8 @@ pub fn run(command: Command) -> Result<()> {
     for i in 0..args.n {
         let mut rng = sample_rng(args.seed, i);
         let scene = generate_2d(&mut rng, &recipe, libs.sources())?;
-        let annotation = annotate_points(&mut rng, &scene.weights, &options);
+        let weights: Vec<_> = scene.weights.iter().map(|w| w.to_plane()).collect();
+        let annotation = annotate_points(&mut rng, &weights, &options);
         if annotation.materials.len() < 2 {
             left_out += 1;
             continue;

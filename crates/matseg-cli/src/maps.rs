@@ -4,7 +4,7 @@ use anyhow::{Context, Result};
 use matseg_data::sample_rng;
 use matseg_extract::{combine_maps, draw_channel_map, CombinedMaps, MapRecord, MAX_MAPS};
 use matseg_image::io::{encode_png_gray, encode_png_rgb, read_rgb, write_atomic};
-use matseg_image::PhotoLibrary;
+use matseg_image::{PhotoLibrary, Plane};
 use matseg_scene::colorize;
 use rand::Rng;
 use serde::Serialize;
@@ -82,6 +82,7 @@ pub fn run(args: Args) -> Result<()> {
         record: combine,
         ..
     } = combine_maps(&mut rng, raw, hard, &recipe.maps);
+    let weights: Vec<Plane> = weights.iter().map(|w| w.to_plane()).collect();
 
     std::fs::create_dir_all(&args.out).with_context(|| args.out.display().to_string())?;
     let write = |name: String, bytes: Vec<u8>| {

@@ -4,7 +4,7 @@
 use matseg_image::coverage::BLOCK;
 use matseg_image::{
     gaussian_blur_covered, level_values, Channel, ChannelWindow, Coverage, LevelTable,
-    LibraryError, Photo, PhotoLibrary, Placement, Plane, Ramp,
+    LibraryError, Photo, PhotoLibrary, Placement, Plane, Ramp, SparsePlane,
 };
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -170,34 +170,33 @@ impl RawMap {
         self.window.map_levels(&self.table)
     }
 
-    /// Writes the map, blurred with `kernel` if any, into `plane` (zeros)
-    /// on the blocks where it can be positive, and returns those blocks;
-    /// elsewhere it is exactly zero, blurred or not.
-    fn write_into(&self, kernel: Option<usize>, plane: &mut Plane) -> Coverage {
-        let w = self.width();
+    /// The map, blurred with `kernel` if any, stored on the blocks where it
+    /// can be positive (elsewhere it is exactly zero, blurred or not).
+    fn blurred(&self, kernel: Option<usize>) -> SparsePlane {
         let Some(kernel) = kernel else {
+            let mut plane = SparsePlane::zeros(self.coverage.clone());
             for y in 0..self.height() {
-                for (x0, x1) in self.coverage.runs(y) {
-                    let run = &mut plane.data[y * w + x0..y * w + x1];
+                for (x0, run) in plane.row_runs_mut(y) {
                     self.window.map_run(y, x0, &self.table, run);
                 }
             }
-            return self.coverage.clone();
+            return plane;
         };
-        let reach = self.coverage.dilated(kernel / 2);
+        let mut plane = SparsePlane::zeros(self.coverage.dilated(kernel / 2));
+        let reach = plane.stored().clone();
         gaussian_blur_covered(
-            w,
+            self.width(),
             self.height(),
             kernel,
             &reach,
             |y, x0, run| self.window.map_run(y, x0, &self.table, run),
             |y, row| {
-                for (x0, x1) in reach.runs(y) {
-                    plane.data[y * w + x0..y * w + x1].copy_from_slice(&row[x0..x1]);
+                for (x0, run) in plane.row_runs_mut(y) {
+                    run.copy_from_slice(&row[x0..x0 + run.len()]);
                 }
             },
         );
-        reach
+        plane
     }
 }
 
@@ -228,9 +227,10 @@ pub struct CombineRecord {
 /// K material weight maps and the background weight: per pixel they sum to 1.
 #[derive(Clone, Debug)]
 pub struct CombinedMaps {
-    /// One weight map per material.
-    pub weights: Vec<Plane>,
-    /// Where each weight is positive.
+    /// One weight map per material, stored where its map (blurred) can be
+    /// positive.
+    pub weights: Vec<SparsePlane>,
+    /// Where each weight is positive (within the stored blocks).
     pub coverage: Vec<Coverage>,
     /// Background weight, `1 - sum(weights)`.
     pub background: Plane,
@@ -435,33 +435,29 @@ pub fn combine_maps<R: Rng + ?Sized>(
         maps.iter().all(|m| (m.width(), m.height()) == (w, h)),
         "maps of one size"
     );
-    let mut weights: Vec<Plane> = maps.iter().map(|_| Plane::new(w, h, 0.0)).collect();
-    let reach: Vec<Coverage> = maps
-        .iter()
-        .zip(&mut weights)
-        .map(|(m, plane)| m.write_into(blur_kernel, plane))
-        .collect();
+    let mut weights: Vec<SparsePlane> = maps.iter().map(|m| m.blurred(blur_kernel)).collect();
     drop(maps);
     let mut background = Plane::new(w, h, 1.0);
-    let mut coverage: Vec<Coverage> = reach.iter().map(|_| Coverage::empty(w, h)).collect();
+    let mut coverage: Vec<Coverage> = weights.iter().map(|_| Coverage::empty(w, h)).collect();
     let mut scratch = [vec![0.0f32; w], vec![0.0f32; w]];
-    let mut rows: Vec<&mut [f32]> = Vec::with_capacity(weights.len());
+    let mut spare_rows: Vec<&mut [f32]> = Vec::with_capacity(weights.len());
     for y in 0..h {
-        for (x0, x1, members) in member_runs(&reach, y) {
-            let span = y * w + x0..y * w + x1;
-            rows = recycled(rows);
+        let runs = member_runs(&weights, y);
+        let mut pieces: Vec<_> = weights.iter_mut().map(|p| p.pieces_mut(y)).collect();
+        for (x0, x1, members) in runs {
+            let mut rows = recycled(std::mem::take(&mut spare_rows));
             rows.extend(
-                weights
+                pieces
                     .iter_mut()
                     .enumerate()
                     .filter(|(k, _)| members & (1 << k) != 0)
-                    .map(|(_, p)| &mut p.data[span.clone()]),
+                    .map(|(_, p)| p.take(x0, x1)),
             );
             let [a, b] = &mut scratch;
             combine_row(
                 steps,
                 &mut rows,
-                &mut background.data[span.clone()],
+                &mut background.data[y * w + x0..y * w + x1],
                 [&mut a[..x1 - x0], &mut b[..x1 - x0]],
             );
             let covers = coverage
@@ -471,6 +467,7 @@ pub fn combine_maps<R: Rng + ?Sized>(
             for ((_, c), row) in covers.zip(&rows) {
                 c.add_run(y, x0, row);
             }
+            spare_rows = recycled(rows);
         }
     }
     CombinedMaps {
@@ -485,15 +482,15 @@ pub fn combine_maps<R: Rng + ?Sized>(
     }
 }
 
-/// The runs of row `y` where some map of `reach` is positive, as
-/// `(x0, x1, members)`: consecutive blocks with the same maps, bit `k` of
-/// `members` set for map `k`.
-fn member_runs(reach: &[Coverage], y: usize) -> Vec<(usize, usize, u64)> {
-    let width = reach[0].width();
-    // Each map's covered blocks set its bit (maps cover a few blocks each).
-    let mut members = vec![0u64; reach[0].blocks_per_row()];
-    for (k, c) in reach.iter().enumerate() {
-        for (i, &word) in c.row(y).iter().enumerate() {
+/// The runs of row `y` where some map is stored, as `(x0, x1, members)`:
+/// consecutive blocks with the same maps, bit `k` of `members` set for
+/// map `k`.
+fn member_runs(maps: &[SparsePlane], y: usize) -> Vec<(usize, usize, u64)> {
+    let width = maps[0].width();
+    // Each map's stored blocks set its bit (maps cover a few blocks each).
+    let mut members = vec![0u64; maps[0].stored().blocks_per_row()];
+    for (k, m) in maps.iter().enumerate() {
+        for (i, &word) in m.stored().row(y).iter().enumerate() {
             let mut bits = word;
             while bits != 0 {
                 members[i * 64 + bits.trailing_zeros() as usize] |= 1 << k;
@@ -516,7 +513,8 @@ fn member_runs(reach: &[Coverage], y: usize) -> Vec<(usize, usize, u64)> {
 }
 
 /// An empty vector with `v`'s allocation, free of its borrows (so one
-/// buffer of row slices serves every run).
+/// buffer of row slices serves every run, while the planes they borrow
+/// are read between runs).
 fn recycled<'b>(mut v: Vec<&mut [f32]>) -> Vec<&'b mut [f32]> {
     v.clear();
     v.into_iter()
@@ -756,7 +754,7 @@ mod tests {
             let (weights, background) = reference(&planes, record, recipe.hard_min_weight as f32);
             assert_eq!(combined.background, background, "seed {seed}");
             for (k, (got, want)) in combined.weights.iter().zip(&weights).enumerate() {
-                assert_eq!(got, want, "seed {seed}, map {k}");
+                assert_eq!(&got.to_plane(), want, "seed {seed}, map {k}");
                 assert_eq!(
                     combined.coverage[k],
                     Coverage::of(want),

@@ -1,7 +1,7 @@
 //! Soft-map invariants over many seeds, on the bundled photos.
 
 use matseg_extract::{combine_maps, draw_channel_map, MapNormalisation, RawMap, SoftMapRecipe};
-use matseg_image::{level_values, Channel, ChannelWindow, Coverage, PhotoLibrary};
+use matseg_image::{level_values, Channel, ChannelWindow, Coverage, PhotoLibrary, Plane};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use std::path::Path;
@@ -92,7 +92,8 @@ fn combined_weights_sum_to_one_and_hard_is_one_hot() {
         for hard in [false, true] {
             let mut rng = ChaCha8Rng::seed_from_u64(seed);
             let combined = combine_maps(&mut rng, maps.clone(), hard, &SoftMapRecipe::default());
-            let (weights, bg, rec) = (&combined.weights, &combined.background, &combined.record);
+            let weights: Vec<Plane> = combined.weights.iter().map(|w| w.to_plane()).collect();
+            let (bg, rec) = (&combined.background, &combined.record);
             for (w, c) in weights.iter().zip(&combined.coverage) {
                 assert_eq!(c, &Coverage::of(w), "coverage built with the weights");
             }

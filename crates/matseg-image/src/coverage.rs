@@ -161,6 +161,11 @@ impl Coverage {
         self.width
     }
 
+    /// Height of the plane in pixels.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
     /// Blocks per row.
     pub fn blocks_per_row(&self) -> usize {
         self.width.div_ceil(BLOCK)

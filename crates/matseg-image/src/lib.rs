@@ -19,6 +19,7 @@ pub mod plane;
 pub mod ramp;
 pub mod resample;
 pub mod rgb;
+pub mod sparse;
 
 pub use blur::{gaussian_blur, gaussian_blur_covered, CoveredBlur};
 pub use channel::Channel;
@@ -32,3 +33,4 @@ pub use mirrors::Mirrors;
 pub use plane::Plane;
 pub use ramp::Ramp;
 pub use resample::{Placement, Pyramid};
+pub use sparse::SparsePlane;

@@ -2,7 +2,7 @@
 //! and background sum to exactly 255, and colour previews.
 
 use matseg_image::plane::round_to_u8;
-use matseg_image::Plane;
+use matseg_image::{Plane, SparsePlane};
 
 /// Per-pixel 8-bit masks, background and ROI.
 #[derive(Clone, Debug, PartialEq)]
@@ -19,28 +19,35 @@ pub struct QuantisedAnnotation {
 /// `round(C_k) - round(C_(k-1))`, where `C_k` is 255 times the sum of the
 /// first k weights, and the background takes the rest. Per pixel, background
 /// plus masks sum to exactly 255, each value is within 1 of `255 * weight`,
-/// and a weight of exactly 0 or 1 gives exactly 0 or 255. Every step is a
-/// pass over whole planes, so it vectorises.
-pub fn quantise_weights(weights: &[Plane], background: &Plane) -> QuantisedAnnotation {
-    let n = background.len();
+/// and a weight of exactly 0 or 1 gives exactly 0 or 255. Each weight is
+/// read on its stored runs only (adding its zeros elsewhere would change
+/// nothing), each run in one pass that vectorises.
+pub fn quantise_weights(weights: &[SparsePlane], background: &Plane) -> QuantisedAnnotation {
+    let (w, n) = (background.width, background.len());
     let mut cumulative = vec![0f32; n];
     let mut rounded = vec![0u8; n];
     let masks = weights
         .iter()
-        .map(|w| {
-            cumulative
-                .iter_mut()
-                .zip(rounded.iter_mut())
-                .zip(&w.data)
-                .map(|((c, r), &v)| {
-                    *c += v * 255.0;
-                    let next = round_to_u8(*c);
-                    // max: float sums never step back, but the quantity must not wrap.
-                    let mask = next.max(*r) - *r;
-                    *r = next.max(*r);
-                    mask
-                })
-                .collect()
+        .map(|weight| {
+            let mut mask = vec![0u8; n];
+            for y in 0..background.height {
+                for (x0, run) in weight.row_runs(y) {
+                    let at = y * w + x0..y * w + x0 + run.len();
+                    let (c, r, m) = (
+                        &mut cumulative[at.clone()],
+                        &mut rounded[at.clone()],
+                        &mut mask[at],
+                    );
+                    for (((c, r), m), &v) in c.iter_mut().zip(r).zip(m).zip(run) {
+                        *c += v * 255.0;
+                        let next = round_to_u8(*c);
+                        // max: float sums never step back, but the quantity must not wrap.
+                        *m = next.max(*r) - *r;
+                        *r = next.max(*r);
+                    }
+                }
+            }
+            mask
         })
         .collect();
     QuantisedAnnotation {
@@ -58,9 +65,9 @@ pub fn quantise_fractions(
     fractions: &[Vec<f32>],
     roi: &[f32],
 ) -> QuantisedAnnotation {
-    let weights: Vec<Plane> = fractions
+    let weights: Vec<SparsePlane> = fractions
         .iter()
-        .map(|f| Plane::from_vec(width, height, f.clone()))
+        .map(|f| SparsePlane::dense(Plane::from_vec(width, height, f.clone())))
         .collect();
     let background = Plane::from_vec(width, height, roi.iter().map(|r| 1.0 - r).collect());
     quantise_weights(&weights, &background)
@@ -118,7 +125,8 @@ mod tests {
         let w1 = Plane::from_vec(3, 1, vec![1.0 / 3.0, 0.0, 0.5]);
         let w2 = Plane::from_vec(3, 1, vec![1.0 / 3.0, 0.0, 0.25]);
         let bg = Plane::from_vec(3, 1, vec![1.0 / 3.0, 1.0, 0.25]);
-        let q = quantise_weights(&[w1.clone(), w2.clone()], &bg);
+        let dense = [w1.clone(), w2.clone()].map(SparsePlane::dense);
+        let q = quantise_weights(&dense, &bg);
         for i in 0..3 {
             let total = q.background[i] as u32 + q.masks[0][i] as u32 + q.masks[1][i] as u32;
             assert_eq!(total, 255);
@@ -138,6 +146,51 @@ mod tests {
             (128, 63, 64)
         );
         assert_eq!((q.masks[0][1], q.masks[1][1], q.background[1]), (0, 0, 255));
+    }
+
+    #[test]
+    fn weights_stored_on_their_blocks_quantise_as_whole_planes() {
+        use matseg_image::coverage::BLOCK;
+        use matseg_image::Coverage;
+        // Three weights, each positive on its own blocks, overlapping.
+        let (w, h) = (5 * BLOCK + 3, 4);
+        let mut planes = vec![Plane::new(w, h, 0.0); 3];
+        for (k, p) in planes.iter_mut().enumerate() {
+            for (i, v) in p.data.iter_mut().enumerate() {
+                let (x, y) = (i % w, i / w);
+                if !(x / BLOCK + y + k).is_multiple_of(3) {
+                    *v = ((i * 7 + k * 13) % 17) as f32 / 51.0;
+                }
+            }
+        }
+        let mut bg = Plane::new(w, h, 1.0);
+        for p in &planes {
+            bg.data.iter_mut().zip(&p.data).for_each(|(b, v)| *b -= v);
+        }
+        let sparse: Vec<SparsePlane> = planes
+            .iter()
+            .map(|p| {
+                let mut s = SparsePlane::zeros(Coverage::of(p));
+                for y in 0..h {
+                    for (x0, run) in s.row_runs_mut(y) {
+                        run.copy_from_slice(&p.data[y * w + x0..][..run.len()]);
+                    }
+                }
+                s
+            })
+            .collect();
+        let whole = planes
+            .into_iter()
+            .map(SparsePlane::dense)
+            .collect::<Vec<_>>();
+        assert!(
+            sparse[0].stored() != whole[0].stored(),
+            "some blocks left out"
+        );
+        assert_eq!(
+            quantise_weights(&sparse, &bg),
+            quantise_weights(&whole, &bg)
+        );
     }
 
     #[test]

@@ -5,7 +5,7 @@ use crate::material::{draw_material, Layer, MaterialRecord};
 use crate::recipe::{Recipe2d, SceneShape};
 use matseg_extract::{make_soft_maps, random_placement, CombineRecord, MapRecord, SoftMapError};
 use matseg_image::rgb::interleave_rounded;
-use matseg_image::{LibraryError, PhotoLibrary, Placement, Plane};
+use matseg_image::{LibraryError, PhotoLibrary, Placement, Plane, SparsePlane};
 use rand::Rng;
 use serde::{Deserialize, Serialize};
 
@@ -53,8 +53,9 @@ pub struct SceneRecord {
 pub struct Scene2d {
     /// The composed image.
     pub image: image::RgbImage,
-    /// One weight map per material, in [0, 1].
-    pub weights: Vec<Plane>,
+    /// One weight map per material, in [0, 1], stored where it can be
+    /// positive.
+    pub weights: Vec<SparsePlane>,
     /// Background weight; with the material weights it sums to 1 per pixel.
     pub background: Plane,
     /// What was drawn.

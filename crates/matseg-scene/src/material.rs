@@ -6,7 +6,7 @@ use matseg_extract::random_channel_placement;
 use matseg_image::rgb::rotate_hue_planes;
 use matseg_image::{
     level_values, Channel, ChannelRows, Coverage, CoveredBlur, LevelTable, LibraryError, Mirrors,
-    Photo, PhotoLibrary, Placement, Plane, Pyramid, WindowRows,
+    Photo, PhotoLibrary, Placement, Pyramid, SparsePlane, WindowRows,
 };
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -140,13 +140,13 @@ impl DrawnMaterial {
     /// blocks `coverage` holds; `None` when the weight is zero everywhere.
     pub(crate) fn layer<'a>(
         &'a self,
-        weight: &'a Plane,
+        weight: &'a SparsePlane,
         coverage: &'a Coverage,
     ) -> Option<Layer<'a>> {
         // Pixels where the weight is 0 add nothing, so the shading blur and
         // the blending skip every block without one.
         coverage.support()?;
-        let (w, h) = (weight.width, weight.height);
+        let (w, h) = (weight.width(), weight.height());
         Some(Layer {
             weight,
             coverage,
@@ -166,7 +166,7 @@ impl DrawnMaterial {
 /// One material's blending, row by row: its weight, where it is positive,
 /// its colour, its shading with the blur that streams it, and row buffers.
 pub(crate) struct Layer<'a> {
-    weight: &'a Plane,
+    weight: &'a SparsePlane,
     coverage: &'a Coverage,
     colour: Colour<'a>,
     shading: Option<(Shade<'a>, CoveredBlur<'a>)>,
@@ -191,9 +191,9 @@ impl Layer<'_> {
             // An uncovered row has no runs.
             None => None,
         };
-        let w = self.weight.width;
+        let mut weights = self.weight.pieces(y);
         for (x0, x1) in self.coverage.runs(y) {
-            let weight = &self.weight.data[y * w + x0..y * w + x1];
+            let weight = weights.take(x0, x1);
             let factor = match shade {
                 Some((shade, s)) => {
                     let factor = &mut self.factor[..x1 - x0];
