@@ -4,23 +4,84 @@
 use crate::plane::round_to_u8;
 
 /// Rounds and clamps three planes of equal length into interleaved 8-bit
-/// RGB (`out` holds three values per pixel): 64 pixels at a time, each
-/// channel rounded in one vectorised loop, then interleaved; also compiled
-/// for AVX2, picked at run time.
-#[multiversion::multiversion(targets("x86_64+avx2"))]
-pub fn interleave_rounded([r, g, b]: [&[f32]; 3], out: &mut [u8]) {
-    const CHUNK: usize = 64;
-    let mut bytes = [[0u8; CHUNK]; 3];
-    let chunks = r.chunks(CHUNK).zip(g.chunks(CHUNK)).zip(b.chunks(CHUNK));
-    for (((r, g), b), px) in chunks.zip(out.chunks_mut(3 * CHUNK)) {
-        for (plane, bytes) in [r, g, b].into_iter().zip(&mut bytes) {
-            for (o, &v) in bytes.iter_mut().zip(plane) {
-                *o = round_to_u8(v);
+/// RGB (`out` holds three values per pixel), each value as
+/// [`round_to_u8`]; in explicit AVX2 when the CPU has it (16 pixels a step,
+/// interleaved by byte shuffles).
+pub fn interleave_rounded(planes: [&[f32]; 3], out: &mut [u8]) {
+    let n = planes[0].len();
+    assert!(
+        planes.iter().all(|p| p.len() == n) && out.len() == 3 * n,
+        "three planes of one length, three bytes a pixel"
+    );
+    let mut done = 0;
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: AVX2 is present, and the lengths were checked above.
+        done = unsafe { avx2::interleave_rounded(planes, out) };
+    }
+    let [r, g, b] = planes.map(|p| &p[done..]);
+    for (((px, &r), &g), &b) in out[3 * done..].chunks_exact_mut(3).zip(r).zip(g).zip(b) {
+        px.copy_from_slice(&[r, g, b].map(round_to_u8));
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use crate::bilinear::avx2::store_sixteen;
+    use std::arch::x86_64::*;
+
+    /// For each 16-byte third of 48 interleaved bytes and each channel,
+    /// where each byte comes from in that channel's 16 bytes: byte `j` is
+    /// pixel `j / 3`'s channel `j % 3` (-1, a zero, for the other channels).
+    const SHUFFLES: [[[i8; 16]; 3]; 3] = {
+        let mut masks = [[[-1i8; 16]; 3]; 3];
+        let mut j = 0;
+        while j < 48 {
+            masks[j / 16][j % 3][j % 16] = (j / 3) as i8;
+            j += 1;
+        }
+        masks
+    };
+
+    /// [`super::interleave_rounded`] on whole steps of 16 pixels; returns
+    /// how many pixels it wrote.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2; the planes have one length, `out` three
+    /// bytes per pixel.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn interleave_rounded(planes: [&[f32]; 3], out: &mut [u8]) -> usize {
+        let steps = planes[0].len() / 16;
+        let (half, zero, top) = (
+            _mm256_set1_ps(0.5),
+            _mm256_setzero_ps(),
+            _mm256_set1_ps(255.0),
+        );
+        // As round_to_u8: add a half; `max` with zero second (a NaN gives
+        // zero), then `min`, then truncate.
+        let round = |p: *const f32| {
+            let v = _mm256_add_ps(_mm256_loadu_ps(p), half);
+            _mm256_cvttps_epi32(_mm256_min_ps(_mm256_max_ps(v, zero), top))
+        };
+        let mut bytes = [[0u8; 16]; 3];
+        for step in 0..steps {
+            let mut channels = [_mm_setzero_si128(); 3];
+            for (c, plane) in planes.iter().enumerate() {
+                let at = plane.as_ptr().add(16 * step);
+                store_sixteen(round(at), round(at.add(8)), bytes[c].as_mut_ptr());
+                channels[c] = _mm_loadu_si128(bytes[c].as_ptr() as *const __m128i);
+            }
+            let dst = out.as_mut_ptr().add(48 * step) as *mut __m128i;
+            for (part, masks) in SHUFFLES.iter().enumerate() {
+                let mut v = _mm_setzero_si128();
+                for (&channel, mask) in channels.iter().zip(masks) {
+                    let mask = _mm_loadu_si128(mask.as_ptr() as *const __m128i);
+                    v = _mm_or_si128(v, _mm_shuffle_epi8(channel, mask));
+                }
+                _mm_storeu_si128(dst.add(part), v);
             }
         }
-        for (i, px) in px.chunks_exact_mut(3).enumerate() {
-            px.copy_from_slice(&[bytes[0][i], bytes[1][i], bytes[2][i]]);
-        }
+        16 * steps
     }
 }
 
@@ -116,6 +177,22 @@ mod tests {
         let mut raw = [0u8; 9];
         interleave_rounded([&r, &g, &b], &mut raw);
         assert_eq!(raw, [255, 0, 0, 12, 200, 99, 0, 7, 7]);
+        // Whole steps of 16 pixels and a tail, with values out of range,
+        // halves and NaN: every byte as round_to_u8 puts it.
+        let n = 16 * 5 + 7;
+        let value = |i: usize| match i % 11 {
+            0 => f32::NAN,
+            1 => -3.0,
+            2 => 300.0,
+            3 => 254.5,
+            _ => (i * 37 % 512) as f32 / 2.0 - 1.0,
+        };
+        let planes: [Vec<f32>; 3] =
+            std::array::from_fn(|c| (0..n).map(|i| value(3 * i + c)).collect());
+        let mut raw = vec![0u8; 3 * n];
+        interleave_rounded(planes.each_ref().map(|p| p.as_slice()), &mut raw);
+        let want: Vec<u8> = (0..3 * n).map(|j| round_to_u8(value(j))).collect();
+        assert_eq!(raw, want);
         let before: Vec<[f32; 3]> = (0..3).map(|i| [r[i], g[i], b[i]]).collect();
         rotate_hue_planes(&mut r, &mut g, &mut b, 33.0);
         for (i, px) in before.into_iter().enumerate() {
