@@ -446,13 +446,7 @@ pub fn combine_maps<R: Rng + ?Sized>(
         let mut pieces: Vec<_> = weights.iter_mut().map(|p| p.pieces_mut(y)).collect();
         for (x0, x1, members) in runs {
             let mut rows = recycled(std::mem::take(&mut spare_rows));
-            rows.extend(
-                pieces
-                    .iter_mut()
-                    .enumerate()
-                    .filter(|(k, _)| members & (1 << k) != 0)
-                    .map(|(_, p)| p.take(x0, x1)),
-            );
+            rows.extend(bits(members).map(|k| pieces[k].take(x0, x1)));
             let [a, b] = &mut scratch;
             combine_row(
                 steps,
@@ -460,12 +454,8 @@ pub fn combine_maps<R: Rng + ?Sized>(
                 &mut background.data[y * w + x0..y * w + x1],
                 [&mut a[..x1 - x0], &mut b[..x1 - x0]],
             );
-            let covers = coverage
-                .iter_mut()
-                .enumerate()
-                .filter(|(k, _)| members & (1 << k) != 0);
-            for ((_, c), row) in covers.zip(&rows) {
-                c.add_run(y, x0, row);
+            for (k, row) in bits(members).zip(&rows) {
+                coverage[k].add_run(y, x0, row);
             }
             spare_rows = recycled(rows);
         }
@@ -510,6 +500,15 @@ fn member_runs(maps: &[SparsePlane], y: usize) -> Vec<(usize, usize, u64)> {
         }
     }
     runs
+}
+
+/// The indices of the set bits of `set`, in increasing order.
+fn bits(mut set: u64) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        let k = set.trailing_zeros() as usize;
+        set &= set.wrapping_sub(1);
+        (k < 64).then_some(k)
+    })
 }
 
 /// An empty vector with `v`'s allocation, free of its borrows (so one
