@@ -3,7 +3,7 @@
 //! the scene, so that making, blending and quantising them never touches
 //! (or zeroes) the rest of the plane.
 
-use crate::coverage::{Coverage, Runs, BLOCK};
+use crate::coverage::{Coverage, Runs};
 use crate::plane::Plane;
 
 /// A `width x height` plane whose values are kept only on the blocks of
@@ -13,7 +13,6 @@ use crate::plane::Plane;
 #[derive(Clone, Debug, PartialEq)]
 pub struct SparsePlane {
     stored: Coverage,
-    height: usize,
     /// Where each row's values start in `data`; one more entry than rows.
     starts: Vec<usize>,
     data: Vec<f32>,
@@ -22,17 +21,15 @@ pub struct SparsePlane {
 impl SparsePlane {
     /// Zeros on the blocks `stored` covers.
     pub fn zeros(stored: Coverage) -> Self {
-        let height = stored.height();
-        let mut starts = Vec::with_capacity(height + 1);
+        let mut starts = Vec::with_capacity(stored.height() + 1);
         let mut len = 0;
-        for y in 0..height {
+        for y in 0..stored.height() {
             starts.push(len);
             len += stored.runs(y).map(|(x0, x1)| x1 - x0).sum::<usize>();
         }
         starts.push(len);
         Self {
             stored,
-            height,
             starts,
             data: vec![0.0; len],
         }
@@ -43,7 +40,6 @@ impl SparsePlane {
         let (w, h) = (plane.width, plane.height);
         Self {
             stored: Coverage::full(w, h),
-            height: h,
             starts: (0..=h).map(|y| y * w).collect(),
             data: plane.data,
         }
@@ -56,7 +52,7 @@ impl SparsePlane {
 
     /// Height in pixels.
     pub fn height(&self) -> usize {
-        self.height
+        self.stored.height()
     }
 
     /// The blocks whose values are kept (the rest are zero).
@@ -98,19 +94,10 @@ impl SparsePlane {
             .map(move |(x0, x1)| (x0, pieces.take(x0, x1)))
     }
 
-    /// The value at column `x`, row `y` (zero outside stored blocks).
-    pub fn get(&self, x: usize, y: usize) -> f32 {
-        let b = x / BLOCK;
-        if self.stored.row(y)[b / 64] & (1 << (b % 64)) == 0 {
-            return 0.0;
-        }
-        self.pieces(y).take(x, x + 1)[0]
-    }
-
     /// The whole plane, zeros included.
     pub fn to_plane(&self) -> Plane {
         let w = self.width();
-        let mut plane = Plane::new(w, self.height, 0.0);
+        let mut plane = Plane::new(w, self.height(), 0.0);
         for (y, row) in plane.data.chunks_exact_mut(w.max(1)).enumerate() {
             for (x0, run) in self.row_runs(y) {
                 row[x0..x0 + run.len()].copy_from_slice(run);
@@ -199,6 +186,7 @@ fn not_stored(y: usize, x0: usize, x1: usize) -> ! {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::coverage::BLOCK;
 
     /// A plane of distinct positive values on the blocks of `stored`.
     fn numbered(stored: &Coverage) -> (SparsePlane, Plane) {
@@ -228,12 +216,8 @@ mod tests {
         }
         let stored = Coverage::of(&p);
         let (sparse, plane) = numbered(&stored);
+        // Every value, the zeros outside the stored blocks included.
         assert_eq!(sparse.to_plane(), plane);
-        for y in 0..3 {
-            for x in 0..w {
-                assert_eq!(sparse.get(x, y), plane.get(x, y), "({x}, {y})");
-            }
-        }
         // Runs inside and across stored blocks, past a word's end, to the
         // row's narrower last block, skipping whole stored runs.
         for (y, runs) in [
@@ -283,7 +267,7 @@ mod tests {
             });
             assert!(refused.is_err(), "row {y}, {runs:?}");
         }
-        assert_eq!(sparse.get(2 * BLOCK, 0), 0.0);
+        assert_eq!(sparse.to_plane().get(2 * BLOCK, 0), 0.0);
     }
 
     #[test]
