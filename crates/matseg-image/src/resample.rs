@@ -145,13 +145,13 @@ impl Pyramid {
         let fy = self.height() as f64 / placement.resized_h as f64;
         if out_w == 0 || out_h == 0 || (fx == 1.0 && fy == 1.0) {
             // Native resolution: a plain crop, no interpolation.
-            return WindowReader::Crop {
+            return WindowReader::Crop(Crop {
                 level: &self.levels[0],
                 x0: placement.x0 as usize,
                 y0: placement.y0 as usize,
                 out_w,
                 out_h,
-            };
+            });
         }
         // The pyramid level closest to the target scale from above.
         let shrink = fx.min(fy);
@@ -165,14 +165,14 @@ impl Pyramid {
         let cols = axis_taps(out_w, placement.x0, fx / step, img.width);
         let rows = axis_taps(out_h, placement.y0, fy / step, img.height);
         let first = cols[0].first;
-        WindowReader::Bilinear {
+        WindowReader::Bilinear(Bilinear {
             level: img,
             first,
             span: cols[cols.len() - 1].second - first + 1,
             taps: ColumnTaps::new(cols.iter().map(|c| (c.first - first, c.weight))),
             rows,
             out_w,
-        }
+        })
     }
 
     /// Plane `lane` (0 = R, 1 = G, 2 = B) of the window `placement` selects.
@@ -235,26 +235,47 @@ impl Pyramid {
     }
 }
 
+/// A crop of the full-resolution level: `out_w x out_h` pixels from
+/// `(x0, y0)`.
+pub(crate) struct Crop<'a> {
+    level: &'a Level,
+    x0: usize,
+    y0: usize,
+    out_w: usize,
+    out_h: usize,
+}
+
+impl Crop<'_> {
+    /// Row `y` of plane `lane` of the crop.
+    fn row(&self, lane: usize, y: usize) -> &[u8] {
+        self.level.row(lane, y + self.y0, self.x0, self.out_w)
+    }
+}
+
+/// Bilinear taps on one level: `taps` blend the columns `first..first +
+/// span` of a row, `rows` pick and weigh the source rows.
+pub(crate) struct Bilinear<'a> {
+    level: &'a Level,
+    first: usize,
+    span: usize,
+    taps: ColumnTaps,
+    rows: Vec<Tap>,
+    out_w: usize,
+}
+
+impl Bilinear<'_> {
+    /// The columns the taps read of source row `y` of plane `lane`.
+    fn source_row(&self, lane: usize, y: usize) -> &[u8] {
+        self.level.row(lane, y, self.first, self.span)
+    }
+}
+
 /// A window of a pyramid, ready to read plane by plane.
 pub(crate) enum WindowReader<'a> {
     /// A crop of the full-resolution level.
-    Crop {
-        level: &'a Level,
-        x0: usize,
-        y0: usize,
-        out_w: usize,
-        out_h: usize,
-    },
-    /// Bilinear taps on one level: `taps` blend the columns `first..first +
-    /// span` of a row, `rows` pick and weigh the source rows.
-    Bilinear {
-        level: &'a Level,
-        first: usize,
-        span: usize,
-        taps: ColumnTaps,
-        rows: Vec<Tap>,
-        out_w: usize,
-    },
+    Crop(Crop<'a>),
+    /// Bilinear taps on a level.
+    Bilinear(Bilinear<'a>),
 }
 
 impl WindowReader<'_> {
@@ -266,28 +287,15 @@ impl WindowReader<'_> {
     /// (the same integer sums, so the same bytes; see [`crate::bilinear`]).
     fn plane(&self, lane: usize) -> Vec<u8> {
         match self {
-            WindowReader::Crop {
-                level,
-                x0,
-                y0,
-                out_w,
-                out_h,
-            } => {
-                let mut out = Vec::with_capacity(out_w * out_h);
-                for y in 0..*out_h {
-                    out.extend_from_slice(level.row(lane, y + y0, *x0, *out_w));
+            WindowReader::Crop(crop) => {
+                let mut out = Vec::with_capacity(crop.out_w * crop.out_h);
+                for y in 0..crop.out_h {
+                    out.extend_from_slice(crop.row(lane, y));
                 }
                 out
             }
-            WindowReader::Bilinear {
-                level,
-                first,
-                span,
-                taps,
-                rows,
-                out_w,
-            } => {
-                let (first, span, out_w) = (*first, *span, *out_w);
+            WindowReader::Bilinear(b) => {
+                let (span, out_w, taps, rows) = (b.span, b.out_w, &b.taps, &b.rows);
                 let mut out = vec![0u8; out_w * rows.len()];
                 // Each row blend ends with one copy of its last value, so that
                 // every column tap reads a pair (at the right edge: that value twice).
@@ -303,7 +311,7 @@ impl WindowReader<'_> {
                     for (row, out_row) in rows.iter().zip(out.chunks_exact_mut(out_w)) {
                         for y in [row.first, row.second] {
                             if held[y % 2] != y {
-                                let source = level.row(lane, y, first, span);
+                                let source = b.source_row(lane, y);
                                 padded[..span].copy_from_slice(source);
                                 padded[span] = source[span - 1];
                                 taps.blend_unrounded(&padded, &mut by_columns[y % 2]);
@@ -316,7 +324,7 @@ impl WindowReader<'_> {
                 } else {
                     let mut blended = vec![0i16; span + 1];
                     for (row, out_row) in rows.iter().zip(out.chunks_exact_mut(out_w)) {
-                        let at = |y: usize| level.row(lane, y, first, span);
+                        let at = |y: usize| b.source_row(lane, y);
                         blend_rows(
                             at(row.first),
                             at(row.second),
@@ -348,24 +356,12 @@ impl WindowReader<'_> {
             return;
         }
         match self {
-            WindowReader::Crop {
-                level,
-                x0: left,
-                y0: top,
-                ..
-            } => {
-                out.copy_from_slice(level.row(lane, y + top, left + x0, out.len()));
+            WindowReader::Crop(crop) => {
+                out.copy_from_slice(&crop.row(lane, y)[x0..][..out.len()]);
             }
-            WindowReader::Bilinear {
-                level,
-                first,
-                span,
-                taps,
-                rows,
-                ..
-            } => {
-                let (first, span) = (*first, *span);
-                let at = |s: usize| level.row(lane, s, first, span);
+            WindowReader::Bilinear(b) => {
+                let (span, taps) = (b.span, &b.taps);
+                let at = |s: usize| b.source_row(lane, s);
                 // The row values the columns read: from the first tap of x0
                 // to one past the first tap of the last column (the value
                 // past the end repeats the last one, as in a whole row).
@@ -373,7 +369,7 @@ impl WindowReader<'_> {
                 let hi = taps.first(x0 + out.len() - 1) + 1;
                 let end = hi.min(span - 1) + 1;
                 blended.resize(span + 1, 0);
-                let tap = rows[y];
+                let tap = b.rows[y];
                 blend_rows(
                     &at(tap.first)[lo..end],
                     &at(tap.second)[lo..end],
@@ -391,42 +387,34 @@ impl WindowReader<'_> {
     /// For each output row, the largest source level (over `lanes`) that
     /// its pixels blend: no level of the row exceeds it.
     pub(crate) fn row_bounds(&self, lanes: &[usize]) -> Vec<u8> {
-        let row_max = |level: &Level, s: usize, x: usize, n: usize| {
-            lanes
-                .iter()
-                .map(|&l| level.row(l, s, x, n).iter().copied().max())
-                .max()
-                .flatten()
-                .unwrap_or(0)
-        };
         match self {
-            WindowReader::Crop {
-                level,
-                x0,
-                y0,
-                out_w,
-                out_h,
-            } => (0..*out_h)
-                .map(|y| row_max(level, y0 + y, *x0, *out_w))
+            WindowReader::Crop(crop) => (0..crop.out_h)
+                .map(|y| top_level(lanes, |l| crop.row(l, y)))
                 .collect(),
-            WindowReader::Bilinear {
-                level,
-                first,
-                span,
-                rows,
-                ..
-            } => {
+            WindowReader::Bilinear(b) => {
                 // Source rows are shared by neighbouring output rows: each
                 // is measured once.
-                let mut measured: Vec<Option<u8>> = vec![None; level.height];
-                let mut source =
-                    |s: usize| *measured[s].get_or_insert_with(|| row_max(level, s, *first, *span));
-                rows.iter()
+                let mut measured: Vec<Option<u8>> = vec![None; b.level.height];
+                let mut source = |s: usize| {
+                    *measured[s].get_or_insert_with(|| top_level(lanes, |l| b.source_row(l, s)))
+                };
+                b.rows
+                    .iter()
                     .map(|tap| source(tap.first).max(source(tap.second)))
                     .collect()
             }
         }
     }
+}
+
+/// The largest level of one row over `lanes`, `row(lane)` giving the row
+/// of each (0 for none).
+fn top_level<'r>(lanes: &[usize], row: impl Fn(usize) -> &'r [u8]) -> u8 {
+    lanes
+        .iter()
+        .filter_map(|&l| row(l).iter().copied().max())
+        .max()
+        .unwrap_or(0)
 }
 
 /// Two source indices along one axis and the weight of the second, in 128ths.
