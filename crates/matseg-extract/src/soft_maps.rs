@@ -3,7 +3,7 @@
 
 use matseg_image::coverage::BLOCK;
 use matseg_image::{
-    gaussian_blur_covered, level_values, Channel, ChannelWindow, Coverage, LevelTable,
+    gaussian_blur_covered, level_values, Channel, ChannelWindow, Coverage, LevelCounts, LevelTable,
     LibraryError, Photo, PhotoLibrary, Placement, Plane, Ramp, SparsePlane,
 };
 use rand::Rng;
@@ -316,9 +316,9 @@ pub fn random_channel_placement<R: Rng + ?Sized>(
 }
 
 /// One attempt at a map from one photo: `None` when the photo gives no
-/// acceptable threshold (the caller draws another photo). The thresholds are
-/// searched on the window's level histogram; the map is one table lookup
-/// per pixel.
+/// acceptable threshold (the caller draws another photo). Each threshold
+/// tried is one count of the window's levels at or above a level; the map
+/// is one table lookup per pixel.
 fn try_map_from_photo<R: Rng + ?Sized>(
     rng: &mut R,
     photo: &Photo,
@@ -331,20 +331,27 @@ fn try_map_from_photo<R: Rng + ?Sized>(
     let (placement, channel) =
         random_channel_placement(rng, photo, w, h, recipe.p_downscale, recipe.p_hsv_channel);
     let window = photo.pyramid.sample_channel(&placement, w, h, channel);
-    let histogram = window.histogram();
     let normalised_by_max = rng.random_bool(recipe.p_normalise_by_max);
     let values = level_values(if normalised_by_max {
-        histogram.max_level()
+        window.max_level()
     } else {
         255
     });
 
     let n = window.levels.len() as f64;
     let min_side = recipe.min_side_fraction * n;
+    let mut counts = LevelCounts::new(&window);
     let mut accepted = None;
     for _ in 0..recipe.high_threshold_tries {
         let t: f32 = rng.random();
-        let above = histogram.count_above(&values, t) as f64;
+        let level = LevelCounts::first_above(&values, t);
+        // Too few above even at the most, or too many even at the least:
+        // rejected without counting.
+        let (least, most) = counts.bounds(level);
+        if most as f64 <= min_side || least as f64 > max_occupancy * n {
+            continue;
+        }
+        let above = counts.exact(level) as f64;
         if above > min_side && above <= max_occupancy * n {
             accepted = Some((t, above));
             break;
@@ -354,11 +361,24 @@ fn try_map_from_photo<R: Rng + ?Sized>(
 
     let mut low = high;
     if !hard && !rng.random_bool(recipe.p_binary) {
+        // Holds for a `below` count and every larger one: the low side
+        // grows and the band shrinks.
+        let acceptable = |below: f64| {
+            let band = n - above - below;
+            below > min_side && band < recipe.max_band_to_side_ratio * above.min(below)
+        };
         for _ in 0..recipe.low_threshold_tries {
             let t = rng.random::<f32>() * high;
-            let below = n - histogram.count_above(&values, t) as f64;
-            let band = n - above - below;
-            if below > min_side && band < recipe.max_band_to_side_ratio * above.min(below) {
+            let level = LevelCounts::first_above(&values, t);
+            let (least, most) = counts.bounds(level);
+            let settled = if !acceptable(n - least as f64) {
+                false
+            } else if acceptable(n - most as f64) {
+                true
+            } else {
+                acceptable(n - counts.exact(level) as f64)
+            };
+            if settled {
                 low = t;
                 break;
             }
@@ -366,7 +386,11 @@ fn try_map_from_photo<R: Rng + ?Sized>(
     }
     let ramp = Ramp { low, high };
     let table: LevelTable = values.map(|v| ramp.apply(v));
-    if histogram.weighted_sum(&table) < recipe.min_map_mass {
+    // The ramp is 1 above `high`, so the map's mass is at least `above`
+    // (a sum of non-negative terms, rounded up or down alike): the whole
+    // histogram is needed only when that does not settle it.
+    if above < recipe.min_map_mass && window.histogram().weighted_sum(&table) < recipe.min_map_mass
+    {
         return None;
     }
     let record = MapRecord {

@@ -1,6 +1,7 @@
-//! Windows of one channel on 8-bit levels, and their histograms: every
-//! statistic a soft map needs (maximum, counts above a threshold, mass of a
-//! ramp) is read off 256 bins instead of a pass over the pixels.
+//! Windows of one channel on 8-bit levels and the statistics a soft map
+//! needs of them: the maximum, how many pixels are at or above a level (a
+//! vectorised pass, a compare per pixel), and whole histograms (a ramp's
+//! mass).
 
 use crate::channel::Channel;
 use crate::coverage::Coverage;
@@ -79,6 +80,106 @@ pub fn look_up(levels: &[u8], table: &LevelTable, out: &mut [f32]) {
     }
 }
 
+/// Counts of a window's pixels at or above given levels: each made once,
+/// when asked for, by a pass over the window; those made so far bound every
+/// other (the count never grows with the level), which settles most
+/// threshold tests without a pass.
+#[derive(Clone, Debug)]
+pub struct LevelCounts<'w> {
+    window: &'w ChannelWindow,
+    /// `known[l]`: the count at or above level `l`, once made; 256 stands
+    /// for "above every level" (always 0).
+    known: [Option<u64>; 257],
+}
+
+impl<'w> LevelCounts<'w> {
+    /// The past-the-top level: no pixel is at or above it.
+    pub const PAST_TOP: usize = 256;
+
+    /// No counts made yet of `window` but the two ends.
+    pub fn new(window: &'w ChannelWindow) -> Self {
+        let mut known = [None; 257];
+        known[0] = Some(window.levels.len() as u64);
+        known[Self::PAST_TOP] = Some(0);
+        Self { window, known }
+    }
+
+    /// The first level whose value (`values[level]`) is strictly above
+    /// `t`, or [`LevelCounts::PAST_TOP`]: for a table that never decreases,
+    /// the pixels above `t` are those at or above it.
+    ///
+    /// # Panics
+    /// In debug builds, when `values` decreases somewhere.
+    pub fn first_above(values: &LevelTable, t: f32) -> usize {
+        debug_assert!(
+            values.windows(2).all(|p| p[0] <= p[1]),
+            "values never decrease"
+        );
+        values.iter().position(|&v| v > t).unwrap_or(Self::PAST_TOP)
+    }
+
+    /// The least and the most the count at or above `level` (0..=256) can
+    /// be, from the counts made so far (equal once it is made).
+    pub fn bounds(&self, level: usize) -> (u64, u64) {
+        let most = self.known[..=level].iter().rev().find_map(|&c| c);
+        let least = self.known[level..].iter().find_map(|&c| c);
+        (least.unwrap_or(0), most.unwrap_or(0))
+    }
+
+    /// The count at or above `level` (0..=256), made now if it is not yet.
+    pub fn exact(&mut self, level: usize) -> u64 {
+        *self.known[level].get_or_insert_with(|| count_at_least(&self.window.levels, level as u8))
+    }
+}
+
+/// How many of `levels` are `level` or above; in explicit AVX2 when the CPU
+/// has it (a compare and a subtract per 32 levels).
+fn count_at_least(levels: &[u8], level: u8) -> u64 {
+    let mut done = 0;
+    let mut count = 0;
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: AVX2 is present.
+        (done, count) = unsafe { avx2::count_at_least(levels, level) };
+    }
+    count + levels[done..].iter().filter(|&&l| l >= level).count() as u64
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use std::arch::x86_64::*;
+
+    /// [`super::count_at_least`] on whole steps of 32 levels: how many
+    /// levels it read and how many of those were `level` or above.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn count_at_least(levels: &[u8], level: u8) -> (usize, u64) {
+        let steps = levels.len() / 32;
+        let at_least = _mm256_set1_epi8(level as i8);
+        let mut sums = _mm256_setzero_si256();
+        let mut step = 0;
+        while step < steps {
+            // Byte counters gain at most one a step: summed every 255 steps,
+            // before they could wrap.
+            let end = steps.min(step + 255);
+            let mut counters = _mm256_setzero_si256();
+            for s in step..end {
+                let v = _mm256_loadu_si256(levels.as_ptr().add(32 * s) as *const __m256i);
+                // All ones where v >= level, i.e. where max(v, level) == v.
+                let above = _mm256_cmpeq_epi8(_mm256_max_epu8(v, at_least), v);
+                counters = _mm256_sub_epi8(counters, above);
+            }
+            sums = _mm256_add_epi64(sums, _mm256_sad_epu8(counters, _mm256_setzero_si256()));
+            step = end;
+        }
+        let mut lanes = [0u64; 4];
+        _mm256_storeu_si256(lanes.as_mut_ptr() as *mut __m256i, sums);
+        (32 * steps, lanes.iter().sum())
+    }
+}
+
 /// The channel's values on `[0, 1]`: `level / divisor` (`divisor` 255 for
 /// the full range, or the window's top level to normalise by the maximum;
 /// 0 is taken as 1, so a black window stays 0).
@@ -117,26 +218,6 @@ impl LevelHistogram {
         self.counts[level as usize]
     }
 
-    /// All pixels.
-    pub fn total(&self) -> u64 {
-        self.counts.iter().sum()
-    }
-
-    /// The highest level present (0 when there is none).
-    pub fn max_level(&self) -> u8 {
-        self.counts.iter().rposition(|&c| c > 0).unwrap_or(0) as u8
-    }
-
-    /// Pixels whose value (`values[level]`) is strictly above `t`.
-    pub fn count_above(&self, values: &LevelTable, t: f32) -> u64 {
-        self.counts
-            .iter()
-            .zip(values)
-            .filter(|(_, &v)| v > t)
-            .map(|(&c, _)| c)
-            .sum()
-    }
-
     /// The sum over pixels of `table[level]`, in `f64`.
     pub fn weighted_sum(&self, table: &LevelTable) -> f64 {
         self.counts
@@ -164,32 +245,72 @@ mod tests {
     fn histogram_counts_match_a_direct_count() {
         let levels: Vec<u8> = (0..1001u32).map(|i| ((i * i * 7) % 253) as u8).collect();
         let hist = window(levels.clone()).histogram();
-        assert_eq!(hist.total(), 1001);
         for l in 0..=255u8 {
             let direct = levels.iter().filter(|&&v| v == l).count() as u64;
             assert_eq!(hist.count(l), direct, "level {l}");
         }
-        assert_eq!(hist.max_level(), 252);
         assert_eq!(window(levels).max_level(), 252);
     }
 
+    /// Every level of the whole range, in a window longer than one group
+    /// of byte counters (255 steps of 32) and not a whole number of steps.
     #[test]
-    fn values_counts_and_sums_agree_with_the_mapped_plane() {
+    fn counts_at_or_above_a_level_match_a_direct_count() {
+        let levels: Vec<u8> = (0..20_011u32)
+            .map(|i| (i.wrapping_mul(2_654_435_761) >> 24) as u8)
+            .collect();
+        for level in [0u8, 1, 2, 77, 128, 200, 254, 255] {
+            let direct = levels.iter().filter(|&&l| l >= level).count() as u64;
+            assert_eq!(count_at_least(&levels, level), direct, "level {level}");
+            assert_eq!(count_at_least(&levels[..31], level), {
+                levels[..31].iter().filter(|&&l| l >= level).count() as u64
+            });
+        }
+        // All 255s: every byte counter reaches its limit and must not wrap.
+        assert_eq!(count_at_least(&[255; 8160 * 2 + 5], 255), 8160 * 2 + 5);
+    }
+
+    #[test]
+    fn level_counts_are_exact_and_bound_the_counts_not_made() {
+        let levels: Vec<u8> = (0..5_000u32).map(|i| ((i * 37) % 211) as u8).collect();
+        let w = window(levels.clone());
+        let direct = |level: usize| levels.iter().filter(|&&l| l as usize >= level).count() as u64;
+        let mut counts = LevelCounts::new(&w);
+        assert_eq!(counts.bounds(0), (5_000, 5_000));
+        assert_eq!(counts.bounds(LevelCounts::PAST_TOP), (0, 0));
+        assert_eq!(counts.bounds(100), (0, 5_000));
+        for made in [150, 60, 61, 200] {
+            assert_eq!(counts.exact(made), direct(made));
+            for level in 0..=LevelCounts::PAST_TOP {
+                let (least, most) = counts.bounds(level);
+                assert!(
+                    least <= direct(level) && direct(level) <= most,
+                    "level {level}"
+                );
+            }
+        }
+        assert_eq!(counts.bounds(60), (direct(60), direct(60)));
+        assert_eq!(counts.bounds(100), (direct(150), direct(61)));
+        // Values above a threshold are the levels from the first above it.
+        let full = level_values(255);
+        assert_eq!(LevelCounts::first_above(&full, 10.0 / 255.0), 11);
+        assert_eq!(LevelCounts::first_above(&full, 1.0), LevelCounts::PAST_TOP);
+        assert_eq!(LevelCounts::first_above(&level_values(50), 0.5), 26);
+    }
+
+    #[test]
+    fn values_and_sums_agree_with_the_mapped_plane() {
         let w = window(vec![0, 10, 10, 50, 200, 255, 3]);
-        let hist = w.histogram();
         let full = level_values(255);
         assert_eq!(full[255], 1.0);
-        assert_eq!(hist.count_above(&full, 10.0 / 255.0), 3);
-        let by_max = level_values(hist.max_level());
-        assert_eq!(hist.count_above(&by_max, 0.0), 6);
         let plane = w.map_levels(&full);
         assert_eq!(plane.data[4], 200.0 / 255.0);
         let mut row = vec![0.0; 7];
         w.map_run(0, 0, &full, &mut row);
         assert_eq!(row, plane.data);
-        assert!((hist.weighted_sum(&full) - plane.sum()).abs() < 1e-9);
+        assert!((w.histogram().weighted_sum(&full) - plane.sum()).abs() < 1e-9);
         // A black window stays black when normalised by its maximum.
         let black = window(vec![0; 5]);
-        assert_eq!(level_values(black.histogram().max_level())[0], 0.0);
+        assert_eq!(level_values(black.max_level())[0], 0.0);
     }
 }

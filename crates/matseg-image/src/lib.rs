@@ -26,7 +26,7 @@ pub use channel::Channel;
 pub use channel_rows::{ChannelRows, WindowRows};
 pub use coverage::{Coverage, Region};
 pub use io::ImageIoError;
-pub use levels::{level_values, ChannelWindow, LevelHistogram, LevelTable};
+pub use levels::{level_values, ChannelWindow, LevelCounts, LevelHistogram, LevelTable};
 pub use library::{licence_of, LibraryError, Photo, PhotoLibrary, ScanReport, SkippedFile};
 pub use licence::{licence_family, LicenceFilter};
 pub use mirrors::Mirrors;
