@@ -31,6 +31,17 @@ fn reflect101(i: isize, n: usize) -> usize {
         return 0;
     }
     let n = n as isize;
+    // Within one reflection of the range (every call the blurs make but
+    // for planes narrower than their kernel): no division.
+    if (0..n).contains(&i) {
+        return i as usize;
+    }
+    if (1 - n..0).contains(&i) {
+        return -i as usize;
+    }
+    if (n..2 * n - 1).contains(&i) {
+        return (2 * (n - 1) - i) as usize;
+    }
     let period = 2 * (n - 1);
     let mut j = i.rem_euclid(period);
     if j >= n {
@@ -353,6 +364,14 @@ mod tests {
     fn reflect101_mirrors_without_the_edge() {
         let got: Vec<usize> = (-3..8).map(|i| reflect101(i, 5)).collect();
         assert_eq!(got, vec![3, 2, 1, 0, 1, 2, 3, 4, 3, 2, 1]);
+        // Several reflections away (a plane narrower than the kernel).
+        let got: Vec<usize> = (-9..13).map(|i| reflect101(i, 3)).collect();
+        let period = [0, 1, 2, 1];
+        let want: Vec<usize> = (-9..13isize)
+            .map(|i| period[i.rem_euclid(4) as usize])
+            .collect();
+        assert_eq!(got, want);
+        assert_eq!(reflect101(-7, 1), 0);
     }
 
     #[test]
