@@ -176,7 +176,9 @@ fn compose_rows(
         .expect("buffer length matches the image size")
 }
 
-/// `acc = pixels * weights`, element-wise, pixels as floats.
+/// `acc = pixels * weights`, element-wise, pixels as floats; also compiled
+/// for AVX2, picked at run time.
+#[multiversion::multiversion(targets("x86_64+avx2"))]
 fn weigh_row(acc: &mut [f32], pixels: &[u8], weights: &[f32]) {
     for ((a, &v), &wt) in acc.iter_mut().zip(pixels).zip(weights) {
         *a = v as f32 * wt;
