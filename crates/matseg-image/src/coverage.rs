@@ -179,14 +179,24 @@ impl Coverage {
     /// The coverage of every pixel within `r` rows of a covered one: the
     /// rows a vertical filter of radius `r` reads to fill this coverage.
     pub fn dilated_rows(&self, r: usize) -> Self {
-        let mut out = Self::empty(self.width, self.height);
-        for y in 0..self.height {
-            let (from, to) = (y.saturating_sub(r), (y + r + 1).min(self.height));
-            for src in from..to {
-                for i in 0..self.words {
-                    out.bits[y * self.words + i] |= self.bits[src * self.words + i];
+        let mut out = self.clone();
+        // A coverage dilated by `c` rows, ORed with itself `t <= 2c + 1`
+        // rows up and down, is dilated by `c + t` without a gap: radii 1,
+        // 4, 13, ... reach `r` in a few passes of three rows each. Rows
+        // past an edge read the edge row, which covers all they would.
+        let (words, h) = (self.words, self.height);
+        let mut reached = 0;
+        let mut spread = self.bits.clone();
+        while reached < r && h > 0 {
+            let t = (2 * reached + 1).min(r - reached);
+            spread.copy_from_slice(&out.bits);
+            for y in 0..h {
+                let (up, down) = (y.saturating_sub(t), (y + t).min(h - 1));
+                for i in 0..words {
+                    out.bits[y * words + i] |= spread[up * words + i] | spread[down * words + i];
                 }
             }
+            reached += t;
         }
         out.support = self.support.map(|s| Region {
             y0: s.y0.saturating_sub(r),
@@ -203,14 +213,23 @@ impl Coverage {
         let reach = r.div_ceil(BLOCK);
         let blocks = self.blocks_per_row();
         let mut wide = self.clone();
+        let words = self.words.max(1);
         for (row, out) in self
             .bits
-            .chunks_exact(self.words.max(1))
-            .zip(wide.bits.chunks_exact_mut(self.words.max(1)))
+            .chunks_exact(words)
+            .zip(wide.bits.chunks_exact_mut(words))
         {
-            for b in (0..blocks).filter(|&b| row[b / 64] & (1 << (b % 64)) != 0) {
-                for n in b.saturating_sub(reach)..(b + reach + 1).min(blocks) {
-                    out[n / 64] |= 1 << (n % 64);
+            // Each block's bit moved left and right by 1..=reach blocks,
+            // across word boundaries.
+            for d in 1..=reach {
+                for (i, o) in out.iter_mut().enumerate() {
+                    *o |= shifted_word(row, i, d as isize) | shifted_word(row, i, -(d as isize));
+                }
+            }
+            // No block past the row's last.
+            if !blocks.is_multiple_of(64) {
+                if let Some(last) = out.last_mut() {
+                    *last &= (1u64 << (blocks % 64)) - 1;
                 }
             }
         }
@@ -242,6 +261,24 @@ impl Coverage {
     /// Row `y`'s block bit set: bit `b % 64` of word `b / 64` is block `b`.
     pub fn row(&self, y: usize) -> &[u64] {
         &self.bits[y * self.words..(y + 1) * self.words]
+    }
+}
+
+/// Word `i` of the bit set `row` with every bit moved `d` places up (to
+/// higher blocks; down for negative `d`), zeros shifted in; `|d| < 64`.
+fn shifted_word(row: &[u64], i: usize, d: isize) -> u64 {
+    let word = |j: Option<usize>| j.and_then(|j| row.get(j)).copied().unwrap_or(0);
+    let s = d.unsigned_abs() as u32;
+    if d >= 0 {
+        let carry = if s == 0 {
+            0
+        } else {
+            word(i.checked_sub(1)) >> (64 - s)
+        };
+        (row[i] << s) | carry
+    } else {
+        let carry = word(Some(i + 1)) << (64 - s);
+        (row[i] >> s) | carry
     }
 }
 
@@ -351,6 +388,51 @@ mod tests {
             whole_words.runs(0).collect::<Vec<_>>(),
             vec![(0, 128 * BLOCK)]
         );
+    }
+
+    /// Dilation equals the direct definition: a block is covered when a
+    /// covered block lies within `r` rows and `r.div_ceil(BLOCK)` blocks.
+    #[test]
+    fn dilations_match_their_definition() {
+        // 70 blocks (two words per row) and a single-word width.
+        for w in [70 * BLOCK - 5, 9 * BLOCK + 1] {
+            let h = 23;
+            let mut p = Plane::new(w, h, 0.0);
+            for (x, y) in [
+                (0, 0),
+                (63 * BLOCK, 5),
+                (64 * BLOCK + 2, 11),
+                (w - 1, 22),
+                (5, 13),
+            ] {
+                if x < w {
+                    p.data[y * w + x] = 1.0;
+                }
+            }
+            let c = Coverage::of(&p);
+            let blocks = c.blocks_per_row();
+            let covered =
+                |c: &Coverage, b: usize, y: usize| c.row(y)[b / 64] & (1 << (b % 64)) != 0;
+            for r in [0, 1, 2, 4, 5, 10, 17, 30] {
+                let (rows, both) = (c.dilated_rows(r), c.dilated(r));
+                let reach = r.div_ceil(BLOCK);
+                for y in 0..h {
+                    for b in 0..blocks {
+                        let near = |reach: usize| {
+                            (y.saturating_sub(r)..(y + r + 1).min(h)).any(|sy| {
+                                (b.saturating_sub(reach)..(b + reach + 1).min(blocks))
+                                    .any(|sb| covered(&c, sb, sy))
+                            })
+                        };
+                        assert_eq!(covered(&rows, b, y), near(0), "rows r {r} ({b}, {y})");
+                        assert_eq!(covered(&both, b, y), near(reach), "both r {r} ({b}, {y})");
+                    }
+                    // Nothing past the last block.
+                    let past = (blocks..c.words * 64).any(|b| covered(&both, b, y));
+                    assert!(!past, "r {r} row {y}");
+                }
+            }
+        }
     }
 
     #[test]
