@@ -60,6 +60,11 @@ fn blend_pair(a: i16, b: i16, packed: i32) -> u8 {
 /// beyond the taps' reach (16-byte loads may read past the last tap).
 pub const ROW_SLACK: usize = 16;
 
+/// Values a row of row-blended values given to [`ColumnTaps::blend_range`]
+/// must hold beyond the taps' reach (8-value loads may read past the last
+/// tap).
+pub const PAIR_SLACK: usize = 8;
+
 /// The column taps of one window: for each output column, the index of the
 /// first of two neighbouring row-blended values and the packed weight.
 #[derive(Clone, Debug)]
@@ -72,6 +77,19 @@ pub struct ColumnTaps {
     /// per group of eight: the first byte they read, and the byte shuffle
     /// that lays out their pairs as `i16`.
     narrow: Option<(Vec<u32>, Vec<[u8; 32]>)>,
+    /// When every four consecutive taps (from a multiple of four) read
+    /// within eight row-blended values (any scale below 2).
+    narrow_pairs: Option<PairShuffles>,
+}
+
+/// Per group of eight column taps: the first row-blended value each half
+/// of four reads, and the byte shuffle (per 128-bit half: of the eight
+/// `i16` values from that half's first) that gives each tap's pair `(row[f],
+/// row[f + 1])` as a 32-bit lane.
+#[derive(Clone, Debug)]
+struct PairShuffles {
+    bases: Vec<[u32; 2]>,
+    shuffles: Vec<[u8; 32]>,
 }
 
 /// For each complete group of eight taps, the first byte it reads and the
@@ -96,6 +114,35 @@ fn narrow_groups(firsts: &[u32]) -> Option<(Vec<u32>, Vec<[u8; 32]>)> {
         .map(|groups| groups.into_iter().unzip())
 }
 
+/// The [`PairShuffles`] of every complete group of eight taps; `None` when
+/// some half of a group reads more than eight values.
+fn narrow_pair_groups(firsts: &[u32]) -> Option<PairShuffles> {
+    firsts
+        .chunks_exact(8)
+        .map(|group| {
+            let mut bases = [0u32; 2];
+            let mut shuffle = [0u8; 32];
+            for (half, taps) in group.chunks_exact(4).enumerate() {
+                let base = *taps.iter().min()?;
+                if taps.iter().max()? + 2 - base > 8 {
+                    return None;
+                }
+                bases[half] = base;
+                for (j, &f) in taps.iter().enumerate() {
+                    let at = 2 * (f - base) as u8;
+                    let lane = 16 * half + 4 * j;
+                    shuffle[lane..lane + 4].copy_from_slice(&[at, at + 1, at + 2, at + 3]);
+                }
+            }
+            Some((bases, shuffle))
+        })
+        .collect::<Option<Vec<_>>>()
+        .map(|groups| {
+            let (bases, shuffles) = groups.into_iter().unzip();
+            PairShuffles { bases, shuffles }
+        })
+}
+
 impl ColumnTaps {
     /// Taps from `(first, weight)` pairs, weights in 128ths.
     pub fn new(taps: impl Iterator<Item = (usize, i32)>) -> Self {
@@ -103,12 +150,20 @@ impl ColumnTaps {
             taps.map(|(f, w)| (f as u32, pack_weight(w))).unzip();
         let row_len = firsts.iter().map(|&f| f as usize + 2).max().unwrap_or(0);
         let narrow = narrow_groups(&firsts);
+        let narrow_pairs = narrow_pair_groups(&firsts);
         Self {
             firsts,
             packed,
             row_len,
             narrow,
+            narrow_pairs,
         }
+    }
+
+    /// Length a row of row-blended values given to
+    /// [`ColumnTaps::blend_range`] must have.
+    pub fn padded_len(&self) -> usize {
+        self.row_len + PAIR_SLACK
     }
 
     /// `out[i] = row[first_i] * (128 - w_i) + row[first_i + 1] * w_i` for a
@@ -144,20 +199,56 @@ impl ColumnTaps {
     }
 
     /// [`ColumnTaps::blend`] for the output columns `x0..x0 + out.len()`
-    /// only: it reads `row` from the first tap of `x0` to one past the
-    /// first tap of the last column.
+    /// only: it uses `row` from the first tap of `x0` to one past the
+    /// first tap of the last column (`row` is [`ColumnTaps::padded_len`]
+    /// long). With AVX2, whole pairs of narrow groups are blended by byte
+    /// shuffles, other columns by gathers.
     pub fn blend_range(&self, row: &[i16], x0: usize, out: &mut [u8]) {
         let columns = x0..x0 + out.len();
-        assert!(row.len() >= self.row_len && columns.end <= self.firsts.len());
-        let (firsts, packed) = (&self.firsts[columns.clone()], &self.packed[columns]);
+        assert!(row.len() >= self.padded_len() && columns.end <= self.firsts.len());
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: AVX2 is present, and every index read (first, first + 1)
-            // lies inside `row`, which is at least `row_len` long.
-            unsafe { avx2::blend_columns(row, firsts, packed, out) };
+            // Groups g0..g1 of eight lie whole within the columns; an even
+            // number of them from g0 are shuffled.
+            let (g0, g1) = (x0.div_ceil(8), columns.end / 8);
+            let shuffled = match &self.narrow_pairs {
+                Some(groups) if g1 > g0 + 1 => Some((groups, 8 * g0..8 * (g0 + (g1 - g0) / 2 * 2))),
+                _ => None,
+            };
+            let (a, b) = shuffled
+                .as_ref()
+                .map_or((x0, x0), |(_, r)| (r.start, r.end));
+            let (before, rest) = out.split_at_mut(a - x0);
+            let (middle, after) = rest.split_at_mut(b - a);
+            for (range, out) in [(x0..a, before), (b..columns.end, after)] {
+                // SAFETY: AVX2 is present, and every index read (first,
+                // first + 1) lies inside `row`, at least `row_len` long.
+                unsafe {
+                    avx2::blend_columns(row, &self.firsts[range.clone()], &self.packed[range], out)
+                };
+            }
+            if let Some((PairShuffles { bases, shuffles }, range)) = shuffled {
+                let groups = range.start / 8..range.end / 8;
+                // SAFETY: AVX2 is present; each half loads eight values from
+                // its first, at most `row_len - 2`, and `row` has
+                // `PAIR_SLACK` more.
+                unsafe {
+                    avx2::blend_columns_narrow(
+                        row,
+                        (&bases[groups.clone()], &shuffles[groups]),
+                        &self.packed[range],
+                        middle,
+                    )
+                };
+            }
             return;
         }
-        blend_columns_portable(row, firsts, packed, out);
+        blend_columns_portable(
+            row,
+            &self.firsts[columns.clone()],
+            &self.packed[columns],
+            out,
+        );
     }
 
     /// The first of the two row values output column `x` reads.
@@ -250,6 +341,40 @@ pub(crate) mod avx2 {
             i += 16;
         }
         super::blend_columns_portable(row, &firsts[i..], &packed[i..], &mut out[i..]);
+    }
+
+    /// AVX2 [`super::ColumnTaps::blend_range`] on pairs of narrow groups:
+    /// each half of four outputs loads the eight row values it reads, one
+    /// byte shuffle lays out the pairs, `pmaddwd` blends them; 16 outputs
+    /// per step.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2; `row` holds eight values from every base;
+    /// `out` is 16 outputs per two groups, `packed` one weight per output.
+    #[target_feature(enable = "avx2")]
+    pub unsafe fn blend_columns_narrow(
+        row: &[i16],
+        (bases, shuffles): (&[[u32; 2]], &[[u8; 32]]),
+        packed: &[i32],
+        out: &mut [u8],
+    ) {
+        let round = _mm256_set1_epi32(1 << 13);
+        let eight = |g: usize| {
+            let load = |at: u32| _mm_loadu_si128(row.as_ptr().add(at as usize) as *const __m128i);
+            let [lo, hi] = bases[g];
+            let values = _mm256_inserti128_si256::<1>(_mm256_castsi128_si256(load(lo)), load(hi));
+            let shuffle = _mm256_loadu_si256(shuffles[g].as_ptr() as *const __m256i);
+            let pairs = _mm256_shuffle_epi8(values, shuffle);
+            let w = _mm256_loadu_si256(packed.as_ptr().add(8 * g) as *const __m256i);
+            _mm256_srai_epi32::<14>(_mm256_add_epi32(_mm256_madd_epi16(pairs, w), round))
+        };
+        for step in 0..out.len() / 16 {
+            store_sixteen(
+                eight(2 * step),
+                eight(2 * step + 1),
+                out.as_mut_ptr().add(16 * step),
+            );
+        }
     }
 
     /// AVX2 [`super::ColumnTaps::blend_unrounded`] for narrow taps: each
@@ -345,15 +470,16 @@ mod tests {
 
     #[test]
     fn column_blends_match_the_portable_path_and_round() {
-        let row: Vec<i16> = (0..300).map(|i| ((i * 37) % 256 * 128) as i16).collect();
+        let row: Vec<i16> = (0..310).map(|i| ((i * 37) % 256 * 128) as i16).collect();
         let taps = ColumnTaps::new((0..203).map(|i| (i * 7 % 298, (i % 129) as i32)));
+        assert!(taps.narrow_pairs.is_none(), "scattered taps are gathered");
         let mut fast = vec![0u8; 203];
         let mut slow = vec![0u8; 203];
         taps.blend(&row, &mut fast);
         blend_columns_portable(&row, &taps.firsts, &taps.packed, &mut slow);
         assert_eq!(fast, slow);
         // Weight 0 reads the first value exactly; 128 the second; 64 the mean.
-        let row = [100 * 128, 201 * 128, 0];
+        let row = [100 * 128, 201 * 128, 0, 0, 0, 0, 0, 0, 0, 0];
         let mut out = [0u8; 3];
         ColumnTaps::new([(0, 0), (0, 128), (0, 64)].into_iter()).blend(&row, &mut out);
         assert_eq!(out, [100, 201, 151]);
@@ -365,7 +491,7 @@ mod tests {
         let bottom: Vec<u8> = (0..40).map(|i| (i * 29 % 256) as u8).collect();
         let taps = ColumnTaps::new((0..30).map(|i| (i * 38 / 30, (i * 11 % 129) as i32)));
         for wy in [0, 1, 63, 64, 127, 128] {
-            let mut rows = vec![0i16; 41];
+            let mut rows = vec![0i16; 41 + PAIR_SLACK];
             blend_rows(&top, &bottom, wy, &mut rows[..40]);
             rows[40] = rows[39];
             let mut rows_first = vec![0u8; 30];
@@ -409,6 +535,45 @@ mod tests {
                 })
                 .collect();
             assert_eq!(fast, want, "step {step}");
+        }
+    }
+
+    /// Column ranges starting and ending anywhere, at scales from
+    /// upscaling to just below a halving (shuffled groups in the middle,
+    /// gathers at the ends) and at a halving (no shuffles), equal the
+    /// portable path.
+    #[test]
+    fn column_ranges_match_the_portable_path_at_every_offset() {
+        let row: Vec<i16> = (0..700)
+            .map(|i| ((i * 101) % 256 * 128 + i % 128) as i16)
+            .collect();
+        for (step, narrow) in [
+            (1.0 / 2.3, true),
+            (1.0, true),
+            (1.6, true),
+            (1.99, true),
+            (2.5, false),
+        ] {
+            let n = 250;
+            let taps = ColumnTaps::new(
+                (0..n).map(|i| ((i as f64 * step) as usize, (i * 29 % 129) as i32)),
+            );
+            assert_eq!(taps.narrow_pairs.is_some(), narrow, "step {step}");
+            let mut padded = row[..taps.row_len].to_vec();
+            padded.resize(taps.padded_len(), -1);
+            let mut want = vec![0u8; n];
+            blend_columns_portable(&padded, &taps.firsts, &taps.packed, &mut want);
+            for x0 in [0, 1, 5, 8, 13, 16, 40] {
+                for len in [0, 1, 7, 15, 16, 17, 31, 32, 33, 64, 100, n - x0] {
+                    let mut out = vec![0u8; len.min(n - x0)];
+                    taps.blend_range(&padded, x0, &mut out);
+                    assert_eq!(
+                        out,
+                        want[x0..x0 + out.len()],
+                        "step {step} x0 {x0} len {len}"
+                    );
+                }
+            }
         }
     }
 

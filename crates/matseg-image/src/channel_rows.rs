@@ -46,8 +46,8 @@ enum Source<'a> {
     /// is made whole.
     Whole(ChannelWindow),
     /// R, G or B (one lane), or V (the largest of the three), resampled
-    /// run by run.
-    OnDemand(OnDemand<'a>),
+    /// run by run (boxed: its window reader holds the column taps).
+    OnDemand(Box<OnDemand<'a>>),
 }
 
 /// The lanes of a channel made run by run; `lane` holds one lane's run of V.
@@ -121,11 +121,11 @@ impl<'a> ChannelRows<'a> {
         Self {
             width: w,
             height: h,
-            source: Source::OnDemand(OnDemand {
+            source: Source::OnDemand(Box::new(OnDemand {
                 rows: WindowRows::new(pyramid, placement, w, h),
                 lanes,
                 lane: Vec::new(),
-            }),
+            })),
             levels: Vec::new(),
         }
     }

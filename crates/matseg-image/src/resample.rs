@@ -322,7 +322,7 @@ impl WindowReader<'_> {
                         blend_rows_rounded(at(row.first), at(row.second), row.weight, out_row);
                     }
                 } else {
-                    let mut blended = vec![0i16; span + 1];
+                    let mut blended = vec![0i16; taps.padded_len()];
                     for (row, out_row) in rows.iter().zip(out.chunks_exact_mut(out_w)) {
                         let at = |y: usize| b.source_row(lane, y);
                         blend_rows(
@@ -368,7 +368,7 @@ impl WindowReader<'_> {
                 let lo = taps.first(x0);
                 let hi = taps.first(x0 + out.len() - 1) + 1;
                 let end = hi.min(span - 1) + 1;
-                blended.resize(span + 1, 0);
+                blended.resize(taps.padded_len(), 0);
                 let tap = b.rows[y];
                 blend_rows(
                     &at(tap.first)[lo..end],
