@@ -9,22 +9,8 @@ use crate::plane::Plane;
 /// Columns per block of a [`Coverage`].
 pub const BLOCK: usize = 16;
 
-/// A rectangle of a plane: columns `x0..x1`, rows `y0..y1`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Region {
-    /// First column.
-    pub x0: usize,
-    /// One past the last column.
-    pub x1: usize,
-    /// First row.
-    pub y0: usize,
-    /// One past the last row.
-    pub y1: usize,
-}
-
 /// For each row of a `width x height` plane, the set of [`BLOCK`]-column
-/// blocks that hold a positive value, and the exact bounding box of those
-/// values.
+/// blocks that hold a positive value.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Coverage {
     width: usize,
@@ -33,7 +19,6 @@ pub struct Coverage {
     words: usize,
     /// Row by row, bit `b` of the row's words: block `b` is covered.
     bits: Vec<u64>,
-    support: Option<Region>,
 }
 
 impl Coverage {
@@ -46,7 +31,6 @@ impl Coverage {
             height,
             words,
             bits: vec![0; words * height],
-            support: None,
         }
     }
 
@@ -58,14 +42,6 @@ impl Coverage {
             for b in 0..blocks {
                 row[b / 64] |= 1 << (b % 64);
             }
-        }
-        if width > 0 && height > 0 {
-            c.support = Some(Region {
-                x0: 0,
-                x1: width,
-                y0: 0,
-                y1: height,
-            });
         }
         c
     }
@@ -95,11 +71,11 @@ impl Coverage {
         // The whole block is tested at once: an OR of comparisons vectorises
         // (a floating-point maximum, NaN-aware, does not).
         let block_positive = |block: &[f32]| block.iter().fold(false, |any, &v| any | (v > 0.0));
-        self.add_run_by(y, x0, run, block_positive, |&v| v > 0.0);
+        self.add_run_by(y, x0, run, block_positive);
     }
 
     /// Records a run of any kind of values: `block_positive` tells whether
-    /// a block holds a positive value, `positive` whether one value is.
+    /// a block holds a positive value.
     #[inline(always)]
     pub fn add_run_by<T>(
         &mut self,
@@ -107,17 +83,13 @@ impl Coverage {
         x0: usize,
         run: &[T],
         block_positive: impl Fn(&[T]) -> bool,
-        positive: impl Fn(&T) -> bool,
     ) {
         debug_assert!(x0.is_multiple_of(BLOCK), "runs start on a block");
         let mask = &mut self.bits[y * self.words..(y + 1) * self.words];
-        let (mut first, mut last) = (None, 0);
         let mut record = |i: usize, block: &[T]| {
             if block_positive(block) {
                 let b = x0 / BLOCK + i;
                 mask[b / 64] |= 1 << (b % 64);
-                first.get_or_insert(i);
-                last = i;
             }
         };
         // Whole blocks apart, so that their test is compiled for 16 values.
@@ -130,30 +102,6 @@ impl Coverage {
         if !tail.is_empty() {
             record(run.len() / BLOCK, tail);
         }
-        let Some(first) = first else { return };
-        let x1 = x0
-            + last * BLOCK
-            + run[last * BLOCK..((last + 1) * BLOCK).min(run.len())]
-                .iter()
-                .rposition(&positive)
-                .expect("a positive value in the block")
-            + 1;
-        let x0 = x0
-            + first * BLOCK
-            + run[first * BLOCK..]
-                .iter()
-                .position(positive)
-                .expect("a positive value in the block");
-        let r = self.support.get_or_insert(Region {
-            x0,
-            x1,
-            y0: y,
-            y1: y + 1,
-        });
-        r.x0 = r.x0.min(x0);
-        r.x1 = r.x1.max(x1);
-        r.y0 = r.y0.min(y);
-        r.y1 = r.y1.max(y + 1);
     }
 
     /// Width of the plane in pixels.
@@ -171,9 +119,9 @@ impl Coverage {
         self.width.div_ceil(BLOCK)
     }
 
-    /// The bounding box of the positive pixels, if there is any.
-    pub fn support(&self) -> Option<Region> {
-        self.support
+    /// Whether no block is covered.
+    pub fn is_empty(&self) -> bool {
+        self.bits.iter().all(|&w| w == 0)
     }
 
     /// The coverage of every pixel within `r` rows of a covered one: the
@@ -198,11 +146,6 @@ impl Coverage {
             }
             reached += t;
         }
-        out.support = self.support.map(|s| Region {
-            y0: s.y0.saturating_sub(r),
-            y1: (s.y1 + r).min(self.height),
-            ..s
-        });
         out
     }
 
@@ -233,11 +176,6 @@ impl Coverage {
                 }
             }
         }
-        wide.support = self.support.map(|s| Region {
-            x0: s.x0.saturating_sub(r),
-            x1: (s.x1 + r).min(self.width),
-            ..s
-        });
         wide.dilated_rows(r)
     }
 
@@ -339,20 +277,13 @@ mod tests {
     }
 
     #[test]
-    fn support_is_the_bounding_box_of_positive_values() {
+    fn empty_until_a_positive_value() {
         let mut p = Plane::new(10, 8, 0.0);
-        assert_eq!(Coverage::of(&p).support(), None);
-        p.data[2 * 10 + 7] = 0.5;
-        p.data[5 * 10 + 3] = 1.0;
-        assert_eq!(
-            Coverage::of(&p).support(),
-            Some(Region {
-                x0: 3,
-                x1: 8,
-                y0: 2,
-                y1: 6
-            })
-        );
+        p.data[3] = -1.0;
+        assert!(Coverage::of(&p).is_empty());
+        p.data[5 * 10 + 3] = 1e-30;
+        assert!(!Coverage::of(&p).is_empty());
+        assert!(Coverage::full(0, 0).is_empty() && !Coverage::full(1, 1).is_empty());
     }
 
     #[test]
@@ -446,14 +377,5 @@ mod tests {
             [false, false, true, true, true, true, true, false, false]
         );
         assert_eq!(covered_columns(&c, 6), (16..32).collect::<Vec<_>>());
-        assert_eq!(
-            c.support(),
-            Some(Region {
-                x0: 20,
-                x1: 21,
-                y0: 2,
-                y1: 7
-            })
-        );
     }
 }

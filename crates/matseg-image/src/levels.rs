@@ -64,9 +64,9 @@ impl ChannelWindow {
         let any_positive = |block: &[u8]| block.iter().any(positive);
         for (y, row) in self.levels.chunks_exact(self.width.max(1)).enumerate() {
             if monotone {
-                c.add_run_by(y, 0, row, top_positive, positive);
+                c.add_run_by(y, 0, row, top_positive);
             } else {
-                c.add_run_by(y, 0, row, any_positive, positive);
+                c.add_run_by(y, 0, row, any_positive);
             }
         }
         c

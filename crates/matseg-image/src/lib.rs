@@ -24,7 +24,7 @@ pub mod sparse;
 pub use blur::{gaussian_blur, gaussian_blur_covered, CoveredBlur};
 pub use channel::Channel;
 pub use channel_rows::{ChannelRows, WindowRows};
-pub use coverage::{Coverage, Region};
+pub use coverage::Coverage;
 pub use io::ImageIoError;
 pub use levels::{level_values, ChannelWindow, LevelCounts, LevelHistogram, LevelTable};
 pub use library::{licence_of, LibraryError, Photo, PhotoLibrary, ScanReport, SkippedFile};

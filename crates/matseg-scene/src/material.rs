@@ -145,7 +145,9 @@ impl DrawnMaterial {
     ) -> Option<Layer<'a>> {
         // Pixels where the weight is 0 add nothing, so the shading blur and
         // the blending skip every block without one.
-        coverage.support()?;
+        if coverage.is_empty() {
+            return None;
+        }
         let (w, h) = (weight.width(), weight.height());
         Some(Layer {
             weight,
