@@ -47,7 +47,7 @@ impl Channel {
 
 /// Hue level of an 8-bit pixel: `round(256 * hue / 360°)` modulo 256 (0 for
 /// greys). Branch-free `f32` arithmetic with one correctly rounded division,
-/// so the vectorised loops of [`levels_of`] give the same levels.
+/// so the vectorised loops of [`write_levels`] give the same levels.
 #[inline]
 pub fn hue_level([r, g, b]: [u8; 3]) -> u8 {
     let (r, g, b) = (r as i32, g as i32, b as i32);
@@ -74,27 +74,26 @@ pub fn saturation_level([r, g, b]: [u8; 3]) -> u8 {
     ((spread * 255) as f32 / max.max(1) as f32 + 0.5) as u8
 }
 
-/// The levels of `channel` for planes of R, G and B (equal lengths), one
-/// loop per channel so that each vectorises (AVX2 when the CPU has it; hue
-/// and saturation then take explicit AVX2 code with the same arithmetic,
-/// as the compiler's own vectorisation of them is slow).
-pub fn levels_of(channel: Channel, r: &[u8], g: &[u8], b: &[u8]) -> Vec<u8> {
+/// Writes the levels of `channel` for rows of R, G and B into `out` (all
+/// of one length), one loop per channel so that each vectorises (AVX2 when
+/// the CPU has it; hue and saturation then take explicit AVX2 code with the
+/// same arithmetic, as the compiler's own vectorisation of them is slow).
+pub fn write_levels(channel: Channel, [r, g, b]: [&[u8]; 3], out: &mut [u8]) {
+    let n = out.len();
+    let (r, g, b) = (&r[..n], &g[..n], &b[..n]);
     #[cfg(target_arch = "x86_64")]
     if matches!(channel, Channel::H | Channel::S) && std::arch::is_x86_feature_detected!("avx2") {
-        let n = r.len();
-        let (g, b) = (&g[..n], &b[..n]);
-        let mut out = vec![0u8; n];
         // SAFETY: AVX2 is present and the four slices have equal lengths.
-        unsafe { avx2::hue_or_saturation(channel == Channel::H, r, g, b, &mut out) };
-        return out;
+        unsafe { avx2::hue_or_saturation(channel == Channel::H, r, g, b, out) };
+        return;
     }
     match channel {
-        Channel::R => r.to_vec(),
-        Channel::G => g.to_vec(),
-        Channel::B => b.to_vec(),
-        Channel::H => convert_planes(r, g, b, hue_level),
-        Channel::S => convert_planes(r, g, b, saturation_level),
-        Channel::V => convert_planes(r, g, b, |[r, g, b]| r.max(g).max(b)),
+        Channel::R => out.copy_from_slice(r),
+        Channel::G => out.copy_from_slice(g),
+        Channel::B => out.copy_from_slice(b),
+        Channel::H => convert_rows(r, g, b, hue_level, out),
+        Channel::S => convert_rows(r, g, b, saturation_level, out),
+        Channel::V => convert_rows(r, g, b, |[r, g, b]| r.max(g).max(b), out),
     }
 }
 
@@ -160,12 +159,10 @@ mod avx2 {
 }
 
 #[multiversion::multiversion(targets("x86_64+avx2"))]
-fn convert_planes(r: &[u8], g: &[u8], b: &[u8], level: impl Fn([u8; 3]) -> u8) -> Vec<u8> {
-    r.iter()
-        .zip(g)
-        .zip(b)
-        .map(|((&r, &g), &b)| level([r, g, b]))
-        .collect()
+fn convert_rows(r: &[u8], g: &[u8], b: &[u8], level: impl Fn([u8; 3]) -> u8, out: &mut [u8]) {
+    for (((o, &r), &g), &b) in out.iter_mut().zip(r).zip(g).zip(b) {
+        *o = level([r, g, b]);
+    }
 }
 
 #[cfg(test)]
@@ -228,7 +225,8 @@ mod tests {
         for r in 0..=255u8 {
             let r_plane = vec![r; n];
             for channel in Channel::RGB.into_iter().chain(Channel::HSV) {
-                let levels = levels_of(channel, &r_plane, &g[..n], &b[..n]);
+                let mut levels = vec![0u8; n];
+                write_levels(channel, [&r_plane, &g, &b], &mut levels);
                 for (i, &l) in levels.iter().enumerate() {
                     let want = channel.level([r, g[i], b[i]]);
                     assert_eq!(l, want, "{channel:?} of {:?}", [r, g[i], b[i]]);

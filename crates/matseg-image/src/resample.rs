@@ -2,7 +2,7 @@
 //! in one pass that only computes the output pixels.
 
 use crate::bilinear::{blend_rows, blend_rows_rounded, ColumnTaps, ROW_SLACK, WEIGHT_ONE};
-use crate::channel::{levels_of, Channel};
+use crate::channel::{write_levels, Channel};
 use crate::levels::ChannelWindow;
 use image::RgbImage;
 use serde::{Deserialize, Serialize};
@@ -222,8 +222,18 @@ impl Pyramid {
             Channel::G => self.sample_plane(placement, out_w, out_h, 1),
             Channel::B => self.sample_plane(placement, out_w, out_h, 2),
             Channel::H | Channel::S | Channel::V => {
-                let [r, g, b] = self.sample_planes(placement, out_w, out_h);
-                levels_of(channel, &r, &g, &b)
+                // Row by row: the three rows stay in cache until converted.
+                let window = self.window(placement, out_w, out_h);
+                let mut lanes = [0, 1, 2].map(|lane| PlaneRows::new(&window, lane));
+                let mut rows = [vec![0u8; out_w], vec![0u8; out_w], vec![0u8; out_w]];
+                let mut levels = vec![0u8; out_w * out_h];
+                for (y, out) in levels.chunks_exact_mut(out_w.max(1)).enumerate() {
+                    for (lane, row) in lanes.iter_mut().zip(&mut rows) {
+                        lane.row(y, row);
+                    }
+                    write_levels(channel, rows.each_ref().map(|r| &r[..]), out);
+                }
+                levels
             }
         };
         ChannelWindow {
@@ -268,6 +278,13 @@ impl Bilinear<'_> {
     fn source_row(&self, lane: usize, y: usize) -> &[u8] {
         self.level.row(lane, y, self.first, self.span)
     }
+
+    /// Whether the window has more rows than the source rows it reads
+    /// (then columns are blended first, once per source row).
+    fn upscales(&self) -> bool {
+        let source_rows = self.rows[self.rows.len() - 1].second - self.rows[0].first + 1;
+        source_rows < self.rows.len()
+    }
 }
 
 /// A window of a pyramid, ready to read plane by plane.
@@ -280,63 +297,24 @@ pub(crate) enum WindowReader<'a> {
 
 impl WindowReader<'_> {
     /// One plane of the window.
-    ///
-    /// Bilinear in fixed point on 8-bit pixels, rounded back to 8 bits, as
-    /// OpenCV resizes `uint8` images. Rows are blended first, then columns;
-    /// when upscaling, columns first, so each source row is blended once
-    /// (the same integer sums, so the same bytes; see [`crate::bilinear`]).
     fn plane(&self, lane: usize) -> Vec<u8> {
+        let out_w = match self {
+            WindowReader::Crop(crop) => crop.out_w,
+            WindowReader::Bilinear(b) => b.out_w,
+        };
+        let mut out = vec![0u8; self.height() * out_w];
+        let mut rows = PlaneRows::new(self, lane);
+        for (y, row) in out.chunks_exact_mut(out_w.max(1)).enumerate() {
+            rows.row(y, row);
+        }
+        out
+    }
+
+    /// Rows in the window.
+    fn height(&self) -> usize {
         match self {
-            WindowReader::Crop(crop) => {
-                let mut out = Vec::with_capacity(crop.out_w * crop.out_h);
-                for y in 0..crop.out_h {
-                    out.extend_from_slice(crop.row(lane, y));
-                }
-                out
-            }
-            WindowReader::Bilinear(b) => {
-                let (span, out_w, taps, rows) = (b.span, b.out_w, &b.taps, &b.rows);
-                let mut out = vec![0u8; out_w * rows.len()];
-                // Each row blend ends with one copy of its last value, so that
-                // every column tap reads a pair (at the right edge: that value twice).
-                let source_rows = rows[rows.len() - 1].second - rows[0].first + 1;
-                if source_rows < rows.len() {
-                    // Upscaling: blend the columns of each source row once, then
-                    // blend pairs of those rows (cheap, vectorised) per output row.
-                    // Output rows read source rows in increasing order, two
-                    // neighbours at a time: two slots (by the row's parity) hold them.
-                    let mut padded = vec![0u8; span + 1 + ROW_SLACK];
-                    let mut by_columns = [vec![0i16; out_w], vec![0i16; out_w]];
-                    let mut held = [usize::MAX; 2];
-                    for (row, out_row) in rows.iter().zip(out.chunks_exact_mut(out_w)) {
-                        for y in [row.first, row.second] {
-                            if held[y % 2] != y {
-                                let source = b.source_row(lane, y);
-                                padded[..span].copy_from_slice(source);
-                                padded[span] = source[span - 1];
-                                taps.blend_unrounded(&padded, &mut by_columns[y % 2]);
-                                held[y % 2] = y;
-                            }
-                        }
-                        let at = |y: usize| &by_columns[y % 2];
-                        blend_rows_rounded(at(row.first), at(row.second), row.weight, out_row);
-                    }
-                } else {
-                    let mut blended = vec![0i16; taps.padded_len()];
-                    for (row, out_row) in rows.iter().zip(out.chunks_exact_mut(out_w)) {
-                        let at = |y: usize| b.source_row(lane, y);
-                        blend_rows(
-                            at(row.first),
-                            at(row.second),
-                            row.weight,
-                            &mut blended[..span],
-                        );
-                        blended[span] = blended[span - 1];
-                        taps.blend(&blended, out_row);
-                    }
-                }
-                out
-            }
+            WindowReader::Crop(crop) => crop.out_h,
+            WindowReader::Bilinear(b) => b.rows.len(),
         }
     }
 
@@ -403,6 +381,92 @@ impl WindowReader<'_> {
                     .map(|tap| source(tap.first).max(source(tap.second)))
                     .collect()
             }
+        }
+    }
+}
+
+/// One plane of a window made row by row, rows in increasing order.
+///
+/// Bilinear in fixed point on 8-bit pixels, rounded back to 8 bits, as
+/// OpenCV resizes `uint8` images. Rows are blended first, then columns;
+/// when upscaling, columns first, so each source row is blended once (the
+/// same integer sums, so the same bytes; see [`crate::bilinear`]).
+struct PlaneRows<'r, 'a> {
+    reader: &'r WindowReader<'a>,
+    lane: usize,
+    /// Upscaling: a source row with its padding, and the column blends of
+    /// the two source rows last used, in slots by the rows' parity.
+    padded: Vec<u8>,
+    by_columns: [Vec<i16>; 2],
+    held: [usize; 2],
+    /// Downscaling: a row blend.
+    blended: Vec<i16>,
+}
+
+impl<'r, 'a> PlaneRows<'r, 'a> {
+    /// Plane `lane` of the window `reader` reads.
+    fn new(reader: &'r WindowReader<'a>, lane: usize) -> Self {
+        let (padded, by_columns, blended) = match reader {
+            WindowReader::Crop(_) => (Vec::new(), [Vec::new(), Vec::new()], Vec::new()),
+            WindowReader::Bilinear(b) if b.upscales() => (
+                vec![0u8; b.span + 1 + ROW_SLACK],
+                [vec![0i16; b.out_w], vec![0i16; b.out_w]],
+                Vec::new(),
+            ),
+            WindowReader::Bilinear(b) => (
+                Vec::new(),
+                [Vec::new(), Vec::new()],
+                vec![0i16; b.taps.padded_len()],
+            ),
+        };
+        Self {
+            reader,
+            lane,
+            padded,
+            by_columns,
+            held: [usize::MAX; 2],
+            blended,
+        }
+    }
+
+    /// Writes row `y` into `out` (the window's width).
+    fn row(&mut self, y: usize, out: &mut [u8]) {
+        let lane = self.lane;
+        let b = match self.reader {
+            WindowReader::Crop(crop) => {
+                out.copy_from_slice(crop.row(lane, y));
+                return;
+            }
+            WindowReader::Bilinear(b) => b,
+        };
+        let (span, taps, row) = (b.span, &b.taps, b.rows[y]);
+        // Each row blend ends with one copy of its last value, so that
+        // every column tap reads a pair (at the right edge: that value twice).
+        if b.upscales() {
+            // Each source row's columns are blended once, into the slot of
+            // its parity (output rows read source rows in increasing order,
+            // two neighbours at a time); then pairs of them per output row.
+            for s in [row.first, row.second] {
+                if self.held[s % 2] != s {
+                    let source = b.source_row(lane, s);
+                    self.padded[..span].copy_from_slice(source);
+                    self.padded[span] = source[span - 1];
+                    taps.blend_unrounded(&self.padded, &mut self.by_columns[s % 2]);
+                    self.held[s % 2] = s;
+                }
+            }
+            let at = |s: usize| &self.by_columns[s % 2];
+            blend_rows_rounded(at(row.first), at(row.second), row.weight, out);
+        } else {
+            let blended = &mut self.blended;
+            blend_rows(
+                b.source_row(lane, row.first),
+                b.source_row(lane, row.second),
+                row.weight,
+                &mut blended[..span],
+            );
+            blended[span] = blended[span - 1];
+            taps.blend(blended, out);
         }
     }
 }
