@@ -62,30 +62,33 @@ fn symmetric_taps(
     pairs: &[(f32, &[f32], &[f32])],
     columns: std::ops::Range<usize>,
 ) {
-    // Sixteen columns at a time, their sums kept in registers across the
-    // taps (the same additions in the same order as tap by tap over the
-    // whole row, so the same values).
-    const LANES: usize = 16;
+    // Columns in steps of 32, then 16, then one: each step keeps its sums
+    // in registers across the taps (the same additions in the same order
+    // as tap by tap over the whole row, so the same values). A sum waits
+    // on its previous addition, so wide steps keep more sums in flight.
     let out = &mut out[columns.clone()];
     let centre = &centre[columns.clone()];
     let n = out.len();
     let mut x = 0;
-    while x + LANES <= n {
-        let mut sum = [0f32; LANES];
-        for (s, &c) in sum.iter_mut().zip(&centre[x..x + LANES]) {
-            *s = k0 * c;
-        }
-        for &(k, a, b) in pairs {
-            let (a, b) = (
-                &a[columns.start + x..][..LANES],
-                &b[columns.start + x..][..LANES],
-            );
-            for j in 0..LANES {
-                sum[j] += k * (a[j] + b[j]);
-            }
-        }
-        out[x..x + LANES].copy_from_slice(&sum);
-        x += LANES;
+    while x + 32 <= n {
+        taps_step::<32>(
+            &mut out[x..x + 32],
+            &centre[x..x + 32],
+            k0,
+            pairs,
+            columns.start + x,
+        );
+        x += 32;
+    }
+    while x + 16 <= n {
+        taps_step::<16>(
+            &mut out[x..x + 16],
+            &centre[x..x + 16],
+            k0,
+            pairs,
+            columns.start + x,
+        );
+        x += 16;
     }
     for x in x..n {
         let mut sum = k0 * centre[x];
@@ -94,6 +97,28 @@ fn symmetric_taps(
         }
         out[x] = sum;
     }
+}
+
+/// One step of [`symmetric_taps`]: `LANES` columns from `at` of the pairs.
+#[inline(always)]
+fn taps_step<const LANES: usize>(
+    out: &mut [f32],
+    centre: &[f32],
+    k0: f32,
+    pairs: &[(f32, &[f32], &[f32])],
+    at: usize,
+) {
+    let mut sum = [0f32; LANES];
+    for (s, &c) in sum.iter_mut().zip(centre) {
+        *s = k0 * c;
+    }
+    for &(k, a, b) in pairs {
+        let (a, b) = (&a[at..][..LANES], &b[at..][..LANES]);
+        for j in 0..LANES {
+            sum[j] += k * (a[j] + b[j]);
+        }
+    }
+    out.copy_from_slice(&sum);
 }
 
 /// Blurs a plane with an odd Gaussian kernel of size `ksize` (1 = copy).
