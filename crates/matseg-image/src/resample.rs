@@ -186,6 +186,28 @@ impl Pyramid {
         self.window(placement, out_w, out_h).plane(lane)
     }
 
+    /// The R, G and B rows of the selected window, made one row at a time
+    /// (so that each stays in cache while it is used) and handed to
+    /// `each(y, [r, g, b])` in increasing order of `y`; the same values as
+    /// [`Pyramid::sample_planes`].
+    pub fn sample_rows(
+        &self,
+        placement: &Placement,
+        out_w: usize,
+        out_h: usize,
+        mut each: impl FnMut(usize, [&[u8]; 3]),
+    ) {
+        let window = self.window(placement, out_w, out_h);
+        let mut lanes = [0, 1, 2].map(|lane| PlaneRows::new(&window, lane));
+        let mut rows = [vec![0u8; out_w], vec![0u8; out_w], vec![0u8; out_w]];
+        for y in 0..out_h {
+            for (lane, row) in lanes.iter_mut().zip(&mut rows) {
+                lane.row(y, row);
+            }
+            each(y, rows.each_ref().map(|r| &r[..]));
+        }
+    }
+
     /// The R, G and B planes of the selected window.
     pub fn sample_planes(&self, placement: &Placement, out_w: usize, out_h: usize) -> [Vec<u8>; 3] {
         let window = self.window(placement, out_w, out_h);
@@ -223,16 +245,10 @@ impl Pyramid {
             Channel::B => self.sample_plane(placement, out_w, out_h, 2),
             Channel::H | Channel::S | Channel::V => {
                 // Row by row: the three rows stay in cache until converted.
-                let window = self.window(placement, out_w, out_h);
-                let mut lanes = [0, 1, 2].map(|lane| PlaneRows::new(&window, lane));
-                let mut rows = [vec![0u8; out_w], vec![0u8; out_w], vec![0u8; out_w]];
                 let mut levels = vec![0u8; out_w * out_h];
-                for (y, out) in levels.chunks_exact_mut(out_w.max(1)).enumerate() {
-                    for (lane, row) in lanes.iter_mut().zip(&mut rows) {
-                        lane.row(y, row);
-                    }
-                    write_levels(channel, rows.each_ref().map(|r| &r[..]), out);
-                }
+                self.sample_rows(placement, out_w, out_h, |y, rgb| {
+                    write_levels(channel, rgb, &mut levels[y * out_w..(y + 1) * out_w]);
+                });
                 levels
             }
         };

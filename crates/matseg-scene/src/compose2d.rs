@@ -5,7 +5,7 @@ use crate::material::{draw_material, Layer, MaterialRecord};
 use crate::recipe::{Recipe2d, SceneShape};
 use matseg_extract::{make_soft_maps, random_placement, CombineRecord, MapRecord, SoftMapError};
 use matseg_image::rgb::interleave_rounded;
-use matseg_image::{LibraryError, PhotoLibrary, Placement, Plane, SparsePlane};
+use matseg_image::{LibraryError, PhotoLibrary, Placement, Plane, Pyramid, SparsePlane};
 use rand::Rng;
 use serde::{Deserialize, Serialize};
 
@@ -125,8 +125,8 @@ pub fn generate_2d<R: Rng + ?Sized>(
         .zip(&weights.coverage)
         .filter_map(|((material, weight), coverage)| material.layer(weight, coverage))
         .collect();
-    let background = photo.pyramid.sample_planes(&placement, width, height);
-    let image = compose_rows(width, height, &background, &weights.background, &mut layers);
+    let background = (&photo.pyramid, &placement);
+    let image = compose_rows(width, height, background, &weights.background, &mut layers);
     drop(layers);
     let materials = drawn.into_iter().map(|m| m.into_record()).collect();
     let record = SceneRecord {
@@ -151,27 +151,28 @@ pub fn generate_2d<R: Rng + ?Sized>(
 }
 
 /// The scene image, one row at a time so that each stays in cache: the
-/// background photo's pixels times their weight `wb`, plus every layer.
+/// background photo's window (`placement` of the pyramid, resampled row by
+/// row) times its weight `wb`, plus every layer.
 fn compose_rows(
     w: usize,
     h: usize,
-    background: &[Vec<u8>; 3],
+    (background, placement): (&Pyramid, &Placement),
     wb: &Plane,
     layers: &mut [Layer],
 ) -> image::RgbImage {
     let mut raw = vec![0u8; w * h * 3];
     let mut acc = [vec![0f32; w], vec![0f32; w], vec![0f32; w]];
-    for (y, out) in raw.chunks_exact_mut(3 * w.max(1)).enumerate() {
-        let row = y * w..(y + 1) * w;
-        for (a, plane) in acc.iter_mut().zip(background) {
-            weigh_row(a, &plane[row.clone()], &wb.data[row.clone()]);
+    background.sample_rows(placement, w, h, |y, pixels| {
+        let weights = &wb.data[y * w..(y + 1) * w];
+        for (a, pixels) in acc.iter_mut().zip(pixels) {
+            weigh_row(a, pixels, weights);
         }
         for layer in layers.iter_mut() {
             layer.add_row(y, &mut acc);
         }
         let [r, g, b] = &acc;
-        interleave_rounded([r, g, b], out);
-    }
+        interleave_rounded([r, g, b], &mut raw[3 * w * y..3 * w * (y + 1)]);
+    });
     image::RgbImage::from_raw(w as u32, h as u32, raw)
         .expect("buffer length matches the image size")
 }
