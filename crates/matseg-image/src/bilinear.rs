@@ -10,9 +10,24 @@
 pub const WEIGHT_ONE: i32 = 128;
 
 /// `a * (128 - w) + b * w` for two rows of 8-bit values (at most
-/// 255 * 128, so it fits `i16`).
-#[multiversion::multiversion(targets("x86_64+avx2"))]
+/// 255 * 128, so it fits `i16`), over the length of `out`. With AVX2, 16
+/// values a step and one last step that overlaps the one before it (rows
+/// here are often short runs, which a compiler's loop left mostly to its
+/// narrow and scalar remainders).
 pub fn blend_rows(a: &[u8], b: &[u8], weight: i32, out: &mut [i16]) {
+    let n = out.len();
+    let (a, b) = (&a[..n], &b[..n]);
+    #[cfg(target_arch = "x86_64")]
+    if n >= 16 && std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: AVX2 is present, the three slices have one length of at
+        // least 16.
+        unsafe { avx2::blend_rows(a, b, weight, out) };
+        return;
+    }
+    blend_rows_portable(a, b, weight, out);
+}
+
+fn blend_rows_portable(a: &[u8], b: &[u8], weight: i32, out: &mut [i16]) {
     let (keep, weight) = ((WEIGHT_ONE - weight) as i16, weight as i16);
     for ((o, &a), &b) in out.iter_mut().zip(a).zip(b) {
         *o = a as i16 * keep + b as i16 * weight;
@@ -286,6 +301,37 @@ pub(crate) mod avx2 {
         let words = _mm256_permute4x64_epi64::<0b11_01_10_00>(_mm256_packus_epi32(lo, hi));
         let bytes = _mm256_permute4x64_epi64::<0b11_01_10_00>(_mm256_packus_epi16(words, words));
         _mm_storeu_si128(out as *mut __m128i, _mm256_castsi256_si128(bytes));
+    }
+
+    /// AVX2 [`super::blend_rows`]: 16 values a step, the last step ending
+    /// at the end (overlapping the one before; it writes the same values).
+    ///
+    /// # Safety
+    /// The CPU must have AVX2; `a`, `b` and `out` have one length, at
+    /// least 16.
+    #[target_feature(enable = "avx2")]
+    pub unsafe fn blend_rows(a: &[u8], b: &[u8], weight: i32, out: &mut [i16]) {
+        let n = out.len();
+        let keep = _mm256_set1_epi16((super::WEIGHT_ONE - weight) as i16);
+        let weight = _mm256_set1_epi16(weight as i16);
+        let mut step = |i: usize| {
+            let widen = |row: &[u8]| {
+                _mm256_cvtepu8_epi16(_mm_loadu_si128(row.as_ptr().add(i) as *const __m128i))
+            };
+            let sum = _mm256_add_epi16(
+                _mm256_mullo_epi16(widen(a), keep),
+                _mm256_mullo_epi16(widen(b), weight),
+            );
+            _mm256_storeu_si256(out.as_mut_ptr().add(i) as *mut __m256i, sum);
+        };
+        let mut i = 0;
+        while i + 16 <= n {
+            step(i);
+            i += 16;
+        }
+        if i < n {
+            step(n - 16);
+        }
     }
 
     /// AVX2 [`super::blend_rows_rounded`] with the weight packed as by
@@ -602,5 +648,19 @@ mod tests {
         let mut out = [0i16; 3];
         blend_rows(&[0, 255, 10], &[255, 255, 20], 32, &mut out);
         assert_eq!(out, [255 * 32, 255 * 128, 10 * 96 + 20 * 32]);
+        // Every weight, on lengths from below one step to several with a
+        // remainder (the vectorised path's overlapping last step).
+        let a: Vec<u8> = (0..100u32).map(|i| (i * 89 % 256) as u8).collect();
+        let b: Vec<u8> = (0..100u32).map(|i| (255 - i * 37 % 256) as u8).collect();
+        for n in [1, 15, 16, 17, 31, 32, 47, 100] {
+            for weight in 0..=WEIGHT_ONE {
+                let mut fast = vec![0i16; n];
+                blend_rows(&a, &b, weight, &mut fast);
+                let want: Vec<i16> = (0..n)
+                    .map(|i| (a[i] as i32 * (128 - weight) + b[i] as i32 * weight) as i16)
+                    .collect();
+                assert_eq!(fast, want, "n {n} weight {weight}");
+            }
+        }
     }
 }
