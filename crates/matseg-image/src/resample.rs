@@ -24,6 +24,20 @@ impl Level {
         &self.planes[lane][y * self.width + x..][..n]
     }
 
+    /// [`Level::row`] and the `more` bytes that follow it in the plane
+    /// (the next row's first, past the row's end), if the plane has them.
+    fn row_and_more(
+        &self,
+        lane: usize,
+        y: usize,
+        x: usize,
+        n: usize,
+        more: usize,
+    ) -> Option<&[u8]> {
+        let start = y * self.width + x;
+        self.planes[lane].get(start..start + n + more)
+    }
+
     fn from_rgb8(img: &RgbImage) -> Self {
         let raw = img.as_raw();
         Self {
@@ -165,10 +179,12 @@ impl Pyramid {
         let cols = axis_taps(out_w, placement.x0, fx / step, img.width);
         let rows = axis_taps(out_h, placement.y0, fy / step, img.height);
         let first = cols[0].first;
+        let last = cols[cols.len() - 1];
         WindowReader::Bilinear(Bilinear {
             level: img,
             first,
-            span: cols[cols.len() - 1].second - first + 1,
+            span: last.second - first + 1,
+            reads_past_span: last.second == last.first,
             taps: ColumnTaps::new(cols.iter().map(|c| (c.first - first, c.weight))),
             rows,
             out_w,
@@ -198,6 +214,13 @@ impl Pyramid {
         mut each: impl FnMut(usize, [&[u8]; 3]),
     ) {
         let window = self.window(placement, out_w, out_h);
+        if let WindowReader::Crop(crop) = &window {
+            // The rows as they lie in the photo.
+            for y in 0..out_h {
+                each(y, [0, 1, 2].map(|lane| crop.row(lane, y)));
+            }
+            return;
+        }
         let mut lanes = [0, 1, 2].map(|lane| PlaneRows::new(&window, lane));
         let mut rows = [vec![0u8; out_w], vec![0u8; out_w], vec![0u8; out_w]];
         for y in 0..out_h {
@@ -284,6 +307,9 @@ pub(crate) struct Bilinear<'a> {
     level: &'a Level,
     first: usize,
     span: usize,
+    /// Whether the last tap, clamped at the source's right edge, reads one
+    /// value past the span (a copy of the last one).
+    reads_past_span: bool,
     taps: ColumnTaps,
     rows: Vec<Tap>,
     out_w: usize,
@@ -464,10 +490,23 @@ impl<'r, 'a> PlaneRows<'r, 'a> {
             // two neighbours at a time); then pairs of them per output row.
             for s in [row.first, row.second] {
                 if self.held[s % 2] != s {
-                    let source = b.source_row(lane, s);
-                    self.padded[..span].copy_from_slice(source);
-                    self.padded[span] = source[span - 1];
-                    taps.blend_unrounded(&self.padded, &mut self.by_columns[s % 2]);
+                    // The source row as it lies in the plane when the taps
+                    // read nothing past its span and the plane holds the
+                    // slack (the loads that read it ignore it); else a copy
+                    // with the last value repeated and the slack.
+                    let in_place = (!b.reads_past_span)
+                        .then(|| b.level.row_and_more(lane, s, b.first, span, 1 + ROW_SLACK))
+                        .flatten();
+                    let source = match in_place {
+                        Some(row) => row,
+                        None => {
+                            let source = b.source_row(lane, s);
+                            self.padded[..span].copy_from_slice(source);
+                            self.padded[span] = source[span - 1];
+                            &self.padded
+                        }
+                    };
+                    taps.blend_unrounded(source, &mut self.by_columns[s % 2]);
                     self.held[s % 2] = s;
                 }
             }
