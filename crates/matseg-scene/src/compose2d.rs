@@ -160,7 +160,10 @@ fn compose_rows(
     wb: &Plane,
     layers: &mut [Layer],
 ) -> image::RgbImage {
-    let mut raw = vec![0u8; w * h * 3];
+    // Rows are appended as they are made (zeroing the whole image first
+    // cost a pass over memory out of cache).
+    let mut raw = Vec::with_capacity(w * h * 3);
+    let mut row = vec![0u8; w * 3];
     let mut acc = [vec![0f32; w], vec![0f32; w], vec![0f32; w]];
     background.sample_rows(placement, w, h, |y, pixels| {
         let weights = &wb.data[y * w..(y + 1) * w];
@@ -171,7 +174,8 @@ fn compose_rows(
             layer.add_row(y, &mut acc);
         }
         let [r, g, b] = &acc;
-        interleave_rounded([r, g, b], &mut raw[3 * w * y..3 * w * (y + 1)]);
+        interleave_rounded([r, g, b], &mut row);
+        raw.extend_from_slice(&row);
     });
     image::RgbImage::from_raw(w as u32, h as u32, raw)
         .expect("buffer length matches the image size")
