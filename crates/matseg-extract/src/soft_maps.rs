@@ -3,7 +3,7 @@
 
 use matseg_image::coverage::BLOCK;
 use matseg_image::{
-    gaussian_blur_covered, level_values, Channel, ChannelWindow, Coverage, LevelCounts, LevelTable,
+    level_values, Channel, ChannelWindow, Coverage, CoveredBlur, LevelCounts, LevelTable,
     LibraryError, Photo, PhotoLibrary, Placement, Plane, Ramp, SparsePlane,
 };
 use rand::Rng;
@@ -173,30 +173,26 @@ impl RawMap {
     /// The map, blurred with `kernel` if any, stored on the blocks where it
     /// can be positive (elsewhere it is exactly zero, blurred or not).
     fn blurred(&self, kernel: Option<usize>) -> SparsePlane {
+        let (w, levels, table) = (self.width(), &self.window.levels, &self.table);
         let Some(kernel) = kernel else {
-            let mut plane = SparsePlane::zeros(self.coverage.clone());
-            for y in 0..self.height() {
-                for (x0, run) in plane.row_runs_mut(y) {
-                    self.window.map_run(y, x0, &self.table, run);
+            let stored = self.coverage.clone();
+            return SparsePlane::from_rows(self.coverage.clone(), |y, data| {
+                for (x0, x1) in stored.runs(y) {
+                    let run = &levels[y * w + x0..y * w + x1];
+                    data.extend(run.iter().map(|&l| table[l as usize]));
+                }
+            });
+        };
+        let stored = self.coverage.dilated(kernel / 2);
+        let mut blur = CoveredBlur::new(w, self.height(), kernel, &stored);
+        SparsePlane::from_rows(stored.clone(), |y, data| {
+            let source = |y, x0, run: &mut [f32]| self.window.map_run(y, x0, table, run);
+            if let Some(row) = blur.row(y, source) {
+                for (x0, x1) in stored.runs(y) {
+                    data.extend_from_slice(&row[x0..x1]);
                 }
             }
-            return plane;
-        };
-        let mut plane = SparsePlane::zeros(self.coverage.dilated(kernel / 2));
-        let reach = plane.stored().clone();
-        gaussian_blur_covered(
-            self.width(),
-            self.height(),
-            kernel,
-            &reach,
-            |y, x0, run| self.window.map_run(y, x0, &self.table, run),
-            |y, row| {
-                for (x0, run) in plane.row_runs_mut(y) {
-                    run.copy_from_slice(&row[x0..x0 + run.len()]);
-                }
-            },
-        );
-        plane
+        })
     }
 }
 

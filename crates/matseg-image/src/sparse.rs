@@ -35,6 +35,29 @@ impl SparsePlane {
         }
     }
 
+    /// The plane stored on the blocks `stored` covers, its values made row
+    /// by row: `row(y, data)` appends row `y`'s stored runs, left to right,
+    /// to `data` (nothing is zeroed first).
+    ///
+    /// # Panics
+    /// When a row appends other than its stored count of values.
+    pub fn from_rows(stored: Coverage, mut row: impl FnMut(usize, &mut Vec<f32>)) -> Self {
+        let mut starts = Vec::with_capacity(stored.height() + 1);
+        let mut data = Vec::new();
+        for y in 0..stored.height() {
+            starts.push(data.len());
+            row(y, &mut data);
+            let count: usize = stored.runs(y).map(|(x0, x1)| x1 - x0).sum();
+            assert_eq!(data.len() - starts[y], count, "row {y}'s stored values");
+        }
+        starts.push(data.len());
+        Self {
+            stored,
+            starts,
+            data,
+        }
+    }
+
     /// A plane stored whole (every block), taking `plane`'s values as they are.
     pub fn dense(plane: Plane) -> Self {
         let (w, h) = (plane.width, plane.height);
@@ -268,6 +291,31 @@ mod tests {
             assert!(refused.is_err(), "row {y}, {runs:?}");
         }
         assert_eq!(sparse.to_plane().get(2 * BLOCK, 0), 0.0);
+    }
+
+    /// Rows appended run by run equal the plane written in place; a row
+    /// that appends the wrong count is refused.
+    #[test]
+    fn planes_made_row_by_row_equal_planes_written_in_place() {
+        let w = 70 * BLOCK - 5;
+        let mut p = Plane::new(w, 3, 0.0);
+        for b in [0usize, 1, 5, 62, 63, 64, 69] {
+            p.data[2 * w + b * BLOCK] = 1.0;
+        }
+        p.data[3] = 1.0;
+        let stored = Coverage::of(&p);
+        let (written, plane) = numbered(&stored);
+        let runs = stored.clone();
+        let made = SparsePlane::from_rows(stored, |y, data| {
+            for (x0, x1) in runs.runs(y) {
+                data.extend_from_slice(&plane.data[y * w + x0..y * w + x1]);
+            }
+        });
+        assert_eq!(made, written);
+        let short = std::panic::catch_unwind(|| {
+            SparsePlane::from_rows(Coverage::of(&p), |y, data| data.extend(vec![0.5; y]))
+        });
+        assert!(short.is_err(), "a row's count is checked");
     }
 
     #[test]
