@@ -21,17 +21,12 @@ pub struct SparsePlane {
 impl SparsePlane {
     /// Zeros on the blocks `stored` covers.
     pub fn zeros(stored: Coverage) -> Self {
-        let mut starts = Vec::with_capacity(stored.height() + 1);
-        let mut len = 0;
-        for y in 0..stored.height() {
-            starts.push(len);
-            len += stored.runs(y).map(|(x0, x1)| x1 - x0).sum::<usize>();
-        }
-        starts.push(len);
+        let starts = row_starts(&stored);
+        let data = vec![0.0; starts[stored.height()]];
         Self {
             stored,
             starts,
-            data: vec![0.0; len],
+            data,
         }
     }
 
@@ -42,15 +37,13 @@ impl SparsePlane {
     /// # Panics
     /// When a row appends other than its stored count of values.
     pub fn from_rows(stored: Coverage, mut row: impl FnMut(usize, &mut Vec<f32>)) -> Self {
-        let mut starts = Vec::with_capacity(stored.height() + 1);
-        let mut data = Vec::new();
+        let starts = row_starts(&stored);
+        // Room for every value at once: growing would copy them over again.
+        let mut data = Vec::with_capacity(starts[stored.height()]);
         for y in 0..stored.height() {
-            starts.push(data.len());
             row(y, &mut data);
-            let count: usize = stored.runs(y).map(|(x0, x1)| x1 - x0).sum();
-            assert_eq!(data.len() - starts[y], count, "row {y}'s stored values");
+            assert_eq!(data.len(), starts[y + 1], "row {y}'s stored values");
         }
-        starts.push(data.len());
         Self {
             stored,
             starts,
@@ -128,6 +121,19 @@ impl SparsePlane {
         }
         plane
     }
+}
+
+/// Where each row's stored values start, one after another, and (last)
+/// their total.
+fn row_starts(stored: &Coverage) -> Vec<usize> {
+    let mut starts = Vec::with_capacity(stored.height() + 1);
+    let mut len = 0;
+    for y in 0..stored.height() {
+        starts.push(len);
+        len += stored.runs(y).map(|(x0, x1)| x1 - x0).sum::<usize>();
+    }
+    starts.push(len);
+    starts
 }
 
 /// Runs of one row of a [`SparsePlane`], taken left to right: the values
