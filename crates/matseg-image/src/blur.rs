@@ -50,70 +50,56 @@ fn reflect101(i: isize, n: usize) -> usize {
     j as usize
 }
 
-/// Writes `k0 * centre[x] + sum over pairs (k, a, b) of k * (a[x] + b[x])`
-/// to `out[x]` for every `x` of `columns` (all slices index the same
-/// columns), over equal-length slices so the compiler vectorises it; also
-/// compiled for AVX2, picked at run time when the CPU has it.
+/// Writes `k0 * base[centre + x] + sum over pairs (k, a, b) of k *
+/// (base[a + x] + base[b + x])` to `out[x]` for every `x` of `columns`
+/// (the pairs name rows of `base` by where they start, so a blur keeps them
+/// from row to row without borrowing); also compiled for AVX2, picked at
+/// run time when the CPU has it.
 #[multiversion::multiversion(targets("x86_64+avx2+fma"))]
 fn symmetric_taps(
     out: &mut [f32],
-    centre: &[f32],
-    k0: f32,
-    pairs: &[(f32, &[f32], &[f32])],
+    base: &[f32],
+    (centre, k0): (usize, f32),
+    pairs: &[(f32, usize, usize)],
     columns: std::ops::Range<usize>,
 ) {
     // Columns in steps of 32, then 16, then one: each step keeps its sums
     // in registers across the taps (the same additions in the same order
     // as tap by tap over the whole row, so the same values). A sum waits
     // on its previous addition, so wide steps keep more sums in flight.
-    let out = &mut out[columns.clone()];
-    let centre = &centre[columns.clone()];
-    let n = out.len();
-    let mut x = 0;
-    while x + 32 <= n {
-        taps_step::<32>(
-            &mut out[x..x + 32],
-            &centre[x..x + 32],
-            k0,
-            pairs,
-            columns.start + x,
-        );
+    let mut x = columns.start;
+    while x + 32 <= columns.end {
+        taps_step::<32>(&mut out[x..x + 32], base, (centre, k0), pairs, x);
         x += 32;
     }
-    while x + 16 <= n {
-        taps_step::<16>(
-            &mut out[x..x + 16],
-            &centre[x..x + 16],
-            k0,
-            pairs,
-            columns.start + x,
-        );
+    while x + 16 <= columns.end {
+        taps_step::<16>(&mut out[x..x + 16], base, (centre, k0), pairs, x);
         x += 16;
     }
-    for x in x..n {
-        let mut sum = k0 * centre[x];
+    for x in x..columns.end {
+        let mut sum = k0 * base[centre + x];
         for &(k, a, b) in pairs {
-            sum += k * (a[columns.start + x] + b[columns.start + x]);
+            sum += k * (base[a + x] + base[b + x]);
         }
         out[x] = sum;
     }
 }
 
-/// One step of [`symmetric_taps`]: `LANES` columns from `at` of the pairs.
+/// One step of [`symmetric_taps`]: `LANES` columns from `at`.
 #[inline(always)]
 fn taps_step<const LANES: usize>(
     out: &mut [f32],
-    centre: &[f32],
-    k0: f32,
-    pairs: &[(f32, &[f32], &[f32])],
+    base: &[f32],
+    (centre, k0): (usize, f32),
+    pairs: &[(f32, usize, usize)],
     at: usize,
 ) {
     let mut sum = [0f32; LANES];
-    for (s, &c) in sum.iter_mut().zip(centre) {
+    for (s, &c) in sum.iter_mut().zip(&base[centre + at..][..LANES]) {
         *s = k0 * c;
     }
     for &(k, a, b) in pairs {
-        let (a, b) = (&a[at..][..LANES], &b[at..][..LANES]);
+        let (a, b) = (&base[a + at..][..LANES], &base[b + at..][..LANES]);
         for j in 0..LANES {
             sum[j] += k * (a[j] + b[j]);
         }
@@ -176,6 +162,8 @@ pub struct CoveredBlur<'a> {
     ring: Vec<f32>,
     padded: Vec<f32>,
     out: Vec<f32>,
+    /// The tap pairs of a pass: weight and where the two rows start.
+    pairs: Vec<(f32, usize, usize)>,
     /// The next source row the horizontal pass takes.
     next: usize,
 }
@@ -196,6 +184,7 @@ impl<'a> CoveredBlur<'a> {
             ring: vec![0.0; if r == 0 { 0 } else { slots * width }],
             padded: vec![0.0; width + 2 * r],
             out: vec![0.0; width],
+            pairs: Vec::with_capacity(r),
             next: 0,
         }
     }
@@ -241,12 +230,11 @@ impl<'a> CoveredBlur<'a> {
                 padded[i] = padded[r + reflect101(i as isize - r as isize, w)];
                 padded[r + w + i] = padded[r + reflect101((w + i) as isize, w)];
             }
-            let pairs: Vec<_> = (0..r)
-                .map(|t| (taps[t], &padded[t..], &padded[2 * r - t..]))
-                .collect();
+            self.pairs.clear();
+            self.pairs.extend((0..r).map(|t| (taps[t], t, 2 * r - t)));
             let slot = &mut self.ring[(next % slots) * w..][..w];
             for (x0, x1) in self.read.runs(next) {
-                symmetric_taps(slot, &padded[r..], taps[r], &pairs, x0..x1);
+                symmetric_taps(slot, padded, (r, taps[r]), &self.pairs, x0..x1);
             }
         }
         if !self.coverage.row_is_covered(y) {
@@ -254,17 +242,16 @@ impl<'a> CoveredBlur<'a> {
         }
         // Vertical pass: a weighted sum of ring rows (reflected rows stay
         // within r rows of y, so inside the ring).
-        let ring = &self.ring;
-        let row = |y: isize| &ring[(reflect101(y, h) % slots) * w..][..w];
+        let row = |y: isize| (reflect101(y, h) % slots) * w;
         let yi = y as isize;
-        let pairs: Vec<_> = (0..r)
-            .map(|t| {
-                let d = (r - t) as isize;
-                (taps[t], row(yi - d), row(yi + d))
-            })
-            .collect();
+        self.pairs.clear();
+        self.pairs.extend((0..r).map(|t| {
+            let d = (r - t) as isize;
+            (taps[t], row(yi - d), row(yi + d))
+        }));
         for (x0, x1) in self.coverage.runs(y) {
-            symmetric_taps(&mut self.out, row(yi), taps[r], &pairs, x0..x1);
+            let centre = (row(yi), taps[r]);
+            symmetric_taps(&mut self.out, &self.ring, centre, &self.pairs, x0..x1);
         }
         Some(&self.out)
     }
