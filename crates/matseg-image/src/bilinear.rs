@@ -230,12 +230,12 @@ impl ColumnTaps {
                 Some(groups) if g1 > g0 + 1 => Some((groups, 8 * g0..8 * (g0 + (g1 - g0) / 2 * 2))),
                 _ => None,
             };
-            let (a, b) = shuffled
+            let (from, to) = shuffled
                 .as_ref()
                 .map_or((x0, x0), |(_, r)| (r.start, r.end));
-            let (before, rest) = out.split_at_mut(a - x0);
-            let (middle, after) = rest.split_at_mut(b - a);
-            for (range, out) in [(x0..a, before), (b..columns.end, after)] {
+            let (before, rest) = out.split_at_mut(from - x0);
+            let (middle, after) = rest.split_at_mut(to - from);
+            for (range, out) in [(x0..from, before), (to..columns.end, after)] {
                 // SAFETY: AVX2 is present, and every index read (first,
                 // first + 1) lies inside `row`, at least `row_len` long.
                 unsafe {
