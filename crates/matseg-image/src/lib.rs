@@ -1,5 +1,5 @@
 //! Pixels for matseg: float planes and RGB images, colour channels (RGB/HSV)
-//! on 8-bit levels and their histograms,
+//! on 8-bit levels with their counts and histograms,
 //! threshold ramps, Gaussian blur, mip-pyramid resampling, image I/O and the
 //! bounded, decode-once photo library every generator draws from.
 
