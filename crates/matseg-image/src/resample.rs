@@ -214,20 +214,9 @@ impl Pyramid {
         mut each: impl FnMut(usize, [&[u8]; 3]),
     ) {
         let window = self.window(placement, out_w, out_h);
-        if let WindowReader::Crop(crop) = &window {
-            // The rows as they lie in the photo.
-            for y in 0..out_h {
-                each(y, [0, 1, 2].map(|lane| crop.row(lane, y)));
-            }
-            return;
-        }
         let mut lanes = [0, 1, 2].map(|lane| PlaneRows::new(&window, lane));
-        let mut rows = [vec![0u8; out_w], vec![0u8; out_w], vec![0u8; out_w]];
         for y in 0..out_h {
-            for (lane, row) in lanes.iter_mut().zip(&mut rows) {
-                lane.row(y, row);
-            }
-            each(y, rows.each_ref().map(|r| &r[..]));
+            each(y, lanes.each_mut().map(|lane| lane.row(y)));
         }
     }
 
@@ -340,24 +329,16 @@ pub(crate) enum WindowReader<'a> {
 impl WindowReader<'_> {
     /// One plane of the window.
     fn plane(&self, lane: usize) -> Vec<u8> {
-        let out_w = match self {
-            WindowReader::Crop(crop) => crop.out_w,
-            WindowReader::Bilinear(b) => b.out_w,
+        let (width, height) = match self {
+            WindowReader::Crop(crop) => (crop.out_w, crop.out_h),
+            WindowReader::Bilinear(b) => (b.out_w, b.rows.len()),
         };
-        let mut out = vec![0u8; self.height() * out_w];
+        let mut out = Vec::with_capacity(width * height);
         let mut rows = PlaneRows::new(self, lane);
-        for (y, row) in out.chunks_exact_mut(out_w.max(1)).enumerate() {
-            rows.row(y, row);
+        for y in 0..height {
+            out.extend_from_slice(rows.row(y));
         }
         out
-    }
-
-    /// Rows in the window.
-    fn height(&self) -> usize {
-        match self {
-            WindowReader::Crop(crop) => crop.out_h,
-            WindowReader::Bilinear(b) => b.rows.len(),
-        }
     }
 
     /// Columns `x0..x0 + out.len()` of row `y` of plane `lane`, as
@@ -433,95 +414,114 @@ impl WindowReader<'_> {
 /// OpenCV resizes `uint8` images. Rows are blended first, then columns;
 /// when upscaling, columns first, so each source row is blended once (the
 /// same integer sums, so the same bytes; see [`crate::bilinear`]).
-struct PlaneRows<'r, 'a> {
-    reader: &'r WindowReader<'a>,
-    lane: usize,
-    /// Upscaling: a source row with its padding, and the column blends of
-    /// the two source rows last used, in slots by the rows' parity.
-    padded: Vec<u8>,
-    by_columns: [Vec<i16>; 2],
-    held: [usize; 2],
-    /// Downscaling: a row blend.
-    blended: Vec<i16>,
+enum PlaneRows<'r, 'a> {
+    /// A crop: its rows are read where they lie.
+    Crop { crop: &'r Crop<'a>, lane: usize },
+    /// Upscaling: a source row with its padding, the column blends of the
+    /// two source rows last used (in slots by the rows' parity) and the
+    /// output row.
+    Upscale {
+        b: &'r Bilinear<'a>,
+        lane: usize,
+        padded: Vec<u8>,
+        by_columns: [Vec<i16>; 2],
+        held: [usize; 2],
+        out: Vec<u8>,
+    },
+    /// Downscaling: a row blend and the output row.
+    Downscale {
+        b: &'r Bilinear<'a>,
+        lane: usize,
+        blended: Vec<i16>,
+        out: Vec<u8>,
+    },
 }
 
 impl<'r, 'a> PlaneRows<'r, 'a> {
     /// Plane `lane` of the window `reader` reads.
     fn new(reader: &'r WindowReader<'a>, lane: usize) -> Self {
-        let (padded, by_columns, blended) = match reader {
-            WindowReader::Crop(_) => (Vec::new(), [Vec::new(), Vec::new()], Vec::new()),
-            WindowReader::Bilinear(b) if b.upscales() => (
-                vec![0u8; b.span + 1 + ROW_SLACK],
-                [vec![0i16; b.out_w], vec![0i16; b.out_w]],
-                Vec::new(),
-            ),
-            WindowReader::Bilinear(b) => (
-                Vec::new(),
-                [Vec::new(), Vec::new()],
-                vec![0i16; b.taps.padded_len()],
-            ),
-        };
-        Self {
-            reader,
-            lane,
-            padded,
-            by_columns,
-            held: [usize::MAX; 2],
-            blended,
+        match reader {
+            WindowReader::Crop(crop) => PlaneRows::Crop { crop, lane },
+            WindowReader::Bilinear(b) if b.upscales() => PlaneRows::Upscale {
+                b,
+                lane,
+                padded: vec![0u8; b.span + 1 + ROW_SLACK],
+                by_columns: [vec![0i16; b.out_w], vec![0i16; b.out_w]],
+                held: [usize::MAX; 2],
+                out: vec![0u8; b.out_w],
+            },
+            WindowReader::Bilinear(b) => PlaneRows::Downscale {
+                b,
+                lane,
+                blended: vec![0i16; b.taps.padded_len()],
+                out: vec![0u8; b.out_w],
+            },
         }
     }
 
-    /// Writes row `y` into `out` (the window's width).
-    fn row(&mut self, y: usize, out: &mut [u8]) {
-        let lane = self.lane;
-        let b = match self.reader {
-            WindowReader::Crop(crop) => {
-                out.copy_from_slice(crop.row(lane, y));
-                return;
-            }
-            WindowReader::Bilinear(b) => b,
-        };
-        let (span, taps, row) = (b.span, &b.taps, b.rows[y]);
+    /// Row `y`.
+    fn row(&mut self, y: usize) -> &[u8] {
         // Each row blend ends with one copy of its last value, so that
         // every column tap reads a pair (at the right edge: that value twice).
-        if b.upscales() {
-            // Each source row's columns are blended once, into the slot of
-            // its parity (output rows read source rows in increasing order,
-            // two neighbours at a time); then pairs of them per output row.
-            for s in [row.first, row.second] {
-                if self.held[s % 2] != s {
-                    // The source row as it lies in the plane when the taps
-                    // read nothing past its span and the plane holds the
-                    // slack (the loads that read it ignore it); else a copy
-                    // with the last value repeated and the slack.
-                    let in_place = (!b.reads_past_span)
-                        .then(|| b.level.row_and_more(lane, s, b.first, span, 1 + ROW_SLACK))
-                        .flatten();
-                    let source = match in_place {
-                        Some(row) => row,
-                        None => {
-                            let source = b.source_row(lane, s);
-                            self.padded[..span].copy_from_slice(source);
-                            self.padded[span] = source[span - 1];
-                            &self.padded
-                        }
-                    };
-                    taps.blend_unrounded(source, &mut self.by_columns[s % 2]);
-                    self.held[s % 2] = s;
+        match self {
+            PlaneRows::Crop { crop, lane } => crop.row(*lane, y),
+            PlaneRows::Upscale {
+                b,
+                lane,
+                padded,
+                by_columns,
+                held,
+                out,
+            } => {
+                let (span, row) = (b.span, b.rows[y]);
+                // Each source row's columns are blended once, into the slot
+                // of its parity (output rows read source rows in increasing
+                // order, two neighbours at a time); then pairs of them per
+                // output row.
+                for s in [row.first, row.second] {
+                    if held[s % 2] != s {
+                        // The source row as it lies in the plane when the
+                        // taps read nothing past its span and the plane
+                        // holds the slack (the loads that read it ignore
+                        // it); else a copy with the last value repeated and
+                        // the slack.
+                        let in_place = (!b.reads_past_span)
+                            .then(|| b.level.row_and_more(*lane, s, b.first, span, 1 + ROW_SLACK))
+                            .flatten();
+                        let source = match in_place {
+                            Some(row) => row,
+                            None => {
+                                let source = b.source_row(*lane, s);
+                                padded[..span].copy_from_slice(source);
+                                padded[span] = source[span - 1];
+                                &padded[..]
+                            }
+                        };
+                        b.taps.blend_unrounded(source, &mut by_columns[s % 2]);
+                        held[s % 2] = s;
+                    }
                 }
+                let at = |s: usize| &by_columns[s % 2];
+                blend_rows_rounded(at(row.first), at(row.second), row.weight, out);
+                out
             }
-            let at = |s: usize| &self.by_columns[s % 2];
-            blend_rows_rounded(at(row.first), at(row.second), row.weight, out);
-        } else {
-            let blended = &mut self.blended;
-            blend_rows(
-                b.source_row(lane, row.first),
-                b.source_row(lane, row.second),
-                row.weight,
-                &mut blended[..span],
-            );
-            blended[span] = blended[span - 1];
-            taps.blend(blended, out);
+            PlaneRows::Downscale {
+                b,
+                lane,
+                blended,
+                out,
+            } => {
+                let (span, row) = (b.span, b.rows[y]);
+                blend_rows(
+                    b.source_row(*lane, row.first),
+                    b.source_row(*lane, row.second),
+                    row.weight,
+                    &mut blended[..span],
+                );
+                blended[span] = blended[span - 1];
+                b.taps.blend(blended, out);
+                out
+            }
         }
     }
 }
