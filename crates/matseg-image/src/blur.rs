@@ -77,11 +77,7 @@ fn symmetric_taps(
         x += 16;
     }
     for x in x..columns.end {
-        let mut sum = k0 * base[centre + x];
-        for &(k, a, b) in pairs {
-            sum += k * (base[a + x] + base[b + x]);
-        }
-        out[x] = sum;
+        taps_step::<1>(&mut out[x..x + 1], base, (centre, k0), pairs, x);
     }
 }
 
