@@ -157,16 +157,17 @@ impl Coverage {
         let blocks = self.blocks_per_row();
         let mut wide = self.clone();
         let words = self.words.max(1);
-        for (row, out) in self
-            .bits
-            .chunks_exact(words)
-            .zip(wide.bits.chunks_exact_mut(words))
-        {
-            // Each block's bit moved left and right by 1..=reach blocks,
-            // across word boundaries.
-            for d in 1..=reach {
+        let mut before = vec![0u64; words];
+        for out in wide.bits.chunks_exact_mut(words) {
+            // Dilated by one block a step (`reach` is 1 for any kernel up
+            // to 33 taps): each word ORed with itself moved one block
+            // either way, the bit that crosses a word boundary carried.
+            for _ in 0..reach {
+                before.copy_from_slice(out);
                 for (i, o) in out.iter_mut().enumerate() {
-                    *o |= shifted_word(row, i, d as isize) | shifted_word(row, i, -(d as isize));
+                    let below = if i > 0 { before[i - 1] >> 63 } else { 0 };
+                    let above = before.get(i + 1).map_or(0, |w| w << 63);
+                    *o |= (before[i] << 1) | below | (before[i] >> 1) | above;
                 }
             }
             // No block past the row's last.
@@ -199,24 +200,6 @@ impl Coverage {
     /// Row `y`'s block bit set: bit `b % 64` of word `b / 64` is block `b`.
     pub fn row(&self, y: usize) -> &[u64] {
         &self.bits[y * self.words..(y + 1) * self.words]
-    }
-}
-
-/// Word `i` of the bit set `row` with every bit moved `d` places up (to
-/// higher blocks; down for negative `d`), zeros shifted in; `|d| < 64`.
-fn shifted_word(row: &[u64], i: usize, d: isize) -> u64 {
-    let word = |j: Option<usize>| j.and_then(|j| row.get(j)).copied().unwrap_or(0);
-    let s = d.unsigned_abs() as u32;
-    if d >= 0 {
-        let carry = if s == 0 {
-            0
-        } else {
-            word(i.checked_sub(1)) >> (64 - s)
-        };
-        (row[i] << s) | carry
-    } else {
-        let carry = word(Some(i + 1)) << (64 - s);
-        (row[i] >> s) | carry
     }
 }
 
