@@ -175,9 +175,8 @@ impl RawMap {
     fn blurred(&self, kernel: Option<usize>) -> SparsePlane {
         let (w, levels, table) = (self.width(), &self.window.levels, &self.table);
         let Some(kernel) = kernel else {
-            let stored = self.coverage.clone();
             return SparsePlane::from_rows(self.coverage.clone(), |y, data| {
-                for (x0, x1) in stored.runs(y) {
+                for (x0, x1) in self.coverage.runs(y) {
                     let run = &levels[y * w + x0..y * w + x1];
                     data.extend(run.iter().map(|&l| table[l as usize]));
                 }
@@ -366,15 +365,13 @@ fn try_map_from_photo<R: Rng + ?Sized>(
         for _ in 0..recipe.low_threshold_tries {
             let t = rng.random::<f32>() * high;
             let level = LevelCounts::first_above(&values, t);
+            // The fewest pixels at or above the level leave the most below:
+            // if even that fails, it fails; if the fewest below pass, it
+            // passes; else the count decides.
             let (least, most) = counts.bounds(level);
-            let settled = if !acceptable(n - least as f64) {
-                false
-            } else if acceptable(n - most as f64) {
-                true
-            } else {
-                acceptable(n - counts.exact(level) as f64)
-            };
-            if settled {
+            if acceptable(n - least as f64)
+                && (acceptable(n - most as f64) || acceptable(n - counts.exact(level) as f64))
+            {
                 low = t;
                 break;
             }
