@@ -456,7 +456,6 @@ pub fn combine_maps<R: Rng + ?Sized>(
     drop(maps);
     let mut background = Plane::new(w, h, 1.0);
     let mut coverage: Vec<Coverage> = weights.iter().map(|_| Coverage::empty(w, h)).collect();
-    let mut scratch = [vec![0.0f32; w], vec![0.0f32; w]];
     let mut spare_rows: Vec<&mut [f32]> = Vec::with_capacity(weights.len());
     for y in 0..h {
         let runs = member_runs(&weights, y);
@@ -464,12 +463,10 @@ pub fn combine_maps<R: Rng + ?Sized>(
         for (x0, x1, members) in runs {
             let mut rows = recycled(std::mem::take(&mut spare_rows));
             rows.extend(bits(members).map(|k| pieces[k].take(x0, x1)));
-            let [a, b] = &mut scratch;
-            combine_row(
+            combine_run(
                 steps,
                 &mut rows,
                 &mut background.data[y * w + x0..y * w + x1],
-                [&mut a[..x1 - x0], &mut b[..x1 - x0]],
             );
             for (k, row) in bits(members).zip(&rows) {
                 coverage[k].add_run(y, x0, row);
@@ -538,7 +535,7 @@ fn recycled<'b>(mut v: Vec<&mut [f32]>) -> Vec<&'b mut [f32]> {
         .collect()
 }
 
-/// What [`combine_row`] does to a row.
+/// What [`combine_run`] does to a run.
 #[derive(Clone, Copy)]
 struct RowSteps {
     normalisation: MapNormalisation,
@@ -546,97 +543,107 @@ struct RowSteps {
     one_hot_min: Option<f32>,
 }
 
-/// All steps of [`combine_maps`] on row `y` of each map and of the
-/// background; compiled also for AVX2, picked at run time when the CPU has
+/// All steps of [`combine_maps`] on one run of a row of each member map
+/// and of the background (equal lengths), pixels in steps of 16 held in
+/// registers across the maps (runs are short: a few steps each), then one
+/// at a time; compiled also for AVX2, picked at run time when the CPU has
 /// it (the arithmetic is the same, so are the results).
 #[multiversion::multiversion(targets("x86_64+avx2+fma"))]
-fn combine_row(
+fn combine_run(steps: RowSteps, rows: &mut [&mut [f32]], background: &mut [f32]) {
+    let n = background.len();
+    let mut x = 0;
+    while x + 16 <= n {
+        combine_step::<16>(steps, rows, &mut background[x..x + 16], x);
+        x += 16;
+    }
+    for x in x..n {
+        combine_step::<1>(steps, rows, &mut background[x..x + 1], x);
+    }
+}
+
+/// The `LANES` values of `row` from `x`.
+#[inline(always)]
+fn lanes_at<const LANES: usize>(row: &mut [f32], x: usize) -> &mut [f32; LANES] {
+    (&mut row[x..x + LANES])
+        .try_into()
+        .expect("a step of LANES")
+}
+
+/// [`combine_run`] on `LANES` pixels from `x`: normalisation, one-hot if
+/// hard, then `background = 1 - sum(maps)` clamped to `[0, 1]`
+/// (`background` starts at 1). Each pixel's arithmetic is branch-free and
+/// in map order.
+#[inline(always)]
+fn combine_step<const LANES: usize>(
     steps: RowSteps,
     rows: &mut [&mut [f32]],
     background: &mut [f32],
-    [a, b]: [&mut [f32]; 2],
+    x: usize,
 ) {
     match steps.normalisation {
-        MapNormalisation::Sum => normalise_by_sum(rows, a),
-        MapNormalisation::Priority => normalise_by_priority(rows, a),
+        // Divides the maps by their sum wherever it is positive (dividing
+        // by 1 elsewhere keeps every lane a plain store).
+        MapNormalisation::Sum => {
+            let mut total = [0f32; LANES];
+            for m in rows.iter_mut() {
+                let m: &mut [f32; LANES] = lanes_at(m, x);
+                for j in 0..LANES {
+                    total[j] += m[j];
+                }
+            }
+            for m in rows.iter_mut() {
+                let m: &mut [f32; LANES] = lanes_at(m, x);
+                for j in 0..LANES {
+                    m[j] /= if total[j] > 0.0 { total[j] } else { 1.0 };
+                }
+            }
+        }
+        // Each map keeps its share of what the earlier maps left.
+        MapNormalisation::Priority => {
+            let mut remaining = [1f32; LANES];
+            for m in rows.iter_mut() {
+                let m: &mut [f32; LANES] = lanes_at(m, x);
+                for j in 0..LANES {
+                    m[j] *= remaining[j];
+                    remaining[j] = (remaining[j] - m[j]).max(0.0);
+                }
+            }
+        }
     }
     if let Some(min) = steps.one_hot_min {
-        make_one_hot(rows, min, a, b);
-    }
-    background_weight(rows, background);
-}
-
-// The steps of combine_row, on one row of each map (equal lengths); each
-// loop runs over a whole row, branch-free, so it vectorises. `total`,
-// `remaining`, `top` and `best` are scratch rows.
-
-/// Divides the maps by their sum wherever it is positive.
-#[inline(always)]
-fn normalise_by_sum(maps: &mut [&mut [f32]], total: &mut [f32]) {
-    total.fill(0.0);
-    for m in maps.iter() {
-        total.iter_mut().zip(m.iter()).for_each(|(t, v)| *t += v);
-    }
-    for m in maps.iter_mut() {
-        for (v, &t) in m.iter_mut().zip(total.iter()) {
-            // Dividing by 1 keeps the value: every lane is stored (a
-            // conditional store becomes a slow masked store).
-            *v /= if t > 0.0 { t } else { 1.0 };
+        // One-hot of the arg-max (the first map wins ties); pixels whose
+        // top weight is below `min`, or zero, become background. `best`
+        // holds map indices as floats, updated by arithmetic (exact for
+        // small whole numbers) so that the lanes stay equal-width.
+        let (mut top, mut best) = ([f32::MIN; LANES], [0f32; LANES]);
+        for (k, m) in rows.iter_mut().enumerate() {
+            let (k, m): (f32, &mut [f32; LANES]) = (k as f32, lanes_at(m, x));
+            for j in 0..LANES {
+                let above = f32::from(u8::from(m[j] > top[j]));
+                best[j] += (k - best[j]) * above;
+                top[j] = top[j].max(m[j]);
+            }
+        }
+        for (k, m) in rows.iter_mut().enumerate() {
+            let (k, m): (f32, &mut [f32; LANES]) = (k as f32, lanes_at(m, x));
+            for j in 0..LANES {
+                let won = best[j] == k && top[j] >= min && top[j] > 0.0;
+                m[j] = if won { 1.0 } else { 0.0 };
+            }
         }
     }
-}
-
-/// Each map keeps its share of what the earlier maps left.
-#[inline(always)]
-fn normalise_by_priority(maps: &mut [&mut [f32]], remaining: &mut [f32]) {
-    remaining.fill(1.0);
-    for m in maps.iter_mut() {
-        for (v, r) in m.iter_mut().zip(remaining.iter_mut()) {
-            *v *= *r;
-            *r = (*r - *v).max(0.0);
+    let background: &mut [f32; LANES] = background.try_into().expect("a step of LANES");
+    // In registers while the maps are subtracted.
+    let mut left = *background;
+    for m in rows.iter_mut() {
+        let m: &mut [f32; LANES] = lanes_at(m, x);
+        for j in 0..LANES {
+            left[j] -= m[j];
         }
     }
-}
-
-/// One-hot of the per-pixel arg-max (the first map wins ties); pixels whose
-/// top weight is below `min`, or zero, become background. `best` holds map indices as
-/// floats, so that the arg-max works on equal-width lanes.
-#[inline(always)]
-fn make_one_hot(maps: &mut [&mut [f32]], min: f32, top: &mut [f32], best: &mut [f32]) {
-    top.fill(f32::MIN);
-    best.fill(0.0);
-    for (k, m) in maps.iter().enumerate() {
-        let k = k as f32;
-        for ((t, b), &v) in top.iter_mut().zip(best.iter_mut()).zip(m.iter()) {
-            // Written as arithmetic so that every lane is stored (a
-            // conditional store becomes a slow masked store); exact, as
-            // indices are small whole numbers.
-            let above = f32::from(u8::from(v > *t));
-            *b += (k - *b) * above;
-            *t = t.max(v);
-        }
+    for (b, l) in background.iter_mut().zip(left) {
+        *b = l.clamp(0.0, 1.0);
     }
-    for (k, m) in maps.iter_mut().enumerate() {
-        let k = k as f32;
-        for ((v, &b), &t) in m.iter_mut().zip(best.iter()).zip(top.iter()) {
-            *v = if b == k && t >= min && t > 0.0 {
-                1.0
-            } else {
-                0.0
-            };
-        }
-    }
-}
-
-/// `background = 1 - sum(maps)`, clamped to `[0, 1]` (`background` starts at 1).
-#[inline(always)]
-fn background_weight(maps: &[&mut [f32]], background: &mut [f32]) {
-    for m in maps {
-        for (b, v) in background.iter_mut().zip(m.iter()) {
-            *b -= v;
-        }
-    }
-    background.iter_mut().for_each(|b| *b = b.clamp(0.0, 1.0));
 }
 
 /// Draws `k` soft maps for a `w x h` scene and combines them (all of SPEC 1).
