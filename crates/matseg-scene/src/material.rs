@@ -159,21 +159,17 @@ impl DrawnMaterial {
                     CoveredBlur::new(w, h, s.record.kernel, coverage),
                 )
             }),
-            rgb: [vec![0f32; w], vec![0f32; w], vec![0f32; w]],
-            factor: vec![0f32; w],
         })
     }
 }
 
 /// One material's blending, row by row: its weight, where it is positive,
-/// its colour, its shading with the blur that streams it, and row buffers.
+/// its colour, and its shading with the blur that streams it.
 pub(crate) struct Layer<'a> {
     weight: &'a SparsePlane,
     coverage: &'a Coverage,
     colour: Colour<'a>,
     shading: Option<(Shade<'a>, CoveredBlur<'a>)>,
-    rgb: [Vec<f32>; 3],
-    factor: Vec<f32>,
 }
 
 impl Layer<'_> {
@@ -196,40 +192,90 @@ impl Layer<'_> {
         let mut weights = self.weight.pieces(y);
         for (x0, x1) in self.coverage.runs(y) {
             let weight = weights.take(x0, x1);
-            let factor = match shade {
-                Some((shade, s)) => {
-                    let factor = &mut self.factor[..x1 - x0];
-                    shade_weights(factor, weight, &shade[x0..x1], s);
-                    factor
-                }
-                None => weight,
-            };
-            let rgb = self.rgb.each_mut().map(|c| &mut c[..x1 - x0]);
-            self.colour.fill_row(y, x0, rgb);
+            // Unshaded, the factor is `weight * (1 + 0 * weight)`: the
+            // weight itself, exactly.
+            let (shade, strength) = shade.map_or((weight, 0.0), |(s, k)| (&s[x0..x1], k));
             let [r, g, b] = acc;
             let target = [&mut r[x0..x1], &mut g[x0..x1], &mut b[x0..x1]];
-            add_weighted(target, &self.rgb, factor);
+            match self.colour.run(y, x0, x1 - x0) {
+                RunColours::Flat(c) => blend_run(target, c, weight, shade, strength),
+                RunColours::Levels(c) => blend_run(target, c, weight, shade, strength),
+                RunColours::Floats(c) => blend_run(target, c, weight, shade, strength),
+            }
         }
     }
 }
 
-/// `factor = weight * ((1 - strength) + strength * shade)`, element-wise;
-/// also compiled for AVX2, picked at run time (same arithmetic, same results).
-#[multiversion::multiversion(targets("x86_64+avx2+fma"))]
-fn shade_weights(factor: &mut [f32], weight: &[f32], shade: &[f32], strength: f32) {
-    for ((f, &wt), &v) in factor.iter_mut().zip(weight).zip(shade) {
-        *f = wt * ((1.0 - strength) + strength * v);
+/// The colours of a run of pixels, channel by channel, as floats.
+trait Colours: Copy {
+    /// The same colours, cut to the first `n` pixels (a run's colours
+    /// reach at least that far).
+    fn cut(self, n: usize) -> Self;
+    /// The colour of pixel `i`.
+    fn at(self, i: usize) -> [f32; 3];
+}
+
+impl Colours for [f32; 3] {
+    #[inline(always)]
+    fn cut(self, _: usize) -> Self {
+        self
+    }
+    #[inline(always)]
+    fn at(self, _: usize) -> [f32; 3] {
+        self
     }
 }
 
-/// `acc[c] += colour[c] * factor` for each channel `c` over the length of
-/// `factor`; also compiled for AVX2, picked at run time.
+impl Colours for [&[u8]; 3] {
+    #[inline(always)]
+    fn cut(self, n: usize) -> Self {
+        self.map(|c| &c[..n])
+    }
+    #[inline(always)]
+    fn at(self, i: usize) -> [f32; 3] {
+        self.map(|c| f32::from(c[i]))
+    }
+}
+
+impl Colours for [&[f32]; 3] {
+    #[inline(always)]
+    fn cut(self, n: usize) -> Self {
+        self.map(|c| &c[..n])
+    }
+    #[inline(always)]
+    fn at(self, i: usize) -> [f32; 3] {
+        self.map(|c| c[i])
+    }
+}
+
+/// `acc[c] += colour[c] * weight * ((1 - strength) + strength * shade)`
+/// for each pixel of the run and channel `c`, in one pass (the colours
+/// widened and the factor made in registers); also compiled for AVX2,
+/// picked at run time (same arithmetic, same results).
 #[multiversion::multiversion(targets("x86_64+avx2+fma"))]
-fn add_weighted(acc: [&mut [f32]; 3], colour: &[Vec<f32>; 3], factor: &[f32]) {
-    for (plane, values) in acc.into_iter().zip(colour) {
-        for ((a, &v), &f) in plane.iter_mut().zip(values).zip(factor) {
-            *a += v * f;
-        }
+fn blend_run<C: Colours>(
+    acc: [&mut [f32]; 3],
+    colours: C,
+    weight: &[f32],
+    shade: &[f32],
+    strength: f32,
+) {
+    let n = weight.len();
+    let [r, g, b] = acc;
+    let (r, g, b, shade, colours) = (
+        &mut r[..n],
+        &mut g[..n],
+        &mut b[..n],
+        &shade[..n],
+        colours.cut(n),
+    );
+    let keep = 1.0 - strength;
+    for i in 0..n {
+        let factor = weight[i] * (keep + strength * shade[i]);
+        let [cr, cg, cb] = colours.at(i);
+        r[i] += cr * factor;
+        g[i] += cg * factor;
+        b[i] += cb * factor;
     }
 }
 
@@ -301,9 +347,18 @@ fn draw_texture<R: Rng + ?Sized>(
     Ok((texture, source))
 }
 
-/// A material's colour before shading, made row run by row run; its hue
-/// turned by `hue_shift_degrees` if any.
-enum Colour<'a> {
+/// A material's colour before shading, made run by run: its source, its
+/// hue turn by `hue_shift_degrees` if any, and scratch rows for runs that
+/// are not read in place.
+struct Colour<'a> {
+    source: ColourSource<'a>,
+    hue_shift_degrees: Option<f32>,
+    levels: [Vec<u8>; 3],
+    floats: [Vec<f32>; 3],
+}
+
+/// Where a material's colours come from.
+enum ColourSource<'a> {
     /// One colour everywhere.
     Flat([f32; 3]),
     /// A tile: an 8-bit image of the texture as drawn (turned if it is,
@@ -318,28 +373,44 @@ enum Colour<'a> {
         mirrors: Mirrors,
         phase_x: usize,
         phase_y: usize,
-        hue_shift_degrees: Option<f32>,
     },
     /// A stretched texture: a scene-sized window of it, made only on the
     /// runs blended (a material is visible on a few blocks of the scene)
     /// and read mirrored: scene pixel `(x, y)` shows the window's pixel
-    /// `mirrors.source(x, y)`. `levels` is scratch.
+    /// `mirrors.source(x, y)`. `unmirrored` is scratch.
     Stretched {
         rows: WindowRows<'a>,
         width: usize,
         height: usize,
         mirrors: Mirrors,
-        hue_shift_degrees: Option<f32>,
-        levels: Vec<u8>,
+        unmirrored: Vec<u8>,
     },
+}
+
+/// The colours of one run of a row, as [`Colour::run`] gives them.
+enum RunColours<'r> {
+    /// One colour for every pixel.
+    Flat([f32; 3]),
+    /// 8-bit levels, one slice per channel.
+    Levels([&'r [u8]; 3]),
+    /// Floats, one slice per channel (a texture whose hue is turned).
+    Floats([&'r [f32]; 3]),
 }
 
 impl<'a> Colour<'a> {
     /// The colour of a material of a `w x h` scene from its record;
     /// `texture` is the texture's photo for a texture.
     fn new(source: &MaterialSource, texture: Option<&'a Photo>, w: usize, h: usize) -> Self {
+        let with = |source, hue_shift_degrees| Colour {
+            source,
+            hue_shift_degrees,
+            levels: [vec![0; w], vec![0; w], vec![0; w]],
+            floats: [vec![0.0; w], vec![0.0; w], vec![0.0; w]],
+        };
         let (fill, rot90, flip_x, flip_y, hue_shift_degrees) = match *source {
-            MaterialSource::FlatColour { rgb } => return Colour::Flat(rgb.map(f32::from)),
+            MaterialSource::FlatColour { rgb } => {
+                return with(ColourSource::Flat(rgb.map(f32::from)), None)
+            }
             MaterialSource::Texture {
                 ref fill,
                 rot90,
@@ -353,7 +424,7 @@ impl<'a> Colour<'a> {
         // Mirrors are applied when reading rows.
         let pyramid = drawn_pixels(texture, rot90);
         let mirrors = Mirrors { flip_x, flip_y };
-        let (planes, width, height, phase_x, phase_y) = match *fill {
+        let source = match *fill {
             Fill::Stretch { placement } => {
                 // The texture is mirrored before it is resized and cropped:
                 // the crop of the mirrored image is the mirrored crop of the
@@ -365,14 +436,13 @@ impl<'a> Colour<'a> {
                     y0: if flip_y { rh - y0 - h } else { y0 } as u32,
                     ..placement
                 };
-                return Colour::Stretched {
+                ColourSource::Stretched {
                     rows: WindowRows::new(pyramid, &window, w, h),
                     width: w,
                     height: h,
                     mirrors,
-                    hue_shift_degrees,
-                    levels: vec![0; w],
-                };
+                    unmirrored: vec![0; w],
+                }
             }
             Fill::Tile {
                 tile_w,
@@ -393,87 +463,94 @@ impl<'a> Colour<'a> {
                     };
                     pyramid.sample_planes(&whole, tw, th).map(Cow::Owned)
                 };
-                (planes, tw, th, offset_x as usize, offset_y as usize)
+                ColourSource::Tiled {
+                    planes,
+                    width: tw,
+                    height: th,
+                    mirrors,
+                    phase_x: offset_x as usize,
+                    phase_y: offset_y as usize,
+                }
             }
         };
-        Colour::Tiled {
-            planes,
-            width,
-            height,
-            mirrors,
-            phase_x,
-            phase_y,
-            hue_shift_degrees,
-        }
+        with(source, hue_shift_degrees)
     }
 
-    /// Writes the colours of scene row `y` from column `x0` on into `rgb`
-    /// (one slice per channel, all of the same length).
-    fn fill_row(&mut self, y: usize, x0: usize, mut rgb: [&mut [f32]; 3]) {
-        let hue_shift = match self {
-            Colour::Flat(c) => {
-                for (out, &v) in rgb.into_iter().zip(c.iter()) {
-                    out.fill(v);
-                }
-                return;
-            }
-            Colour::Tiled {
+    /// The colours of columns `x0..x0 + n` of scene row `y`: a tile's row
+    /// read in place where the run neither wraps nor is mirrored, else
+    /// levels copied into scratch; floats when the hue is turned.
+    fn run(&mut self, y: usize, x0: usize, n: usize) -> RunColours<'_> {
+        let Colour {
+            source,
+            hue_shift_degrees,
+            levels: scratch,
+            floats,
+        } = self;
+        let levels: [&[u8]; 3] = match source {
+            ColourSource::Flat(c) => return RunColours::Flat(*c),
+            ColourSource::Tiled {
                 planes,
                 width: w,
                 height: h,
                 mirrors,
                 phase_x,
                 phase_y,
-                hue_shift_degrees,
             } => {
                 let (w, h) = (*w, *h);
                 let (_, row) = mirrors.source(0, (y + *phase_y) % h, w, h);
-                for (out, plane) in rgb.iter_mut().zip(planes.iter()) {
-                    let row = &plane[row * w..(row + 1) * w];
-                    // Copy runs of the (mirrored) image row, wrapping at its end.
-                    let (mut col, mut done) = ((x0 + *phase_x) % w, 0);
-                    while done < out.len() {
-                        let run = (w - col).min(out.len() - done);
-                        let dst = &mut out[done..done + run];
-                        if mirrors.flip_x {
-                            widen_reversed(&row[w - col - run..w - col], dst);
-                        } else {
-                            widen(&row[col..col + run], dst);
+                let first = (x0 + *phase_x) % w;
+                if !mirrors.flip_x && first + n <= w {
+                    planes.each_ref().map(|p| &p[row * w + first..][..n])
+                } else {
+                    for (out, plane) in scratch.iter_mut().zip(planes.iter()) {
+                        let row = &plane[row * w..(row + 1) * w];
+                        // Copy runs of the (mirrored) image row, wrapping at its end.
+                        let (mut col, mut done) = (first, 0);
+                        while done < n {
+                            let run = (w - col).min(n - done);
+                            let dst = &mut out[done..done + run];
+                            if mirrors.flip_x {
+                                copy_reversed(&row[w - col - run..w - col], dst);
+                            } else {
+                                dst.copy_from_slice(&row[col..col + run]);
+                            }
+                            done += run;
+                            col = 0;
                         }
-                        done += run;
-                        col = 0;
                     }
+                    scratch.each_ref().map(|l| &l[..n])
                 }
-                *hue_shift_degrees
             }
-            Colour::Stretched {
+            ColourSource::Stretched {
                 rows,
                 width: w,
                 height: h,
                 mirrors,
-                hue_shift_degrees,
-                levels,
+                unmirrored,
             } => {
-                let n = rgb[0].len();
                 let (_, row) = mirrors.source(0, y, *w, *h);
                 // A mirrored run reads the mirrored columns, right to left.
                 let start = if mirrors.flip_x { *w - x0 - n } else { x0 };
-                let levels = &mut levels[..n];
-                for (lane, out) in rgb.iter_mut().enumerate() {
-                    rows.run(lane, row, start, levels);
+                for (lane, out) in scratch.iter_mut().enumerate() {
                     if mirrors.flip_x {
-                        widen_reversed(levels, out);
+                        rows.run(lane, row, start, &mut unmirrored[..n]);
+                        copy_reversed(&unmirrored[..n], &mut out[..n]);
                     } else {
-                        widen(levels, out);
+                        rows.run(lane, row, start, &mut out[..n]);
                     }
                 }
-                *hue_shift_degrees
+                scratch.each_ref().map(|l| &l[..n])
             }
         };
-        if let Some(degrees) = hue_shift {
-            let [r, g, b] = rgb;
-            rotate_hue_planes(r, g, b, degrees);
+        let Some(degrees) = *hue_shift_degrees else {
+            return RunColours::Levels(levels);
+        };
+        for (out, levels) in floats.iter_mut().zip(levels) {
+            widen(levels, &mut out[..n]);
         }
+        let [r, g, b] = floats.each_mut().map(|c| &mut c[..n]);
+        rotate_hue_planes(r, g, b, degrees);
+        RunColours::Floats(floats.each_ref().map(|c| &c[..n]))
     }
 }
 
@@ -484,12 +561,12 @@ fn widen(values: &[u8], out: &mut [f32]) {
     out.iter_mut().zip(values).for_each(|(o, &v)| *o = v as f32);
 }
 
-/// `out[i] = values[len - 1 - i]` as floats; also compiled for AVX2.
+/// `out[i] = values[len - 1 - i]`; also compiled for AVX2 (byte shuffles).
 #[multiversion::multiversion(targets("x86_64+avx2"))]
-fn widen_reversed(values: &[u8], out: &mut [f32]) {
+fn copy_reversed(values: &[u8], out: &mut [u8]) {
     out.iter_mut()
         .zip(values.iter().rev())
-        .for_each(|(o, &v)| *o = v as f32);
+        .for_each(|(o, &v)| *o = v);
 }
 
 /// A material's shading as drawn: its photo and how it is read.
@@ -622,8 +699,9 @@ mod tests {
                 .flat_map(|f| [(f.clone(), None), (f, Some(137.0f32))])
             {
                 let (sw, sh, ox, oy) = shown;
-                // The columns and rows blended.
-                let (xs, ys) = (1..10.min(sw), 1..8.min(sh));
+                // The runs blended: a long one (a tile's wraps), and short
+                // ones (a tile's row read in place when not mirrored).
+                let runs = [(1, 10), (1, 3), (4, 6)].map(|(x0, x1)| (x0, x1.min(sw)));
                 let source = MaterialSource::Texture {
                     texture: 0,
                     rot90,
@@ -633,18 +711,90 @@ mod tests {
                     hue_shift_degrees,
                 };
                 let mut colour = Colour::new(&source, Some(&photo), sw, sh);
-                let span = xs.len();
-                let mut rgb = [vec![0f32; span], vec![0f32; span], vec![0f32; span]];
-                for y in ys {
-                    colour.fill_row(y, xs.start, rgb.each_mut().map(|c| &mut c[..]));
-                    for x in xs.clone() {
+                for ((x0, x1), y) in runs
+                    .into_iter()
+                    .flat_map(|r| (1..8.min(sh)).map(move |y| (r, y)))
+                {
+                    if x0 >= x1 {
+                        continue;
+                    }
+                    let run = colour.run(y, x0, x1 - x0);
+                    let colour_at = |i| match run {
+                        RunColours::Flat(c) => c.at(i),
+                        RunColours::Levels(c) => c.at(i),
+                        RunColours::Floats(c) => c.at(i),
+                    };
+                    for x in x0..x1 {
                         let px = want.get_pixel((x + ox) as u32 % tw, (y + oy) as u32 % th);
                         let px = px.0.map(f32::from);
                         let px = hue_shift_degrees.map_or(px, |d| rotate_hue(px, d));
-                        let got = [0, 1, 2].map(|c| rgb[c][x - xs.start]);
+                        let got = colour_at(x - x0);
                         assert_eq!(got, px, "bits {bits} ({x}, {y}) {hue_shift_degrees:?}");
                     }
                 }
+            }
+        }
+    }
+
+    /// A run blends colour times weight, times the shade factor when
+    /// shaded; unshaded (strength 0, the weight standing in for the shade)
+    /// exactly colour times weight. Every kind of colours, on runs longer
+    /// and shorter than a vector.
+    #[test]
+    fn runs_blend_colour_times_weight_and_shade() {
+        for n in [1, 7, 8, 9, 37] {
+            let weight: Vec<f32> = (0..n).map(|i| (i as f32 * 0.37).fract()).collect();
+            let shade: Vec<f32> = (0..n).map(|i| (i as f32 * 0.61 + 0.2).fract()).collect();
+            let levels: [Vec<u8>; 3] =
+                [0, 1, 2].map(|c| (0..n).map(|i| (i * 41 + c * 90) as u8).collect());
+            let floats = levels
+                .each_ref()
+                .map(|l| l.iter().map(|&v| v as f32 * 0.5).collect::<Vec<f32>>());
+            let start: Vec<f32> = (0..n).map(|i| i as f32 * 3.0).collect();
+            for (shade, strength) in [(&shade, 0.7f32), (&weight, 0.0)] {
+                let check = |acc: [Vec<f32>; 3], at: &dyn Fn(usize) -> [f32; 3]| {
+                    for i in 0..n {
+                        let factor = if strength == 0.0 {
+                            weight[i]
+                        } else {
+                            weight[i] * ((1.0 - strength) + strength * shade[i])
+                        };
+                        for (c, plane) in acc.iter().enumerate() {
+                            let want = start[i] + at(i)[c] * factor;
+                            assert_eq!(plane[i], want, "n {n} pixel {i}");
+                        }
+                    }
+                };
+                let mut acc = [start.clone(), start.clone(), start.clone()];
+                let flat = [3.0f32, 100.0, 255.0];
+                blend_run(
+                    acc.each_mut().map(|a| &mut a[..]),
+                    flat,
+                    &weight,
+                    shade,
+                    strength,
+                );
+                check(acc, &|_| flat);
+                let mut acc = [start.clone(), start.clone(), start.clone()];
+                let l = levels.each_ref().map(|l| &l[..]);
+                blend_run(
+                    acc.each_mut().map(|a| &mut a[..]),
+                    l,
+                    &weight,
+                    shade,
+                    strength,
+                );
+                check(acc, &|i| l.at(i));
+                let mut acc = [start.clone(), start.clone(), start.clone()];
+                let f = floats.each_ref().map(|f| &f[..]);
+                blend_run(
+                    acc.each_mut().map(|a| &mut a[..]),
+                    f,
+                    &weight,
+                    shade,
+                    strength,
+                );
+                check(acc, &|i| f.at(i));
             }
         }
     }
