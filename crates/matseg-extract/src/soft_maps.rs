@@ -454,26 +454,29 @@ pub fn combine_maps<R: Rng + ?Sized>(
     );
     let mut weights: Vec<SparsePlane> = maps.iter().map(|m| m.blurred(blur_kernel)).collect();
     drop(maps);
-    let mut background = Plane::new(w, h, 1.0);
     let mut coverage: Vec<Coverage> = weights.iter().map(|_| Coverage::empty(w, h)).collect();
+    // The background is made row by row, each row 1 until the runs where
+    // some map is stored are combined into it while it is in cache (a
+    // whole plane of ones would be one more pass over memory).
+    let mut background = Vec::with_capacity(w * h);
+    let (mut blocks, mut runs) = (Vec::new(), Vec::new());
     let mut spare_rows: Vec<&mut [f32]> = Vec::with_capacity(weights.len());
     for y in 0..h {
-        let runs = member_runs(&weights, y);
+        member_runs(&weights, y, &mut blocks, &mut runs);
+        background.resize((y + 1) * w, 1.0);
+        let background_row = &mut background[y * w..];
         let mut pieces: Vec<_> = weights.iter_mut().map(|p| p.pieces_mut(y)).collect();
-        for (x0, x1, members) in runs {
+        for &(x0, x1, members) in &runs {
             let mut rows = recycled(std::mem::take(&mut spare_rows));
             rows.extend(bits(members).map(|k| pieces[k].take(x0, x1)));
-            combine_run(
-                steps,
-                &mut rows,
-                &mut background.data[y * w + x0..y * w + x1],
-            );
+            combine_run(steps, &mut rows, &mut background_row[x0..x1]);
             for (k, row) in bits(members).zip(&rows) {
                 coverage[k].add_run(y, x0, row);
             }
             spare_rows = recycled(rows);
         }
     }
+    let background = Plane::from_vec(w, h, background);
     CombinedMaps {
         weights,
         coverage,
@@ -488,22 +491,29 @@ pub fn combine_maps<R: Rng + ?Sized>(
 
 /// The runs of row `y` where some map is stored, as `(x0, x1, members)`:
 /// consecutive blocks with the same maps, bit `k` of `members` set for
-/// map `k`.
-fn member_runs(maps: &[SparsePlane], y: usize) -> Vec<(usize, usize, u64)> {
+/// map `k`; written into `runs`, with `blocks` as scratch (both kept from
+/// row to row).
+fn member_runs(
+    maps: &[SparsePlane],
+    y: usize,
+    blocks: &mut Vec<u64>,
+    runs: &mut Vec<(usize, usize, u64)>,
+) {
     let width = maps[0].width();
     // Each map's stored blocks set its bit (maps cover a few blocks each).
-    let mut members = vec![0u64; maps[0].stored().blocks_per_row()];
+    blocks.clear();
+    blocks.resize(maps[0].stored().blocks_per_row(), 0);
     for (k, m) in maps.iter().enumerate() {
         for (i, &word) in m.stored().row(y).iter().enumerate() {
             let mut bits = word;
             while bits != 0 {
-                members[i * 64 + bits.trailing_zeros() as usize] |= 1 << k;
+                blocks[i * 64 + bits.trailing_zeros() as usize] |= 1 << k;
                 bits &= bits - 1;
             }
         }
     }
-    let mut runs: Vec<(usize, usize, u64)> = Vec::new();
-    for (b, &members) in members.iter().enumerate() {
+    runs.clear();
+    for (b, &members) in blocks.iter().enumerate() {
         if members == 0 {
             continue;
         }
@@ -513,7 +523,6 @@ fn member_runs(maps: &[SparsePlane], y: usize) -> Vec<(usize, usize, u64)> {
             _ => runs.push((x0, x1, members)),
         }
     }
-    runs
 }
 
 /// The indices of the set bits of `set`, in increasing order.
