@@ -6,7 +6,7 @@
 //! that covers a tenth of the scene is visible).
 
 use crate::channel::Channel;
-use crate::levels::{look_up, ChannelWindow, LevelTable};
+use crate::levels::{highest, look_up, ChannelWindow, LevelTable};
 use crate::resample::{Placement, Pyramid, WindowReader};
 
 /// The R, G and B planes of a window, read run by run.
@@ -89,7 +89,7 @@ impl OnDemand<'_> {
                 break;
             }
             self.run(y, 0, &mut row);
-            best = best.max(row.iter().copied().max().unwrap_or(0));
+            best = best.max(highest(&row));
         }
         best
     }

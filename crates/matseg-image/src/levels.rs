@@ -31,7 +31,7 @@ impl ChannelWindow {
 
     /// The highest level in the window (0 when it is empty).
     pub fn max_level(&self) -> u8 {
-        self.levels.iter().copied().max().unwrap_or(0)
+        highest(&self.levels)
     }
 
     /// The plane of `table[level]` for every pixel.
@@ -71,6 +71,12 @@ impl ChannelWindow {
         }
         c
     }
+}
+
+/// The highest of `levels` (0 for none). A fold of maxima vectorises
+/// (`Iterator::max` on bytes stayed a scalar loop of comparisons).
+pub(crate) fn highest(levels: &[u8]) -> u8 {
+    levels.iter().fold(0, |top, &l| top.max(l))
 }
 
 /// `out[i] = table[levels[i]]`, over the length of `out`.

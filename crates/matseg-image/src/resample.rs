@@ -3,7 +3,7 @@
 
 use crate::bilinear::{blend_rows, blend_rows_rounded, ColumnTaps, ROW_SLACK, WEIGHT_ONE};
 use crate::channel::{write_levels, Channel};
-use crate::levels::ChannelWindow;
+use crate::levels::{highest, ChannelWindow};
 use image::RgbImage;
 use serde::{Deserialize, Serialize};
 
@@ -529,11 +529,7 @@ impl<'r, 'a> PlaneRows<'r, 'a> {
 /// The largest level of one row over `lanes`, `row(lane)` giving the row
 /// of each (0 for none).
 fn top_level<'r>(lanes: &[usize], row: impl Fn(usize) -> &'r [u8]) -> u8 {
-    lanes
-        .iter()
-        .filter_map(|&l| row(l).iter().copied().max())
-        .max()
-        .unwrap_or(0)
+    lanes.iter().map(|&l| highest(row(l))).max().unwrap_or(0)
 }
 
 /// Two source indices along one axis and the weight of the second, in 128ths.
