@@ -180,12 +180,16 @@ impl Pyramid {
         let rows = axis_taps(out_h, placement.y0, fy / step, img.height);
         let first = cols[0].first;
         let last = cols[cols.len() - 1];
+        // A tap clamped at the right edge blends its column with itself,
+        // which any weight leaves as it is: weighted 0, the value it reads
+        // past the span (whatever lies there) adds nothing, so source rows
+        // are read in place without a padded copy.
+        let weight = |c: &Tap| if c.second == c.first { 0 } else { c.weight };
         WindowReader::Bilinear(Bilinear {
             level: img,
             first,
             span: last.second - first + 1,
-            reads_past_span: last.second == last.first,
-            taps: ColumnTaps::new(cols.iter().map(|c| (c.first - first, c.weight))),
+            taps: ColumnTaps::new(cols.iter().map(|c| (c.first - first, weight(c)))),
             rows,
             out_w,
         })
@@ -296,9 +300,6 @@ pub(crate) struct Bilinear<'a> {
     level: &'a Level,
     first: usize,
     span: usize,
-    /// Whether the last tap, clamped at the source's right edge, reads one
-    /// value past the span (a copy of the last one).
-    reads_past_span: bool,
     taps: ColumnTaps,
     rows: Vec<Tap>,
     out_w: usize,
@@ -481,22 +482,20 @@ impl<'r, 'a> PlaneRows<'r, 'a> {
                 for s in [row.first, row.second] {
                     if held[s % 2] != s {
                         // The source row as it lies in the plane when the
-                        // taps read nothing past its span and the plane
-                        // holds the slack (the loads that read it ignore
-                        // it); else a copy with the last value repeated and
-                        // the slack.
-                        let in_place = (!b.reads_past_span)
-                            .then(|| b.level.row_and_more(*lane, s, b.first, span, 1 + ROW_SLACK))
-                            .flatten();
-                        let source = match in_place {
-                            Some(row) => row,
-                            None => {
-                                let source = b.source_row(*lane, s);
-                                padded[..span].copy_from_slice(source);
-                                padded[span] = source[span - 1];
-                                &padded[..]
-                            }
-                        };
+                        // plane holds the slack past its span (the loads
+                        // that read it ignore it, and a tap clamped at the
+                        // edge weighs the value past the span 0); else a
+                        // copy with the last value repeated and the slack.
+                        let source =
+                            match b.level.row_and_more(*lane, s, b.first, span, 1 + ROW_SLACK) {
+                                Some(row) => row,
+                                None => {
+                                    let source = b.source_row(*lane, s);
+                                    padded[..span].copy_from_slice(source);
+                                    padded[span] = source[span - 1];
+                                    &padded[..]
+                                }
+                            };
                         b.taps.blend_unrounded(source, &mut by_columns[s % 2]);
                         held[s % 2] = s;
                     }
@@ -617,6 +616,58 @@ mod tests {
                 let src = img.get_pixel(x as u32 + 5, y as u32 + 7);
                 let got = out.each_ref().map(|plane| plane[y * 10 + x]);
                 assert_eq!(got, src.0);
+            }
+        }
+    }
+
+    /// Upscaled windows, at the resized image's edges (where taps clamp
+    /// to the last column and row) and inside it, whole and row by row,
+    /// equal the fixed-point bilinear formula pixel by pixel: rows blended
+    /// in 128ths, then columns, rounded once.
+    #[test]
+    fn upscaled_windows_equal_the_bilinear_formula_up_to_the_edges() {
+        let img = RgbImage::from_fn(40, 30, |x, y| {
+            image::Rgb([
+                (x * 6 + y) as u8,
+                (y * 8 + x * x) as u8,
+                ((x * y) % 256) as u8,
+            ])
+        });
+        let p = Pyramid::new(img.clone());
+        let (rw, rh, w, h) = (67u32, 50u32, 25usize, 20usize);
+        for (x0, y0) in [(rw - w as u32, rh - h as u32), (0, 0), (9, 13)] {
+            let place = Placement {
+                resized_w: rw,
+                resized_h: rh,
+                x0,
+                y0,
+            };
+            let cols = axis_taps(w, x0, 40.0 / rw as f64, 40);
+            let rows = axis_taps(h, y0, 30.0 / rh as f64, 30);
+            let whole = p.sample_planes(&place, w, h);
+            let mut by_rows = vec![[0u8; 3]; w * h];
+            p.sample_rows(&place, w, h, |y, rgb| {
+                for x in 0..w {
+                    by_rows[y * w + x] = rgb.map(|lane| lane[x]);
+                }
+            });
+            for (y, r) in rows.iter().enumerate() {
+                for (x, c) in cols.iter().enumerate() {
+                    let px = |sx: usize, sy: usize| img.get_pixel(sx as u32, sy as u32).0;
+                    let want: [u8; 3] = std::array::from_fn(|lane| {
+                        let blend = |sx| {
+                            let (a, b) =
+                                (px(sx, r.first)[lane] as i32, px(sx, r.second)[lane] as i32);
+                            a * (WEIGHT_ONE - r.weight) + b * r.weight
+                        };
+                        let sum =
+                            blend(c.first) * (WEIGHT_ONE - c.weight) + blend(c.second) * c.weight;
+                        ((sum + (1 << 13)) >> 14) as u8
+                    });
+                    let got = whole.each_ref().map(|plane| plane[y * w + x]);
+                    assert_eq!(got, want, "window at ({x0}, {y0}), pixel ({x}, {y})");
+                    assert_eq!(by_rows[y * w + x], want, "row by row, pixel ({x}, {y})");
+                }
             }
         }
     }
