@@ -226,25 +226,15 @@ impl Colours for [f32; 3] {
     }
 }
 
-impl Colours for [&[u8]; 3] {
+/// 8-bit levels or floats, one slice per channel.
+impl<T: Copy + Into<f32>> Colours for [&[T]; 3] {
     #[inline(always)]
     fn cut(self, n: usize) -> Self {
         self.map(|c| &c[..n])
     }
     #[inline(always)]
     fn at(self, i: usize) -> [f32; 3] {
-        self.map(|c| f32::from(c[i]))
-    }
-}
-
-impl Colours for [&[f32]; 3] {
-    #[inline(always)]
-    fn cut(self, n: usize) -> Self {
-        self.map(|c| &c[..n])
-    }
-    #[inline(always)]
-    fn at(self, i: usize) -> [f32; 3] {
-        self.map(|c| c[i])
+        self.map(|c| c[i].into())
     }
 }
 
@@ -736,6 +726,25 @@ mod tests {
         }
     }
 
+    /// `start` (each channel) after [`blend_run`] of `colours`.
+    fn blended<C: Colours>(
+        start: &[f32],
+        colours: C,
+        weight: &[f32],
+        shade: &[f32],
+        strength: f32,
+    ) -> [Vec<f32>; 3] {
+        let mut acc = [start.to_vec(), start.to_vec(), start.to_vec()];
+        blend_run(
+            acc.each_mut().map(|a| &mut a[..]),
+            colours,
+            weight,
+            shade,
+            strength,
+        );
+        acc
+    }
+
     /// A run blends colour times weight, times the shade factor when
     /// shaded; unshaded (strength 0, the weight standing in for the shade)
     /// exactly colour times weight. Every kind of colours, on runs longer
@@ -765,36 +774,12 @@ mod tests {
                         }
                     }
                 };
-                let mut acc = [start.clone(), start.clone(), start.clone()];
                 let flat = [3.0f32, 100.0, 255.0];
-                blend_run(
-                    acc.each_mut().map(|a| &mut a[..]),
-                    flat,
-                    &weight,
-                    shade,
-                    strength,
-                );
-                check(acc, &|_| flat);
-                let mut acc = [start.clone(), start.clone(), start.clone()];
+                check(blended(&start, flat, &weight, shade, strength), &|_| flat);
                 let l = levels.each_ref().map(|l| &l[..]);
-                blend_run(
-                    acc.each_mut().map(|a| &mut a[..]),
-                    l,
-                    &weight,
-                    shade,
-                    strength,
-                );
-                check(acc, &|i| l.at(i));
-                let mut acc = [start.clone(), start.clone(), start.clone()];
+                check(blended(&start, l, &weight, shade, strength), &|i| l.at(i));
                 let f = floats.each_ref().map(|f| &f[..]);
-                blend_run(
-                    acc.each_mut().map(|a| &mut a[..]),
-                    f,
-                    &weight,
-                    shade,
-                    strength,
-                );
-                check(acc, &|i| f.at(i));
+                check(blended(&start, f, &weight, shade, strength), &|i| f.at(i));
             }
         }
     }
