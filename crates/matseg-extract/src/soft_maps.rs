@@ -2,6 +2,7 @@
 //! gives a map with natural-image shapes; K of them become material weights.
 
 use matseg_image::coverage::BLOCK;
+use matseg_image::levels::{look_up, look_up_step, step_level};
 use matseg_image::{
     level_values, Channel, ChannelWindow, Coverage, CoveredBlur, LevelCounts, LevelTable,
     LibraryError, Photo, PhotoLibrary, Placement, Plane, Ramp, SparsePlane,
@@ -136,6 +137,8 @@ pub struct MapRecord {
 pub struct RawMap {
     window: ChannelWindow,
     table: LevelTable,
+    /// The level where `table` steps from 0 to 1, for a binary map.
+    step: Option<u8>,
     coverage: Coverage,
 }
 
@@ -145,8 +148,19 @@ impl RawMap {
         let coverage = window.coverage(&table);
         Self {
             window,
+            step: step_level(&table),
             table,
             coverage,
+        }
+    }
+
+    /// Columns `x0..x0 + run.len()` of row `y` of the map: a binary map's
+    /// by comparing levels with its step, any other's through its table.
+    fn map_run(&self, y: usize, x0: usize, run: &mut [f32]) {
+        let levels = &self.window.levels[y * self.width() + x0..][..run.len()];
+        match self.step {
+            Some(step) => look_up_step(levels, step, run),
+            None => look_up(levels, &self.table, run),
         }
     }
 
@@ -173,20 +187,19 @@ impl RawMap {
     /// The map, blurred with `kernel` if any, stored on the blocks where it
     /// can be positive (elsewhere it is exactly zero, blurred or not).
     fn blurred(&self, kernel: Option<usize>) -> SparsePlane {
-        let (w, levels, table) = (self.width(), &self.window.levels, &self.table);
         let Some(kernel) = kernel else {
             return SparsePlane::from_rows(self.coverage.clone(), |y, data| {
                 for (x0, x1) in self.coverage.runs(y) {
-                    let run = &levels[y * w + x0..y * w + x1];
-                    data.extend(run.iter().map(|&l| table[l as usize]));
+                    let start = data.len();
+                    data.resize(start + (x1 - x0), 0.0);
+                    self.map_run(y, x0, &mut data[start..]);
                 }
             });
         };
         let stored = self.coverage.dilated(kernel / 2);
-        let mut blur = CoveredBlur::new(w, self.height(), kernel, &stored);
+        let mut blur = CoveredBlur::new(self.width(), self.height(), kernel, &stored);
         SparsePlane::from_rows(stored.clone(), |y, data| {
-            let source = |y, x0, run: &mut [f32]| self.window.map_run(y, x0, table, run);
-            if let Some(row) = blur.row(y, source) {
+            if let Some(row) = blur.row(y, |y, x0, run| self.map_run(y, x0, run)) {
                 for (x0, x1) in stored.runs(y) {
                     data.extend_from_slice(&row[x0..x1]);
                 }

@@ -86,6 +86,25 @@ pub fn look_up(levels: &[u8], table: &LevelTable, out: &mut [f32]) {
     }
 }
 
+/// The level at which `table` steps from exactly 0 to exactly 1, when it is
+/// such a step (the table of a binary map: SPEC 1.4 with `t_lo = t_hi`).
+pub fn step_level(table: &LevelTable) -> Option<u8> {
+    let step = table.iter().position(|&v| v == 1.0)?;
+    let is_step =
+        table[..step].iter().all(|&v| v == 0.0) && table[step..].iter().all(|&v| v == 1.0);
+    is_step.then_some(step as u8)
+}
+
+/// [`look_up`] of a table that steps from 0 to 1 at `step`: a comparison
+/// per level, which vectorises (the table's loads do not); also compiled
+/// for AVX2, picked at run time.
+#[multiversion::multiversion(targets("x86_64+avx2"))]
+pub fn look_up_step(levels: &[u8], step: u8, out: &mut [f32]) {
+    for (v, &l) in out.iter_mut().zip(levels) {
+        *v = if l >= step { 1.0 } else { 0.0 };
+    }
+}
+
 /// Counts of a window's pixels at or above given levels: each made once,
 /// when asked for, by a pass over the window; those made so far bound every
 /// other (the count never grows with the level), which settles most
@@ -302,6 +321,34 @@ mod tests {
         assert_eq!(LevelCounts::first_above(&full, 10.0 / 255.0), 11);
         assert_eq!(LevelCounts::first_above(&full, 1.0), LevelCounts::PAST_TOP);
         assert_eq!(LevelCounts::first_above(&level_values(50), 0.5), 26);
+    }
+
+    /// Step tables are found (and only they), and looking one up by
+    /// comparison gives the table's values, on runs longer and shorter than
+    /// a vector.
+    #[test]
+    fn step_tables_look_up_by_comparison() {
+        let full = level_values(255);
+        let binary = |t: f32| full.map(|v| f32::from(u8::from(v > t)));
+        assert_eq!(step_level(&binary(0.5)), Some(128));
+        assert_eq!(step_level(&binary(-1.0)), Some(0));
+        assert_eq!(step_level(&binary(1.0)), None, "all zeros");
+        let ramp = full.map(|v| ((v - 0.2) / 0.3).clamp(0.0, 1.0));
+        assert_eq!(step_level(&ramp), None);
+        let mut spike = binary(0.5);
+        spike[200] = 0.0;
+        assert_eq!(step_level(&spike), None);
+        let levels: Vec<u8> = (0..77u32).map(|i| (i * 97 % 256) as u8).collect();
+        for t in [0.1, 0.5, 0.99] {
+            let table = binary(t);
+            let step = step_level(&table).unwrap();
+            for n in [1, 7, 8, 33, 77] {
+                let (mut want, mut got) = (vec![0.0; n], vec![-1.0; n]);
+                look_up(&levels[..n], &table, &mut want);
+                look_up_step(&levels[..n], step, &mut got);
+                assert_eq!(got, want, "threshold {t}, {n} levels");
+            }
+        }
     }
 
     #[test]
