@@ -6,7 +6,7 @@
 //! that covers a tenth of the scene is visible).
 
 use crate::channel::Channel;
-use crate::levels::{highest, look_up, ChannelWindow, LevelTable};
+use crate::levels::{highest, ChannelWindow};
 use crate::resample::{Placement, Pyramid, WindowReader};
 
 /// The R, G and B planes of a window, read run by run.
@@ -130,27 +130,16 @@ impl<'a> ChannelRows<'a> {
         }
     }
 
-    /// Columns `x0..x0 + run.len()` of row `y` through `table`, as
-    /// [`ChannelWindow::map_run`] gives them for the whole window.
-    pub fn map_run(&mut self, y: usize, x0: usize, table: &LevelTable, run: &mut [f32]) {
+    /// The levels of columns `x0..x0 + n` of row `y`, as the whole window
+    /// has them: read in place from a window made whole, else made now.
+    pub fn levels(&mut self, y: usize, x0: usize, n: usize) -> &[u8] {
         match &mut self.source {
-            Source::Whole(window) => window.map_run(y, x0, table, run),
+            Source::Whole(window) => &window.levels[y * self.width + x0..][..n],
             Source::OnDemand(on_demand) => {
-                self.levels.resize(run.len(), 0);
+                self.levels.resize(n, 0);
                 on_demand.run(y, x0, &mut self.levels);
-                look_up(&self.levels, table, run);
+                &self.levels
             }
-        }
-    }
-
-    /// The levels of columns `x0..x0 + out.len()` of row `y`.
-    #[cfg(test)]
-    fn run(&mut self, y: usize, x0: usize, out: &mut [u8]) {
-        match &mut self.source {
-            Source::Whole(window) => {
-                out.copy_from_slice(&window.levels[y * self.width + x0..][..out.len()]);
-            }
-            Source::OnDemand(on_demand) => on_demand.run(y, x0, out),
         }
     }
 
@@ -207,9 +196,8 @@ mod tests {
                 );
                 for y in [0, 1, 44, h - 1] {
                     for (x0, len) in [(0, w), (16, 32), (w - 17, 17), (5, 1)] {
-                        let mut run = vec![0u8; len];
-                        rows.run(y, x0, &mut run);
                         let want = &whole.levels[y * w + x0..][..len];
+                        let run = rows.levels(y, x0, len);
                         assert_eq!(run, want, "{channel:?} {placement:?} row {y} from {x0}");
                     }
                 }

@@ -86,6 +86,17 @@ pub fn look_up(levels: &[u8], table: &LevelTable, out: &mut [f32]) {
     }
 }
 
+/// [`look_up`] of [`level_values`]`(divisor)`, computed: the same division
+/// of each level, which vectorises (the table's loads do not); also
+/// compiled for AVX2, picked at run time.
+#[multiversion::multiversion(targets("x86_64+avx2"))]
+pub fn look_up_scaled(levels: &[u8], divisor: u8, out: &mut [f32]) {
+    let d = divisor.max(1) as f32;
+    for (v, &l) in out.iter_mut().zip(levels) {
+        *v = l as f32 / d;
+    }
+}
+
 /// The level at which `table` steps from exactly 0 to exactly 1, when it is
 /// such a step (the table of a binary map: SPEC 1.4 with `t_lo = t_hi`).
 pub fn step_level(table: &LevelTable) -> Option<u8> {
@@ -321,6 +332,22 @@ mod tests {
         assert_eq!(LevelCounts::first_above(&full, 10.0 / 255.0), 11);
         assert_eq!(LevelCounts::first_above(&full, 1.0), LevelCounts::PAST_TOP);
         assert_eq!(LevelCounts::first_above(&level_values(50), 0.5), 26);
+    }
+
+    /// Levels divided as a computation equal [`level_values`]' table, for
+    /// every divisor and level, on runs longer and shorter than a vector.
+    #[test]
+    fn scaled_levels_equal_the_value_table() {
+        let levels: Vec<u8> = (0..=255).collect();
+        for divisor in 0..=255u8 {
+            let table = level_values(divisor);
+            for n in [3, 8, 256] {
+                let (mut want, mut got) = (vec![0.0; n], vec![-1.0; n]);
+                look_up(&levels[256 - n..], &table, &mut want);
+                look_up_scaled(&levels[256 - n..], divisor, &mut got);
+                assert_eq!(got, want, "divisor {divisor}, {n} levels");
+            }
+        }
     }
 
     /// Step tables are found (and only they), and looking one up by

@@ -3,10 +3,11 @@
 
 use crate::recipe::CompositionRecipe;
 use matseg_extract::random_channel_placement;
+use matseg_image::levels::look_up_scaled;
 use matseg_image::rgb::rotate_hue_planes;
 use matseg_image::{
-    level_values, Channel, ChannelRows, Coverage, CoveredBlur, LevelTable, LibraryError, Mirrors,
-    Photo, PhotoLibrary, Placement, Pyramid, SparsePlane, WindowRows,
+    Channel, ChannelRows, Coverage, CoveredBlur, LibraryError, Mirrors, Photo, PhotoLibrary,
+    Placement, Pyramid, SparsePlane, WindowRows,
 };
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -566,11 +567,11 @@ struct Shading {
 }
 
 /// A shading as it is blended, before its blur: the photo channel's
-/// window, made only on the runs the blur reads, and the table that
-/// divides it by its maximum.
+/// window, made only on the runs the blur reads, and its maximum, which
+/// divides it (SPEC 2).
 struct Shade<'a> {
     rows: ChannelRows<'a>,
-    values: LevelTable,
+    max_level: u8,
     strength: f32,
 }
 
@@ -585,17 +586,18 @@ impl<'a> Shade<'a> {
             h,
             record.channel,
         );
-        let values = level_values(rows.max_level());
         Self {
+            max_level: rows.max_level(),
             rows,
-            values,
             strength: record.strength,
         }
     }
 
-    /// Columns `x0..x0 + run.len()` of row `y` of the shading.
+    /// Columns `x0..x0 + run.len()` of row `y` of the shading: each level
+    /// divided by the maximum, as [`matseg_image::level_values`] has it.
     fn run(&mut self, y: usize, x0: usize, run: &mut [f32]) {
-        self.rows.map_run(y, x0, &self.values, run);
+        let levels = self.rows.levels(y, x0, run.len());
+        look_up_scaled(levels, self.max_level, run);
     }
 }
 
