@@ -2,7 +2,7 @@
 //! gives a map with natural-image shapes; K of them become material weights.
 
 use matseg_image::coverage::BLOCK;
-use matseg_image::levels::{look_up, look_up_step, step_level};
+use matseg_image::levels::{look_up_step, step_level};
 use matseg_image::{
     level_values, Channel, ChannelWindow, Coverage, CoveredBlur, LevelCounts, LevelTable,
     LibraryError, Photo, PhotoLibrary, Placement, Plane, Ramp, SparsePlane,
@@ -157,10 +157,9 @@ impl RawMap {
     /// Columns `x0..x0 + run.len()` of row `y` of the map: a binary map's
     /// by comparing levels with its step, any other's through its table.
     fn map_run(&self, y: usize, x0: usize, run: &mut [f32]) {
-        let levels = &self.window.levels[y * self.width() + x0..][..run.len()];
         match self.step {
-            Some(step) => look_up_step(levels, step, run),
-            None => look_up(levels, &self.table, run),
+            Some(step) => look_up_step(self.window.run(y, x0, run.len()), step, run),
+            None => self.window.map_run(y, x0, &self.table, run),
         }
     }
 

@@ -134,7 +134,7 @@ impl<'a> ChannelRows<'a> {
     /// has them: read in place from a window made whole, else made now.
     pub fn levels(&mut self, y: usize, x0: usize, n: usize) -> &[u8] {
         match &mut self.source {
-            Source::Whole(window) => &window.levels[y * self.width + x0..][..n],
+            Source::Whole(window) => window.run(y, x0, n),
             Source::OnDemand(on_demand) => {
                 self.levels.resize(n, 0);
                 on_demand.run(y, x0, &mut self.levels);

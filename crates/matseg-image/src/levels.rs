@@ -44,7 +44,12 @@ impl ChannelWindow {
     /// [`ChannelWindow::map_levels`], written into `run`, for callers that
     /// stream parts of rows.
     pub fn map_run(&self, y: usize, x0: usize, table: &LevelTable, run: &mut [f32]) {
-        look_up(&self.levels[y * self.width + x0..][..run.len()], table, run);
+        look_up(self.run(y, x0, run.len()), table, run);
+    }
+
+    /// The levels of columns `x0..x0 + n` of row `y`.
+    pub fn run(&self, y: usize, x0: usize, n: usize) -> &[u8] {
+        &self.levels[y * self.width + x0..][..n]
     }
 
     /// Where [`ChannelWindow::map_levels`] of `table` is positive. When
