@@ -365,8 +365,8 @@ impl WindowReader<'_> {
                 let (span, taps) = (b.span, &b.taps);
                 let at = |s: usize| b.source_row(lane, s);
                 // The row values the columns read: from the first tap of x0
-                // to one past the first tap of the last column (the value
-                // past the end repeats the last one, as in a whole row).
+                // to one past the first tap of the last column (a value past
+                // the span is read only by a clamped tap, with weight 0).
                 let lo = taps.first(x0);
                 let hi = taps.first(x0 + out.len() - 1) + 1;
                 let end = hi.min(span - 1) + 1;
@@ -378,9 +378,6 @@ impl WindowReader<'_> {
                     tap.weight,
                     &mut blended[lo..end],
                 );
-                if hi == span {
-                    blended[span] = blended[span - 1];
-                }
                 taps.blend_range(blended, x0, out);
             }
         }
@@ -462,8 +459,8 @@ impl<'r, 'a> PlaneRows<'r, 'a> {
 
     /// Row `y`.
     fn row(&mut self, y: usize) -> &[u8] {
-        // Each row blend ends with one copy of its last value, so that
-        // every column tap reads a pair (at the right edge: that value twice).
+        // A tap clamped at the right edge reads one value past the span,
+        // weighted 0 (see `Pyramid::window`): whatever lies there is fine.
         match self {
             PlaneRows::Crop { crop, lane } => crop.row(*lane, y),
             PlaneRows::Upscale {
@@ -485,14 +482,12 @@ impl<'r, 'a> PlaneRows<'r, 'a> {
                         // plane holds the slack past its span (the loads
                         // that read it ignore it, and a tap clamped at the
                         // edge weighs the value past the span 0); else a
-                        // copy with the last value repeated and the slack.
+                        // copy followed by the slack.
                         let source =
                             match b.level.row_and_more(*lane, s, b.first, span, 1 + ROW_SLACK) {
                                 Some(row) => row,
                                 None => {
-                                    let source = b.source_row(*lane, s);
-                                    padded[..span].copy_from_slice(source);
-                                    padded[span] = source[span - 1];
+                                    padded[..span].copy_from_slice(b.source_row(*lane, s));
                                     &padded[..]
                                 }
                             };
@@ -517,7 +512,6 @@ impl<'r, 'a> PlaneRows<'r, 'a> {
                     row.weight,
                     &mut blended[..span],
                 );
-                blended[span] = blended[span - 1];
                 b.taps.blend(blended, out);
                 out
             }
