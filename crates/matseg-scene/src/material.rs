@@ -339,8 +339,9 @@ fn draw_texture<R: Rng + ?Sized>(
 }
 
 /// A material's colour before shading, made run by run: its source, its
-/// hue turn by `hue_shift_degrees` if any, and scratch rows for runs that
-/// are not read in place.
+/// hue turn by `hue_shift_degrees` if any, and scratch rows (empty where
+/// unused): `levels` for a texture's runs that are not read in place,
+/// `floats` for a turned hue.
 struct Colour<'a> {
     source: ColourSource<'a>,
     hue_shift_degrees: Option<f32>,
@@ -392,11 +393,19 @@ impl<'a> Colour<'a> {
     /// The colour of a material of a `w x h` scene from its record;
     /// `texture` is the texture's photo for a texture.
     fn new(source: &MaterialSource, texture: Option<&'a Photo>, w: usize, h: usize) -> Self {
-        let with = |source, hue_shift_degrees| Colour {
-            source,
-            hue_shift_degrees,
-            levels: [vec![0; w], vec![0; w], vec![0; w]],
-            floats: [vec![0.0; w], vec![0.0; w], vec![0.0; w]],
+        let with = |source: ColourSource<'a>, hue_shift_degrees: Option<f32>| {
+            let read = if matches!(source, ColourSource::Flat(_)) {
+                0
+            } else {
+                w
+            };
+            let turned = if hue_shift_degrees.is_some() { w } else { 0 };
+            Colour {
+                source,
+                hue_shift_degrees,
+                levels: [vec![0; read], vec![0; read], vec![0; read]],
+                floats: [vec![0.0; turned], vec![0.0; turned], vec![0.0; turned]],
+            }
         };
         let (fill, rot90, flip_x, flip_y, hue_shift_degrees) = match *source {
             MaterialSource::FlatColour { rgb } => {
