@@ -5,7 +5,7 @@ use matseg_image::coverage::BLOCK;
 use matseg_image::levels::{look_up_step, step_level};
 use matseg_image::{
     level_values, Channel, ChannelWindow, Coverage, CoveredBlur, LevelCounts, LevelTable,
-    LibraryError, Photo, PhotoLibrary, Placement, Plane, Ramp, SparsePlane,
+    LibraryError, Photo, PhotoLibrary, Placement, Plane, Ramp, SparsePlane, SparseRows,
 };
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -183,27 +183,58 @@ impl RawMap {
         self.window.map_levels(&self.table)
     }
 
-    /// The map, blurred with `kernel` if any, stored on the blocks where it
-    /// can be positive (elsewhere it is exactly zero, blurred or not).
-    fn blurred(&self, kernel: Option<usize>) -> SparsePlane {
-        let Some(kernel) = kernel else {
-            return SparsePlane::from_rows(self.coverage.clone(), |y, data| {
-                for (x0, x1) in self.coverage.runs(y) {
+    /// The blocks where the map's weight is stored: where the map is
+    /// positive, grown by the blur's reach when blurred with `kernel`
+    /// (elsewhere the weight is exactly zero, blurred or not).
+    fn stored(&self, kernel: Option<usize>) -> Coverage {
+        match kernel {
+            Some(kernel) => self.coverage.dilated(kernel / 2),
+            None => self.coverage.clone(),
+        }
+    }
+}
+
+/// A map's weight made row by row, rows in order: the map, blurred with
+/// the scene's kernel if any, on the blocks `stored` (its
+/// [`RawMap::stored`]). Each row is combined with the other maps' while
+/// it is in cache.
+struct WeightRows<'m> {
+    map: &'m RawMap,
+    stored: &'m Coverage,
+    blur: Option<CoveredBlur<'m>>,
+    rows: SparseRows,
+}
+
+impl<'m> WeightRows<'m> {
+    /// No row made yet.
+    fn new(map: &'m RawMap, kernel: Option<usize>, stored: &'m Coverage) -> Self {
+        Self {
+            map,
+            stored,
+            blur: kernel.map(|k| CoveredBlur::new(map.width(), map.height(), k, stored)),
+            rows: SparseRows::new(stored.clone()),
+        }
+    }
+
+    /// Makes the next row; [`SparseRows::last_row_mut`] of `rows` holds it.
+    fn push_row(&mut self) {
+        let (map, stored) = (self.map, self.stored);
+        match &mut self.blur {
+            None => self.rows.push_row(|y, data| {
+                for (x0, x1) in stored.runs(y) {
                     let start = data.len();
                     data.resize(start + (x1 - x0), 0.0);
-                    self.map_run(y, x0, &mut data[start..]);
+                    map.map_run(y, x0, &mut data[start..]);
                 }
-            });
-        };
-        let stored = self.coverage.dilated(kernel / 2);
-        let mut blur = CoveredBlur::new(self.width(), self.height(), kernel, &stored);
-        SparsePlane::from_rows(stored.clone(), |y, data| {
-            if let Some(row) = blur.row(y, |y, x0, run| self.map_run(y, x0, run)) {
-                for (x0, x1) in stored.runs(y) {
-                    data.extend_from_slice(&row[x0..x1]);
+            }),
+            Some(blur) => self.rows.push_row(|y, data| {
+                if let Some(row) = blur.row(y, |y, x0, run| map.map_run(y, x0, run)) {
+                    for (x0, x1) in stored.runs(y) {
+                        data.extend_from_slice(&row[x0..x1]);
+                    }
                 }
-            }
-        })
+            }),
+        }
     }
 }
 
@@ -464,30 +495,37 @@ pub fn combine_maps<R: Rng + ?Sized>(
         maps.iter().all(|m| (m.width(), m.height()) == (w, h)),
         "maps of one size"
     );
-    let mut weights: Vec<SparsePlane> = maps.iter().map(|m| m.blurred(blur_kernel)).collect();
-    drop(maps);
-    let mut coverage: Vec<Coverage> = weights.iter().map(|_| Coverage::empty(w, h)).collect();
-    // The background is made row by row, each row 1 until the runs where
+    let stored: Vec<Coverage> = maps.iter().map(|m| m.stored(blur_kernel)).collect();
+    let mut weights: Vec<WeightRows> = maps
+        .iter()
+        .zip(&stored)
+        .map(|(m, s)| WeightRows::new(m, blur_kernel, s))
+        .collect();
+    let mut coverage: Vec<Coverage> = maps.iter().map(|_| Coverage::empty(w, h)).collect();
+    // The background is made row by row, each row 1 until the blocks where
     // some map is stored are combined into it while it is in cache (a
     // whole plane of ones would be one more pass over memory).
     let mut background = Vec::with_capacity(w * h);
-    let (mut blocks, mut runs) = (Vec::new(), Vec::new());
-    let mut spare_rows: Vec<&mut [f32]> = Vec::with_capacity(weights.len());
+    let mut blocks = Vec::new();
+    let mut spare_rows: Vec<&mut [f32]> = Vec::with_capacity(maps.len());
     for y in 0..h {
-        member_runs(&weights, y, &mut blocks, &mut runs);
-        background.resize((y + 1) * w, 1.0);
-        let background_row = &mut background[y * w..];
-        let mut pieces: Vec<_> = weights.iter_mut().map(|p| p.pieces_mut(y)).collect();
-        for &(x0, x1, members) in &runs {
-            let mut rows = recycled(std::mem::take(&mut spare_rows));
-            rows.extend(bits(members).map(|k| pieces[k].take(x0, x1)));
-            combine_run(steps, &mut rows, &mut background_row[x0..x1]);
-            for (k, row) in bits(members).zip(&rows) {
-                coverage[k].add_run(y, x0, row);
-            }
-            spare_rows = recycled(rows);
+        for weight in &mut weights {
+            weight.push_row();
         }
+        member_blocks(&stored, y, &mut blocks);
+        background.resize((y + 1) * w, 1.0);
+        let mut rows = recycled(std::mem::take(&mut spare_rows));
+        rows.extend(weights.iter_mut().map(|m| m.rows.last_row_mut()));
+        combine_row(
+            steps,
+            &blocks,
+            &mut rows,
+            &mut background[y * w..],
+            (y, &mut coverage),
+        );
+        spare_rows = recycled(rows);
     }
+    let weights = weights.into_iter().map(|m| m.rows.finish()).collect();
     let background = Plane::from_vec(w, h, background);
     CombinedMaps {
         weights,
@@ -501,38 +539,20 @@ pub fn combine_maps<R: Rng + ?Sized>(
     }
 }
 
-/// The runs of row `y` where some map is stored, as `(x0, x1, members)`:
-/// consecutive blocks with the same maps, bit `k` of `members` set for
-/// map `k`; written into `runs`, with `blocks` as scratch (both kept from
+/// For each block of row `y`, the maps stored there: bit `k` of
+/// `blocks[b]` is set when `stored[k]` covers block `b` (`blocks` is kept from
 /// row to row).
-fn member_runs(
-    maps: &[SparsePlane],
-    y: usize,
-    blocks: &mut Vec<u64>,
-    runs: &mut Vec<(usize, usize, u64)>,
-) {
-    let width = maps[0].width();
+fn member_blocks(stored: &[Coverage], y: usize, blocks: &mut Vec<u64>) {
     // Each map's stored blocks set its bit (maps cover a few blocks each).
     blocks.clear();
-    blocks.resize(maps[0].stored().blocks_per_row(), 0);
-    for (k, m) in maps.iter().enumerate() {
-        for (i, &word) in m.stored().row(y).iter().enumerate() {
+    blocks.resize(stored[0].blocks_per_row(), 0);
+    for (k, m) in stored.iter().enumerate() {
+        for (i, &word) in m.row(y).iter().enumerate() {
             let mut bits = word;
             while bits != 0 {
                 blocks[i * 64 + bits.trailing_zeros() as usize] |= 1 << k;
                 bits &= bits - 1;
             }
-        }
-    }
-    runs.clear();
-    for (b, &members) in blocks.iter().enumerate() {
-        if members == 0 {
-            continue;
-        }
-        let (x0, x1) = (b * BLOCK, ((b + 1) * BLOCK).min(width));
-        match runs.last_mut() {
-            Some(last) if last.1 == x0 && last.2 == members => last.1 = x1,
-            _ => runs.push((x0, x1, members)),
         }
     }
 }
@@ -547,8 +567,8 @@ fn bits(mut set: u64) -> impl Iterator<Item = usize> {
 }
 
 /// An empty vector with `v`'s allocation, free of its borrows (so one
-/// buffer of row slices serves every run, while the planes they borrow
-/// are read between runs).
+/// buffer of row slices serves every row, while the planes they borrow
+/// are read between rows).
 fn recycled<'b>(mut v: Vec<&mut [f32]>) -> Vec<&'b mut [f32]> {
     v.clear();
     v.into_iter()
@@ -556,7 +576,7 @@ fn recycled<'b>(mut v: Vec<&mut [f32]>) -> Vec<&'b mut [f32]> {
         .collect()
 }
 
-/// What [`combine_run`] does to a run.
+/// What [`combine_row`] does to a block.
 #[derive(Clone, Copy)]
 struct RowSteps {
     normalisation: MapNormalisation,
@@ -564,22 +584,111 @@ struct RowSteps {
     one_hot_min: Option<f32>,
 }
 
-/// All steps of [`combine_maps`] on one run of a row of each member map
-/// and of the background (equal lengths), pixels in steps of 16 held in
-/// registers across the maps (runs are short: a few steps each), then one
-/// at a time; compiled also for AVX2, picked at run time when the CPU has
-/// it (the arithmetic is the same, so are the results).
+/// All steps of [`combine_maps`] on row `y`: each block where some map is
+/// stored (`blocks[b]`, as [`member_blocks`] has them) combined across its
+/// member maps, whose values `maps[k]` holds stored block after stored
+/// block, and the background row, which starts at 1; the blocks where each
+/// weight is positive recorded in its coverage. Compiled also for AVX2,
+/// picked at run time when the CPU has it (the arithmetic is the same, so
+/// are the results).
 #[multiversion::multiversion(targets("x86_64+avx2+fma"))]
-fn combine_run(steps: RowSteps, rows: &mut [&mut [f32]], background: &mut [f32]) {
-    let n = background.len();
-    let mut x = 0;
-    while x + 16 <= n {
-        combine_step::<16>(steps, rows, &mut background[x..x + 16], x);
-        x += 16;
+fn combine_row(
+    steps: RowSteps,
+    blocks: &[u64],
+    maps: &mut [&mut [f32]],
+    background: &mut [f32],
+    (y, coverage): (usize, &mut [Coverage]),
+) {
+    let width = background.len();
+    for (b, &set) in blocks.iter().enumerate() {
+        if set == 0 {
+            continue;
+        }
+        let x0 = b * BLOCK;
+        let n = BLOCK.min(width - x0);
+        let block = Block {
+            set,
+            background: &mut background[x0..x0 + n],
+            y,
+            x0,
+        };
+        // Whole blocks of one to three maps (most of them) with the count
+        // fixed, so that the loops over the maps unroll.
+        match (n == BLOCK).then(|| set.count_ones()) {
+            Some(1) => block.combine_whole::<1>(steps, maps, coverage),
+            Some(2) => block.combine_whole::<2>(steps, maps, coverage),
+            Some(3) => block.combine_whole::<3>(steps, maps, coverage),
+            _ => block.combine_any(steps, maps, coverage),
+        }
     }
-    for x in x..n {
-        combine_step::<1>(steps, rows, &mut background[x..x + 1], x);
+}
+
+/// One block of a row where some map is stored; see [`combine_row`].
+struct Block<'r> {
+    /// Bit `k` for each map stored here.
+    set: u64,
+    /// The block's background values, 1 until combined.
+    background: &'r mut [f32],
+    /// Its row.
+    y: usize,
+    /// Its first column.
+    x0: usize,
+}
+
+impl Block<'_> {
+    /// A whole block of exactly `M` member maps.
+    #[inline(always)]
+    fn combine_whole<const M: usize>(
+        self,
+        steps: RowSteps,
+        maps: &mut [&mut [f32]],
+        coverage: &mut [Coverage],
+    ) {
+        let mut members = bits(self.set);
+        let keys: [usize; M] = std::array::from_fn(|_| members.next().expect("M maps"));
+        let mut blocks: [&mut [f32; BLOCK]; M] = keys.map(|k| {
+            next_values(&mut maps[k], BLOCK)
+                .try_into()
+                .expect("a whole block")
+        });
+        let left: &mut [f32; BLOCK] = self.background.try_into().expect("a whole block");
+        combine_lanes(steps, &mut blocks, left, 0);
+        for (&k, block) in keys.iter().zip(&blocks) {
+            coverage[k].add_run(self.y, self.x0, &block[..]);
+        }
     }
+
+    /// Any block: a whole one in one step, one cut by the width pixel by
+    /// pixel.
+    fn combine_any(self, steps: RowSteps, maps: &mut [&mut [f32]], coverage: &mut [Coverage]) {
+        let n = self.background.len();
+        let mut members: [&mut [f32]; MAX_MAPS] = std::array::from_fn(|_| Default::default());
+        let mut m = 0;
+        for k in bits(self.set) {
+            members[m] = next_values(&mut maps[k], n);
+            m += 1;
+        }
+        let members = &mut members[..m];
+        match <&mut [f32; BLOCK]>::try_from(&mut *self.background) {
+            Ok(left) => combine_lanes(steps, members, left, 0),
+            Err(_) => {
+                for (x, left) in self.background.iter_mut().enumerate() {
+                    combine_lanes(steps, members, std::array::from_mut(left), x);
+                }
+            }
+        }
+        for (k, block) in bits(self.set).zip(members.iter()) {
+            coverage[k].add_run(self.y, self.x0, block);
+        }
+    }
+}
+
+/// The next `n` values of `map`, taken off it.
+#[inline(always)]
+fn next_values<'m>(map: &mut &'m mut [f32], n: usize) -> &'m mut [f32] {
+    let (values, rest) = std::mem::take(map).split_at_mut(n);
+    *map = rest;
+    values
 }
 
 /// The `LANES` values of `row` from `x`.
@@ -590,15 +699,16 @@ fn lanes_at<const LANES: usize>(row: &mut [f32], x: usize) -> &mut [f32; LANES] 
         .expect("a step of LANES")
 }
 
-/// [`combine_run`] on `LANES` pixels from `x`: normalisation, one-hot if
-/// hard, then `background = 1 - sum(maps)` clamped to `[0, 1]`
-/// (`background` starts at 1). Each pixel's arithmetic is branch-free and
-/// in map order.
+/// The steps of [`combine_maps`] on `LANES` pixels from `x` of each member
+/// map's values (`maps`, in map order) and of the background (`left`,
+/// which starts at 1): normalisation, one-hot if hard, then `left = 1 -
+/// sum(maps)` clamped to `[0, 1]`. Each pixel's arithmetic is branch-free
+/// and in map order.
 #[inline(always)]
-fn combine_step<const LANES: usize>(
+fn combine_lanes<const LANES: usize, R: AsMut<[f32]>>(
     steps: RowSteps,
-    rows: &mut [&mut [f32]],
-    background: &mut [f32],
+    maps: &mut [R],
+    left: &mut [f32; LANES],
     x: usize,
 ) {
     match steps.normalisation {
@@ -606,14 +716,14 @@ fn combine_step<const LANES: usize>(
         // by 1 elsewhere keeps every lane a plain store).
         MapNormalisation::Sum => {
             let mut total = [0f32; LANES];
-            for m in rows.iter_mut() {
-                let m: &mut [f32; LANES] = lanes_at(m, x);
+            for m in maps.iter_mut() {
+                let m: &mut [f32; LANES] = lanes_at(m.as_mut(), x);
                 for j in 0..LANES {
                     total[j] += m[j];
                 }
             }
-            for m in rows.iter_mut() {
-                let m: &mut [f32; LANES] = lanes_at(m, x);
+            for m in maps.iter_mut() {
+                let m: &mut [f32; LANES] = lanes_at(m.as_mut(), x);
                 for j in 0..LANES {
                     m[j] /= if total[j] > 0.0 { total[j] } else { 1.0 };
                 }
@@ -622,8 +732,8 @@ fn combine_step<const LANES: usize>(
         // Each map keeps its share of what the earlier maps left.
         MapNormalisation::Priority => {
             let mut remaining = [1f32; LANES];
-            for m in rows.iter_mut() {
-                let m: &mut [f32; LANES] = lanes_at(m, x);
+            for m in maps.iter_mut() {
+                let m: &mut [f32; LANES] = lanes_at(m.as_mut(), x);
                 for j in 0..LANES {
                     m[j] *= remaining[j];
                     remaining[j] = (remaining[j] - m[j]).max(0.0);
@@ -637,33 +747,32 @@ fn combine_step<const LANES: usize>(
         // holds map indices as floats, updated by arithmetic (exact for
         // small whole numbers) so that the lanes stay equal-width.
         let (mut top, mut best) = ([f32::MIN; LANES], [0f32; LANES]);
-        for (k, m) in rows.iter_mut().enumerate() {
-            let (k, m): (f32, &mut [f32; LANES]) = (k as f32, lanes_at(m, x));
+        for (k, m) in maps.iter_mut().enumerate() {
+            let (k, m): (f32, &mut [f32; LANES]) = (k as f32, lanes_at(m.as_mut(), x));
             for j in 0..LANES {
                 let above = f32::from(u8::from(m[j] > top[j]));
                 best[j] += (k - best[j]) * above;
                 top[j] = top[j].max(m[j]);
             }
         }
-        for (k, m) in rows.iter_mut().enumerate() {
-            let (k, m): (f32, &mut [f32; LANES]) = (k as f32, lanes_at(m, x));
+        for (k, m) in maps.iter_mut().enumerate() {
+            let (k, m): (f32, &mut [f32; LANES]) = (k as f32, lanes_at(m.as_mut(), x));
             for j in 0..LANES {
                 let won = best[j] == k && top[j] >= min && top[j] > 0.0;
                 m[j] = if won { 1.0 } else { 0.0 };
             }
         }
     }
-    let background: &mut [f32; LANES] = background.try_into().expect("a step of LANES");
     // In registers while the maps are subtracted.
-    let mut left = *background;
-    for m in rows.iter_mut() {
-        let m: &mut [f32; LANES] = lanes_at(m, x);
+    let mut rest = *left;
+    for m in maps.iter_mut() {
+        let m: &mut [f32; LANES] = lanes_at(m.as_mut(), x);
         for j in 0..LANES {
-            left[j] -= m[j];
+            rest[j] -= m[j];
         }
     }
-    for (b, l) in background.iter_mut().zip(left) {
-        *b = l.clamp(0.0, 1.0);
+    for (l, r) in left.iter_mut().zip(rest) {
+        *l = r.clamp(0.0, 1.0);
     }
 }
 
@@ -743,16 +852,22 @@ mod tests {
         (maps, background)
     }
 
-    /// A map that is zero but for a few rectangles of random levels, so
-    /// that whole blocks and rows are empty; with a ramp table (or, for
-    /// `k == 2`, a table that is not monotone).
-    fn sparse_map(rng: &mut ChaCha8Rng, w: usize, h: usize, k: usize) -> RawMap {
+    /// A map that is zero but for a few rectangles of random levels (at
+    /// most `reach` wide and high), so that whole blocks and rows are
+    /// empty; with a ramp table (or, for `k == 2`, a table that is not
+    /// monotone).
+    fn sparse_map(
+        rng: &mut ChaCha8Rng,
+        (w, h): (usize, usize),
+        reach: (usize, usize),
+        k: usize,
+    ) -> RawMap {
         let mut levels = vec![0u8; w * h];
         for _ in 0..rng.random_range(1..4) {
             let (x0, y0) = (rng.random_range(0..w), rng.random_range(0..h));
             let (x1, y1) = (
-                (x0 + rng.random_range(1..30)).min(w),
-                (y0 + rng.random_range(1..12)).min(h),
+                (x0 + rng.random_range(1..=reach.0)).min(w),
+                (y0 + rng.random_range(1..=reach.1)).min(h),
             );
             for y in y0..y1 {
                 for x in x0..x1 {
@@ -785,8 +900,11 @@ mod tests {
         for seed in 0..80u64 {
             let mut rng = ChaCha8Rng::seed_from_u64(seed);
             let (w, h) = (rng.random_range(20..90), rng.random_range(10..60));
-            let maps: Vec<RawMap> = (0..rng.random_range(1..6))
-                .map(|k| sparse_map(&mut rng, w, h, k))
+            // Every fourth scene's maps overlap widely, so that whole
+            // blocks hold four or more of them.
+            let reach = if seed % 4 == 3 { (w, h) } else { (29, 11) };
+            let maps: Vec<RawMap> = (0..rng.random_range(1..7))
+                .map(|k| sparse_map(&mut rng, (w, h), reach, k))
                 .collect();
             let planes: Vec<Plane> = maps.iter().map(RawMap::to_plane).collect();
             let hard = seed % 2 == 0;
