@@ -65,12 +65,6 @@ impl SparsePlane {
         )
     }
 
-    /// Row `y`'s values, to take runs from left to right and write them.
-    pub fn pieces_mut(&mut self, y: usize) -> Pieces<'_, &mut [f32]> {
-        let row = &mut self.data[self.starts[y]..self.starts[y + 1]];
-        Pieces::new(&self.stored, y, row)
-    }
-
     /// Row `y`'s stored values: its stored blocks' values one block after
     /// another, left to right (`BLOCK` values each, fewer for a last block
     /// cut by the width).
@@ -312,13 +306,13 @@ mod tests {
                 assert_eq!(pieces.take(x0, x1), want, "row {y}, {x0}..{x1}");
             }
         }
+        // A row's stored values, written in place, are its stored blocks'.
         let mut written = sparse.clone();
-        written
-            .pieces_mut(2)
-            .take(63 * BLOCK, 65 * BLOCK)
-            .fill(-1.0);
+        written.row_mut(2).fill(-1.0);
         let mut want = plane.clone();
-        want.data[2 * w + 63 * BLOCK..2 * w + 65 * BLOCK].fill(-1.0);
+        for (x0, x1) in sparse.stored().runs(2) {
+            want.data[2 * w + x0..2 * w + x1].fill(-1.0);
+        }
         assert_eq!(written.to_plane(), want);
         assert!(sparse.row_runs(1).next().is_none());
     }
