@@ -108,6 +108,8 @@ impl<'a> ChannelRows<'a> {
             Channel::R => &[0],
             Channel::G => &[1],
             Channel::B => &[2],
+            // The largest of three equal lanes is any of them.
+            Channel::V if pyramid.is_grey() => &[0],
             Channel::V => &[0, 1, 2],
             Channel::H | Channel::S => {
                 return Self {
@@ -159,17 +161,24 @@ mod tests {
     use image::RgbImage;
 
     /// Runs and maxima equal the whole window's, for every channel, at
-    /// native scale, upscaled and downscaled (several pyramid levels).
+    /// native scale, upscaled and downscaled (several pyramid levels), of
+    /// a colour image and of a grey one.
     #[test]
     fn runs_and_maximum_equal_the_whole_window() {
-        let img = RgbImage::from_fn(301, 207, |x, y| {
+        let colour = RgbImage::from_fn(301, 207, |x, y| {
             image::Rgb([
                 ((x * 7 + y * 3) % 256) as u8,
                 ((x * y) % 199) as u8,
                 ((x / 5 + y * 11) % 230) as u8,
             ])
         });
-        let pyramid = Pyramid::new(img);
+        let grey = RgbImage::from_fn(301, 207, |x, y| image::Rgb([((x * y) % 199) as u8; 3]));
+        for img in [colour, grey] {
+            runs_and_maximum_equal_the_whole_window_of(Pyramid::new(img));
+        }
+    }
+
+    fn runs_and_maximum_equal_the_whole_window_of(pyramid: Pyramid) {
         let (w, h) = (120, 90);
         let placements = [
             // Native scale: a crop.

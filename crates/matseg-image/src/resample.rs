@@ -83,6 +83,10 @@ impl Level {
 #[derive(Clone, Debug)]
 pub struct Pyramid {
     levels: Vec<Level>,
+    /// Whether every pixel is grey (R = G = B), as a greyscale photo is:
+    /// then so is every pixel of every window, resampled or not (the three
+    /// planes go through the same integer arithmetic).
+    grey: bool,
 }
 
 impl Pyramid {
@@ -92,11 +96,18 @@ impl Pyramid {
     }
 
     fn from_base(base: Level) -> Self {
+        let [r, g, b] = &base.planes;
+        let grey = r == g && g == b;
         let mut levels = vec![base];
         while let Some(next) = levels.last().and_then(Level::halved) {
             levels.push(next);
         }
-        Self { levels }
+        Self { levels, grey }
+    }
+
+    /// Whether every pixel is grey (R = G = B).
+    pub fn is_grey(&self) -> bool {
+        self.grey
     }
 
     /// The pyramid of the image turned by 90° counter-clockwise.
@@ -247,7 +258,9 @@ impl Pyramid {
     }
 
     /// One channel of the selected window, as 8-bit levels: the RGB window
-    /// is resampled first and then converted, as the original does.
+    /// is resampled first and then converted, as the original does. Of a
+    /// grey image, hue and saturation are 0 and value is red, so none of
+    /// them needs the three planes.
     pub fn sample_channel(
         &self,
         placement: &Placement,
@@ -259,6 +272,8 @@ impl Pyramid {
             Channel::R => self.sample_plane(placement, out_w, out_h, 0),
             Channel::G => self.sample_plane(placement, out_w, out_h, 1),
             Channel::B => self.sample_plane(placement, out_w, out_h, 2),
+            Channel::H | Channel::S if self.grey => vec![0u8; out_w * out_h],
+            Channel::V if self.grey => self.sample_plane(placement, out_w, out_h, 0),
             Channel::H | Channel::S | Channel::V => {
                 // Row by row: the three rows stay in cache until converted.
                 let mut levels = vec![0u8; out_w * out_h];
@@ -592,6 +607,40 @@ mod tests {
 
     fn gradient(w: u32, h: u32) -> RgbImage {
         RgbImage::from_fn(w, h, |x, y| image::Rgb([x as u8, y as u8, 100]))
+    }
+
+    /// A grey image's hue, saturation and value windows, made without its
+    /// three planes, equal the conversion of the three planes resampled, at
+    /// native scale, upscaled and downscaled (a halved level); one pixel of
+    /// colour makes an image not grey.
+    #[test]
+    fn grey_images_channels_equal_the_converted_planes() {
+        let img = RgbImage::from_fn(97, 83, |x, y| {
+            let v = ((x * 7 + y * 13) % 256) as u8;
+            image::Rgb([v, v, v])
+        });
+        let pyramid = Pyramid::new(img.clone());
+        assert!(pyramid.is_grey());
+        let (w, h) = (40, 30);
+        for (resized_w, resized_h, x0, y0) in [(97, 83, 9, 40), (170, 145, 130, 2), (44, 37, 4, 7)]
+        {
+            let placement = Placement {
+                resized_w,
+                resized_h,
+                x0,
+                y0,
+            };
+            let [r, g, b] = pyramid.sample_planes(&placement, w, h);
+            for channel in [Channel::H, Channel::S, Channel::V] {
+                let mut want = vec![0u8; w * h];
+                write_levels(channel, [&r, &g, &b], &mut want);
+                let got = pyramid.sample_channel(&placement, w, h, channel);
+                assert_eq!(got.levels, want, "{channel:?} {placement:?}");
+            }
+        }
+        let mut tinted = img;
+        tinted.put_pixel(96, 82, image::Rgb([10, 10, 11]));
+        assert!(!Pyramid::new(tinted).is_grey());
     }
 
     #[test]
