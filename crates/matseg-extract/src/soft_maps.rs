@@ -5,7 +5,7 @@ use matseg_image::coverage::BLOCK;
 use matseg_image::levels::{look_up_step, step_level};
 use matseg_image::{
     level_values, Channel, ChannelWindow, Coverage, CoveredBlur, LevelCounts, LevelTable,
-    LibraryError, Photo, PhotoLibrary, Placement, Plane, Ramp, SparsePlane, SparseRows,
+    LibraryError, Photo, PhotoLibrary, Placement, Plane, Ramp, SparsePlane,
 };
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -183,58 +183,27 @@ impl RawMap {
         self.window.map_levels(&self.table)
     }
 
-    /// The blocks where the map's weight is stored: where the map is
-    /// positive, grown by the blur's reach when blurred with `kernel`
-    /// (elsewhere the weight is exactly zero, blurred or not).
-    fn stored(&self, kernel: Option<usize>) -> Coverage {
-        match kernel {
-            Some(kernel) => self.coverage.dilated(kernel / 2),
-            None => self.coverage.clone(),
-        }
-    }
-}
-
-/// A map's weight made row by row, rows in order: the map, blurred with
-/// the scene's kernel if any, on the blocks `stored` (its
-/// [`RawMap::stored`]). Each row is combined with the other maps' while
-/// it is in cache.
-struct WeightRows<'m> {
-    map: &'m RawMap,
-    stored: &'m Coverage,
-    blur: Option<CoveredBlur<'m>>,
-    rows: SparseRows,
-}
-
-impl<'m> WeightRows<'m> {
-    /// No row made yet.
-    fn new(map: &'m RawMap, kernel: Option<usize>, stored: &'m Coverage) -> Self {
-        Self {
-            map,
-            stored,
-            blur: kernel.map(|k| CoveredBlur::new(map.width(), map.height(), k, stored)),
-            rows: SparseRows::new(stored.clone()),
-        }
-    }
-
-    /// Makes the next row; [`SparseRows::last_row_mut`] of `rows` holds it.
-    fn push_row(&mut self) {
-        let (map, stored) = (self.map, self.stored);
-        match &mut self.blur {
-            None => self.rows.push_row(|y, data| {
-                for (x0, x1) in stored.runs(y) {
+    /// The map, blurred with `kernel` if any, stored on the blocks where it
+    /// can be positive (elsewhere it is exactly zero, blurred or not).
+    fn blurred(&self, kernel: Option<usize>) -> SparsePlane {
+        let Some(kernel) = kernel else {
+            return SparsePlane::from_rows(self.coverage.clone(), |y, data| {
+                for (x0, x1) in self.coverage.runs(y) {
                     let start = data.len();
                     data.resize(start + (x1 - x0), 0.0);
-                    map.map_run(y, x0, &mut data[start..]);
+                    self.map_run(y, x0, &mut data[start..]);
                 }
-            }),
-            Some(blur) => self.rows.push_row(|y, data| {
-                if let Some(row) = blur.row(y, |y, x0, run| map.map_run(y, x0, run)) {
-                    for (x0, x1) in stored.runs(y) {
-                        data.extend_from_slice(&row[x0..x1]);
-                    }
+            });
+        };
+        let stored = self.coverage.dilated(kernel / 2);
+        let mut blur = CoveredBlur::new(self.width(), self.height(), kernel, &stored);
+        SparsePlane::from_rows(stored.clone(), |y, data| {
+            if let Some(row) = blur.row(y, |y, x0, run| self.map_run(y, x0, run)) {
+                for (x0, x1) in stored.runs(y) {
+                    data.extend_from_slice(&row[x0..x1]);
                 }
-            }),
-        }
+            }
+        })
     }
 }
 
@@ -495,27 +464,20 @@ pub fn combine_maps<R: Rng + ?Sized>(
         maps.iter().all(|m| (m.width(), m.height()) == (w, h)),
         "maps of one size"
     );
-    let stored: Vec<Coverage> = maps.iter().map(|m| m.stored(blur_kernel)).collect();
-    let mut weights: Vec<WeightRows> = maps
-        .iter()
-        .zip(&stored)
-        .map(|(m, s)| WeightRows::new(m, blur_kernel, s))
-        .collect();
-    let mut coverage: Vec<Coverage> = maps.iter().map(|_| Coverage::empty(w, h)).collect();
+    let mut weights: Vec<SparsePlane> = maps.iter().map(|m| m.blurred(blur_kernel)).collect();
+    drop(maps);
+    let mut coverage: Vec<Coverage> = weights.iter().map(|_| Coverage::empty(w, h)).collect();
     // The background is made row by row, each row 1 until the blocks where
     // some map is stored are combined into it while it is in cache (a
     // whole plane of ones would be one more pass over memory).
     let mut background = Vec::with_capacity(w * h);
     let mut blocks = Vec::new();
-    let mut spare_rows: Vec<&mut [f32]> = Vec::with_capacity(maps.len());
+    let mut spare_rows: Vec<&mut [f32]> = Vec::with_capacity(weights.len());
     for y in 0..h {
-        for weight in &mut weights {
-            weight.push_row();
-        }
-        member_blocks(&stored, y, &mut blocks);
+        member_blocks(&weights, y, &mut blocks);
         background.resize((y + 1) * w, 1.0);
         let mut rows = recycled(std::mem::take(&mut spare_rows));
-        rows.extend(weights.iter_mut().map(|m| m.rows.last_row_mut()));
+        rows.extend(weights.iter_mut().map(|m| m.row_mut(y)));
         combine_row(
             steps,
             &blocks,
@@ -525,7 +487,6 @@ pub fn combine_maps<R: Rng + ?Sized>(
         );
         spare_rows = recycled(rows);
     }
-    let weights = weights.into_iter().map(|m| m.rows.finish()).collect();
     let background = Plane::from_vec(w, h, background);
     CombinedMaps {
         weights,
@@ -540,14 +501,14 @@ pub fn combine_maps<R: Rng + ?Sized>(
 }
 
 /// For each block of row `y`, the maps stored there: bit `k` of
-/// `blocks[b]` is set when `stored[k]` covers block `b` (`blocks` is kept from
+/// `blocks[b]` is set when map `k` stores block `b` (`blocks` is kept from
 /// row to row).
-fn member_blocks(stored: &[Coverage], y: usize, blocks: &mut Vec<u64>) {
+fn member_blocks(maps: &[SparsePlane], y: usize, blocks: &mut Vec<u64>) {
     // Each map's stored blocks set its bit (maps cover a few blocks each).
     blocks.clear();
-    blocks.resize(stored[0].blocks_per_row(), 0);
-    for (k, m) in stored.iter().enumerate() {
-        for (i, &word) in m.row(y).iter().enumerate() {
+    blocks.resize(maps[0].stored().blocks_per_row(), 0);
+    for (k, m) in maps.iter().enumerate() {
+        for (i, &word) in m.stored().row(y).iter().enumerate() {
             let mut bits = word;
             while bits != 0 {
                 blocks[i * 64 + bits.trailing_zeros() as usize] |= 1 << k;

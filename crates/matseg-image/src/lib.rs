@@ -33,4 +33,4 @@ pub use mirrors::Mirrors;
 pub use plane::Plane;
 pub use ramp::Ramp;
 pub use resample::{Placement, Pyramid};
-pub use sparse::{SparsePlane, SparseRows};
+pub use sparse::SparsePlane;

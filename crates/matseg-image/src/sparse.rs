@@ -30,6 +30,27 @@ impl SparsePlane {
         }
     }
 
+    /// The plane stored on the blocks `stored` covers, its values made row
+    /// by row: `row(y, data)` appends row `y`'s stored runs, left to right,
+    /// to `data` (nothing is zeroed first).
+    ///
+    /// # Panics
+    /// When a row appends other than its stored count of values.
+    pub fn from_rows(stored: Coverage, mut row: impl FnMut(usize, &mut Vec<f32>)) -> Self {
+        let starts = row_starts(&stored);
+        // Room for every value at once: growing would copy them over again.
+        let mut data = Vec::with_capacity(starts[stored.height()]);
+        for y in 0..stored.height() {
+            row(y, &mut data);
+            assert_eq!(data.len(), starts[y + 1], "row {y}'s stored values");
+        }
+        Self {
+            stored,
+            starts,
+            data,
+        }
+    }
+
     /// A plane stored whole (every block), taking `plane`'s values as they are.
     pub fn dense(plane: Plane) -> Self {
         let (w, h) = (plane.width, plane.height);
@@ -100,70 +121,6 @@ impl SparsePlane {
             }
         }
         plane
-    }
-}
-
-/// A [`SparsePlane`] being made row by row, rows in order, so that a
-/// consumer can read each row as it is made.
-#[derive(Debug)]
-pub struct SparseRows {
-    /// The plane so far: its data holds the rows made.
-    plane: SparsePlane,
-    /// Rows made.
-    made: usize,
-}
-
-impl SparseRows {
-    /// A plane to be stored on the blocks `stored` covers, no row made yet.
-    pub fn new(stored: Coverage) -> Self {
-        let starts = row_starts(&stored);
-        // Room for every value at once: growing would copy them over again.
-        let data = Vec::with_capacity(starts[stored.height()]);
-        Self {
-            plane: SparsePlane {
-                stored,
-                starts,
-                data,
-            },
-            made: 0,
-        }
-    }
-
-    /// Makes the next row: `row(y, data)` appends row `y`'s stored runs,
-    /// left to right, to `data` (nothing is zeroed first).
-    ///
-    /// # Panics
-    /// When the row appends other than its stored count of values, or
-    /// every row is made.
-    pub fn push_row(&mut self, row: impl FnOnce(usize, &mut Vec<f32>)) {
-        let y = self.made;
-        assert!(y < self.plane.height(), "every row is made");
-        row(y, &mut self.plane.data);
-        assert_eq!(
-            self.plane.data.len(),
-            self.plane.starts[y + 1],
-            "row {y}'s stored values"
-        );
-        self.made += 1;
-    }
-
-    /// The last row made: its stored values, as [`SparsePlane::row_mut`]
-    /// has them.
-    ///
-    /// # Panics
-    /// When no row is made yet.
-    pub fn last_row_mut(&mut self) -> &mut [f32] {
-        let y = self.made.checked_sub(1).expect("a row is made");
-        self.plane.row_mut(y)
-    }
-
-    /// The plane.
-    ///
-    /// # Panics
-    /// When some row is not made.
-    pub fn finish(self) -> SparsePlane {
-        assert_eq!(self.made, self.plane.height(), "every row is made");
-        self.plane
     }
 }
 
@@ -343,9 +300,8 @@ mod tests {
         assert_eq!(sparse.to_plane().get(2 * BLOCK, 0), 0.0);
     }
 
-    /// Rows made one by one equal the plane written in place, each
-    /// readable as it is made; a row that appends the wrong count, or a
-    /// plane finished early, is refused.
+    /// Rows appended run by run equal the plane written in place; a row
+    /// that appends the wrong count is refused.
     #[test]
     fn planes_made_row_by_row_equal_planes_written_in_place() {
         let w = 70 * BLOCK - 5;
@@ -357,25 +313,16 @@ mod tests {
         let stored = Coverage::of(&p);
         let (written, plane) = numbered(&stored);
         let runs = stored.clone();
-        let mut rows = SparseRows::new(stored);
-        for y in 0..3 {
-            rows.push_row(|y, data| {
-                for (x0, x1) in runs.runs(y) {
-                    data.extend_from_slice(&plane.data[y * w + x0..y * w + x1]);
-                }
-            });
-            // The row just made, as the whole plane will have it.
-            let row: Vec<f32> = written.row_runs(y).flat_map(|(_, r)| r.to_vec()).collect();
-            assert_eq!(rows.last_row_mut(), &row[..], "row {y}");
-        }
-        assert_eq!(rows.finish(), written);
+        let made = SparsePlane::from_rows(stored, |y, data| {
+            for (x0, x1) in runs.runs(y) {
+                data.extend_from_slice(&plane.data[y * w + x0..y * w + x1]);
+            }
+        });
+        assert_eq!(made, written);
         let short = std::panic::catch_unwind(|| {
-            let mut rows = SparseRows::new(Coverage::of(&p));
-            (0..3).for_each(|_| rows.push_row(|y, data| data.extend(vec![0.5; y])));
+            SparsePlane::from_rows(Coverage::of(&p), |y, data| data.extend(vec![0.5; y]))
         });
         assert!(short.is_err(), "a row's count is checked");
-        let unfinished = std::panic::catch_unwind(|| SparseRows::new(Coverage::of(&p)).finish());
-        assert!(unfinished.is_err(), "every row must be made");
     }
 
     #[test]
