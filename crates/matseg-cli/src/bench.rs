@@ -36,6 +36,11 @@ pub struct Args {
     /// those rows.
     #[arg(long)]
     dir: Option<PathBuf>,
+    /// Measure only generation in memory, one thread (no soft-maps row,
+    /// encoding or disk): a run to profile, see
+    /// scripts/bench-unchanged-share.sh.
+    #[arg(long)]
+    in_memory_only: bool,
 }
 
 /// Wall-clock and process CPU time, read together.
@@ -94,6 +99,23 @@ pub fn run(args: Args) -> Result<()> {
     }
 
     let mut rows = Vec::new();
+    if args.in_memory_only {
+        let start = Clock::now();
+        for i in 0..args.scenes {
+            generate_2d(&mut sample_rng(args.seed, i), &recipe, sources)?;
+        }
+        let (wall, cpu) = start.elapsed(1);
+        rows.push(Row {
+            name: "generate in memory (no encoding)".into(),
+            threads: 1,
+            scenes: args.scenes,
+            wall,
+            cpu,
+            bytes: 0,
+        });
+        print_table(&rows);
+        return Ok(());
+    }
     let start = Clock::now();
     for i in 0..args.scenes {
         let mut rng = sample_rng(args.seed, i);
@@ -203,6 +225,12 @@ pub fn run(args: Args) -> Result<()> {
         libs.photos.len(),
         libs.textures.len()
     );
+    print_table(&rows);
+    Ok(())
+}
+
+/// Prints the measured rows as a table.
+fn print_table(rows: &[Row]) {
     println!(
         "| {:<40} | {:>7} | {:>9} | {:>13} | {:>13} | {:>8} |",
         "measure", "threads", "wall s", "CPU s / scene", "scenes/s/core", "MB/s"
@@ -211,7 +239,7 @@ pub fn run(args: Args) -> Result<()> {
         "|{:-<42}|{:->9}|{:->11}|{:->15}|{:->15}|{:->10}|",
         "", "", "", "", "", ""
     );
-    for r in &rows {
+    for r in rows {
         let cpu_per_scene = r.cpu / r.scenes as f64;
         println!(
             "| {:<40} | {:>7} | {:>9.2} | {:>13.4} | {:>13.1} | {:>8} |",
@@ -230,7 +258,6 @@ pub fn run(args: Args) -> Result<()> {
     if process_cpu_seconds().is_none() {
         println!("(no process CPU clock here: CPU seconds are wall seconds times threads)");
     }
-    Ok(())
 }
 
 fn num_threads() -> usize {
