@@ -104,21 +104,13 @@ impl<'a> ChannelRows<'a> {
         h: usize,
         channel: Channel,
     ) -> Self {
-        let lanes: &'static [usize] = match channel {
-            Channel::R => &[0],
-            Channel::G => &[1],
-            Channel::B => &[2],
-            // The largest of three equal lanes is any of them.
-            Channel::V if pyramid.is_grey() => &[0],
-            Channel::V => &[0, 1, 2],
-            Channel::H | Channel::S => {
-                return Self {
-                    width: w,
-                    height: h,
-                    source: Source::Whole(pyramid.sample_channel(placement, w, h, channel)),
-                    levels: Vec::new(),
-                };
-            }
+        let Some(lanes) = pyramid.channel_lanes(channel) else {
+            return Self {
+                width: w,
+                height: h,
+                source: Source::Whole(pyramid.sample_channel(placement, w, h, channel)),
+                levels: Vec::new(),
+            };
         };
         Self {
             width: w,

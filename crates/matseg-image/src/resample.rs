@@ -110,6 +110,21 @@ impl Pyramid {
         self.grey
     }
 
+    /// The planes (0 = R, 1 = G, 2 = B) whose largest value at a pixel is
+    /// `channel`'s level there: one for R, G and B, and for V of a grey
+    /// image (its three planes are equal); three for V; `None` for H and
+    /// S, which are converted from all three.
+    pub(crate) fn channel_lanes(&self, channel: Channel) -> Option<&'static [usize]> {
+        match channel {
+            Channel::R => Some(&[0]),
+            Channel::G => Some(&[1]),
+            Channel::B => Some(&[2]),
+            Channel::V if self.grey => Some(&[0]),
+            Channel::V => Some(&[0, 1, 2]),
+            Channel::H | Channel::S => None,
+        }
+    }
+
     /// The pyramid of the image turned by 90° counter-clockwise.
     pub fn quarter_turned(&self) -> Self {
         let base = &self.levels[0];
@@ -268,13 +283,11 @@ impl Pyramid {
         out_h: usize,
         channel: Channel,
     ) -> ChannelWindow {
-        let levels = match channel {
-            Channel::R => self.sample_plane(placement, out_w, out_h, 0),
-            Channel::G => self.sample_plane(placement, out_w, out_h, 1),
-            Channel::B => self.sample_plane(placement, out_w, out_h, 2),
-            Channel::H | Channel::S if self.grey => vec![0u8; out_w * out_h],
-            Channel::V if self.grey => self.sample_plane(placement, out_w, out_h, 0),
-            Channel::H | Channel::S | Channel::V => {
+        let levels = match self.channel_lanes(channel) {
+            Some(&[lane]) => self.sample_plane(placement, out_w, out_h, lane),
+            // Grey pixels have no hue and no saturation.
+            None if self.grey => vec![0u8; out_w * out_h],
+            _ => {
                 // Row by row: the three rows stay in cache until converted.
                 let mut levels = vec![0u8; out_w * out_h];
                 self.sample_rows(placement, out_w, out_h, |y, rgb| {
