@@ -218,13 +218,23 @@ impl<'a> CoveredBlur<'a> {
             // The columns the taps read: each run and r either side (the
             // reflected border columns lie within r of a run at the border).
             let padded = &mut self.padded;
+            let (mut first, mut last) = (w, 0);
             for (x0, x1) in self.read.runs(next) {
                 let (a, b) = (x0.saturating_sub(r), (x1 + r).min(w));
                 source(next, a, &mut padded[r + a..r + b]);
+                (first, last) = (first.min(x0), x1);
             }
-            for i in 0..r {
-                padded[i] = padded[r + reflect101(i as isize - r as isize, w)];
-                padded[r + w + i] = padded[r + reflect101((w + i) as isize, w)];
+            // Reflected columns, on the sides where some run's taps reach
+            // past the border.
+            if first < r {
+                for i in 0..r {
+                    padded[i] = padded[r + reflect101(i as isize - r as isize, w)];
+                }
+            }
+            if last + r > w {
+                for i in 0..r {
+                    padded[r + w + i] = padded[r + reflect101((w + i) as isize, w)];
+                }
             }
             self.pairs.clear();
             self.pairs.extend((0..r).map(|t| (taps[t], t, 2 * r - t)));
@@ -237,17 +247,37 @@ impl<'a> CoveredBlur<'a> {
             return None;
         }
         // Vertical pass: a weighted sum of ring rows (reflected rows stay
-        // within r rows of y, so inside the ring).
-        let row = |y: isize| (reflect101(y, h) % slots) * w;
+        // within r rows of y, so inside the ring). Away from the borders
+        // rows y - r..=y + r fill the ring's slots in turn from that of
+        // y - r.
         let yi = y as isize;
         self.pairs.clear();
-        self.pairs.extend((0..r).map(|t| {
-            let d = (r - t) as isize;
-            (taps[t], row(yi - d), row(yi + d))
-        }));
+        let centre = if y >= r && y + r < h {
+            // Where row y - r + k starts, for k in 0..=2r.
+            let first = (y - r) % slots;
+            let row = |k: usize| {
+                let slot = first + k;
+                (if slot >= slots { slot - slots } else { slot }) * w
+            };
+            self.pairs
+                .extend((0..r).map(|t| (taps[t], row(t), row(2 * r - t))));
+            row(r)
+        } else {
+            let row = |y: isize| (reflect101(y, h) % slots) * w;
+            self.pairs.extend((0..r).map(|t| {
+                let d = (r - t) as isize;
+                (taps[t], row(yi - d), row(yi + d))
+            }));
+            row(yi)
+        };
         for (x0, x1) in self.coverage.runs(y) {
-            let centre = (row(yi), taps[r]);
-            symmetric_taps(&mut self.out, &self.ring, centre, &self.pairs, x0..x1);
+            symmetric_taps(
+                &mut self.out,
+                &self.ring,
+                (centre, taps[r]),
+                &self.pairs,
+                x0..x1,
+            );
         }
         Some(&self.out)
     }
