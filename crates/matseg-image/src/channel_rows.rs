@@ -5,7 +5,7 @@
 //! scene-sized window (a shading or a stretched texture, where a material
 //! that covers a tenth of the scene is visible).
 
-use crate::channel::Channel;
+use crate::channel::{write_levels, Channel};
 use crate::levels::{highest, ChannelWindow};
 use crate::resample::{Placement, Pyramid, WindowReader};
 
@@ -42,9 +42,11 @@ pub struct ChannelRows<'a> {
 }
 
 enum Source<'a> {
-    /// Hue and saturation: the source gives no bound on them, so the window
-    /// is made whole.
+    /// Hue and saturation of a grey image: zeros, made whole.
     Whole(ChannelWindow),
+    /// Hue and saturation of a colour image (boxed: its window reader
+    /// holds the column taps).
+    Converted(Box<Converted<'a>>),
     /// R, G or B (one lane), or V (the largest of the three), resampled
     /// run by run (boxed: its window reader holds the column taps).
     OnDemand(Box<OnDemand<'a>>),
@@ -95,6 +97,39 @@ impl OnDemand<'_> {
     }
 }
 
+/// Hue or saturation, converted from the R, G and B planes. The source
+/// gives no bound on them (rounding the resampled planes can raise a dark
+/// pixel's saturation by many levels), so rows are made from the top until
+/// one holds the highest level there is, 255, which is then the window's
+/// maximum (most colour photos have one within the first tenth of their
+/// rows); the rows below are made run by run as they are read. A window
+/// with no 255 is made whole.
+struct Converted<'a> {
+    channel: Channel,
+    rows: WindowRows<'a>,
+    /// The levels of the rows made from the top.
+    top: Vec<u8>,
+    /// How many rows `top` holds.
+    made: usize,
+    /// The window's highest level.
+    max_level: u8,
+    /// Scratch: a run of each of R, G and B.
+    lanes: [Vec<u8>; 3],
+}
+
+impl Converted<'_> {
+    /// The levels of columns `x0..x0 + out.len()` of row `y`, at or below
+    /// the rows made from the top.
+    fn run(&mut self, y: usize, x0: usize, out: &mut [u8]) {
+        for (lane, run) in self.lanes.iter_mut().enumerate() {
+            run.resize(out.len(), 0);
+            self.rows.run(lane, y, x0, run);
+        }
+        let [r, g, b] = &self.lanes;
+        write_levels(self.channel, [r, g, b], out);
+    }
+}
+
 impl<'a> ChannelRows<'a> {
     /// `channel` of the `w x h` window `placement` selects from `pyramid`.
     pub fn new(
@@ -105,10 +140,25 @@ impl<'a> ChannelRows<'a> {
         channel: Channel,
     ) -> Self {
         let Some(lanes) = pyramid.channel_lanes(channel) else {
+            let source = if pyramid.is_grey() {
+                Source::Whole(pyramid.sample_channel(placement, w, h, channel))
+            } else {
+                let rows = WindowRows::new(pyramid, placement, w, h);
+                let mut top = Vec::new();
+                let made = rows.reader.converted_rows(channel, Some(u8::MAX), &mut top);
+                Source::Converted(Box::new(Converted {
+                    channel,
+                    max_level: highest(&top),
+                    rows,
+                    top,
+                    made,
+                    lanes: Default::default(),
+                }))
+            };
             return Self {
                 width: w,
                 height: h,
-                source: Source::Whole(pyramid.sample_channel(placement, w, h, channel)),
+                source,
                 levels: Vec::new(),
             };
         };
@@ -129,6 +179,14 @@ impl<'a> ChannelRows<'a> {
     pub fn levels(&mut self, y: usize, x0: usize, n: usize) -> &[u8] {
         match &mut self.source {
             Source::Whole(window) => window.run(y, x0, n),
+            Source::Converted(converted) => {
+                if y < converted.made {
+                    return &converted.top[y * self.width + x0..][..n];
+                }
+                self.levels.resize(n, 0);
+                converted.run(y, x0, &mut self.levels);
+                &self.levels
+            }
             Source::OnDemand(on_demand) => {
                 self.levels.resize(n, 0);
                 on_demand.run(y, x0, &mut self.levels);
@@ -142,6 +200,7 @@ impl<'a> ChannelRows<'a> {
     pub fn max_level(&mut self) -> u8 {
         match &mut self.source {
             Source::Whole(window) => window.max_level(),
+            Source::Converted(converted) => converted.max_level,
             Source::OnDemand(on_demand) => on_demand.max_level(self.width, self.height),
         }
     }
@@ -164,13 +223,35 @@ mod tests {
                 ((x / 5 + y * 11) % 230) as u8,
             ])
         });
+        // No channel at 0, so no saturation reaches 255: hue and saturation
+        // windows are made whole, where the first image's stop early.
+        let dull = RgbImage::from_fn(301, 207, |x, y| {
+            image::Rgb([
+                1 + ((x * 7 + y * 3) % 255) as u8,
+                40 + ((x * y) % 199) as u8,
+                1 + ((x / 5 + y * 11) % 230) as u8,
+            ])
+        });
         let grey = RgbImage::from_fn(301, 207, |x, y| image::Rgb([((x * y) % 199) as u8; 3]));
-        for img in [colour, grey] {
-            runs_and_maximum_equal_the_whole_window_of(Pyramid::new(img));
-        }
+        let made = |img: RgbImage| runs_and_maximum_equal_the_whole_window_of(Pyramid::new(img));
+        let (h, s) = made(colour);
+        assert!(
+            h.iter().all(|&rows| rows < 10) && s.iter().any(|&rows| rows < 10),
+            "{h:?} {s:?}"
+        );
+        let (h, s) = made(dull);
+        assert!(
+            s.iter().all(|&rows| rows == 90) && h.iter().any(|&rows| rows < 90),
+            "{h:?} {s:?}"
+        );
+        made(grey);
     }
 
-    fn runs_and_maximum_equal_the_whole_window_of(pyramid: Pyramid) {
+    /// Checks every channel of `pyramid`'s windows; returns how many rows
+    /// from the top hue and saturation windows of a colour image made
+    /// whole (per placement).
+    fn runs_and_maximum_equal_the_whole_window_of(pyramid: Pyramid) -> (Vec<usize>, Vec<usize>) {
+        let mut made = (Vec::new(), Vec::new());
         let (w, h) = (120, 90);
         let placements = [
             // Native scale: a crop.
@@ -195,6 +276,12 @@ mod tests {
                     whole.max_level(),
                     "{channel:?} {placement:?}"
                 );
+                if let Source::Converted(converted) = &rows.source {
+                    match channel {
+                        Channel::H => made.0.push(converted.made),
+                        _ => made.1.push(converted.made),
+                    }
+                }
                 for y in [0, 1, 44, h - 1] {
                     for (x0, len) in [(0, w), (16, 32), (w - 17, 17), (5, 1)] {
                         let want = &whole.levels[y * w + x0..][..len];
@@ -204,6 +291,7 @@ mod tests {
                 }
             }
         }
+        made
     }
 
     /// A window whose largest source pixel falls between output pixels:

@@ -288,11 +288,9 @@ impl Pyramid {
             // Grey pixels have no hue and no saturation.
             None if self.grey => vec![0u8; out_w * out_h],
             _ => {
-                // Row by row: the three rows stay in cache until converted.
-                let mut levels = vec![0u8; out_w * out_h];
-                self.sample_rows(placement, out_w, out_h, |y, rgb| {
-                    write_levels(channel, rgb, &mut levels[y * out_w..(y + 1) * out_w]);
-                });
+                let mut levels = Vec::with_capacity(out_w * out_h);
+                self.window(placement, out_w, out_h)
+                    .converted_rows(channel, None, &mut levels);
                 levels
             }
         };
@@ -358,10 +356,7 @@ pub(crate) enum WindowReader<'a> {
 impl WindowReader<'_> {
     /// One plane of the window.
     fn plane(&self, lane: usize) -> Vec<u8> {
-        let (width, height) = match self {
-            WindowReader::Crop(crop) => (crop.out_w, crop.out_h),
-            WindowReader::Bilinear(b) => (b.out_w, b.rows.len()),
-        };
+        let (width, height) = self.size();
         let mut out = Vec::with_capacity(width * height);
         let mut rows = PlaneRows::new(self, lane);
         for y in 0..height {
@@ -408,6 +403,39 @@ impl WindowReader<'_> {
                 );
                 taps.blend_range(blended, x0, out);
             }
+        }
+    }
+
+    /// The levels of `channel` (converted from R, G and B) of the window's
+    /// rows from the top, appended to `levels` row by row (the three rows
+    /// stay in cache until converted) up to and including the first row
+    /// that holds `stop`, or every row when none does or `stop` is `None`;
+    /// returns how many rows were made.
+    pub(crate) fn converted_rows(
+        &self,
+        channel: Channel,
+        stop: Option<u8>,
+        levels: &mut Vec<u8>,
+    ) -> usize {
+        let (width, height) = self.size();
+        let mut lanes = [0, 1, 2].map(|lane| PlaneRows::new(self, lane));
+        for y in 0..height {
+            let start = levels.len();
+            levels.resize(start + width, 0);
+            let row = &mut levels[start..];
+            write_levels(channel, lanes.each_mut().map(|lane| lane.row(y)), row);
+            if stop.is_some_and(|stop| row.contains(&stop)) {
+                return y + 1;
+            }
+        }
+        height
+    }
+
+    /// Width and height of the window.
+    fn size(&self) -> (usize, usize) {
+        match self {
+            WindowReader::Crop(crop) => (crop.out_w, crop.out_h),
+            WindowReader::Bilinear(b) => (b.out_w, b.rows.len()),
         }
     }
 
