@@ -61,6 +61,18 @@ impl SceneDraws {
         }
     }
 
+    /// The mean number of pixels of a drawn scene: width and height are
+    /// independent and uniform, so it is the square of the mean side.
+    pub fn mean_pixels(&self) -> f64 {
+        let side = (self.size_min + self.size_max) as f64 / 2.0;
+        side * side
+    }
+
+    /// The mean number of materials of a drawn scene.
+    pub fn mean_materials(&self) -> f64 {
+        (self.materials_min + self.materials_max) as f64 / 2.0
+    }
+
     /// Draws a scene's `max_occupancy`: the largest fraction of the scene
     /// the top side of one map may cover.
     pub fn draw_max_occupancy<R: rand::Rng + ?Sized>(&self, rng: &mut R) -> f64 {
@@ -300,6 +312,34 @@ mod tests {
             vec![5, 7, 9, 11, 13, 15, 17, 19, 21]
         );
         assert_eq!(r.maps.blur_kernels, vec![3, 5, 7, 9]);
+    }
+
+    /// The distribution's means equal the means over every equally likely
+    /// draw (each side and K uniform on their ranges, sides independent),
+    /// for the SPEC's ranges and a small recipe's.
+    #[test]
+    fn mean_pixels_and_materials_are_the_draws_means() {
+        let small = SceneDraws {
+            size_min: 3,
+            size_max: 6,
+            materials_min: 2,
+            materials_max: 2,
+            ..SceneDraws::default()
+        };
+        for d in [SceneDraws::default(), small] {
+            let sides = d.size_min..=d.size_max;
+            let n = sides.clone().count() as f64;
+            let pixels: f64 = sides
+                .clone()
+                .flat_map(|w| sides.clone().map(move |h| (w * h) as f64))
+                .sum::<f64>()
+                / (n * n);
+            assert_eq!(d.mean_pixels(), pixels);
+            let ks = d.materials_min..=d.materials_max;
+            let k = ks.clone().sum::<usize>() as f64 / ks.count() as f64;
+            assert_eq!(d.mean_materials(), k);
+        }
+        assert_eq!(SceneDraws::default().mean_pixels(), 699.5 * 699.5);
     }
 
     #[test]
