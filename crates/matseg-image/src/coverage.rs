@@ -191,12 +191,14 @@ impl Coverage {
     }
 
     /// Whether row `y` has a covered block.
+    #[inline]
     pub fn row_is_covered(&self, y: usize) -> bool {
         self.row(y).iter().any(|&w| w != 0)
     }
 
     /// The covered columns of row `y` as maximal runs `(x0, x1)` of
     /// consecutive covered blocks, left to right (`x1` clamped to the width).
+    #[inline]
     pub fn runs(&self, y: usize) -> Runs<'_> {
         let words = self.row(y);
         Runs {
@@ -208,6 +210,7 @@ impl Coverage {
     }
 
     /// Row `y`'s block bit set: bit `b % 64` of word `b / 64` is block `b`.
+    #[inline]
     pub fn row(&self, y: usize) -> &[u64] {
         &self.bits[y * self.words..(y + 1) * self.words]
     }
@@ -226,6 +229,7 @@ pub struct Runs<'a> {
 impl Iterator for Runs<'_> {
     type Item = (usize, usize);
 
+    #[inline]
     fn next(&mut self) -> Option<(usize, usize)> {
         while self.current == 0 {
             self.index += 1;
