@@ -120,6 +120,16 @@ mod avx2 {
             store_sixteen(lo, hi, out.as_mut_ptr().add(i));
             i += 16;
         }
+        if i < n && n >= 16 {
+            // The last sixteen, overlapping the step before (the same
+            // levels again): runs made on demand are short, and their
+            // tails would otherwise go pixel by pixel.
+            let last = n - 16;
+            let lo = eight(hue, r, g, b, last);
+            let hi = eight(hue, r, g, b, last + 8);
+            store_sixteen(lo, hi, out.as_mut_ptr().add(last));
+            return;
+        }
         let level = if hue { hue_level } else { saturation_level };
         for j in i..n {
             out[j] = level([r[j], g[j], b[j]]);
@@ -231,6 +241,24 @@ mod tests {
                     let want = channel.level([r, g[i], b[i]]);
                     assert_eq!(l, want, "{channel:?} of {:?}", [r, g[i], b[i]]);
                 }
+            }
+        }
+        // Short runs (as made on demand): whole steps, an overlapping last
+        // step, or pixel by pixel below one step.
+        let (r, g, b): (Vec<u8>, Vec<u8>, Vec<u8>) = (0..40u32)
+            .map(|i| ((i * 37) as u8, (i * 101 + 7) as u8, (255 - i * 13) as u8))
+            .fold(Default::default(), |(mut r, mut g, mut b), (x, y, z)| {
+                r.push(x);
+                g.push(y);
+                b.push(z);
+                (r, g, b)
+            });
+        for n in 0..=40 {
+            for channel in Channel::HSV {
+                let mut levels = vec![0u8; n];
+                write_levels(channel, [&r, &g, &b], &mut levels);
+                let want: Vec<u8> = (0..n).map(|i| channel.level([r[i], g[i], b[i]])).collect();
+                assert_eq!(levels, want, "{channel:?} {n}");
             }
         }
     }
