@@ -101,9 +101,10 @@ impl OnDemand<'_> {
 /// gives no bound on them (rounding the resampled planes can raise a dark
 /// pixel's saturation by many levels), so rows are made from the top until
 /// one holds the highest level there is, 255, which is then the window's
-/// maximum (most colour photos have one within the first tenth of their
-/// rows); the rows below are made run by run as they are read. A window
-/// with no 255 is made whole.
+/// maximum (over the bench's scenes, two thirds of the hue windows and
+/// nine tenths of the saturation ones reach it, half of those within the
+/// first tenth of their rows); the rows below are made run by run as they
+/// are read. A window with no 255 is made whole.
 struct Converted<'a> {
     channel: Channel,
     rows: WindowRows<'a>,
