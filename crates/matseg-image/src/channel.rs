@@ -246,7 +246,7 @@ mod tests {
         // Short runs (as made on demand): whole steps, an overlapping last
         // step, or pixel by pixel below one step.
         let (r, g, b): (Vec<u8>, Vec<u8>, Vec<u8>) = (0..40u32)
-            .map(|i| ((i * 37) as u8, (i * 101 + 7) as u8, (255 - i * 13) as u8))
+            .map(|i| ((i * 37) as u8, (i * 101 + 7) as u8, (1000 - i * 13) as u8))
             .fold(Default::default(), |(mut r, mut g, mut b), (x, y, z)| {
                 r.push(x);
                 g.push(y);
