@@ -243,11 +243,10 @@ impl Pyramid {
         out_h: usize,
         mut each: impl FnMut(usize, [&[u8]; 3]),
     ) {
-        let window = self.window(placement, out_w, out_h);
-        let mut lanes = [0, 1, 2].map(|lane| PlaneRows::new(&window, lane));
-        for y in 0..out_h {
-            each(y, lanes.each_mut().map(|lane| lane.row(y)));
-        }
+        self.window(placement, out_w, out_h).rgb_rows(|y, rgb| {
+            each(y, rgb);
+            false
+        });
     }
 
     /// The R, G and B planes of the selected window.
@@ -417,14 +416,25 @@ impl WindowReader<'_> {
         stop: Option<u8>,
         levels: &mut Vec<u8>,
     ) -> usize {
-        let (width, height) = self.size();
-        let mut lanes = [0, 1, 2].map(|lane| PlaneRows::new(self, lane));
-        for y in 0..height {
+        let width = self.size().0;
+        self.rgb_rows(|_, rgb| {
             let start = levels.len();
             levels.resize(start + width, 0);
             let row = &mut levels[start..];
-            write_levels(channel, lanes.each_mut().map(|lane| lane.row(y)), row);
-            if stop.is_some_and(|stop| row.contains(&stop)) {
+            write_levels(channel, rgb, row);
+            stop.is_some_and(|stop| row.contains(&stop))
+        })
+    }
+
+    /// The R, G and B rows of the window, made one row at a time and
+    /// handed to `each(y, [r, g, b])` from the top until it returns true
+    /// (that row included) or the rows run out; returns how many it was
+    /// handed.
+    fn rgb_rows(&self, mut each: impl FnMut(usize, [&[u8]; 3]) -> bool) -> usize {
+        let height = self.size().1;
+        let mut lanes = [0, 1, 2].map(|lane| PlaneRows::new(self, lane));
+        for y in 0..height {
+            if each(y, lanes.each_mut().map(|lane| lane.row(y))) {
                 return y + 1;
             }
         }
