@@ -52,31 +52,48 @@ enum Source<'a> {
     OnDemand(Box<OnDemand<'a>>),
 }
 
-/// The lanes of a channel made run by run; `lane` holds one lane's run of V.
+/// A channel's levels made run by run from the lanes it reads: one lane's
+/// run as it is, or the three lanes' runs converted.
 struct OnDemand<'a> {
     rows: WindowRows<'a>,
+    channel: Channel,
     lanes: &'static [usize],
-    lane: Vec<u8>,
+    /// Scratch: a run of each of R, G and B.
+    runs: [Vec<u8>; 3],
 }
 
-impl OnDemand<'_> {
+impl<'a> OnDemand<'a> {
+    /// `channel` of the window `rows` reads, from `lanes` (all three for a
+    /// channel converted from R, G and B).
+    fn new(rows: WindowRows<'a>, channel: Channel, lanes: &'static [usize]) -> Self {
+        Self {
+            rows,
+            channel,
+            lanes,
+            runs: Default::default(),
+        }
+    }
+
     /// The levels of columns `x0..x0 + out.len()` of row `y`.
     fn run(&mut self, y: usize, x0: usize, out: &mut [u8]) {
-        self.rows.run(self.lanes[0], y, x0, out);
-        for &other in &self.lanes[1..] {
-            self.lane.resize(out.len(), 0);
-            self.rows.run(other, y, x0, &mut self.lane);
-            for (o, &l) in out.iter_mut().zip(&self.lane) {
-                *o = (*o).max(l);
-            }
+        if let &[lane] = self.lanes {
+            self.rows.run(lane, y, x0, out);
+            return;
         }
+        for (lane, run) in self.runs.iter_mut().enumerate() {
+            run.resize(out.len(), 0);
+            self.rows.run(lane, y, x0, run);
+        }
+        let [r, g, b] = &self.runs;
+        write_levels(self.channel, [r, g, b], out);
     }
 
     /// The highest level of the `w x h` window. A resampled level never
     /// exceeds the source pixels it blends, so each row is bounded by the
     /// largest level of the source rows it reads; rows are made in
     /// decreasing order of that bound until no other can exceed the largest
-    /// level found.
+    /// level found. Only for R, G, B and V: hue and saturation have no
+    /// such bound (see [`Converted`]).
     fn max_level(&mut self, w: usize, h: usize) -> u8 {
         if w == 0 || h == 0 {
             return 0;
@@ -106,29 +123,14 @@ impl OnDemand<'_> {
 /// first tenth of their rows); the rows below are made run by run as they
 /// are read. A window with no 255 is made whole.
 struct Converted<'a> {
-    channel: Channel,
-    rows: WindowRows<'a>,
+    /// The rows below those made from the top.
+    below: OnDemand<'a>,
     /// The levels of the rows made from the top.
     top: Vec<u8>,
     /// How many rows `top` holds.
     made: usize,
     /// The window's highest level.
     max_level: u8,
-    /// Scratch: a run of each of R, G and B.
-    lanes: [Vec<u8>; 3],
-}
-
-impl Converted<'_> {
-    /// The levels of columns `x0..x0 + out.len()` of row `y`, at or below
-    /// the rows made from the top.
-    fn run(&mut self, y: usize, x0: usize, out: &mut [u8]) {
-        for (lane, run) in self.lanes.iter_mut().enumerate() {
-            run.resize(out.len(), 0);
-            self.rows.run(lane, y, x0, run);
-        }
-        let [r, g, b] = &self.lanes;
-        write_levels(self.channel, [r, g, b], out);
-    }
 }
 
 impl<'a> ChannelRows<'a> {
@@ -140,37 +142,29 @@ impl<'a> ChannelRows<'a> {
         h: usize,
         channel: Channel,
     ) -> Self {
-        let Some(lanes) = pyramid.channel_lanes(channel) else {
-            let source = if pyramid.is_grey() {
-                Source::Whole(pyramid.sample_channel(placement, w, h, channel))
-            } else {
-                let rows = WindowRows::new(pyramid, placement, w, h);
-                let mut top = Vec::new();
-                let made = rows.reader.converted_rows(channel, Some(u8::MAX), &mut top);
-                Source::Converted(Box::new(Converted {
-                    channel,
-                    max_level: highest(&top),
-                    rows,
-                    top,
-                    made,
-                    lanes: Default::default(),
-                }))
-            };
-            return Self {
-                width: w,
-                height: h,
-                source,
-                levels: Vec::new(),
-            };
+        let lanes = pyramid.channel_lanes(channel);
+        let source = if lanes.is_none() && pyramid.is_grey() {
+            Source::Whole(pyramid.sample_channel(placement, w, h, channel))
+        } else {
+            let rows = WindowRows::new(pyramid, placement, w, h);
+            match lanes {
+                Some(lanes) => Source::OnDemand(Box::new(OnDemand::new(rows, channel, lanes))),
+                None => {
+                    let mut top = Vec::new();
+                    let made = rows.reader.converted_rows(channel, Some(u8::MAX), &mut top);
+                    Source::Converted(Box::new(Converted {
+                        max_level: highest(&top),
+                        below: OnDemand::new(rows, channel, &[0, 1, 2]),
+                        top,
+                        made,
+                    }))
+                }
+            }
         };
         Self {
             width: w,
             height: h,
-            source: Source::OnDemand(Box::new(OnDemand {
-                rows: WindowRows::new(pyramid, placement, w, h),
-                lanes,
-                lane: Vec::new(),
-            })),
+            source,
             levels: Vec::new(),
         }
     }
@@ -185,7 +179,7 @@ impl<'a> ChannelRows<'a> {
                     return &converted.top[y * self.width + x0..][..n];
                 }
                 self.levels.resize(n, 0);
-                converted.run(y, x0, &mut self.levels);
+                converted.below.run(y, x0, &mut self.levels);
                 &self.levels
             }
             Source::OnDemand(on_demand) => {
