@@ -82,6 +82,23 @@ struct Row {
     bytes: u64,
 }
 
+impl Row {
+    /// A row measured on one thread: `(wall, cpu)` seconds over `scenes`.
+    fn one_thread(name: &str, scenes: u64, (wall, cpu): (f64, f64), bytes: u64) -> Self {
+        Self {
+            name: name.into(),
+            threads: 1,
+            scenes,
+            wall,
+            cpu,
+            bytes,
+        }
+    }
+}
+
+/// The in-memory row's name, in the whole table and alone.
+const IN_MEMORY: &str = "generate in memory (no encoding)";
+
 /// Runs `matseg bench`: measures each row and prints the table.
 pub fn run(args: Args) -> Result<()> {
     anyhow::ensure!(args.scenes >= 1, "--scenes must be at least 1");
@@ -112,15 +129,7 @@ pub fn run(args: Args) -> Result<()> {
                 sources,
             )?);
         }
-        let (wall, cpu) = start.elapsed(1);
-        rows.push(Row {
-            name: "generate in memory (no encoding)".into(),
-            threads: 1,
-            scenes: args.scenes,
-            wall,
-            cpu,
-            bytes: 0,
-        });
+        rows.push(Row::one_thread(IN_MEMORY, args.scenes, start.elapsed(1), 0));
         sample.print(&recipe, libs.photos.len(), libs.textures.len());
         print_table(&rows);
         return Ok(());
@@ -140,15 +149,12 @@ pub fn run(args: Args) -> Result<()> {
             &recipe.maps,
         )?;
     }
-    let (wall, cpu) = start.elapsed(1);
-    rows.push(Row {
-        name: "soft maps only (SPEC 1)".into(),
-        threads: 1,
-        scenes: args.scenes,
-        wall,
-        cpu,
-        bytes: 0,
-    });
+    rows.push(Row::one_thread(
+        "soft maps only (SPEC 1)",
+        args.scenes,
+        start.elapsed(1),
+        0,
+    ));
     let (mut gen, mut enc) = ((0.0, 0.0), (0.0, 0.0));
     let mut bytes = 0u64;
     let add = |total: &mut (f64, f64), (wall, cpu): (f64, f64)| {
@@ -165,22 +171,13 @@ pub fn run(args: Args) -> Result<()> {
         sample.add(&scene);
         bytes += encoded.bytes() as u64;
     }
-    rows.push(Row {
-        name: "generate in memory (no encoding)".into(),
-        threads: 1,
-        scenes: args.scenes,
-        wall: gen.0,
-        cpu: gen.1,
-        bytes: 0,
-    });
-    rows.push(Row {
-        name: "encode only (JPEG + PNG masks + JSON)".into(),
-        threads: 1,
-        scenes: args.scenes,
-        wall: enc.0,
-        cpu: enc.1,
+    rows.push(Row::one_thread(IN_MEMORY, args.scenes, gen, 0));
+    rows.push(Row::one_thread(
+        "encode only (JPEG + PNG masks + JSON)",
+        args.scenes,
+        enc,
         bytes,
-    });
+    ));
 
     for (t, format) in [
         (1, Format::Folders),
