@@ -1,11 +1,15 @@
 //! `matseg bench-set make`: a point benchmark from generated scenes, so the
-//! evaluation can run end to end without external data.
+//! evaluation can run end to end without external data; `matseg bench-set
+//! draw`: any point benchmark's annotations drawn on its photos.
 
 use crate::common::{Defaults, Libraries, LicenceArgs, DEFAULT_CACHE_MB};
 use anyhow::{ensure, Context, Result};
 use clap::Subcommand;
 use matseg_data::sample_rng;
+use matseg_eval::load_point_benchmark;
+use matseg_eval::overlay::draw_points;
 use matseg_eval::synthetic::{annotate_points, write_point_image, SyntheticOptions};
+use matseg_image::io::{encode_png_rgb, read_rgb, write_atomic};
 use matseg_scene::{generate_2d, Recipe2d};
 use std::path::PathBuf;
 
@@ -14,6 +18,22 @@ use std::path::PathBuf;
 pub enum Command {
     /// Write a point benchmark (MatSeg layout) made from generated 2D scenes.
     Make(MakeArgs),
+    /// Draw each image's points on it (NAME.png: rings in one colour per
+    /// material, labelled with its id), to check an annotation by eye.
+    Draw(DrawArgs),
+}
+
+/// Arguments of `matseg bench-set draw`.
+#[derive(clap::Args)]
+pub struct DrawArgs {
+    /// Benchmark folder (images/, data/NAME/data.json).
+    bench: PathBuf,
+    /// Output folder for the NAME.png overlays.
+    #[arg(long)]
+    out: PathBuf,
+    /// Magnify photos whose longer side is below this many pixels twofold.
+    #[arg(long, default_value_t = 450)]
+    magnify_below: u32,
 }
 
 /// Arguments of `matseg bench-set make`.
@@ -44,7 +64,38 @@ pub struct MakeArgs {
 
 /// Runs `matseg bench-set`.
 pub fn run(command: Command) -> Result<()> {
-    let Command::Make(args) = command;
+    match command {
+        Command::Make(args) => make(args),
+        Command::Draw(args) => draw(args),
+    }
+}
+
+fn draw(args: DrawArgs) -> Result<()> {
+    let bench = load_point_benchmark(&args.bench, false)?;
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("{}: cannot create", args.out.display()))?;
+    let mut points = 0;
+    for image in &bench.images {
+        let photo = read_rgb(&image.image_path)?;
+        let scale = if photo.width().max(photo.height()) < args.magnify_below {
+            2
+        } else {
+            1
+        };
+        let path = args.out.join(format!("{}.png", image.name));
+        write_atomic(&path, &encode_png_rgb(&draw_points(&photo, image, scale)))
+            .with_context(|| format!("{}: cannot write", path.display()))?;
+        points += image.points.iter().map(Vec::len).sum::<usize>();
+    }
+    println!(
+        "{}: {} overlays, {points} points",
+        args.out.display(),
+        bench.images.len()
+    );
+    Ok(())
+}
+
+fn make(args: MakeArgs) -> Result<()> {
     ensure!(args.points >= 1, "--points must be at least 1");
     let libs = Libraries::load(
         &args.sources,

@@ -11,6 +11,7 @@ pub mod descriptor;
 pub mod evaluate;
 pub mod iou;
 pub mod masks;
+pub mod overlay;
 pub mod points;
 pub mod synthetic;
 pub mod triplet;
