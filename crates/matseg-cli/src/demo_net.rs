@@ -10,7 +10,7 @@ use anyhow::{bail, Context, Result};
 use clap::Parser;
 use matseg_eval::ClusterOptions;
 use matseg_image::io::{read_rgb, write_atomic};
-use matseg_net::infer::TrainedNet;
+use matseg_net::infer::{PixelDescriptors, TrainedNet};
 use matseg_net::train::{read_run_config, RUN_FILE};
 use std::fmt::Write as _;
 use std::path::Path;

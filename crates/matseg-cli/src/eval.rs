@@ -21,13 +21,15 @@ pub enum Command {
 /// Options shared by both benchmarks.
 #[derive(clap::Args)]
 pub struct ModelArgs {
-    /// Baselines to score (rgb, lab, texture; `all` for every one); repeatable.
+    /// Baselines to score (rgb, lab, texture, and imagenet: the ImageNet
+    /// MobileNetV2's features with no training; `all` for every one); repeatable.
     #[arg(long = "baseline", num_args = 1..)]
     baselines: Vec<String>,
-    /// Trained nets to score: run folders of `matseg train` (or their
-    /// model.safetensors); repeatable.
+    /// Trained nets to score: `default` (the shipped model), run folders
+    /// of `matseg train` or their weights files (model.safetensors,
+    /// best.safetensors), or `none`; repeatable.
     #[cfg(feature = "net")]
-    #[arg(long = "model", num_args = 1..)]
+    #[arg(long = "model", num_args = 1.., default_value = "default")]
     nets: Vec<PathBuf>,
     /// Device the nets run on: cpu or cuda.
     #[cfg(feature = "net")]
@@ -90,25 +92,41 @@ pub fn run(command: Command) -> Result<()> {
     }
 }
 
+/// Baseline names `--baseline` accepts, in table order: the colour and
+/// texture statistics, then (in a build with the net) the ImageNet features.
+fn known_baselines() -> Vec<&'static str> {
+    let mut names = BASELINES.to_vec();
+    #[cfg(feature = "net")]
+    names.push(matseg_net::imagenet::IMAGENET_BASELINE);
+    names
+}
+
 /// The models named by `--baseline` (in table order), then the nets named by
 /// `--model`.
 fn models(args: &ModelArgs) -> Result<Vec<Box<dyn DescriptorModel>>> {
+    let known = known_baselines();
     let mut wanted: Vec<&str> = Vec::new();
     for name in &args.baselines {
         if name == "all" {
-            wanted.extend(BASELINES);
-        } else if BASELINES.contains(&name.as_str()) {
+            wanted.extend(&known);
+        } else if known.contains(&name.as_str()) {
             wanted.push(name);
         } else {
             bail!(
                 "unknown baseline {name:?}; known: {}, all",
-                BASELINES.join(", ")
+                known.join(", ")
             );
         }
     }
     let mut models: Vec<Box<dyn DescriptorModel>> = Vec::new();
-    for name in BASELINES.iter().filter(|b| wanted.contains(b)) {
-        models.extend(baseline(name));
+    for name in known.iter().filter(|b| wanted.contains(b)) {
+        match baseline(name) {
+            Some(model) => models.push(model),
+            #[cfg(feature = "net")]
+            None => models.push(Box::new(imagenet_baseline(&args.device)?)),
+            #[cfg(not(feature = "net"))]
+            None => unreachable!("every known baseline is built"),
+        }
     }
     #[cfg(feature = "net")]
     models.extend(nets(args)?);
@@ -118,12 +136,28 @@ fn models(args: &ModelArgs) -> Result<Vec<Box<dyn DescriptorModel>>> {
     Ok(models)
 }
 
+/// The ImageNet MobileNetV2 feature baseline on `device`, with the
+/// registry's weights (fetched into the cache the first time).
+#[cfg(feature = "net")]
+pub fn imagenet_baseline(device: &str) -> Result<matseg_net::imagenet::ImagenetBaseline> {
+    use anyhow::Context;
+    use matseg_net::imagenet::{ImagenetBaseline, ImagenetFeatures};
+    let device = crate::train::parse_device(device)?;
+    let path = crate::weights::fetched(crate::weights::ArchArg::MobilenetV2, None)?.0;
+    let label = path.display().to_string();
+    let bytes = std::fs::read(&path).with_context(|| format!("{label}: cannot read"))?;
+    let tensors = matseg_weights::read_safetensors(&bytes, &label)?;
+    Ok(ImagenetBaseline::imagenet(ImagenetFeatures::new(
+        &tensors, &label, device,
+    )?))
+}
+
 /// The trained nets named by `--model`, each named after its run folder.
 #[cfg(feature = "net")]
 fn nets(args: &ModelArgs) -> Result<Vec<Box<dyn DescriptorModel>>> {
     let device = crate::train::parse_device(&args.device)?;
     let mut nets: Vec<Box<dyn DescriptorModel>> = Vec::new();
-    for path in &args.nets {
+    for path in args.nets.iter().filter(|p| p.as_os_str() != "none") {
         nets.push(Box::new(matseg_net::infer::NetModel::load(path, device)?));
     }
     Ok(nets)

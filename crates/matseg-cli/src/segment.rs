@@ -9,7 +9,7 @@ use image::RgbImage;
 use matseg_eval::descriptor::{Comparison, DescriptorMap};
 use matseg_eval::{cluster_descriptors, ClusterOptions};
 use matseg_image::io::{encode_png_gray, encode_png_rgb, read_rgb, write_atomic};
-use matseg_net::infer::TrainedNet;
+use matseg_net::infer::{PixelDescriptors, TrainedNet};
 use matseg_net::TEMPERATURE;
 use matseg_scene::PALETTE;
 use std::path::{Path, PathBuf};
@@ -22,8 +22,9 @@ pub const DEFAULT_RADIUS: f32 = 5.0;
 pub struct Args {
     /// The photo.
     image: PathBuf,
-    /// A run folder from `matseg train`, or its model.safetensors.
-    #[arg(long)]
+    /// The model: `default` (the shipped one), a run folder from `matseg
+    /// train`, or its weights file (model.safetensors, best.safetensors).
+    #[arg(long, default_value = "default")]
     model: PathBuf,
     /// A query point `X,Y` in image pixels; repeat for several materials.
     #[arg(long = "point", required_unless_present = "auto", value_parser = parse_point)]

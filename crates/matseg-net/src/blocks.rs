@@ -47,3 +47,9 @@ pub fn l2_normalise(x: &Tensor, dim: i64) -> Tensor {
     let norm = x.norm_scalaropt_dim(2, [dim], true).clamp_min(1e-12);
     x / norm
 }
+
+/// The multiple of 32 nearest to `n` (at least 32): the side an image is
+/// resized to before an encoder, so that every stride's grid divides it.
+pub fn nearest_multiple_of_32(n: usize) -> i64 {
+    ((n as f64 / 32.0).round() as i64).max(1) * 32
+}

@@ -2,6 +2,7 @@
 //! descriptor map of a photo, and the net as an evaluated model
 //! ([`DescriptorModel`]) for the point and mask benchmarks.
 
+use crate::blocks::nearest_multiple_of_32;
 use crate::net::{normalise_input, rgb8_to_tensor, MaterialNet};
 use crate::train::{read_run_config, Trainer, MODEL_FILE, RUN_FILE};
 use crate::weights::load_tensors;
@@ -31,10 +32,41 @@ fn run_files(model: &Path) -> (&Path, PathBuf) {
     }
 }
 
+/// What `--model default` names: the model shipped in the repository's
+/// `models/default/`.
+pub const DEFAULT_MODEL: &str = "default";
+
+/// The folder of the shipped default model: `$MATSEG_DEFAULT_MODEL` when
+/// set, else `models/default/` of the checkout this was built from, else
+/// `models/default/` under the current folder; `None` when none of them
+/// holds a run.
+pub fn default_model_dir() -> Option<PathBuf> {
+    let built_from = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/default");
+    std::env::var_os("MATSEG_DEFAULT_MODEL")
+        .map(PathBuf::from)
+        .into_iter()
+        .chain([built_from, PathBuf::from("models/default")])
+        .find(|dir| dir.join(RUN_FILE).is_file())
+}
+
+/// The model a `--model` argument names: [`DEFAULT_MODEL`] is the shipped
+/// one ([`default_model_dir`]), anything else a run folder or weights file.
+pub fn resolve_model(name: &Path) -> Result<PathBuf, NetError> {
+    if name != Path::new(DEFAULT_MODEL) {
+        return Ok(name.to_path_buf());
+    }
+    default_model_dir().ok_or_else(|| NetError::File {
+        file: "models/default".into(),
+        message: "the shipped default model is not here (set MATSEG_DEFAULT_MODEL to its folder, or give --model RUN)".into(),
+    })
+}
+
 impl TrainedNet {
-    /// Loads `model`: a run folder, or a `model.safetensors` with the run's
-    /// `run.json` beside it.
+    /// Loads `model`: a run folder, a weights file (`model.safetensors`,
+    /// `best.safetensors`, in 32- or 16-bit floats) with the run's
+    /// `run.json` beside it, or [`DEFAULT_MODEL`].
     pub fn load(model: &Path, device: Device) -> Result<Self, NetError> {
+        let model = &resolve_model(model)?;
         let (dir, weights) = run_files(model);
         if !dir.join(RUN_FILE).is_file() {
             return Err(NetError::File {
@@ -71,9 +103,12 @@ impl TrainedNet {
     /// computed at the nearest size with sides multiple of 32 and resized
     /// back (then re-normalised).
     pub fn describe(&self, rgb: &[u8], width: usize, height: usize) -> Tensor {
-        let round32 = |n: usize| ((n as f64 / 32.0).round() as i64).max(1) * 32;
         let x = rgb8_to_tensor(rgb, width, height).unsqueeze(0);
-        let x = crate::blocks::resize_bilinear(&x, round32(height), round32(width));
+        let x = crate::blocks::resize_bilinear(
+            &x,
+            nearest_multiple_of_32(height),
+            nearest_multiple_of_32(width),
+        );
         tch::no_grad(|| {
             let d = self
                 .net
@@ -86,52 +121,74 @@ impl TrainedNet {
     }
 }
 
-impl TrainedNet {
-    /// The descriptor map of `image` (see [`TrainedNet::describe`]), on the CPU.
-    pub fn descriptor_map(&self, image: &RgbImage) -> DescriptorMap {
-        let (width, height) = (image.width() as usize, image.height() as usize);
-        let d = self.describe(image.as_raw(), width, height);
-        let dim = d.size()[0] as usize;
+impl PixelDescriptors for TrainedNet {
+    fn describe_rgb(&self, rgb: &[u8], width: usize, height: usize) -> Tensor {
+        self.describe(rgb, width, height)
+    }
+}
+
+/// A model that maps an interleaved RGB image to unit descriptors
+/// `[D, height, width]` on the CPU: a trained net, or the ImageNet features.
+pub trait PixelDescriptors {
+    /// The descriptors of `rgb` (`width * height * 3` bytes).
+    fn describe_rgb(&self, rgb: &[u8], width: usize, height: usize) -> Tensor;
+
+    /// The descriptor map of `image`.
+    fn descriptor_map(&self, image: &RgbImage) -> DescriptorMap {
+        let d = self.describe_rgb(
+            image.as_raw(),
+            image.width() as usize,
+            image.height() as usize,
+        );
+        let (dim, height, width) = d.size3().expect("a [D, H, W] tensor");
         let data = Vec::<f32>::try_from(d.permute([1, 2, 0]).contiguous().flatten(0, -1))
             .expect("a float tensor on the CPU converts to Vec<f32>");
         DescriptorMap {
-            width,
-            height,
-            dim,
+            width: width as usize,
+            height: height as usize,
+            dim: dim as usize,
             data,
         }
     }
 }
 
-/// A trained net as a [`DescriptorModel`]: unit descriptors compared by
-/// cosine. Photos are described one at a time (libtorch parallelises
-/// within each).
-pub struct NetModel {
+/// A [`PixelDescriptors`] model as an evaluated [`DescriptorModel`]: unit
+/// descriptors compared by cosine. Photos are described one at a time
+/// (libtorch parallelises within each).
+pub struct TorchModel<T> {
     name: String,
-    net: Mutex<TrainedNet>,
+    model: Mutex<T>,
 }
+
+impl<T> TorchModel<T> {
+    /// `model` under the name `name` in result tables.
+    pub fn new(name: impl Into<String>, model: T) -> Self {
+        Self {
+            name: name.into(),
+            model: Mutex::new(model),
+        }
+    }
+}
+
+/// A trained net as an evaluated model.
+pub type NetModel = TorchModel<TrainedNet>;
 
 impl NetModel {
     /// Loads `model` as [`TrainedNet::load`] does, named after its run
-    /// folder.
+    /// folder (`default` for the shipped model).
     pub fn load(model: &Path, device: Device) -> Result<Self, NetError> {
+        if model == Path::new(DEFAULT_MODEL) {
+            return Ok(Self::new(DEFAULT_MODEL, TrainedNet::load(model, device)?));
+        }
         let name = run_files(model)
             .0
             .file_name()
             .map_or("net".into(), |n| n.to_string_lossy().into_owned());
         Ok(Self::new(name, TrainedNet::load(model, device)?))
     }
-
-    /// `net` under the name `name` in result tables.
-    pub fn new(name: impl Into<String>, net: TrainedNet) -> Self {
-        Self {
-            name: name.into(),
-            net: Mutex::new(net),
-        }
-    }
 }
 
-impl DescriptorModel for NetModel {
+impl<T: PixelDescriptors + Send> DescriptorModel for TorchModel<T> {
     fn name(&self) -> &str {
         &self.name
     }
@@ -141,7 +198,7 @@ impl DescriptorModel for NetModel {
     }
 
     fn describe(&self, image: &RgbImage) -> DescriptorMap {
-        self.net
+        self.model
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
             .descriptor_map(image)

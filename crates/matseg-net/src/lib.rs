@@ -14,6 +14,7 @@ pub mod convnext;
 pub mod data;
 pub mod decoder;
 pub mod encoder;
+pub mod imagenet;
 pub mod infer;
 pub mod loader;
 pub mod loss;

