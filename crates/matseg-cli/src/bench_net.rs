@@ -62,6 +62,7 @@ pub fn run(args: Args) -> Result<()> {
                 seed: 0,
                 checkpoint_every: u64::MAX,
                 validation_batches: 0,
+                lr_scales: Vec::new(),
             },
             init: "scratch".into(),
             data: "synthetic".into(),

@@ -11,7 +11,7 @@ use matseg_eval::{evaluate_points, load_point_benchmark};
 use matseg_net::data::{BatchPlan, DatasetSource, GeneratorSource, SampleSource};
 use matseg_net::infer::{NetModel, TrainedNet};
 use matseg_net::loader::default_workers;
-use matseg_net::train::{self, NetScore, RunConfig, TrainOptions, Trainer, Validation};
+use matseg_net::train::{self, LrScale, NetScore, RunConfig, TrainOptions, Trainer, Validation};
 use matseg_net::{load_named, EncoderConfig, NetConfig, PRESETS};
 use matseg_scene::Recipe2d;
 use matseg_weights::read_safetensors;
@@ -40,8 +40,15 @@ pub struct Args {
     /// Encoder: mobilenet-v2, convnext-tiny or convnext-base.
     #[arg(long, default_value = "mobilenet-v2")]
     encoder: String,
-    /// Initial encoder weights: imagenet (MobileNetV2, from the registry),
-    /// scratch, or a safetensors file with the encoder's standard names.
+    /// Let the encoder's own features at strides 4, 8 and 16 join the
+    /// learned descriptor (with learned weights): from the ImageNet
+    /// encoder, the net starts out from the `imagenet` baseline's features.
+    #[arg(long)]
+    encoder_features: bool,
+    /// Initial weights: imagenet (the MobileNetV2 encoder's, from the
+    /// registry), scratch, a safetensors file with the encoder's standard
+    /// names, or a whole net's weights of the same shape (a run's
+    /// model.safetensors or best.safetensors) to continue from.
     #[arg(long, default_value = "imagenet")]
     init: String,
     /// cpu or cuda.
@@ -57,6 +64,13 @@ pub struct Args {
     /// Warm-up steps.
     #[arg(long, default_value_t = train::WARMUP_STEPS)]
     warmup: u64,
+    /// `PREFIX=SCALE`: multiply the learning rate of the variables whose
+    /// names start with PREFIX by SCALE (0 freezes them); repeatable, a
+    /// later one wins where both apply. E.g. `encoder.=0.1` (an ImageNet
+    /// encoder learning ten times slower than the head) or
+    /// `encoder.features.0.=0`.
+    #[arg(long = "lr-scale", value_name = "PREFIX=SCALE", value_parser = parse_lr_scale)]
+    lr_scales: Vec<LrScale>,
     /// Smallest batch side (multiple of 32).
     #[arg(long, default_value_t = BatchPlan::SPEC.min_side)]
     min_side: usize,
@@ -91,8 +105,23 @@ pub struct Args {
     #[arg(long, required_unless_present = "resume")]
     out: Option<PathBuf>,
     /// Continue the run in this folder from its last checkpoint.
-    #[arg(long, conflicts_with_all = ["out", "encoder", "init"])]
+    #[arg(long, conflicts_with_all = ["out", "encoder", "init", "lr_scales", "encoder_features"])]
     resume: Option<PathBuf>,
+}
+
+fn parse_lr_scale(s: &str) -> Result<LrScale, String> {
+    let (prefix, scale) = s
+        .split_once('=')
+        .ok_or_else(|| format!("{s}: expected PREFIX=SCALE"))?;
+    let scale: f64 = scale
+        .parse()
+        .ok()
+        .filter(|v: &f64| v.is_finite() && *v >= 0.0)
+        .ok_or_else(|| format!("{s}: SCALE must be a number >= 0"))?;
+    Ok(LrScale {
+        prefix: prefix.to_string(),
+        scale,
+    })
 }
 
 /// The device named on the command line.
@@ -237,7 +266,10 @@ fn start(args: &Args, device: Device) -> Result<(Trainer, PathBuf)> {
             dir.display()
         );
     }
-    let net = preset(&args.encoder)?;
+    let net = NetConfig {
+        encoder_features: args.encoder_features,
+        ..preset(&args.encoder)?
+    };
     let data = match (&args.data, args.online) {
         (Some(path), false) => path.display().to_string(),
         (None, true) => ONLINE.to_string(),
@@ -262,6 +294,7 @@ fn start(args: &Args, device: Device) -> Result<(Trainer, PathBuf)> {
         seed: args.seed,
         checkpoint_every: args.checkpoint_every,
         validation_batches: args.validation_batches,
+        lr_scales: args.lr_scales.clone(),
     };
     options.plan.validate().map_err(anyhow::Error::msg)?;
     let config = RunConfig {
@@ -271,6 +304,22 @@ fn start(args: &Args, device: Device) -> Result<(Trainer, PathBuf)> {
         data,
     };
     let trainer = Trainer::new(config, device);
+    for group in &args.lr_scales {
+        if !trainer
+            .vs
+            .variables()
+            .keys()
+            .any(|n| n.starts_with(&group.prefix))
+        {
+            bail!(
+                "--lr-scale {}={}: no variable of the {} net starts with {:?}",
+                group.prefix,
+                group.scale,
+                args.encoder,
+                group.prefix
+            );
+        }
+    }
     init_encoder(&trainer, &args.init)?;
     std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
     train::write_run_config(&dir, &trainer.config)?;
@@ -295,8 +344,16 @@ fn init_encoder(trainer: &Trainer, init: &str) -> Result<()> {
     let label = path.display().to_string();
     let bytes = std::fs::read(&path).with_context(|| format!("{label}: cannot read"))?;
     let tensors = read_safetensors(&bytes, &label)?;
-    let copied = load_named(&trainer.vs, "encoder", &tensors, &label)?;
-    eprintln!("encoder: {copied} tensors from {label}");
+    // A whole net's weights (a run's model.safetensors or best.safetensors)
+    // carry the net's own names; an encoder's, the encoder's standard ones.
+    let whole_net = tensors.iter().any(|t| t.name.starts_with("encoder."));
+    let (prefix, what) = if whole_net {
+        ("", "net")
+    } else {
+        ("encoder", "encoder")
+    };
+    let copied = load_named(&trainer.vs, prefix, &tensors, &label)?;
+    eprintln!("{what}: {copied} tensors from {label}");
     Ok(())
 }
 

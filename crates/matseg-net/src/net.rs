@@ -29,8 +29,16 @@ pub struct NetConfig {
     pub psp_out: i64,
     /// Output channels of the three decoder steps (strides 16, 8, 4).
     pub decoder: [i64; 3],
-    /// Descriptor channels.
+    /// Descriptor channels of the learned head.
     pub descriptor_dim: i64,
+    /// Whether the encoder's own features at strides 4, 8 and 16 join the
+    /// learned descriptor: each part (the head's output and the three
+    /// taps) resized to the input, L2-normalised, weighted by a learned
+    /// factor (all 1 at first: with an ImageNet encoder, the taps are then
+    /// the `imagenet` baseline's features), then concatenated and
+    /// normalised again.
+    #[serde(default)]
+    pub encoder_features: bool,
 }
 
 /// The named configurations `--encoder` accepts.
@@ -51,6 +59,7 @@ impl NetConfig {
                 psp_out: c32,
                 decoder: [c16, c8, DESCRIPTOR_DIM],
                 descriptor_dim: DESCRIPTOR_DIM,
+                encoder_features: false,
             }
         };
         match name {
@@ -60,6 +69,7 @@ impl NetConfig {
                 psp_out: 256,
                 decoder: [128, 128, 128],
                 descriptor_dim: DESCRIPTOR_DIM,
+                encoder_features: false,
             }),
             "convnext-tiny" => Some(convnext(ConvNextConfig::TINY)),
             "convnext-base" => Some(convnext(ConvNextConfig::BASE)),
@@ -77,6 +87,9 @@ pub struct MaterialNet {
     psp: Psp,
     decoder: Decoder,
     head: nn::Conv2D,
+    /// Log-weights of the head's output and the taps at strides 4, 8, 16
+    /// in the descriptor, when [`NetConfig::encoder_features`].
+    part_log_weights: Option<Tensor>,
 }
 
 impl MaterialNet {
@@ -93,27 +106,46 @@ impl MaterialNet {
             1,
             Default::default(),
         );
+        let part_log_weights = config
+            .encoder_features
+            .then(|| p.zeros("part_log_weights", &[4]));
         Self {
             config,
             encoder,
             psp,
             decoder,
             head,
+            part_log_weights,
         }
     }
 
-    /// Descriptors at stride 4, before upsampling and normalisation.
-    pub fn features_t(&self, x: &Tensor, train: bool) -> Tensor {
-        let taps = self.encoder.forward_t(x, train);
-        let psp = self.psp.forward_t(&taps.s32, train);
-        self.decoder.forward_t(&psp, &taps, train).apply(&self.head)
+    /// Channels of the descriptors [`MaterialNet::forward_t`] returns.
+    pub fn output_dim(&self) -> i64 {
+        let taps = self.encoder.channels();
+        match self.part_log_weights {
+            Some(_) => self.config.descriptor_dim + taps[0] + taps[1] + taps[2],
+            None => self.config.descriptor_dim,
+        }
     }
 
     /// Per-pixel L2-normalised descriptors `[N, D, H, W]` of input images
     /// `[N, 3, H, W]` prepared by [`normalise_input`].
     pub fn forward_t(&self, x: &Tensor, train: bool) -> Tensor {
         let (_, _, h, w) = x.size4().expect("an NCHW tensor");
-        l2_normalise(&resize_bilinear(&self.features_t(x, train), h, w), 1)
+        let taps = self.encoder.forward_t(x, train);
+        let psp = self.psp.forward_t(&taps.s32, train);
+        let learned = self.decoder.forward_t(&psp, &taps, train).apply(&self.head);
+        let unit = |t: &Tensor| l2_normalise(&resize_bilinear(t, h, w), 1);
+        let Some(log_weights) = &self.part_log_weights else {
+            return unit(&learned);
+        };
+        let weights = log_weights.exp();
+        let parts: Vec<Tensor> = [&learned, &taps.s4, &taps.s8, &taps.s16]
+            .iter()
+            .enumerate()
+            .map(|(i, t)| unit(t) * weights.get(i as i64))
+            .collect();
+        l2_normalise(&Tensor::cat(&parts, 1), 1)
     }
 }
 

@@ -47,6 +47,9 @@ pub struct AdamW {
     m: Tensor,
     /// Second moments, laid out as `params`.
     v: Tensor,
+    /// Each value's learning-rate factor, laid out as `params` (`None`:
+    /// 1 everywhere).
+    lr_scale: Option<Tensor>,
 }
 
 /// One trainable variable in the flat buffers.
@@ -113,7 +116,26 @@ impl AdamW {
             m: params.zeros_like(),
             v: params.zeros_like(),
             params,
+            lr_scale: None,
         }
+    }
+
+    /// Multiplies the learning rate (and so the weight decay) of every
+    /// variable whose name starts with `prefix` by `scale`: 0 freezes them,
+    /// 0.1 makes them learn ten times slower. Returns how many variables
+    /// it applies to.
+    pub fn scale_lr(&mut self, prefix: &str, scale: f64) -> usize {
+        let scales = self
+            .lr_scale
+            .get_or_insert_with(|| self.params.ones_like())
+            .shallow_clone();
+        let mut scaled = 0;
+        for slot in self.slots.iter().filter(|s| s.name.starts_with(prefix)) {
+            let mut part = slot.view(&scales);
+            let _ = tch::no_grad(|| part.fill_(scale));
+            scaled += 1;
+        }
+        scaled
     }
 
     /// Back-propagates `loss` to the variables and takes one update with
@@ -140,7 +162,15 @@ impl AdamW {
         let bias2 = 1.0 - c.beta2.powi(self.steps as i32);
         tch::no_grad(|| {
             let mut g = Tensor::cat(&flat, 0);
-            let _ = self.params.g_mul_scalar_(1.0 - lr * c.weight_decay);
+            match &self.lr_scale {
+                None => {
+                    let _ = self.params.g_mul_scalar_(1.0 - lr * c.weight_decay);
+                }
+                Some(scale) => {
+                    let decay = &self.params * scale * (lr * c.weight_decay);
+                    let _ = self.params.g_sub_(&decay);
+                }
+            }
             let _ = self.m.lerp_(&g, 1.0 - c.beta1);
             let _ = g.square_();
             let _ = self.v.lerp_(&g, 1.0 - c.beta2);
@@ -149,6 +179,9 @@ impl AdamW {
             let _ = denom.g_add_scalar_(c.eps);
             let mut update = self.m.divide(&denom);
             let _ = update.g_mul_scalar_(lr / bias1);
+            if let Some(scale) = &self.lr_scale {
+                let _ = update.g_mul_(scale);
+            }
             let _ = self.params.g_sub_(&update);
         });
     }
@@ -272,6 +305,37 @@ mod tests {
         }
         // Nothing accumulates in the variables' own gradients.
         assert!(!vs.variables()["a"].grad().defined());
+    }
+
+    #[test]
+    fn scaled_variables_step_as_with_a_scaled_learning_rate() {
+        let vs = store();
+        let config = AdamWConfig {
+            weight_decay: 0.1,
+            ..Default::default()
+        };
+        let mut optimizer = AdamW::new(&vs, config);
+        assert_eq!(optimizer.scale_lr("a", 0.25), 1);
+        let lrs = [0.1, 0.05, 0.2];
+        for &lr in &lrs {
+            optimizer.step(&loss(&vs), lr);
+        }
+        let quarter: Vec<f64> = lrs.iter().map(|lr| lr * 0.25).collect();
+        let expected = [
+            reference(1.0, |_| 3.0, &quarter, config),
+            reference(-2.0, |_| -1.0, &quarter, config),
+            reference(0.5, |b| 2.0 * b, &lrs, config),
+        ];
+        let got: Vec<f32> = [values(&vs, "a"), values(&vs, "b")].concat();
+        for (g, e) in got.iter().zip(expected) {
+            assert!((*g as f64 - e).abs() < 1e-5, "{got:?} vs {expected:?}");
+        }
+        // A scale of 0 freezes.
+        let frozen = store();
+        let mut optimizer = AdamW::new(&frozen, config);
+        optimizer.scale_lr("", 0.0);
+        optimizer.step(&loss(&frozen), 0.1);
+        assert_eq!(values(&frozen, "a"), [1.0, -2.0]);
     }
 
     #[test]

@@ -29,6 +29,7 @@ fn small_net_config() -> NetConfig {
         psp_out: 16,
         decoder: [16, 12, 8],
         descriptor_dim: 6,
+        encoder_features: false,
     }
 }
 
@@ -132,6 +133,35 @@ fn net_gives_unit_descriptors_at_full_resolution() {
             assert!(max_error < 1e-5, "norm off by {max_error}");
         }
     }
+}
+
+#[test]
+fn encoder_features_join_the_descriptor_with_equal_weights_at_first() {
+    tch::manual_seed(5);
+    let config = NetConfig {
+        encoder_features: true,
+        ..small_net_config()
+    };
+    let vs = nn::VarStore::new(Device::Cpu);
+    let net = MaterialNet::new(&vs.root(), config);
+    // 6 learned channels, then the taps at strides 4, 8, 16 (8, 16, 24).
+    assert_eq!(net.output_dim(), 6 + 8 + 16 + 24);
+    let x = Tensor::randn([2, 3, 64, 96], (Kind::Float, Device::Cpu));
+    let y = net.forward_t(&x, false);
+    assert_eq!(y.size(), [2, 54, 64, 96]);
+    let norms = y.norm_scalaropt_dim(2, [1], false);
+    assert!((norms - 1.0).abs().max().double_value(&[]) < 1e-5);
+    // Each of the four parts holds a quarter of every descriptor's energy.
+    for (start, len) in [(0, 6), (6, 8), (14, 16), (30, 24)] {
+        let part =
+            y.narrow(1, start, len)
+                .square()
+                .sum_dim_intlist([1i64].as_slice(), false, Kind::Float);
+        let error = (part - 0.25).abs().max().double_value(&[]);
+        assert!(error < 1e-5, "part at {start}: off by {error}");
+    }
+    // The weights are variables the optimiser trains.
+    assert!(vs.variables()["part_log_weights"].requires_grad());
 }
 
 #[test]

@@ -37,6 +37,7 @@ fn a_tiny_net_overfits_four_samples() {
         psp_out: 32,
         decoder: [32, 24, 16],
         descriptor_dim: 16,
+        encoder_features: false,
     };
     let vs = nn::VarStore::new(Device::Cpu);
     let net = MaterialNet::new(&vs.root(), config);

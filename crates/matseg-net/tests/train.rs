@@ -5,7 +5,7 @@
 mod common;
 
 use matseg_net::data::{batch_samples, BatchPlan, GeneratorSource};
-use matseg_net::infer::TrainedNet;
+use matseg_net::infer::{PixelDescriptors, TrainedNet};
 use matseg_net::train::{self, RunConfig, StepMetrics, TrainOptions, Trainer, Validation};
 use matseg_net::{ConvNextConfig, EncoderConfig, NetConfig};
 use matseg_scene::Recipe2d;
@@ -39,6 +39,7 @@ fn config(steps: u64) -> RunConfig {
             psp_out: 16,
             decoder: [16, 16, 8],
             descriptor_dim: 8,
+            encoder_features: false,
         },
         options: TrainOptions {
             steps,
@@ -49,6 +50,7 @@ fn config(steps: u64) -> RunConfig {
             seed: 11,
             checkpoint_every: 3,
             validation_batches: 1,
+            lr_scales: Vec::new(),
         },
         init: "scratch".into(),
         data: "generator".into(),
