@@ -66,6 +66,7 @@ pub fn run(args: Args) -> Result<()> {
             },
             init: "scratch".into(),
             data: "synthetic".into(),
+            mix: None,
         },
         device,
     );

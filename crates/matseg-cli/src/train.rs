@@ -8,10 +8,12 @@ use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use matseg_data::Dataset;
 use matseg_eval::{evaluate_points, load_point_benchmark};
-use matseg_net::data::{BatchPlan, DatasetSource, GeneratorSource, SampleSource};
+use matseg_net::data::{BatchPlan, DatasetSource, GeneratorSource, MixedSource, SampleSource};
 use matseg_net::infer::{NetModel, TrainedNet};
 use matseg_net::loader::default_workers;
-use matseg_net::train::{self, LrScale, NetScore, RunConfig, TrainOptions, Trainer, Validation};
+use matseg_net::train::{
+    self, LrScale, Mix, NetScore, RunConfig, TrainOptions, Trainer, Validation,
+};
 use matseg_net::{load_named, EncoderConfig, NetConfig, PRESETS};
 use matseg_scene::Recipe2d;
 use matseg_weights::read_safetensors;
@@ -29,6 +31,13 @@ pub struct Args {
     /// --sources/--textures), with no disk in between.
     #[arg(long)]
     online: bool,
+    /// A stored dataset (e.g. `matseg generate --kind 3d` renders) mixed
+    /// into the training data, --mix-fraction of the samples.
+    #[arg(long, value_name = "DIR")]
+    mix_data: Option<PathBuf>,
+    /// The share of samples taken from --mix-data.
+    #[arg(long, default_value_t = 0.3, requires = "mix_data")]
+    mix_fraction: f64,
     /// Photo folders for --online; default: the fetched corpus, else bundled assets.
     #[arg(long, num_args = 1..)]
     sources: Vec<PathBuf>,
@@ -105,7 +114,7 @@ pub struct Args {
     #[arg(long, required_unless_present = "resume")]
     out: Option<PathBuf>,
     /// Continue the run in this folder from its last checkpoint.
-    #[arg(long, conflicts_with_all = ["out", "encoder", "init", "lr_scales", "encoder_features"])]
+    #[arg(long, conflicts_with_all = ["out", "encoder", "init", "lr_scales", "encoder_features", "mix_data"])]
     resume: Option<PathBuf>,
 }
 
@@ -168,10 +177,23 @@ pub fn run(args: Args) -> Result<()> {
         recipe: Recipe2d::default(),
         seed,
     };
-    let source: Box<dyn SampleSource + '_> = if config.data == ONLINE {
+    let main: Box<dyn SampleSource + '_> = if config.data == ONLINE {
         Box::new(generator(config.options.seed))
     } else {
         Box::new(dataset_source(&config.data)?)
+    };
+    let mixed_in = match &config.mix {
+        Some(mix) => Some((dataset_source(&mix.data)?, mix.fraction)),
+        None => None,
+    };
+    let mixture = mixed_in.as_ref().map(|(other, fraction)| MixedSource {
+        main: main.as_ref(),
+        other,
+        fraction: *fraction,
+    });
+    let source: &dyn SampleSource = match &mixture {
+        Some(mixture) => mixture,
+        None => main.as_ref(),
     };
     let held_out = generator(config.options.seed ^ VALIDATION_GENERATOR_SEED);
     let bench = match &args.val_points {
@@ -210,7 +232,7 @@ pub fn run(args: Args) -> Result<()> {
     let (mut images, mut pixels, mut waited) = (0usize, 0usize, 0.0);
     train::run(
         &mut trainer,
-        source.as_ref(),
+        source,
         validation,
         &dir,
         loader_threads,
@@ -297,11 +319,18 @@ fn start(args: &Args, device: Device) -> Result<(Trainer, PathBuf)> {
         lr_scales: args.lr_scales.clone(),
     };
     options.plan.validate().map_err(anyhow::Error::msg)?;
+    if !(0.0..=1.0).contains(&args.mix_fraction) {
+        bail!("--mix-fraction {}: expected 0..1", args.mix_fraction);
+    }
     let config = RunConfig {
         net,
         options,
         init: args.init.clone(),
         data,
+        mix: args.mix_data.as_ref().map(|dir| Mix {
+            data: dir.display().to_string(),
+            fraction: args.mix_fraction,
+        }),
     };
     let trainer = Trainer::new(config, device);
     for group in &args.lr_scales {

@@ -76,6 +76,51 @@ impl SampleSource for GeneratorSource<'_> {
     }
 }
 
+/// Two sources mixed: sample `i` is `other`'s with probability
+/// `fraction`, else `main`'s (a stored source's sample `i` modulo its
+/// count); the choice depends only on `i`, so a resumed run
+/// sees the same mixture. E.g. online 2D scenes with a share of stored 3D
+/// renders.
+pub struct MixedSource<'a> {
+    /// The source of most samples.
+    pub main: &'a dyn SampleSource,
+    /// The source mixed in.
+    pub other: &'a dyn SampleSource,
+    /// The share of samples taken from `other`, in 0..=1.
+    pub fraction: f64,
+}
+
+/// Seed of the mixture's per-sample choice.
+const MIX_STREAM: u64 = 0x6d69_7874_7572_6521;
+
+impl MixedSource<'_> {
+    /// Whether sample `index` comes from `other`.
+    pub fn from_other(&self, index: u64) -> bool {
+        sample_rng(MIX_STREAM, index).random_bool(self.fraction.clamp(0.0, 1.0))
+    }
+}
+
+impl SampleSource for MixedSource<'_> {
+    fn sample(&self, index: u64) -> Result<TrainingSample, String> {
+        let source = if self.from_other(index) {
+            self.other
+        } else {
+            self.main
+        };
+        match source.count() {
+            Some(0) => Err("a mixed source has no samples".into()),
+            Some(n) => source.sample(index % n),
+            None => source.sample(index),
+        }
+    }
+
+    fn count(&self) -> Option<u64> {
+        // Indices are unbounded when either source is; otherwise the
+        // mixture of the two is as long as the longer.
+        Some(self.main.count()?.max(self.other.count()?))
+    }
+}
+
 /// How batch sizes are drawn (SPEC 8: 2-7 images of one size, sides
 /// multiples of 32, about `pixels` per batch).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -218,5 +263,70 @@ pub fn fit(
             .into_iter()
             .map(|v| if v >= 0.5 { 1.0 } else { 0.0 })
             .collect(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `count` samples (unbounded when `None`) whose width says which
+    /// source made them and whose height is the index asked for.
+    struct Tagged {
+        tag: usize,
+        count: Option<u64>,
+    }
+
+    impl SampleSource for Tagged {
+        fn sample(&self, index: u64) -> Result<TrainingSample, String> {
+            if self.count.is_some_and(|n| index >= n) {
+                return Err(format!("index {index} past the end"));
+            }
+            Ok(TrainingSample {
+                rgb: Vec::new(),
+                width: self.tag,
+                height: index as usize,
+                weights: Vec::new(),
+                roi: Vec::new(),
+            })
+        }
+
+        fn count(&self) -> Option<u64> {
+            self.count
+        }
+    }
+
+    #[test]
+    fn a_mixture_takes_its_share_from_each_source_by_index_alone() {
+        let (main, other) = (
+            Tagged {
+                tag: 1,
+                count: None,
+            },
+            Tagged {
+                tag: 2,
+                count: Some(7),
+            },
+        );
+        let mixture = MixedSource {
+            main: &main,
+            other: &other,
+            fraction: 0.3,
+        };
+        assert_eq!(mixture.count(), None);
+        let drawn: Vec<TrainingSample> = (0..2000).map(|i| mixture.sample(i).unwrap()).collect();
+        let from_other = drawn.iter().filter(|s| s.width == 2).count();
+        assert!((540..660).contains(&from_other), "{from_other} of 2000");
+        for (i, s) in drawn.iter().enumerate() {
+            // The stored source's samples wrap around its count.
+            let expected = if s.width == 2 { i % 7 } else { i };
+            assert_eq!(s.height, expected, "sample {i}");
+            assert_eq!(mixture.from_other(i as u64), s.width == 2);
+        }
+        let none = MixedSource {
+            fraction: 0.0,
+            ..mixture
+        };
+        assert!((0..200).all(|i| !none.from_other(i)));
     }
 }

@@ -84,6 +84,19 @@ pub struct RunConfig {
     pub init: String,
     /// Where the data came from.
     pub data: String,
+    /// A second source mixed into `data`, if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mix: Option<Mix>,
+}
+
+/// A stored dataset mixed into the training data (see
+/// [`crate::data::MixedSource`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Mix {
+    /// The dataset's folder.
+    pub data: String,
+    /// The share of samples taken from it.
+    pub fraction: f64,
 }
 
 /// One line of `metrics.jsonl`.

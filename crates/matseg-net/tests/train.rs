@@ -54,6 +54,7 @@ fn config(steps: u64) -> RunConfig {
         },
         init: "scratch".into(),
         data: "generator".into(),
+        mix: None,
     }
 }
 
@@ -118,7 +119,14 @@ fn a_resumed_run_takes_exactly_the_same_steps() {
         let f = f.unwrap().path();
         std::fs::copy(&f, copy.path().join(f.file_name().unwrap())).unwrap();
     }
+    let at_3 = std::fs::read(copy.path().join(train::MODEL_FILE)).unwrap();
     let straight = train_to(&mut trainer, 6, dir.path());
+    // best.safetensors holds the weights of the checkpoint that scored best.
+    let best = std::fs::read(dir.path().join(train::BEST_MODEL_FILE)).unwrap();
+    let at_6 = std::fs::read(dir.path().join(train::MODEL_FILE)).unwrap();
+    assert_ne!(at_3, at_6);
+    let (score_3, score_6) = (early[2].val_points, straight[2].val_points);
+    assert_eq!(best, if score_6 > score_3 { at_6 } else { at_3 });
 
     let mut resumed = Trainer::resume(copy.path(), Device::Cpu).unwrap();
     assert_eq!(resumed.step, 3);
