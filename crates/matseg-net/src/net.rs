@@ -33,10 +33,10 @@ pub struct NetConfig {
     pub descriptor_dim: i64,
     /// Whether the encoder's own features at strides 4, 8 and 16 join the
     /// learned descriptor: each part (the head's output and the three
-    /// taps) resized to the input, L2-normalised, weighted by a learned
-    /// factor (all 1 at first: with an ImageNet encoder, the taps are then
-    /// the `imagenet` baseline's features), then concatenated and
-    /// normalised again.
+    /// taps) resized to the stride-4 grid, L2-normalised, weighted by a
+    /// learned factor (all 1 at first: with an ImageNet encoder, the taps
+    /// are then close to the `imagenet` baseline's features), then
+    /// concatenated, resized to the input and normalised again.
     #[serde(default)]
     pub encoder_features: bool,
 }
@@ -135,17 +135,19 @@ impl MaterialNet {
         let taps = self.encoder.forward_t(x, train);
         let psp = self.psp.forward_t(&taps.s32, train);
         let learned = self.decoder.forward_t(&psp, &taps, train).apply(&self.head);
-        let unit = |t: &Tensor| l2_normalise(&resize_bilinear(t, h, w), 1);
         let Some(log_weights) = &self.part_log_weights else {
-            return unit(&learned);
+            return l2_normalise(&resize_bilinear(&learned, h, w), 1);
         };
+        // The parts are joined on the stride-4 grid, each normalised there,
+        // and resized to the input once.
+        let (_, _, h4, w4) = learned.size4().expect("an NCHW tensor");
         let weights = log_weights.exp();
         let parts: Vec<Tensor> = [&learned, &taps.s4, &taps.s8, &taps.s16]
             .iter()
             .enumerate()
-            .map(|(i, t)| unit(t) * weights.get(i as i64))
+            .map(|(i, t)| l2_normalise(&resize_bilinear(t, h4, w4), 1) * weights.get(i as i64))
             .collect();
-        l2_normalise(&Tensor::cat(&parts, 1), 1)
+        l2_normalise(&resize_bilinear(&Tensor::cat(&parts, 1), h, w), 1)
     }
 }
 
