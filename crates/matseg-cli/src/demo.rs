@@ -34,7 +34,8 @@ pub struct Args {
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
-    /// Steps of the demo's training run (0: no net page).
+    /// Steps of the demo's training demonstration (0: none; the net page
+    /// still shows the shipped model).
     #[cfg(feature = "net")]
     #[arg(long, default_value_t = 150)]
     train_steps: u64,
@@ -91,7 +92,7 @@ Samples are in MatSeg folder layout under <code>samples-2d/</code>.</p>
         } else {
             ""
         },
-        net_link = if trains_the_net(&args) {
+        net_link = if cfg!(feature = "net") {
             r#", and <a href="net.html">the net</a> trained on scenes like these, segmenting the photos"#
         } else {
             ""
@@ -104,9 +105,7 @@ Samples are in MatSeg folder layout under <code>samples-2d/</code>.</p>
         crate::demo_3d::scenes_page(&args.out, args.samples_3d, args.size_3d, args.seed)?;
     }
     #[cfg(feature = "net")]
-    if trains_the_net(&args) {
-        crate::demo_net::net_page(&args.out, args.train_steps, args.seed)?;
-    }
+    crate::demo_net::net_page(&args.out, args.train_steps, args.seed)?;
     eprintln!(
         "{}: demo report with {} samples",
         index.display(),
@@ -176,18 +175,6 @@ pub fn sample_cards(
         )?;
     }
     Ok(cards)
-}
-
-/// Whether the demo trains the net and writes `net.html`.
-#[cfg(feature = "net")]
-fn trains_the_net(args: &Args) -> bool {
-    args.train_steps > 0
-}
-
-/// Whether the demo trains the net: never, when built without it.
-#[cfg(not(feature = "net"))]
-fn trains_the_net(_: &Args) -> bool {
-    false
 }
 
 /// `materials.html`: uniform textures extracted from the bundled photos

@@ -1,8 +1,9 @@
-//! The net part of `matseg demo`: a short training run from the ImageNet
-//! MobileNetV2 encoder straight from the generator, then `net.html`, the
+//! The net part of `matseg demo`: `net.html`, the shipped model's
 //! similarity maps of points clicked on the bundled photos and automatic
-//! segmentations. The page lists the `matseg` commands that redo each step
-//! by hand: training runs through that command's own parser.
+//! segmentations, then a short training run from the ImageNet MobileNetV2
+//! encoder straight from the generator, labelled as a demonstration, with
+//! the same maps from it. The page lists the `matseg` commands that redo
+//! each step by hand: training runs through that command's own parser.
 
 use crate::common::assets_dir;
 use crate::segment::{write_clusters, write_point_maps, DEFAULT_RADIUS};
@@ -10,7 +11,7 @@ use anyhow::{bail, Context, Result};
 use clap::Parser;
 use matseg_eval::ClusterOptions;
 use matseg_image::io::{read_rgb, write_atomic};
-use matseg_net::infer::{PixelDescriptors, TrainedNet};
+use matseg_net::infer::{default_model_dir, PixelDescriptors, TrainedNet, DEFAULT_MODEL};
 use matseg_net::train::{read_run_config, RUN_FILE};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -53,9 +54,65 @@ struct TrainCommand {
     args: crate::train::Args,
 }
 
-/// Trains `OUT/net-run` for `steps` steps (or continues it, if an earlier
-/// demo left it unfinished) and writes `OUT/net.html`.
+/// Writes `OUT/net.html`: the shipped default model's similarity maps and
+/// segmentations of the bundled photos, then, with `steps > 0`, a
+/// training demonstration: `OUT/net-run` trained for `steps` steps (or
+/// continued, if an earlier demo left it unfinished) and the same maps
+/// from it.
 pub fn net_page(out: &Path, steps: u64, seed: u64) -> Result<()> {
+    let mut commands = Vec::new();
+    let shipped = match default_model_dir() {
+        Some(dir) => {
+            let net = TrainedNet::load(&dir, Device::Cpu)?;
+            let rows = segmentation_rows(&net, DEFAULT_MODEL, "net/default", out, &mut commands)?;
+            format!(
+                r#"<h2>The shipped model</h2>
+<p>The default model (<code>models/default</code>, see its MODEL.md): what <code>matseg segment</code>
+uses with no <code>--model</code>. Each red overlay shows, for the circled point, how strongly every
+pixel is taken for the same material: exp((cosine - 1) / 0.2), the training softmax's weight. Then
+the photo split by nearest point, and split into {AUTO_K} clusters of descriptors with no points
+at all.</p>
+<table>{rows}</table>"#
+            )
+        }
+        None => "<h2>The shipped model</h2><p>Not in this checkout (models/default).</p>".into(),
+    };
+    let demonstration = if steps > 0 {
+        training_demonstration(out, steps, seed, &mut commands)?
+    } else {
+        String::new()
+    };
+    let html = format!(
+        r#"<!doctype html>
+<html><head><meta charset="utf-8"><title>matseg demo: the net</title>
+<style>
+body {{ font-family: sans-serif; margin: 1.5em; background: #fafafa; }}
+td {{ font-size: .8em; padding: 3px; vertical-align: top; }}
+td img {{ width: 220px; }}
+pre {{ font-size: .75em; white-space: pre-wrap; }}
+</style></head><body>
+<h1>matseg demo: the material-descriptor net</h1>
+<p><a href="index.html">Back to the 2D scenes.</a></p>
+{shipped}
+{demonstration}
+<h2>Commands</h2>
+<pre>{commands}</pre>
+</body></html>
+"#,
+        commands = commands.join("\n"),
+    );
+    let page = out.join("net.html");
+    write_atomic(&page, html.as_bytes()).with_context(|| page.display().to_string())
+}
+
+/// Trains `OUT/net-run` for `steps` steps (or continues it) and returns
+/// the page's section on it: the loss curve and the trained net's maps.
+fn training_demonstration(
+    out: &Path,
+    steps: u64,
+    seed: u64,
+    commands: &mut Vec<String>,
+) -> Result<String> {
     let run = out.join("net-run");
     let run_arg = run.display().to_string();
     let mut train: Vec<String> = if run.join(RUN_FILE).is_file() {
@@ -83,18 +140,37 @@ pub fn net_page(out: &Path, steps: u64, seed: u64) -> Result<()> {
         TrainCommand::try_parse_from(std::iter::once("matseg train".into()).chain(train.clone()))
             .context("the demo's training command")?;
     crate::train::run(command.args)?;
-
-    // The segmentations `matseg segment` would write, with the net loaded
-    // once and each photo described once.
+    commands.push(format!("matseg train {}", train.join(" ")));
     let net = TrainedNet::load(&run, Device::Cpu)?;
+    let rows = segmentation_rows(&net, &run_arg, "net/demo-run", out, commands)?;
+    Ok(format!(
+        r#"<h2>A training demonstration</h2>
+<p>How a model is made, in miniature: a MobileNetV2 net (ImageNet encoder) trained here for {steps}
+steps on scenes generated on the fly from the bundled assets, a few minutes on a laptop CPU. It is
+a demonstration of the training, not a model to use: the shipped model above was trained far
+longer on the whole corpus.</p>
+<p><img src="net-run/loss.png" alt="training loss"></p>
+<table>{rows}</table>"#
+    ))
+}
+
+/// The table rows of `net`'s maps of the bundled photos (written under
+/// `OUT/DIR/PHOTO` and `OUT/DIR/PHOTO-auto`), adding to `commands` the
+/// `matseg segment` lines that redo them with `--model MODEL`.
+fn segmentation_rows(
+    net: &TrainedNet,
+    model: &str,
+    dir: &str,
+    out: &Path,
+    commands: &mut Vec<String>,
+) -> Result<String> {
     let photos = assets_dir().join("photos");
-    let mut commands = vec![format!("matseg train {}", train.join(" "))];
     let mut rows = String::new();
     for (name, points) in CLICKS {
         let stem = name.trim_end_matches(".jpg");
         let photo = photos.join(name);
-        let by_points = format!("net/{stem}");
-        let auto = format!("net/{stem}-auto");
+        let by_points = format!("{dir}/{stem}");
+        let auto = format!("{dir}/{stem}-auto");
         let image = read_rgb(&photo)?;
         let map = net.descriptor_map(&image);
         write_point_maps(&image, &map, points, DEFAULT_RADIUS, &out.join(&by_points))?;
@@ -104,16 +180,15 @@ pub fn net_page(out: &Path, steps: u64, seed: u64) -> Result<()> {
             .map(|(x, y)| format!(" --point {x},{y}"))
             .collect();
         commands.push(format!(
-            "matseg segment {photo} --model {run_arg}{point_args} --out {}",
+            "matseg segment {photo} --model {model}{point_args} --out {}",
             out.join(&by_points).display(),
             photo = photo.display()
         ));
         commands.push(format!(
-            "matseg segment {photo} --model {run_arg} --auto {AUTO_K} --out {}",
+            "matseg segment {photo} --model {model} --auto {AUTO_K} --out {}",
             out.join(&auto).display(),
             photo = photo.display()
         ));
-
         rows.push_str("<tr>");
         for (i, (x, y)) in points.iter().enumerate() {
             write!(
@@ -129,30 +204,5 @@ pub fn net_page(out: &Path, steps: u64, seed: u64) -> Result<()> {
             r#"<td><img src="{by_points}/segmentation.png"><br>nearest point</td><td><img src="{auto}/segmentation.png"><br>{AUTO_K} clusters</td></tr>"#
         )?;
     }
-    let html = format!(
-        r#"<!doctype html>
-<html><head><meta charset="utf-8"><title>matseg demo: the net</title>
-<style>
-body {{ font-family: sans-serif; margin: 1.5em; background: #fafafa; }}
-td {{ font-size: .8em; padding: 3px; vertical-align: top; }}
-td img {{ width: 220px; }}
-pre {{ font-size: .75em; white-space: pre-wrap; }}
-</style></head><body>
-<h1>matseg demo: the material-descriptor net</h1>
-<p><a href="index.html">Back to the 2D scenes.</a></p>
-<p>A MobileNetV2 net (ImageNet encoder, SPEC 8) trained for {steps} steps on scenes generated on the
-fly from the bundled assets: a few minutes on a laptop CPU, a sketch of what a long run on a GPU
-learns. Each red overlay shows, for the circled point, how strongly every pixel is taken for the
-same material: exp((cosine - 1) / 0.2), the training softmax's weight. Then the photo split by
-nearest point, and split into {AUTO_K} clusters of descriptors with no points at all.</p>
-<p><img src="net-run/loss.png" alt="training loss"></p>
-<table>{rows}</table>
-<h2>Commands</h2>
-<pre>{commands}</pre>
-</body></html>
-"#,
-        commands = commands.join("\n"),
-    );
-    let page = out.join("net.html");
-    write_atomic(&page, html.as_bytes()).with_context(|| page.display().to_string())
+    Ok(rows)
 }

@@ -329,8 +329,10 @@ fn demo_writes_a_page_showing_each_sample_and_its_annotation() {
         assert!(out.join(src).is_file(), "{src} missing");
         images += 1;
     }
-    // The loss plot, 13 points and 2 segmentations for each of 4 photos.
-    assert_eq!(images, 1 + 13 + 2 * 4);
+    // The shipped model's 13 points and 2 segmentations for each of 4
+    // photos, then the training demonstration's loss plot and the same.
+    assert!(net.contains("The shipped model") && net.contains("A training demonstration"));
+    assert_eq!(images, (13 + 2 * 4) + 1 + (13 + 2 * 4));
     let dir = out;
     let html = std::fs::read_to_string(dir.join("index.html")).unwrap();
     for key in ["00000000", "00000001"] {
