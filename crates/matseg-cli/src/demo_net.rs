@@ -11,7 +11,7 @@ use anyhow::{bail, Context, Result};
 use clap::Parser;
 use matseg_eval::ClusterOptions;
 use matseg_image::io::{read_rgb, write_atomic};
-use matseg_net::infer::{default_model_dir, PixelDescriptors, TrainedNet, DEFAULT_MODEL};
+use matseg_net::infer::{default_model_dir, TrainedNet, DEFAULT_MODEL};
 use matseg_net::train::{read_run_config, RUN_FILE};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -172,7 +172,11 @@ fn segmentation_rows(
         let by_points = format!("{dir}/{stem}");
         let auto = format!("{dir}/{stem}-auto");
         let image = read_rgb(&photo)?;
-        let map = net.descriptor_map(&image);
+        let map = net.describe_coarse(
+            image.as_raw(),
+            image.width() as usize,
+            image.height() as usize,
+        );
         write_point_maps(&image, &map, points, DEFAULT_RADIUS, &out.join(&by_points))?;
         write_clusters(&image, &map, &ClusterOptions::new(AUTO_K), &out.join(&auto))?;
         let point_args: String = points

@@ -6,13 +6,14 @@
 use crate::train::parse_device;
 use anyhow::{bail, Context, Result};
 use image::RgbImage;
-use matseg_eval::descriptor::{Comparison, DescriptorMap};
+use matseg_eval::coarse::CoarseDescriptors;
 use matseg_eval::{cluster_descriptors, ClusterOptions};
 use matseg_image::io::{encode_png_gray, encode_png_rgb, read_rgb, write_atomic};
-use matseg_net::infer::{PixelDescriptors, TrainedNet};
+use matseg_net::infer::TrainedNet;
 use matseg_net::TEMPERATURE;
 use matseg_scene::PALETTE;
 use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 /// Radius of a query point's disc unless `--radius` says otherwise, in pixels.
 pub const DEFAULT_RADIUS: f32 = 5.0;
@@ -75,7 +76,13 @@ pub fn run(args: Args) -> Result<()> {
         }
     }
     let net = TrainedNet::load(&args.model, parse_device(&args.device)?)?;
-    let map = net.descriptor_map(&photo);
+    let started = Instant::now();
+    let map = net.describe_coarse(
+        photo.as_raw(),
+        photo.width() as usize,
+        photo.height() as usize,
+    );
+    let described = started.elapsed().as_secs_f64();
     if let Some(k) = args.auto {
         let options = ClusterOptions {
             seed: args.seed,
@@ -88,7 +95,7 @@ pub fn run(args: Args) -> Result<()> {
         );
         return Ok(());
     }
-    write_point_maps(&photo, &map, &args.points, args.radius, &args.out)?;
+    let queried = write_point_maps(&photo, &map, &args.points, args.radius, &args.out)?;
     println!(
         "{}: {} similarity map(s){}",
         args.out.display(),
@@ -99,25 +106,39 @@ pub fn run(args: Args) -> Result<()> {
             ""
         }
     );
+    eprintln!(
+        "descriptors: {:.3} s ({}x{} photo, {}x{} grid); similarity maps: {:.1} ms a point",
+        described,
+        photo.width(),
+        photo.height(),
+        map.grid.width,
+        map.grid.height,
+        1e3 * queried / args.points.len().max(1) as f64
+    );
     Ok(())
 }
 
 /// Writes into `out`, for each point (inside `photo`, in pixels),
 /// `similarity_I.png` (cosine in [0, 1] as grey) and `overlay_I.png`, and
-/// for several points their nearest-point segmentation.
+/// for several points their nearest-point segmentation. Returns the
+/// seconds spent computing the points' descriptors and similarity maps
+/// (not drawing or writing them).
 pub fn write_point_maps(
     photo: &RgbImage,
-    map: &DescriptorMap,
+    map: &CoarseDescriptors,
     points: &[(f32, f32)],
     radius: f32,
     out: &Path,
-) -> Result<()> {
+) -> Result<f64> {
     create_folder(out)?;
     let (w, h) = photo.dimensions();
-    let mut maps = Vec::new();
+    let mut queries = Vec::new();
+    let mut queried = 0.0;
     for (i, &(x, y)) in points.iter().enumerate() {
-        let query = map.point_descriptor(x, y, radius, Comparison::Cosine);
-        let similarity = map.similarity_map(&query, Comparison::Cosine);
+        let started = Instant::now();
+        let query = map.point_descriptor(x, y, radius);
+        let similarity = map.similarity_map(&query);
+        queried += started.elapsed().as_secs_f64();
         // Cosine in [0, 1] to grey levels (negative similarity is black).
         let grey: Vec<u8> = similarity
             .iter()
@@ -139,32 +160,26 @@ pub fn write_point_maps(
         }
         mark(&mut overlay, x, y, radius);
         write_file(out, &format!("overlay_{i}.png"), encode_png_rgb(&overlay))?;
-        maps.push(similarity);
+        queries.push(query);
     }
-    if maps.len() > 1 {
-        let labels: Vec<u32> = (0..map.width * map.height)
-            .map(|j| {
-                (0..maps.len())
-                    .max_by(|&a, &b| maps[a][j].total_cmp(&maps[b][j]))
-                    .expect("points") as u32
-            })
-            .collect();
-        write_segmentation(photo, &labels, out)?;
+    if queries.len() > 1 {
+        write_segmentation(photo, &map.nearest_query(&queries), out)?;
     }
-    Ok(())
+    Ok(queried)
 }
 
 /// Writes into `out` the segmentation of `photo` by k-means on its
-/// descriptor `map`; returns the number of clusters.
+/// descriptor grid (each pixel then takes its nearest centre); returns the
+/// number of clusters.
 pub fn write_clusters(
     photo: &RgbImage,
-    map: &DescriptorMap,
+    map: &CoarseDescriptors,
     options: &ClusterOptions,
     out: &Path,
 ) -> Result<usize> {
     create_folder(out)?;
-    let clustering = cluster_descriptors(map, options);
-    write_segmentation(photo, &clustering.labels, out)?;
+    let clustering = cluster_descriptors(&map.grid, options);
+    write_segmentation(photo, &map.nearest_query(&clustering.centres), out)?;
     Ok(clustering.centres.len())
 }
 

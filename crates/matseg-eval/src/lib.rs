@@ -7,6 +7,7 @@
 
 pub mod baselines;
 pub mod cluster;
+pub mod coarse;
 pub mod descriptor;
 pub mod evaluate;
 pub mod iou;

@@ -8,6 +8,7 @@ use crate::train::{read_run_config, Trainer, MODEL_FILE, RUN_FILE};
 use crate::weights::load_tensors;
 use crate::NetError;
 use image::RgbImage;
+use matseg_eval::coarse::CoarseDescriptors;
 use matseg_eval::descriptor::{Comparison, DescriptorMap, DescriptorModel};
 use std::path::{Path, PathBuf};
 use std::sync::{Mutex, PoisonError};
@@ -99,25 +100,41 @@ impl TrainedNet {
         Ok(Self { vs, net })
     }
 
-    /// Unit descriptors `[D, height, width]` of an interleaved RGB image,
-    /// computed at the nearest size with sides multiple of 32 and resized
-    /// back (then re-normalised).
-    pub fn describe(&self, rgb: &[u8], width: usize, height: usize) -> Tensor {
+    /// The net's grid of an interleaved RGB image resized to the nearest
+    /// sides multiple of 32: unit descriptors `[D, H32/4, W32/4]` on the
+    /// CPU.
+    fn grid(&self, rgb: &[u8], width: usize, height: usize) -> Tensor {
         let x = rgb8_to_tensor(rgb, width, height).unsqueeze(0);
         let x = crate::blocks::resize_bilinear(
             &x,
             nearest_multiple_of_32(height),
             nearest_multiple_of_32(width),
         );
-        tch::no_grad(|| {
-            let d = self
-                .net
-                .forward_t(&normalise_input(&x).to_device(self.vs.device()), false);
-            let d = crate::blocks::resize_bilinear(&d, height as i64, width as i64);
-            crate::blocks::l2_normalise(&d, 1)
-                .squeeze_dim(0)
-                .to_device(Device::Cpu)
-        })
+        let x = normalise_input(&x).to_device(self.vs.device());
+        tch::no_grad(|| self.net.coarse_t(&x, false).to_device(Device::Cpu))
+    }
+
+    /// Unit descriptors of an interleaved RGB image on the net's stride-4
+    /// grid, for querying in photo pixels: the fast path of `matseg
+    /// segment`.
+    pub fn describe_coarse(&self, rgb: &[u8], width: usize, height: usize) -> CoarseDescriptors {
+        let d = crate::blocks::l2_normalise(&self.grid(rgb, width, height), 1);
+        CoarseDescriptors {
+            grid: tensor_to_map(&d.squeeze_dim(0)),
+            width,
+            height,
+        }
+    }
+
+    /// Unit descriptors `[D, height, width]` of an interleaved RGB image on
+    /// the CPU: the net's grid resized to the image and normalised.
+    pub fn describe(&self, rgb: &[u8], width: usize, height: usize) -> Tensor {
+        let d = crate::blocks::resize_bilinear(
+            &self.grid(rgb, width, height),
+            height as i64,
+            width as i64,
+        );
+        crate::blocks::l2_normalise(&d, 1).squeeze_dim(0)
     }
 }
 
@@ -140,15 +157,20 @@ pub trait PixelDescriptors {
             image.width() as usize,
             image.height() as usize,
         );
-        let (dim, height, width) = d.size3().expect("a [D, H, W] tensor");
-        let data = Vec::<f32>::try_from(d.permute([1, 2, 0]).contiguous().flatten(0, -1))
-            .expect("a float tensor on the CPU converts to Vec<f32>");
-        DescriptorMap {
-            width: width as usize,
-            height: height as usize,
-            dim: dim as usize,
-            data,
-        }
+        tensor_to_map(&d)
+    }
+}
+
+/// A `[D, H, W]` float tensor on the CPU as a [`DescriptorMap`].
+fn tensor_to_map(d: &Tensor) -> DescriptorMap {
+    let (dim, height, width) = d.size3().expect("a [D, H, W] tensor");
+    let data = Vec::<f32>::try_from(d.permute([1, 2, 0]).contiguous().flatten(0, -1))
+        .expect("a float tensor on the CPU converts to Vec<f32>");
+    DescriptorMap {
+        width: width as usize,
+        height: height as usize,
+        dim: dim as usize,
+        data,
     }
 }
 

@@ -128,18 +128,18 @@ impl MaterialNet {
         }
     }
 
-    /// Per-pixel L2-normalised descriptors `[N, D, H, W]` of input images
-    /// `[N, 3, H, W]` prepared by [`normalise_input`].
-    pub fn forward_t(&self, x: &Tensor, train: bool) -> Tensor {
-        let (_, _, h, w) = x.size4().expect("an NCHW tensor");
+    /// Descriptors `[N, D, H/4, W/4]` on the stride-4 grid, not yet
+    /// normalised, of input images `[N, 3, H, W]` prepared by
+    /// [`normalise_input`]: the head's output, or with
+    /// [`NetConfig::encoder_features`] the weighted parts (each normalised
+    /// on the grid) side by side.
+    pub fn coarse_t(&self, x: &Tensor, train: bool) -> Tensor {
         let taps = self.encoder.forward_t(x, train);
         let psp = self.psp.forward_t(&taps.s32, train);
         let learned = self.decoder.forward_t(&psp, &taps, train).apply(&self.head);
         let Some(log_weights) = &self.part_log_weights else {
-            return l2_normalise(&resize_bilinear(&learned, h, w), 1);
+            return learned;
         };
-        // The parts are joined on the stride-4 grid, each normalised there,
-        // and resized to the input once.
         let (_, _, h4, w4) = learned.size4().expect("an NCHW tensor");
         let weights = log_weights.exp();
         let parts: Vec<Tensor> = [&learned, &taps.s4, &taps.s8, &taps.s16]
@@ -147,7 +147,15 @@ impl MaterialNet {
             .enumerate()
             .map(|(i, t)| l2_normalise(&resize_bilinear(t, h4, w4), 1) * weights.get(i as i64))
             .collect();
-        l2_normalise(&resize_bilinear(&Tensor::cat(&parts, 1), h, w), 1)
+        Tensor::cat(&parts, 1)
+    }
+
+    /// Per-pixel L2-normalised descriptors `[N, D, H, W]` of input images
+    /// `[N, 3, H, W]` prepared by [`normalise_input`]: [`MaterialNet::coarse_t`]
+    /// resized to the input and normalised.
+    pub fn forward_t(&self, x: &Tensor, train: bool) -> Tensor {
+        let (_, _, h, w) = x.size4().expect("an NCHW tensor");
+        l2_normalise(&resize_bilinear(&self.coarse_t(x, train), h, w), 1)
     }
 }
 

@@ -4,6 +4,7 @@
 
 mod common;
 
+use matseg_eval::descriptor::Comparison;
 use matseg_net::data::{batch_samples, BatchPlan, GeneratorSource};
 use matseg_net::infer::{PixelDescriptors, TrainedNet};
 use matseg_net::train::{self, RunConfig, StepMetrics, TrainOptions, Trainer, Validation};
@@ -209,5 +210,40 @@ fn a_snapshot_describes_like_the_saved_model() {
     for i in 0..live.width * live.height {
         let n: f32 = live.at(i).iter().map(|v| v * v).sum();
         assert!((n - 1.0).abs() < 1e-4, "pixel {i}: |d|^2 = {n}");
+    }
+}
+
+#[test]
+fn the_coarse_grid_answers_points_like_the_full_map() {
+    tch::manual_seed(6);
+    let trainer = Trainer::new(config(1), Device::Cpu);
+    let net = TrainedNet::snapshot(&trainer).unwrap();
+    // A 70x50 photo runs at 64x64 (sides to multiples of 32): a 16x16 grid.
+    let photo = image::RgbImage::from_fn(70, 50, |x, y| {
+        image::Rgb([(x * 3) as u8, (y * 5) as u8, if x < 35 { 40 } else { 200 }])
+    });
+    let coarse = net.describe_coarse(photo.as_raw(), 70, 50);
+    assert_eq!((coarse.width, coarse.height), (70, 50));
+    assert_eq!((coarse.grid.width, coarse.grid.height), (16, 16));
+    for i in 0..16 * 16 {
+        let n: f32 = coarse.grid.at(i).iter().map(|v| v * v).sum();
+        assert!((n - 1.0).abs() < 1e-4, "cell {i}: |d|^2 = {n}");
+    }
+    // Resizing the cosine instead of the descriptors changes a map little,
+    // and a point pooled from the grid is close to one pooled from pixels.
+    let full = net.descriptor_map(&photo);
+    for (x, y) in [(10.0, 10.0), (60.0, 40.0)] {
+        let query = full.point_descriptor(x, y, 4.0, Comparison::Cosine);
+        let fast = coarse.similarity_map(&query);
+        let exact = full.similarity_map(&query, Comparison::Cosine);
+        let mean_error = fast
+            .iter()
+            .zip(&exact)
+            .map(|(a, b)| (a - b).abs())
+            .sum::<f32>()
+            / fast.len() as f32;
+        assert!(mean_error < 0.02, "({x}, {y}): mean error {mean_error}");
+        let pooled = Comparison::Cosine.similarity(&query, &coarse.point_descriptor(x, y, 4.0));
+        assert!(pooled > 0.99, "({x}, {y}): cosine {pooled}");
     }
 }
