@@ -67,6 +67,7 @@ pub fn run(args: Args) -> Result<()> {
             init: "scratch".into(),
             data: "synthetic".into(),
             mix: None,
+            inference_side: None,
         },
         device,
     );

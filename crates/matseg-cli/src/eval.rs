@@ -31,6 +31,12 @@ pub struct ModelArgs {
     #[cfg(feature = "net")]
     #[arg(long = "model", num_args = 1.., default_value = "default")]
     nets: Vec<PathBuf>,
+    /// Describe photos with the nets at this longer side at most (photos
+    /// are scored at --max-side all the same), instead of each run's own
+    /// setting (its run.json's inference_side).
+    #[cfg(feature = "net")]
+    #[arg(long, value_name = "PIXELS")]
+    net_side: Option<u32>,
     /// Device the nets run on: cpu or cuda.
     #[cfg(feature = "net")]
     #[arg(long, default_value = "cpu")]
@@ -158,7 +164,11 @@ fn nets(args: &ModelArgs) -> Result<Vec<Box<dyn DescriptorModel>>> {
     let device = crate::train::parse_device(&args.device)?;
     let mut nets: Vec<Box<dyn DescriptorModel>> = Vec::new();
     for path in args.nets.iter().filter(|p| p.as_os_str() != "none") {
-        nets.push(Box::new(matseg_net::infer::NetModel::load(path, device)?));
+        let mut net = matseg_net::infer::NetModel::load(path, device)?;
+        if args.net_side.is_some() {
+            net.model_mut().inference_side = args.net_side;
+        }
+        nets.push(Box::new(net));
     }
     Ok(nets)
 }

@@ -35,6 +35,10 @@ pub struct Args {
     /// into the training data, --mix-fraction of the samples.
     #[arg(long, value_name = "DIR")]
     mix_data: Option<PathBuf>,
+    /// At inference (validation, eval, segment), describe photos at this
+    /// longer side at most; stored in run.json as inference_side.
+    #[arg(long, value_name = "PIXELS")]
+    inference_side: Option<u32>,
     /// The share of samples taken from --mix-data.
     #[arg(long, default_value_t = 0.3, requires = "mix_data")]
     mix_fraction: f64,
@@ -114,7 +118,7 @@ pub struct Args {
     #[arg(long, required_unless_present = "resume")]
     out: Option<PathBuf>,
     /// Continue the run in this folder from its last checkpoint.
-    #[arg(long, conflicts_with_all = ["out", "encoder", "init", "lr_scales", "encoder_features", "mix_data"])]
+    #[arg(long, conflicts_with_all = ["out", "encoder", "init", "lr_scales", "encoder_features", "mix_data", "inference_side"])]
     resume: Option<PathBuf>,
 }
 
@@ -331,6 +335,7 @@ fn start(args: &Args, device: Device) -> Result<(Trainer, PathBuf)> {
             data: dir.display().to_string(),
             fraction: args.mix_fraction,
         }),
+        inference_side: args.inference_side,
     };
     let trainer = Trainer::new(config, device);
     for group in &args.lr_scales {

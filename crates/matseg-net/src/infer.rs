@@ -7,6 +7,7 @@ use crate::net::{normalise_input, rgb8_to_tensor, MaterialNet};
 use crate::train::{read_run_config, Trainer, MODEL_FILE, RUN_FILE};
 use crate::weights::load_tensors;
 use crate::NetError;
+use image::imageops::FilterType;
 use image::RgbImage;
 use matseg_eval::coarse::CoarseDescriptors;
 use matseg_eval::descriptor::{Comparison, DescriptorMap, DescriptorModel};
@@ -18,6 +19,8 @@ use tch::{nn, Device, Tensor};
 pub struct TrainedNet {
     vs: nn::VarStore,
     net: MaterialNet,
+    /// The longest side the net runs at (see `RunConfig::inference_side`).
+    pub inference_side: Option<u32>,
 }
 
 /// The run folder and the weights file `model` names: a run folder and
@@ -86,7 +89,11 @@ impl TrainedNet {
             file: weights.display().to_string(),
             message,
         })?;
-        Ok(Self { vs, net })
+        Ok(Self {
+            vs,
+            net,
+            inference_side: config.inference_side,
+        })
     }
 
     /// A copy of the net `trainer` is training, as it is now.
@@ -97,19 +104,29 @@ impl TrainedNet {
             file: "the net in training".into(),
             source,
         })?;
-        Ok(Self { vs, net })
+        Ok(Self {
+            vs,
+            net,
+            inference_side: trainer.config.inference_side,
+        })
     }
 
-    /// The net's grid of an interleaved RGB image resized to the nearest
-    /// sides multiple of 32: unit descriptors `[D, H32/4, W32/4]` on the
-    /// CPU.
+    /// The net's grid of an interleaved RGB image, shrunk to fit
+    /// [`TrainedNet::inference_side`] and resized to the nearest sides
+    /// multiple of 32: descriptors `[1, D, H'/4, W'/4]` on the CPU, not yet
+    /// normalised.
     fn grid(&self, rgb: &[u8], width: usize, height: usize) -> Tensor {
-        let x = rgb8_to_tensor(rgb, width, height).unsqueeze(0);
-        let x = crate::blocks::resize_bilinear(
-            &x,
-            nearest_multiple_of_32(height),
-            nearest_multiple_of_32(width),
-        );
+        let shrink = self.inference_side.map_or(1.0, |side| {
+            (side as f64 / width.max(height) as f64).min(1.0)
+        });
+        let side = |n: usize| nearest_multiple_of_32((n as f64 * shrink).round() as usize);
+        let (w, h) = (side(width) as u32, side(height) as u32);
+        // Resampled on the CPU with a triangle filter, which averages over
+        // the whole footprint when shrinking (bilinear taps would alias).
+        let photo = RgbImage::from_raw(width as u32, height as u32, rgb.to_vec())
+            .expect("width * height * 3 bytes");
+        let resized = image::imageops::resize(&photo, w, h, FilterType::Triangle);
+        let x = rgb8_to_tensor(resized.as_raw(), w as usize, h as usize).unsqueeze(0);
         let x = normalise_input(&x).to_device(self.vs.device());
         tch::no_grad(|| self.net.coarse_t(&x, false).to_device(Device::Cpu))
     }
@@ -189,6 +206,11 @@ impl<T> TorchModel<T> {
             name: name.into(),
             model: Mutex::new(model),
         }
+    }
+
+    /// The model, to change its settings before it is used.
+    pub fn model_mut(&mut self) -> &mut T {
+        self.model.get_mut().unwrap_or_else(PoisonError::into_inner)
     }
 }
 

@@ -87,6 +87,13 @@ pub struct RunConfig {
     /// A second source mixed into `data`, if any.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mix: Option<Mix>,
+    /// At inference, photos whose longer side exceeds this many pixels are
+    /// described at that size (the descriptors resized back to the photo):
+    /// a net trained on crops of a few hundred pixels sees materials at
+    /// the scale it learned them, and large photos cost less. `None`: at
+    /// their own size.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub inference_side: Option<u32>,
 }
 
 /// A stored dataset mixed into the training data (see

@@ -56,6 +56,7 @@ fn config(steps: u64) -> RunConfig {
         init: "scratch".into(),
         data: "generator".into(),
         mix: None,
+        inference_side: None,
     }
 }
 
@@ -246,4 +247,17 @@ fn the_coarse_grid_answers_points_like_the_full_map() {
         let pooled = Comparison::Cosine.similarity(&query, &coarse.point_descriptor(x, y, 4.0));
         assert!(pooled > 0.99, "({x}, {y}): cosine {pooled}");
     }
+    // With a longest side of 32 px the net runs at 32x32: an 8x8 grid,
+    // queried in the photo's pixels all the same.
+    let mut small = net;
+    small.inference_side = Some(32);
+    let coarse = small.describe_coarse(photo.as_raw(), 70, 50);
+    assert_eq!((coarse.grid.width, coarse.grid.height), (8, 8));
+    assert_eq!(
+        coarse
+            .similarity_map(&coarse.point_descriptor(5.0, 5.0, 3.0))
+            .len(),
+        70 * 50
+    );
+    assert_eq!(small.descriptor_map(&photo).width, 70);
 }

@@ -126,6 +126,115 @@ impl Tensor {
                 .collect()
         })
     }
+
+    /// This tensor in 16-bit floats when it is an `F32` one (rounded to
+    /// nearest, ties to even; too large values become infinite), else
+    /// itself: half the bytes for shipped weights.
+    pub fn to_f16(&self) -> Tensor {
+        let Some(values) = self.f32_values() else {
+            return self.clone();
+        };
+        Tensor {
+            name: self.name.clone(),
+            dtype: DType::F16,
+            shape: self.shape.clone(),
+            data: values
+                .iter()
+                .flat_map(|&v| f32_to_f16_bits(v).to_le_bytes())
+                .collect(),
+        }
+    }
+}
+
+/// The IEEE binary16 bits nearest to `x` (ties to even).
+pub fn f32_to_f16_bits(x: f32) -> u16 {
+    let bits = x.to_bits();
+    let sign = ((bits >> 16) & 0x8000) as u16;
+    let exponent = ((bits >> 23) & 0xff) as i32;
+    let mantissa = bits & 0x7f_ffff;
+    if exponent == 0xff {
+        // Infinity stays infinite; NaN stays NaN (quiet).
+        return sign | 0x7c00 | if mantissa != 0 { 0x200 } else { 0 };
+    }
+    let e = exponent - 127 + 15;
+    if e >= 0x1f {
+        return sign | 0x7c00;
+    }
+    // The bits kept, and how many low bits are dropped and rounded away.
+    let (kept, dropped) = if e <= 0 {
+        if e < -10 {
+            return sign;
+        }
+        // A subnormal half: the implicit one becomes explicit.
+        ((mantissa | 0x80_0000), (14 - e) as u32)
+    } else {
+        (((e as u32) << 23) | mantissa, 13)
+    };
+    let mut half = kept >> dropped;
+    let rest = kept & ((1 << dropped) - 1);
+    let midpoint = 1 << (dropped - 1);
+    if rest > midpoint || (rest == midpoint && half & 1 == 1) {
+        // A carry out of the mantissa moves to the next exponent (or to
+        // infinity), as it should.
+        half += 1;
+    }
+    sign | half as u16
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn halves_round_to_the_nearest_binary16() {
+        for (x, bits) in [
+            (1.0f32, 0x3c00u16),
+            (-2.0, 0xc000),
+            (0.1, 0x2e66),
+            (1.0 / 3.0, 0x3555),
+            (65504.0, 0x7bff),
+            (65520.0, 0x7c00),
+            (f32::INFINITY, 0x7c00),
+            (0.0, 0x0000),
+            (-0.0, 0x8000),
+            (5.960_464_5e-8, 0x0001),
+            (6.097_555e-5, 0x03ff),
+            (6.103_515_6e-5, 0x0400),
+            (1e-9, 0x0000),
+            // 1 + 2^-11 is halfway between 1 and the next half: ties to even.
+            (1.000_488_3, 0x3c00),
+            (1.001_464_8, 0x3c02),
+        ] {
+            assert_eq!(f32_to_f16_bits(x), bits, "{x}");
+        }
+        assert_eq!(f32_to_f16_bits(f32::NAN) & 0x7c00, 0x7c00);
+        assert_ne!(f32_to_f16_bits(f32::NAN) & 0x3ff, 0);
+    }
+
+    #[test]
+    fn only_f32_tensors_are_halved() {
+        let t = Tensor {
+            name: "w".into(),
+            dtype: DType::F32,
+            shape: vec![2],
+            data: [1.0f32, -2.0]
+                .iter()
+                .flat_map(|v| v.to_le_bytes())
+                .collect(),
+        };
+        let h = t.to_f16();
+        assert_eq!(
+            (h.dtype, &h.shape, &h.data),
+            (DType::F16, &t.shape, &vec![0x00, 0x3c, 0x00, 0xc0])
+        );
+        let counter = Tensor {
+            name: "n".into(),
+            dtype: DType::I64,
+            shape: vec![],
+            data: 7i64.to_le_bytes().to_vec(),
+        };
+        assert_eq!(counter.to_f16(), counter);
+    }
 }
 
 /// A weights file problem: one line naming the file.
