@@ -57,6 +57,7 @@ pub fn run(args: Args) -> Result<()> {
                 steps: u64::MAX,
                 lr: 1e-4,
                 warmup: 1,
+                decay: 0,
                 weight_decay: 4e-5,
                 plan: BatchPlan::SPEC,
                 seed: 0,
@@ -68,6 +69,7 @@ pub fn run(args: Args) -> Result<()> {
             data: "synthetic".into(),
             mix: None,
             inference_side: None,
+            extra_inference_sides: Vec::new(),
         },
         device,
     );

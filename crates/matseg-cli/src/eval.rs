@@ -33,10 +33,11 @@ pub struct ModelArgs {
     nets: Vec<PathBuf>,
     /// Describe photos with the nets at this longer side at most (photos
     /// are scored at --max-side all the same), instead of each run's own
-    /// setting (its run.json's inference_side).
+    /// setting (its run.json's inference_side); several sides (`320,256`)
+    /// average the descriptors of each.
     #[cfg(feature = "net")]
-    #[arg(long, value_name = "PIXELS")]
-    net_side: Option<u32>,
+    #[arg(long, value_name = "PIXELS", value_delimiter = ',')]
+    net_side: Vec<u32>,
     /// Device the nets run on: cpu or cuda.
     #[cfg(feature = "net")]
     #[arg(long, default_value = "cpu")]
@@ -165,8 +166,10 @@ fn nets(args: &ModelArgs) -> Result<Vec<Box<dyn DescriptorModel>>> {
     let mut nets: Vec<Box<dyn DescriptorModel>> = Vec::new();
     for path in args.nets.iter().filter(|p| p.as_os_str() != "none") {
         let mut net = matseg_net::infer::NetModel::load(path, device)?;
-        if args.net_side.is_some() {
-            net.model_mut().inference_side = args.net_side;
+        if let Some((&main, extra)) = args.net_side.split_first() {
+            let net = net.model_mut();
+            net.inference_side = Some(main);
+            net.extra_inference_sides = extra.to_vec();
         }
         nets.push(Box::new(net));
     }

@@ -36,9 +36,11 @@ pub struct Args {
     #[arg(long, value_name = "DIR")]
     mix_data: Option<PathBuf>,
     /// At inference (validation, eval, segment), describe photos at this
-    /// longer side at most; stored in run.json as inference_side.
-    #[arg(long, value_name = "PIXELS")]
-    inference_side: Option<u32>,
+    /// longer side at most; stored in run.json as inference_side. Several
+    /// sides (`320,256`) average the descriptors of each (the first sets
+    /// the grid).
+    #[arg(long, value_name = "PIXELS", value_delimiter = ',')]
+    inference_side: Vec<u32>,
     /// The share of samples taken from --mix-data.
     #[arg(long, default_value_t = 0.3, requires = "mix_data")]
     mix_fraction: f64,
@@ -77,6 +79,10 @@ pub struct Args {
     /// Warm-up steps.
     #[arg(long, default_value_t = train::WARMUP_STEPS)]
     warmup: u64,
+    /// Let the learning rate fall linearly towards 0 over the last this
+    /// many steps (0: constant after the warm-up).
+    #[arg(long, default_value_t = 0)]
+    decay: u64,
     /// `PREFIX=SCALE`: multiply the learning rate of the variables whose
     /// names start with PREFIX by SCALE (0 freezes them); repeatable, a
     /// later one wins where both apply. E.g. `encoder.=0.1` (an ImageNet
@@ -310,6 +316,7 @@ fn start(args: &Args, device: Device) -> Result<(Trainer, PathBuf)> {
             train::LR_SCRATCH
         }),
         warmup: args.warmup,
+        decay: args.decay,
         weight_decay: 4e-5,
         plan: BatchPlan {
             min_side: args.min_side,
@@ -335,7 +342,8 @@ fn start(args: &Args, device: Device) -> Result<(Trainer, PathBuf)> {
             data: dir.display().to_string(),
             fraction: args.mix_fraction,
         }),
-        inference_side: args.inference_side,
+        inference_side: args.inference_side.first().copied(),
+        extra_inference_sides: args.inference_side.iter().skip(1).copied().collect(),
     };
     let trainer = Trainer::new(config, device);
     for group in &args.lr_scales {

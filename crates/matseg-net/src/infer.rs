@@ -21,6 +21,9 @@ pub struct TrainedNet {
     net: MaterialNet,
     /// The longest side the net runs at (see `RunConfig::inference_side`).
     pub inference_side: Option<u32>,
+    /// Further longer sides it runs at, the descriptors of all averaged
+    /// (see `RunConfig::extra_inference_sides`).
+    pub extra_inference_sides: Vec<u32>,
 }
 
 /// The run folder and the weights file `model` names: a run folder and
@@ -93,6 +96,7 @@ impl TrainedNet {
             vs,
             net,
             inference_side: config.inference_side,
+            extra_inference_sides: config.extra_inference_sides,
         })
     }
 
@@ -108,24 +112,43 @@ impl TrainedNet {
             vs,
             net,
             inference_side: trainer.config.inference_side,
+            extra_inference_sides: trainer.config.extra_inference_sides.clone(),
         })
     }
 
-    /// The net's grid of an interleaved RGB image, shrunk to fit
-    /// [`TrainedNet::inference_side`] and resized to the nearest sides
-    /// multiple of 32: descriptors `[1, D, H'/4, W'/4]` on the CPU, not yet
-    /// normalised.
+    /// The net's grid of an interleaved RGB image shrunk to fit
+    /// [`TrainedNet::inference_side`], with the unit descriptors at each of
+    /// [`TrainedNet::extra_inference_sides`] resized onto it and added:
+    /// descriptors `[1, D, H'/4, W'/4]` on the CPU, not yet normalised.
     fn grid(&self, rgb: &[u8], width: usize, height: usize) -> Tensor {
-        let shrink = self.inference_side.map_or(1.0, |side| {
-            (side as f64 / width.max(height) as f64).min(1.0)
-        });
-        let side = |n: usize| nearest_multiple_of_32((n as f64 * shrink).round() as usize);
-        let (w, h) = (side(width) as u32, side(height) as u32);
-        // Resampled on the CPU with a triangle filter, which averages over
-        // the whole footprint when shrinking (bilinear taps would alias).
         let photo = RgbImage::from_raw(width as u32, height as u32, rgb.to_vec())
             .expect("width * height * 3 bytes");
-        let resized = image::imageops::resize(&photo, w, h, FilterType::Triangle);
+        let main = self.grid_at(&photo, self.inference_side);
+        if self.extra_inference_sides.is_empty() {
+            return main;
+        }
+        let (_, _, h, w) = main.size4().expect("an NCHW tensor");
+        let mut sum = crate::blocks::l2_normalise(&main, 1);
+        for &side in &self.extra_inference_sides {
+            let other = crate::blocks::l2_normalise(&self.grid_at(&photo, Some(side)), 1);
+            sum += crate::blocks::resize_bilinear(&other, h, w);
+        }
+        sum
+    }
+
+    /// The net's grid of `photo` shrunk to fit a longer side of `side`
+    /// pixels (`None`: as it is) and resized to the nearest sides multiple
+    /// of 32, not yet normalised.
+    fn grid_at(&self, photo: &RgbImage, side: Option<u32>) -> Tensor {
+        let (width, height) = (photo.width() as usize, photo.height() as usize);
+        let shrink = side.map_or(1.0, |side| {
+            (side as f64 / width.max(height) as f64).min(1.0)
+        });
+        let fit = |n: usize| nearest_multiple_of_32((n as f64 * shrink).round() as usize);
+        let (w, h) = (fit(width) as u32, fit(height) as u32);
+        // Resampled on the CPU with a triangle filter, which averages over
+        // the whole footprint when shrinking (bilinear taps would alias).
+        let resized = image::imageops::resize(photo, w, h, FilterType::Triangle);
         let x = rgb8_to_tensor(resized.as_raw(), w as usize, h as usize).unsqueeze(0);
         let x = normalise_input(&x).to_device(self.vs.device());
         tch::no_grad(|| self.net.coarse_t(&x, false).to_device(Device::Cpu))

@@ -35,6 +35,10 @@ pub struct TrainOptions {
     pub lr: f64,
     /// Steps of linear warm-up to `lr`.
     pub warmup: u64,
+    /// Over the last this many steps the learning rate falls linearly
+    /// towards 0 (0: constant after the warm-up).
+    #[serde(default)]
+    pub decay: u64,
     /// Decoupled weight decay.
     pub weight_decay: f64,
     /// Batch sizes and augmentation.
@@ -94,6 +98,11 @@ pub struct RunConfig {
     /// their own size.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub inference_side: Option<u32>,
+    /// Further longer sides photos are described at, at inference: the
+    /// unit descriptors of every size are resized onto the main size's
+    /// grid and averaged (a multi-scale descriptor, one forward pass each).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub extra_inference_sides: Vec<u32>,
 }
 
 /// A stored dataset mixed into the training data (see
@@ -222,10 +231,18 @@ impl Trainer {
         Ok(trainer)
     }
 
-    /// Learning rate at `step`: linear warm-up, then constant.
+    /// Learning rate at `step`: linear warm-up, then constant, then (with
+    /// `decay`) a linear fall over the last `decay` steps.
     pub fn lr(&self, step: u64) -> f64 {
         let o = &self.config.options;
-        o.lr * ((step + 1) as f64 / o.warmup.max(1) as f64).min(1.0)
+        let warm = ((step + 1) as f64 / o.warmup.max(1) as f64).min(1.0);
+        let left = o.steps.saturating_sub(step) as f64;
+        let cool = if o.decay == 0 {
+            1.0
+        } else {
+            (left / o.decay as f64).min(1.0)
+        };
+        o.lr * warm * cool
     }
 
     /// One step on `samples`; the loss, or `None` for a skipped batch.

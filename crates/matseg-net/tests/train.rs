@@ -46,6 +46,7 @@ fn config(steps: u64) -> RunConfig {
             steps,
             lr: 1e-3,
             warmup: 2,
+            decay: 0,
             weight_decay: 4e-5,
             plan: PLAN,
             seed: 11,
@@ -57,6 +58,7 @@ fn config(steps: u64) -> RunConfig {
         data: "generator".into(),
         mix: None,
         inference_side: None,
+        extra_inference_sides: Vec::new(),
     }
 }
 
@@ -260,4 +262,16 @@ fn the_coarse_grid_answers_points_like_the_full_map() {
         70 * 50
     );
     assert_eq!(small.descriptor_map(&photo).width, 70);
+}
+
+#[test]
+fn the_learning_rate_warms_up_and_decays_linearly() {
+    let mut config = config(10);
+    config.options.decay = 4;
+    let trainer = Trainer::new(config, Device::Cpu);
+    let lrs: Vec<f64> = (0..10).map(|s| trainer.lr(s) / 1e-3).collect();
+    let expected = [0.5, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.75, 0.5, 0.25];
+    for (got, want) in lrs.iter().zip(expected) {
+        assert!((got - want).abs() < 1e-12, "{lrs:?}");
+    }
 }
