@@ -21,8 +21,9 @@ pub enum Command {
 /// Options shared by both benchmarks.
 #[derive(clap::Args)]
 pub struct ModelArgs {
-    /// Baselines to score (rgb, lab, texture, and imagenet: the ImageNet
-    /// MobileNetV2's features with no training; `all` for every one); repeatable.
+    /// Baselines to score (rgb, lab, texture, position: coordinates alone,
+    /// and imagenet: the ImageNet MobileNetV2's features with no training;
+    /// `all` for every one); repeatable.
     #[arg(long = "baseline", num_args = 1..)]
     baselines: Vec<String>,
     /// Trained nets to score: `default` (the shipped model), run folders

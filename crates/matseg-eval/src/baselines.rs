@@ -1,11 +1,14 @@
 //! Baselines that need no training: colour (RGB, CIE Lab) and colour plus
 //! local texture statistics. They set the floor a trained net must beat.
+//! `position` (a pixel's coordinates, nothing else) is a reference: how
+//! far a benchmark can be scored by nearness alone, since points of one
+//! material often lie close together.
 
 use crate::descriptor::{Comparison, DescriptorMap, DescriptorModel};
 use image::RgbImage;
 
 /// Names accepted by [`baseline`], in table order.
-pub const BASELINES: [&str; 3] = ["rgb", "lab", "texture"];
+pub const BASELINES: [&str; 4] = ["rgb", "lab", "texture", "position"];
 
 /// The baseline called `name`, if there is one.
 pub fn baseline(name: &str) -> Option<Box<dyn DescriptorModel>> {
@@ -13,6 +16,7 @@ pub fn baseline(name: &str) -> Option<Box<dyn DescriptorModel>> {
         "rgb" => Some(Box::new(ColourBaseline::RGB)),
         "lab" => Some(Box::new(ColourBaseline::LAB)),
         "texture" => Some(Box::new(TextureBaseline::default())),
+        "position" => Some(Box::new(PositionBaseline)),
         _ => None,
     }
 }
@@ -175,6 +179,32 @@ impl DescriptorModel for TextureBaseline {
     }
 }
 
+/// A pixel's coordinates as its descriptor: points are as similar as they
+/// are near.
+pub struct PositionBaseline;
+
+impl DescriptorModel for PositionBaseline {
+    fn name(&self) -> &str {
+        "position"
+    }
+
+    fn comparison(&self) -> Comparison {
+        Comparison::NegativeEuclidean
+    }
+
+    fn describe(&self, image: &RgbImage) -> DescriptorMap {
+        let (w, h) = (image.width() as usize, image.height() as usize);
+        DescriptorMap {
+            width: w,
+            height: h,
+            dim: 2,
+            data: (0..w * h)
+                .flat_map(|i| [(i % w) as f32, (i / w) as f32])
+                .collect(),
+        }
+    }
+}
+
 /// Standard deviation of all values.
 fn spread(values: &[f32]) -> f32 {
     let n = values.len().max(1) as f64;
@@ -246,6 +276,16 @@ mod tests {
         let m = window.iter().sum::<f32>() / 4.0;
         let v = window.iter().map(|x| (x - m).powi(2)).sum::<f32>() / 4.0;
         assert!((mean[0] - m).abs() < 1e-5 && (std[0] - v.sqrt()).abs() < 1e-4);
+    }
+
+    #[test]
+    fn position_similarity_is_minus_the_distance_in_pixels() {
+        let map = PositionBaseline.describe(&RgbImage::new(10, 8));
+        let c = PositionBaseline.comparison();
+        let a = map.point_descriptor(1.0, 1.0, 0.0, c);
+        let b = map.point_descriptor(4.0, 5.0, 0.0, c);
+        assert_eq!(a, [1.0, 1.0]);
+        assert_eq!(c.similarity(&a, &b), -5.0);
     }
 
     #[test]
