@@ -8,13 +8,14 @@ use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use matseg_data::Dataset;
 use matseg_eval::{evaluate_points, load_point_benchmark};
+use matseg_net::colour::COLOUR_PART;
 use matseg_net::data::{BatchPlan, DatasetSource, GeneratorSource, MixedSource, SampleSource};
 use matseg_net::infer::{NetModel, TrainedNet};
 use matseg_net::loader::default_workers;
 use matseg_net::train::{
     self, LrScale, Mix, NetScore, RunConfig, TrainOptions, Trainer, Validation,
 };
-use matseg_net::{load_named, EncoderConfig, NetConfig, PRESETS};
+use matseg_net::{load_named, load_net_adding, EncoderConfig, NetConfig, PRESETS};
 use matseg_scene::Recipe2d;
 use matseg_weights::read_safetensors;
 use std::path::{Path, PathBuf};
@@ -60,6 +61,12 @@ pub struct Args {
     /// encoder, the net starts out from the `imagenet` baseline's features.
     #[arg(long)]
     encoder_features: bool,
+    /// Let each stride-4 cell's mean colour join the descriptor as a
+    /// learned Gaussian kernel of L*a*b* distance (random Fourier
+    /// features) with a learned weight. With --init from a run trained
+    /// without it, the colour part starts fresh.
+    #[arg(long)]
+    colour_features: bool,
     /// Initial weights: imagenet (the MobileNetV2 encoder's, from the
     /// registry), scratch, a safetensors file with the encoder's standard
     /// names, or a whole net's weights of the same shape (a run's
@@ -124,7 +131,7 @@ pub struct Args {
     #[arg(long, required_unless_present = "resume")]
     out: Option<PathBuf>,
     /// Continue the run in this folder from its last checkpoint.
-    #[arg(long, conflicts_with_all = ["out", "encoder", "init", "lr_scales", "encoder_features", "mix_data", "inference_side"])]
+    #[arg(long, conflicts_with_all = ["out", "encoder", "init", "lr_scales", "encoder_features", "colour_features", "mix_data", "inference_side"])]
     resume: Option<PathBuf>,
 }
 
@@ -300,6 +307,7 @@ fn start(args: &Args, device: Device) -> Result<(Trainer, PathBuf)> {
     }
     let net = NetConfig {
         encoder_features: args.encoder_features,
+        colour_features: args.colour_features,
         ..preset(&args.encoder)?
     };
     let data = match (&args.data, args.online) {
@@ -389,13 +397,17 @@ fn init_encoder(trainer: &Trainer, init: &str) -> Result<()> {
     // A whole net's weights (a run's model.safetensors or best.safetensors)
     // carry the net's own names; an encoder's, the encoder's standard ones.
     let whole_net = tensors.iter().any(|t| t.name.starts_with("encoder."));
-    let (prefix, what) = if whole_net {
-        ("", "net")
+    if whole_net {
+        let (copied, fresh) = load_net_adding(&trainer.vs, &tensors, COLOUR_PART, &label)?;
+        let fresh = match fresh {
+            0 => String::new(),
+            n => format!(" ({n} of a new colour part start fresh)"),
+        };
+        eprintln!("net: {copied} tensors from {label}{fresh}");
     } else {
-        ("encoder", "encoder")
-    };
-    let copied = load_named(&trainer.vs, prefix, &tensors, &label)?;
-    eprintln!("{what}: {copied} tensors from {label}");
+        let copied = load_named(&trainer.vs, "encoder", &tensors, &label)?;
+        eprintln!("encoder: {copied} tensors from {label}");
+    }
     Ok(())
 }
 

@@ -10,6 +10,7 @@
 pub mod augment;
 pub mod batch;
 pub mod blocks;
+pub mod colour;
 pub mod convnext;
 pub mod data;
 pub mod decoder;
@@ -32,7 +33,7 @@ pub use encoder::{Encoder, EncoderConfig, Taps};
 pub use loss::{matseg_loss, ImageTargets, REGION_THRESHOLD, TEMPERATURE};
 pub use mobilenet_v2::{MobileNetV2, MobileNetV2Classifier};
 pub use net::{normalise_input, rgb8_to_tensor, MaterialNet, NetConfig, PRESETS};
-pub use weights::load_named;
+pub use weights::{load_named, load_net_adding};
 
 /// Errors of the net crate: each names the file involved.
 #[derive(Debug, thiserror::Error)]

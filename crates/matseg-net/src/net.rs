@@ -3,6 +3,7 @@
 //! L2 normalisation.
 
 use crate::blocks::{l2_normalise, resize_bilinear};
+use crate::colour::{ColourPart, COLOUR_FEATURES};
 use crate::convnext::ConvNextConfig;
 use crate::decoder::Decoder;
 use crate::encoder::{Encoder, EncoderConfig};
@@ -39,6 +40,12 @@ pub struct NetConfig {
     /// concatenated, resized to the input and normalised again.
     #[serde(default)]
     pub encoder_features: bool,
+    /// Whether each stride-4 cell's mean colour joins the descriptor as a
+    /// further part ([`ColourPart`]: a learned Gaussian kernel of L*a*b*
+    /// distance, with a learned weight); the learned descriptor is then
+    /// normalised on the grid as the other parts are.
+    #[serde(default)]
+    pub colour_features: bool,
 }
 
 /// The named configurations `--encoder` accepts.
@@ -60,6 +67,7 @@ impl NetConfig {
                 decoder: [c16, c8, DESCRIPTOR_DIM],
                 descriptor_dim: DESCRIPTOR_DIM,
                 encoder_features: false,
+                colour_features: false,
             }
         };
         match name {
@@ -70,6 +78,7 @@ impl NetConfig {
                 decoder: [128, 128, 128],
                 descriptor_dim: DESCRIPTOR_DIM,
                 encoder_features: false,
+                colour_features: false,
             }),
             "convnext-tiny" => Some(convnext(ConvNextConfig::TINY)),
             "convnext-base" => Some(convnext(ConvNextConfig::BASE)),
@@ -90,6 +99,8 @@ pub struct MaterialNet {
     /// Log-weights of the head's output and the taps at strides 4, 8, 16
     /// in the descriptor, when [`NetConfig::encoder_features`].
     part_log_weights: Option<Tensor>,
+    /// The colour part, when [`NetConfig::colour_features`].
+    colour: Option<ColourPart>,
 }
 
 impl MaterialNet {
@@ -109,6 +120,9 @@ impl MaterialNet {
         let part_log_weights = config
             .encoder_features
             .then(|| p.zeros("part_log_weights", &[4]));
+        let colour = config
+            .colour_features
+            .then(|| ColourPart::new(&(p / "colour")));
         Self {
             config,
             encoder,
@@ -116,37 +130,54 @@ impl MaterialNet {
             decoder,
             head,
             part_log_weights,
+            colour,
         }
     }
 
     /// Channels of the descriptors [`MaterialNet::forward_t`] returns.
     pub fn output_dim(&self) -> i64 {
         let taps = self.encoder.channels();
-        match self.part_log_weights {
-            Some(_) => self.config.descriptor_dim + taps[0] + taps[1] + taps[2],
-            None => self.config.descriptor_dim,
-        }
+        let encoder_parts = match self.part_log_weights {
+            Some(_) => taps[0] + taps[1] + taps[2],
+            None => 0,
+        };
+        let colour = match self.colour {
+            Some(_) => COLOUR_FEATURES,
+            None => 0,
+        };
+        self.config.descriptor_dim + encoder_parts + colour
     }
 
     /// Descriptors `[N, D, H/4, W/4]` on the stride-4 grid, not yet
     /// normalised, of input images `[N, 3, H, W]` prepared by
     /// [`normalise_input`]: the head's output, or with
-    /// [`NetConfig::encoder_features`] the weighted parts (each normalised
-    /// on the grid) side by side.
+    /// [`NetConfig::encoder_features`] or [`NetConfig::colour_features`] the
+    /// weighted parts (each normalised on the grid) side by side: the
+    /// learned descriptor, the encoder's taps, the colour.
     pub fn coarse_t(&self, x: &Tensor, train: bool) -> Tensor {
         let taps = self.encoder.forward_t(x, train);
         let psp = self.psp.forward_t(&taps.s32, train);
         let learned = self.decoder.forward_t(&psp, &taps, train).apply(&self.head);
-        let Some(log_weights) = &self.part_log_weights else {
+        if self.part_log_weights.is_none() && self.colour.is_none() {
             return learned;
-        };
+        }
         let (_, _, h4, w4) = learned.size4().expect("an NCHW tensor");
-        let weights = log_weights.exp();
-        let parts: Vec<Tensor> = [&learned, &taps.s4, &taps.s8, &taps.s16]
-            .iter()
-            .enumerate()
-            .map(|(i, t)| l2_normalise(&resize_bilinear(t, h4, w4), 1) * weights.get(i as i64))
-            .collect();
+        let mut parts = match &self.part_log_weights {
+            Some(log_weights) => {
+                let weights = log_weights.exp();
+                [&learned, &taps.s4, &taps.s8, &taps.s16]
+                    .iter()
+                    .enumerate()
+                    .map(|(i, t)| {
+                        l2_normalise(&resize_bilinear(t, h4, w4), 1) * weights.get(i as i64)
+                    })
+                    .collect()
+            }
+            None => vec![l2_normalise(&learned, 1)],
+        };
+        if let Some(colour) = &self.colour {
+            parts.push(colour.forward(x, h4, w4));
+        }
         Tensor::cat(&parts, 1)
     }
 

@@ -53,19 +53,54 @@ pub fn load_named(
     source: &str,
 ) -> Result<usize, NetError> {
     copy_by_name(vs, prefix, |key| {
-        let tensor = tensors.iter().find(|t| t.name == key)?;
-        let shape: Vec<i64> = tensor.shape.iter().map(|&s| s as i64).collect();
-        Some(
-            tensor
-                .f32_values()
-                .map(|values| Tensor::from_slice(&values).view(shape.as_slice()))
-                .ok_or_else(|| format!("{key} is {:?}, not 32-bit float", tensor.dtype)),
-        )
+        tensors.iter().find(|t| t.name == key).map(float_tensor)
     })
     .map_err(|message| NetError::File {
         file: source.to_string(),
         message,
     })
+}
+
+/// Copies a whole net's imported `tensors` (a run's weights file) into
+/// every variable of `vs`, as [`load_named`] does, except that variables
+/// under `new_part` (e.g. `colour.`) that the file lacks keep their initial
+/// values: a net trained without that part continues with it. Returns how
+/// many were copied and how many kept.
+pub fn load_net_adding(
+    vs: &nn::VarStore,
+    tensors: &[matseg_weights::Tensor],
+    new_part: &str,
+    source: &str,
+) -> Result<(usize, usize), NetError> {
+    let variables = vs.variables();
+    let kept = variables
+        .keys()
+        .filter(|name| name.starts_with(new_part) && !tensors.iter().any(|t| &t.name == *name))
+        .count();
+    let copied = copy_by_name(vs, "", |key| match tensors.iter().find(|t| t.name == key) {
+        Some(tensor) => Some(float_tensor(tensor)),
+        None if key.starts_with(new_part) => Some(Ok(variables[key].shallow_clone())),
+        None => None,
+    })
+    .map_err(|message| NetError::File {
+        file: source.to_string(),
+        message,
+    })?;
+    Ok((copied - kept, kept))
+}
+
+/// An imported tensor's values as a float tensor of its shape.
+fn float_tensor(tensor: &matseg_weights::Tensor) -> Result<Tensor, String> {
+    let shape: Vec<i64> = tensor.shape.iter().map(|&s| s as i64).collect();
+    tensor
+        .float_values()
+        .map(|values| Tensor::from_slice(&values).view(shape.as_slice()))
+        .ok_or_else(|| {
+            format!(
+                "{} is {:?}, not a 32- or 16-bit float",
+                tensor.name, tensor.dtype
+            )
+        })
 }
 
 /// Copies a checkpoint's `named` tensors into all variables of `vs`; the

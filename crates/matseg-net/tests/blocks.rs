@@ -1,6 +1,8 @@
 //! Shapes and normalisation of every block, and parameter counts that pin
 //! the architectures to their references.
 
+use matseg_net::blocks::l2_normalise;
+use matseg_net::colour::COLOUR_FEATURES;
 use matseg_net::convnext::ConvNext;
 use matseg_net::decoder::Decoder;
 use matseg_net::psp::Psp;
@@ -30,6 +32,7 @@ fn small_net_config() -> NetConfig {
         decoder: [16, 12, 8],
         descriptor_dim: 6,
         encoder_features: false,
+        colour_features: false,
     }
 }
 
@@ -162,6 +165,50 @@ fn encoder_features_join_the_descriptor_weighted_by_learned_factors() {
     assert!((norms - 1.0).abs().max().double_value(&[]) < 1e-5);
     // The weights are variables the optimiser trains.
     assert!(vs.variables()["part_log_weights"].requires_grad());
+}
+
+#[test]
+fn colour_features_join_the_descriptor_and_follow_the_input_colour() {
+    tch::manual_seed(6);
+    let config = NetConfig {
+        encoder_features: true,
+        colour_features: true,
+        ..small_net_config()
+    };
+    let vs = nn::VarStore::new(Device::Cpu);
+    let net = MaterialNet::new(&vs.root(), config);
+    assert_eq!(net.output_dim(), 6 + 8 + 16 + 24 + COLOUR_FEATURES);
+    // Left half one colour, right half another.
+    let rgb = Tensor::zeros([1, 3, 64, 64], (Kind::Float, Device::Cpu));
+    for (channel, (left, right)) in [(200.0, 30.0), (120.0, 90.0), (40.0, 220.0)]
+        .into_iter()
+        .enumerate()
+    {
+        let _ = rgb.get(0).get(channel as i64).narrow(1, 0, 32).fill_(left);
+        let _ = rgb
+            .get(0)
+            .get(channel as i64)
+            .narrow(1, 32, 32)
+            .fill_(right);
+    }
+    let y = net.forward_t(&normalise_input(&rgb), false);
+    let norms = y.norm_scalaropt_dim(2, [1], false);
+    assert!((norms - 1.0).abs().max().double_value(&[]) < 1e-5);
+    let colour = y.narrow(1, 54, COLOUR_FEATURES);
+    let at = |x: i64| colour.select(3, x).select(2, 30);
+    let cosine = |a: &Tensor, b: &Tensor| {
+        let (a, b) = (l2_normalise(a, 0), l2_normalise(b, 0));
+        (a * b).sum(Kind::Float).double_value(&[])
+    };
+    // One colour's cells agree; the two colours' barely.
+    assert!(cosine(&at(2), &at(20)) > 0.999);
+    assert!(cosine(&at(2), &at(60)) < 0.3);
+    // The weight and bandwidth are trained, the projection is not.
+    let variables = vs.variables();
+    assert!(variables["colour.log_weight"].requires_grad());
+    assert!(variables["colour.log_bandwidth"].requires_grad());
+    assert!(!variables["colour.projection"].requires_grad());
+    assert!(!variables["colour.phase"].requires_grad());
 }
 
 #[test]

@@ -38,6 +38,7 @@ fn a_tiny_net_overfits_four_samples() {
         decoder: [32, 24, 16],
         descriptor_dim: 16,
         encoder_features: false,
+        colour_features: false,
     };
     let vs = nn::VarStore::new(Device::Cpu);
     let net = MaterialNet::new(&vs.root(), config);

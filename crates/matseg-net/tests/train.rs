@@ -5,10 +5,11 @@
 mod common;
 
 use matseg_eval::descriptor::Comparison;
+use matseg_net::colour::COLOUR_PART;
 use matseg_net::data::{batch_samples, BatchPlan, GeneratorSource};
 use matseg_net::infer::{PixelDescriptors, TrainedNet};
 use matseg_net::train::{self, RunConfig, StepMetrics, TrainOptions, Trainer, Validation};
-use matseg_net::{ConvNextConfig, EncoderConfig, NetConfig};
+use matseg_net::{load_net_adding, ConvNextConfig, EncoderConfig, NetConfig};
 use matseg_scene::Recipe2d;
 use std::path::Path;
 use tch::Device;
@@ -41,6 +42,7 @@ fn config(steps: u64) -> RunConfig {
             decoder: [16, 16, 8],
             descriptor_dim: 8,
             encoder_features: false,
+            colour_features: false,
         },
         options: TrainOptions {
             steps,
@@ -274,4 +276,33 @@ fn the_learning_rate_warms_up_and_decays_linearly() {
     for (got, want) in lrs.iter().zip(expected) {
         assert!((got - want).abs() < 1e-12, "{lrs:?}");
     }
+}
+
+#[test]
+fn a_net_without_a_colour_part_continues_with_a_fresh_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let plain = Trainer::new(config(1), Device::Cpu);
+    let weights = dir.path().join("plain.safetensors");
+    plain.save_weights(&weights).unwrap();
+    let bytes = std::fs::read(&weights).unwrap();
+    let tensors = matseg_weights::read_safetensors(&bytes, "plain").unwrap();
+    let mut coloured = config(1);
+    coloured.net.colour_features = true;
+    let trainer = Trainer::new(coloured, Device::Cpu);
+    let fresh_projection = trainer.vs.variables()["colour.projection"].copy();
+    let (copied, fresh) = load_net_adding(&trainer.vs, &tensors, COLOUR_PART, "plain").unwrap();
+    assert_eq!((copied, fresh), (tensors.len(), 4));
+    // The plain net's weights are taken, the colour part keeps its own.
+    let variables = trainer.vs.variables();
+    assert_eq!(variables["head.bias"], plain.vs.variables()["head.bias"]);
+    assert_eq!(variables["colour.projection"], fresh_projection);
+    // Any other variable the file lacks is still an error.
+    let without_head: Vec<_> = tensors
+        .into_iter()
+        .filter(|t| t.name != "head.bias")
+        .collect();
+    let err = load_net_adding(&trainer.vs, &without_head, COLOUR_PART, "plain")
+        .unwrap_err()
+        .to_string();
+    assert_eq!(err, "plain: no parameter head.bias");
 }

@@ -127,6 +127,20 @@ impl Tensor {
         })
     }
 
+    /// The elements as `f32`, for an `F32` tensor or, widened exactly, an
+    /// `F16` one (the shipped weights are 16-bit).
+    pub fn float_values(&self) -> Option<Vec<f32>> {
+        match self.dtype {
+            DType::F16 => Some(
+                self.data
+                    .chunks_exact(2)
+                    .map(|b| f16_bits_to_f32(u16::from_le_bytes([b[0], b[1]])))
+                    .collect(),
+            ),
+            _ => self.f32_values(),
+        }
+    }
+
     /// This tensor in 16-bit floats when it is an `F32` one (rounded to
     /// nearest, ties to even; too large values become infinite), else
     /// itself: half the bytes for shipped weights.
@@ -144,6 +158,21 @@ impl Tensor {
                 .collect(),
         }
     }
+}
+
+/// The value of IEEE binary16 `bits` (exact: every half is an `f32`).
+pub fn f16_bits_to_f32(bits: u16) -> f32 {
+    let sign = (u32::from(bits) & 0x8000) << 16;
+    let exponent = u32::from(bits >> 10) & 0x1f;
+    let mantissa = u32::from(bits) & 0x3ff;
+    let magnitude = match exponent {
+        // Zero and subnormals: mantissa * 2^-24, exact in f32.
+        0 => (mantissa as f32 * f32::powi(2.0, -24)).to_bits(),
+        // Infinity, and NaN with its payload in the top mantissa bits.
+        0x1f => 0x7f80_0000 | (mantissa << 13),
+        _ => ((exponent + 127 - 15) << 23) | (mantissa << 13),
+    };
+    f32::from_bits(sign | magnitude)
 }
 
 /// The IEEE binary16 bits nearest to `x` (ties to even).
@@ -209,6 +238,45 @@ mod tests {
         }
         assert_eq!(f32_to_f16_bits(f32::NAN) & 0x7c00, 0x7c00);
         assert_ne!(f32_to_f16_bits(f32::NAN) & 0x3ff, 0);
+    }
+
+    #[test]
+    fn every_half_widens_to_the_float_it_rounds_from() {
+        for bits in 0..=u16::MAX {
+            let x = f16_bits_to_f32(bits);
+            if x.is_nan() {
+                assert_eq!(bits & 0x7c00, 0x7c00, "{bits:#06x}");
+                assert_ne!(bits & 0x3ff, 0, "{bits:#06x}");
+            } else {
+                assert_eq!(f32_to_f16_bits(x), bits, "{bits:#06x} -> {x}");
+            }
+        }
+        for (bits, x) in [
+            (0x3c00u16, 1.0f32),
+            (0xc000, -2.0),
+            (0x0001, 5.960_464_5e-8),
+        ] {
+            assert_eq!(f16_bits_to_f32(bits), x);
+        }
+        assert_eq!(f16_bits_to_f32(0x8000).to_bits(), (-0.0f32).to_bits());
+        assert_eq!(f16_bits_to_f32(0x7bff), 65504.0);
+    }
+
+    #[test]
+    fn float_values_read_f32_and_f16_alike() {
+        let t = Tensor {
+            name: "w".into(),
+            dtype: DType::F32,
+            shape: vec![3],
+            data: [0.5f32, -1.0, 0.1]
+                .iter()
+                .flat_map(|v| v.to_le_bytes())
+                .collect(),
+        };
+        let half = t.to_f16();
+        assert_eq!(t.float_values().unwrap(), [0.5, -1.0, 0.1]);
+        assert_eq!(half.float_values().unwrap(), [0.5, -1.0, 0.099_975_586]);
+        assert_eq!(half.f32_values(), None);
     }
 
     #[test]
