@@ -74,19 +74,36 @@ impl DescriptorModel for ColourBaseline {
     }
 }
 
+/// Linear sRGB to CIE XYZ, rows X, Y, Z.
+pub const LINEAR_SRGB_TO_XYZ: [[f32; 3]; 3] = [
+    [0.4124, 0.3576, 0.1805],
+    [0.2126, 0.7152, 0.0722],
+    [0.0193, 0.1192, 0.9505],
+];
+
+/// The D65 white point's X and Z (Y is 1), by which X and Z are divided.
+pub const D65_WHITE_XZ: [f32; 2] = [0.95047, 1.08883];
+
+/// Where CIE Lab's f(t) turns from linear to a cube root: (6/29)^3.
+pub const LAB_EPSILON: f32 = 216.0 / 24389.0;
+
+/// The slope of f(t)'s linear part, (29/3)^3 (f(t) = (KAPPA t + 16) / 116).
+pub const LAB_KAPPA: f32 = 24389.0 / 27.0;
+
 /// CIE L*a*b* (D65 white) of an 8-bit sRGB colour.
 pub fn srgb_to_lab(rgb: [u8; 3]) -> [f32; 3] {
     let table = linear_table();
     let [r, g, b] = rgb.map(|v| table[v as usize]);
     // sRGB to XYZ, normalised by the D65 white point.
-    let x = (0.4124 * r + 0.3576 * g + 0.1805 * b) / 0.95047;
-    let y = 0.2126 * r + 0.7152 * g + 0.0722 * b;
-    let z = (0.0193 * r + 0.1192 * g + 0.9505 * b) / 1.08883;
+    let [mx, my, mz] = LINEAR_SRGB_TO_XYZ;
+    let x = (mx[0] * r + mx[1] * g + mx[2] * b) / D65_WHITE_XZ[0];
+    let y = my[0] * r + my[1] * g + my[2] * b;
+    let z = (mz[0] * r + mz[1] * g + mz[2] * b) / D65_WHITE_XZ[1];
     let f = |t: f32| {
-        if t > 216.0 / 24389.0 {
+        if t > LAB_EPSILON {
             t.cbrt()
         } else {
-            (24389.0 / 27.0 * t + 16.0) / 116.0
+            (LAB_KAPPA * t + 16.0) / 116.0
         }
     };
     let (fx, fy, fz) = (f(x), f(y), f(z));

@@ -7,7 +7,8 @@
 //! learned. Colour is what the `lab` baseline scores with, and a net's
 //! stride-4 features, smoothed by its decoder, lose some of it.
 
-use crate::net::{INPUT_MEAN, INPUT_SCALE};
+use crate::net::denormalise_input;
+use matseg_eval::baselines::{D65_WHITE_XZ, LAB_EPSILON, LAB_KAPPA, LINEAR_SRGB_TO_XYZ};
 use tch::{nn, Tensor};
 
 /// Random Fourier features of a cell's colour.
@@ -72,11 +73,7 @@ impl ColourPart {
     /// `x` `[N, 3, H, W]`, prepared by [`crate::normalise_input`]: its
     /// colours averaged over each cell of an `h4` x `w4` grid.
     pub fn forward(&self, x: &Tensor, h4: i64, w4: i64) -> Tensor {
-        let mean = Tensor::from_slice(&INPUT_MEAN)
-            .to_kind(x.kind())
-            .to_device(x.device())
-            .view([1, 3, 1, 1]);
-        let rgb = (x * INPUT_SCALE + mean).clamp(0.0, 255.0);
+        let rgb = denormalise_input(x).clamp(0.0, 255.0);
         let lab = srgb_to_lab(&rgb).adaptive_avg_pool2d([h4, w4]);
         let scaled = lab / self.log_bandwidth.exp();
         // [N, 3, h, w] -> [N, h, w, 3] x [3, M] -> [N, M, h, w]
@@ -98,31 +95,25 @@ pub fn srgb_to_lab(rgb: &Tensor) -> Tensor {
         &c.le(0.04045),
         &((&c + 0.055) / 1.055).pow_tensor_scalar(2.4),
     );
-    let matrix = Tensor::from_slice(&[
-        0.4124f32 / 0.95047,
-        0.3576 / 0.95047,
-        0.1805 / 0.95047,
-        0.2126,
-        0.7152,
-        0.0722,
-        0.0193 / 1.08883,
-        0.1192 / 1.08883,
-        0.9505 / 1.08883,
-    ])
-    .view([3, 3])
-    .to_kind(rgb.kind())
-    .to_device(rgb.device());
+    // Rows divided by the white point, so that X and Z come out normalised.
+    let [mx, my, mz] = LINEAR_SRGB_TO_XYZ;
+    let [wx, wz] = D65_WHITE_XZ;
+    let normalised: Vec<f32> = [mx.map(|m| m / wx), my, mz.map(|m| m / wz)].concat();
+    let matrix = Tensor::from_slice(&normalised)
+        .view([3, 3])
+        .to_kind(rgb.kind())
+        .to_device(rgb.device());
     let xyz = linear
         .permute([0, 2, 3, 1])
         .matmul(&matrix.tr())
         .permute([0, 3, 1, 2]);
-    let threshold = 216.0 / 24389.0;
+    let epsilon = f64::from(LAB_EPSILON);
     let f = xyz
-        .clamp_min(threshold)
+        .clamp_min(epsilon)
         .pow_tensor_scalar(1.0 / 3.0)
         .where_self(
-            &xyz.gt(threshold),
-            &((&xyz * (24389.0 / 27.0) + 16.0) / 116.0),
+            &xyz.gt(epsilon),
+            &((&xyz * f64::from(LAB_KAPPA) + 16.0) / 116.0),
         );
     let (fx, fy, fz) = (f.select(1, 0), f.select(1, 1), f.select(1, 2));
     Tensor::stack(

@@ -193,11 +193,21 @@ impl MaterialNet {
 /// The net's input from 0..255 RGB `[N, 3, H, W]` (any float kind):
 /// `(x - INPUT_MEAN) / INPUT_SCALE` per channel.
 pub fn normalise_input(rgb: &Tensor) -> Tensor {
-    let mean = Tensor::from_slice(&INPUT_MEAN)
-        .to_kind(rgb.kind())
-        .to_device(rgb.device())
-        .view([1, 3, 1, 1]);
-    (rgb - mean) / INPUT_SCALE
+    (rgb - input_mean(rgb)) / INPUT_SCALE
+}
+
+/// The 0..255 RGB `[N, 3, H, W]` of a net's input prepared by
+/// [`normalise_input`] (its inverse).
+pub fn denormalise_input(x: &Tensor) -> Tensor {
+    x * INPUT_SCALE + input_mean(x)
+}
+
+/// [`INPUT_MEAN`] as a `[1, 3, 1, 1]` tensor of `like`'s kind and device.
+fn input_mean(like: &Tensor) -> Tensor {
+    Tensor::from_slice(&INPUT_MEAN)
+        .to_kind(like.kind())
+        .to_device(like.device())
+        .view([1, 3, 1, 1])
 }
 
 /// An interleaved 8-bit RGB image as a float `[3, height, width]` tensor of

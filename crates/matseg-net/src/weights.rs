@@ -8,13 +8,16 @@ use tch::{nn, Tensor};
 /// Copies into every variable of `vs` under `prefix` (a path such as
 /// `"encoder"`, or `""` for all) the tensor `lookup` gives for its name
 /// without the prefix; in name order, so the first problem reported is
-/// always the same. Every such variable must be found, with its shape.
-/// Returns how many were copied.
+/// always the same. Every such variable must be found, with its shape,
+/// except those whose name starts with `fresh_part`, which keep their
+/// values when `lookup` has none. Returns how many were copied and how
+/// many kept.
 fn copy_by_name(
     vs: &nn::VarStore,
     prefix: &str,
+    fresh_part: Option<&str>,
     lookup: impl Fn(&str) -> Option<Result<Tensor, String>>,
-) -> Result<usize, String> {
+) -> Result<(usize, usize), String> {
     let strip = if prefix.is_empty() {
         String::new()
     } else {
@@ -22,12 +25,19 @@ fn copy_by_name(
     };
     let mut variables: Vec<(String, Tensor)> = vs.variables().into_iter().collect();
     variables.sort_by(|a, b| a.0.cmp(&b.0));
-    let mut copied = 0;
+    let (mut copied, mut kept) = (0, 0);
     for (name, mut variable) in variables {
         let Some(key) = name.strip_prefix(&strip) else {
             continue;
         };
-        let source = lookup(key).ok_or_else(|| format!("no parameter {key}"))??;
+        let source = match lookup(key) {
+            Some(source) => source?,
+            None if fresh_part.is_some_and(|part| key.starts_with(part)) => {
+                kept += 1;
+                continue;
+            }
+            None => return Err(format!("no parameter {key}")),
+        };
         if source.size() != variable.size() {
             return Err(format!(
                 "{key} has shape {:?}, the net expects {:?}",
@@ -39,7 +49,7 @@ fn copy_by_name(
         tch::no_grad(|| variable.copy_(&source));
         copied += 1;
     }
-    Ok(copied)
+    Ok((copied, kept))
 }
 
 /// Copies imported `tensors` into every variable of `vs` under `prefix`:
@@ -52,9 +62,10 @@ pub fn load_named(
     tensors: &[matseg_weights::Tensor],
     source: &str,
 ) -> Result<usize, NetError> {
-    copy_by_name(vs, prefix, |key| {
+    copy_by_name(vs, prefix, None, |key| {
         tensors.iter().find(|t| t.name == key).map(float_tensor)
     })
+    .map(|(copied, _)| copied)
     .map_err(|message| NetError::File {
         file: source.to_string(),
         message,
@@ -72,21 +83,13 @@ pub fn load_net_adding(
     new_part: &str,
     source: &str,
 ) -> Result<(usize, usize), NetError> {
-    let variables = vs.variables();
-    let kept = variables
-        .keys()
-        .filter(|name| name.starts_with(new_part) && !tensors.iter().any(|t| &t.name == *name))
-        .count();
-    let copied = copy_by_name(vs, "", |key| match tensors.iter().find(|t| t.name == key) {
-        Some(tensor) => Some(float_tensor(tensor)),
-        None if key.starts_with(new_part) => Some(Ok(variables[key].shallow_clone())),
-        None => None,
+    copy_by_name(vs, "", Some(new_part), |key| {
+        tensors.iter().find(|t| t.name == key).map(float_tensor)
     })
     .map_err(|message| NetError::File {
         file: source.to_string(),
         message,
-    })?;
-    Ok((copied - kept, kept))
+    })
 }
 
 /// An imported tensor's values as a float tensor of its shape.
@@ -107,7 +110,7 @@ fn float_tensor(tensor: &matseg_weights::Tensor) -> Result<Tensor, String> {
 /// error says the checkpoint is of another net when one is missing or
 /// misshapen.
 pub fn load_tensors(vs: &nn::VarStore, named: &[(String, Tensor)]) -> Result<(), String> {
-    copy_by_name(vs, "", |key| {
+    copy_by_name(vs, "", None, |key| {
         named
             .iter()
             .find(|(n, _)| n == key)
