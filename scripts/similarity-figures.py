@@ -1,7 +1,8 @@
 """Pairs of panels for the docs: a photo's overlay_0.png (red: the weight
 of the material under the point) beside its similarity_0.png (grey: the
 cosine), each 300 px wide, the point circled on the grey map.
-Usage: similarity-figures.py SEGMENT_DIR X Y PHOTO_WIDTH OUT.jpg"""
+Usage: similarity-figures.py SEGMENT_DIR X Y OUT.jpg (X, Y in the photo's pixels;
+the maps have the photo's size)"""
 
 import sys
 
@@ -12,7 +13,7 @@ GAP = 4
 
 
 def main() -> None:
-    folder, x, y, width, out = sys.argv[1:6]
+    folder, x, y, out = sys.argv[1:5]
     overlay = Image.open(f"{folder}/overlay_0.png").convert("RGB")
     similarity = Image.open(f"{folder}/similarity_0.png").convert("RGB")
     scale = PANEL / overlay.width
@@ -22,8 +23,8 @@ def main() -> None:
     for i, panel in enumerate(panels):
         figure.paste(panel, (i * (PANEL + GAP), 0))
     # The point, in the photo's pixels, on the grey panel.
-    cx = PANEL + GAP + float(x) * PANEL / float(width)
-    cy = float(y) * PANEL / float(width)
+    cx = PANEL + GAP + float(x) * scale
+    cy = float(y) * scale
     ImageDraw.Draw(figure).ellipse((cx - 4, cy - 4, cx + 4, cy + 4), outline=(220, 0, 0), width=1)
     figure.save(out, quality=88)
 

@@ -21,8 +21,7 @@ trap 'rm -rf "$work"' EXIT
 while read -r name x y figure; do
     photo="$root/benchmarks/real-dev/images/$name.jpg"
     "$matseg" segment "$photo" --model "$model" --point "$x,$y" --out "$work/$name" >/dev/null
-    width=$("$venv/bin/python" -c "from PIL import Image; print(Image.open('$photo').width)")
-    "$venv/bin/python" "$root/scripts/similarity-figures.py" "$work/$name" "$x" "$y" "$width" "$root/$figure"
+    "$venv/bin/python" "$root/scripts/similarity-figures.py" "$work/$name" "$x" "$y" "$root/$figure"
     echo "$figure"
 done <<'LIST'
 burnt-bark 330 460 docs/images/similarity/burnt-bark.jpg
