@@ -33,7 +33,13 @@ pub fn write_material_folder(
     write_maps: impl FnOnce(&Path) -> std::io::Result<()>,
     mut record: serde_json::Value,
 ) -> Result<()> {
-    let partial = dir.with_extension("partial");
+    // `NAME.partial` beside `dir`, appended rather than swapped for an
+    // extension: material names hold dots (`Terrain.winter__Town1`), and
+    // two such names must not share one partial folder when written in
+    // parallel.
+    let mut partial_name = dir.file_name().unwrap_or_default().to_os_string();
+    partial_name.push(".partial");
+    let partial = dir.with_file_name(partial_name);
     if partial.exists() {
         std::fs::remove_dir_all(&partial)?;
     }
@@ -303,6 +309,32 @@ pub fn init_threads(threads: Option<usize>) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn material_folders_with_dots_in_their_names_keep_their_own_partial_folder() {
+        let root = std::env::temp_dir().join(format!("matseg-folders-{}", std::process::id()));
+        let names = ["Terrain.winter__Town1__pbr0", "Terrain.winter__airport__pbr0"];
+        for name in names {
+            let dir = root.join(name);
+            write_material_folder(
+                &dir,
+                "CC0",
+                |partial| {
+                    assert_eq!(partial, root.join(format!("{name}.partial")));
+                    std::fs::write(partial.join("basecolor.png"), name)
+                },
+                serde_json::json!({ "name": name }),
+            )
+            .unwrap();
+        }
+        for name in names {
+            let dir = root.join(name);
+            assert_eq!(std::fs::read_to_string(dir.join("basecolor.png")).unwrap(), name);
+            assert!(dir.join("material.json").is_file());
+            assert!(!root.join(format!("{name}.partial")).exists());
+        }
+        std::fs::remove_dir_all(&root).unwrap();
+    }
 
     #[test]
     fn ranges_parse_and_reject_nonsense() {
