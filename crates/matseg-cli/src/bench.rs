@@ -1,4 +1,4 @@
-//! `matseg bench`: generator throughput at the SPEC's scene-size distribution.
+//! `matseg bench`: generator throughput at the paper's scene-size distribution.
 
 use crate::common::{Defaults, Libraries, DEFAULT_CACHE_MB};
 use crate::cpu_time::process_cpu_seconds;
@@ -150,7 +150,7 @@ pub fn run(args: Args) -> Result<()> {
         )?;
     }
     rows.push(Row::one_thread(
-        "soft maps only (SPEC 1)",
+        "soft maps only (pipeline.md §1)",
         args.scenes,
         start.elapsed(1),
         0,
@@ -248,7 +248,7 @@ impl Sample {
     fn print(&self, recipe: &Recipe2d, photos: usize, textures: usize) {
         let n = self.scenes.max(1) as f64;
         println!(
-            "scenes: {} per row, mean {:.3} MP and {:.2} materials (the SPEC 2D distribution's means: {:.3} MP, {:.2}); {photos} photos, {textures} textures",
+            "scenes: {} per row, mean {:.3} MP and {:.2} materials (the paper's 2D distribution's means: {:.3} MP, {:.2}); {photos} photos, {textures} textures",
             self.scenes,
             self.pixels as f64 / n / 1e6,
             self.materials as f64 / n,

@@ -1,5 +1,5 @@
-//! `matseg bench-render`: the path tracer's speed on the reference scene of
-//! issue 6 (5 objects of ~22k triangles in all, 3 materials each split by
+//! `matseg bench-render`: the path tracer's speed on a fixed reference scene
+//! (5 objects of ~22k triangles in all, 3 materials each split by
 //! photo channels, PBR and principled materials, an HDRI), with the
 //! annotation, at 384x384 and 16 spp by default. `--write-scene` saves the
 //! scene (JSON and world-space OBJ meshes) for `scripts/bench-render-cycles.py`,

@@ -178,7 +178,7 @@ pub fn sample_cards(
 }
 
 /// `materials.html`: uniform textures extracted from the bundled photos
-/// (SPEC 4) and one PBR material per bundled texture (SPEC 5), each with
+/// (pipeline.md §4) and one PBR material per bundled texture (pipeline.md §5), each with
 /// its main maps and a lit-sphere preview.
 fn materials_page(out: &Path, seed: u64) -> Result<()> {
     let assets = assets_dir();
@@ -265,11 +265,11 @@ td {{ font-size: .8em; padding: 2px; }}
 <p><a href="index.html">Back to the 2D scenes.</a></p>
 <h2>Uniform textures found in the bundled photos</h2>
 <p>Squares of 20-pixel cells that are pairwise similar in 13 colour and gradient channels
-(SPEC section 4; <code>matseg textures</code>).</p>
+(pipeline.md §4; <code>matseg textures</code>).</p>
 <div class="grid">
 {textures}</div>
 <h2>PBR materials from the bundled textures</h2>
-<p>One material per texture (SPEC section 5; <code>matseg pbr</code>): a lit sphere, then colour,
+<p>One material per texture (pipeline.md §5; <code>matseg pbr</code>): a lit sphere, then colour,
 normals (OpenGL), height, roughness and metalness.</p>
 <table><tr><th>sphere</th><th>colour</th><th>normal</th><th>height</th><th>roughness</th><th>metalness</th><th>texture</th></tr>
 {rows}</table></body></html>

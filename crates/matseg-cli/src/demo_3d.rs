@@ -67,7 +67,7 @@ pub fn scenes_page(out: &Path, n: u64, size: u32, seed: u64) -> Result<()> {
 {style}</head><body>
 <h1>matseg demo: 3D scenes</h1>
 <p><a href="index.html">Back to the 2D scenes.</a></p>
-<p>{n} scenes drawn by the 3D builder (SPEC section 3, seed {seed}) from the bundled photos, the PBR
+<p>{n} scenes drawn by the 3D builder (pipeline.md §3, seed {seed}) from the bundled photos, the PBR
 materials made from the bundled textures and the bundled CC0 HDRIs, path traced at {size}x{size},
 {spp} samples per pixel (<code>matseg generate --kind 3d</code>). Left: the image; right: the exact
 annotation of the main object (each material in its colour, mixtures mixed, everything else black).

@@ -24,11 +24,11 @@ use std::time::Instant;
 /// Scene kinds `generate` can make.
 #[derive(Clone, Copy, ValueEnum)]
 pub enum Kind {
-    /// Textures mixed by soft maps over a photo background (SPEC section 2).
+    /// Textures mixed by soft maps over a photo background (pipeline.md §2).
     #[value(name = "2d")]
     TwoD,
     /// Objects carrying several PBR materials split by photo channels, lit
-    /// by HDRIs and path traced (SPEC section 3).
+    /// by HDRIs and path traced (pipeline.md §3).
     #[value(name = "3d")]
     ThreeD,
 }

@@ -48,11 +48,11 @@ struct Cli {
 enum Command {
     /// Generate a dataset of synthetic scenes with exact soft annotations.
     Generate(generate::Args),
-    /// Draw the soft maps of one photo (SPEC section 1) and write them as PNGs.
+    /// Draw the soft maps of one photo (pipeline.md §1) and write them as PNGs.
     Maps(maps::Args),
-    /// Extract uniform-texture crops from photos into a texture library (SPEC section 4).
+    /// Extract uniform-texture crops from photos into a texture library (pipeline.md §4).
     Textures(textures::Args),
-    /// PBR materials (colour, normal, height, roughness, metalness, AO, opacity, specular) from textures (SPEC section 5).
+    /// PBR materials (colour, normal, height, roughness, metalness, AO, opacity, specular) from textures (pipeline.md §5).
     Pbr(pbr::Args),
     /// New PBR materials by mixing existing ones (equal, max or flexible weights).
     PbrMix(pbr_mix::Args),
@@ -76,10 +76,10 @@ enum Command {
     /// Network weights: `import` converts PyTorch checkpoints to safetensors.
     #[command(subcommand)]
     Weights(weights::Command),
-    /// Train the material-descriptor net (SPEC 8).
+    /// Train the material-descriptor net (pipeline.md §8).
     #[cfg(feature = "net")]
     Train(train::Args),
-    /// Similarity maps and segmentation of a photo, from points or by clustering (SPEC 8).
+    /// Similarity maps and segmentation of a photo, from points or by clustering (pipeline.md §8).
     #[cfg(feature = "net")]
     Segment(segment::Args),
     /// Measure the net's forward and training-step time on one batch size.

@@ -1,4 +1,4 @@
-//! `matseg pbr`: PBR materials from a texture library (SPEC 5).
+//! `matseg pbr`: PBR materials from a texture library (pipeline.md §5).
 
 use crate::common::{flat_stem, init_threads, progress_bar, write_material_folder};
 use anyhow::{Context, Result};

@@ -1,4 +1,4 @@
-//! `matseg pbr-mix`: new PBR materials by mixing existing ones (SPEC 5).
+//! `matseg pbr-mix`: new PBR materials by mixing existing ones (pipeline.md §5).
 
 use crate::common::{init_threads, progress_bar, write_material_folder};
 use anyhow::{ensure, Context, Result};

@@ -1,5 +1,5 @@
 //! `matseg segment`: where else in this photo is the material under these
-//! points? Similarity maps from a trained net (SPEC 8, inference), and a hard
+//! points? Similarity maps from a trained net (pipeline.md §8, inference), and a hard
 //! segmentation when several points are given, or with no points by
 //! clustering the descriptors (`--auto K`).
 

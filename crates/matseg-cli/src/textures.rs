@@ -1,4 +1,4 @@
-//! `matseg textures`: a library of uniform-texture crops from photos (SPEC 4).
+//! `matseg textures`: a library of uniform-texture crops from photos (pipeline.md §4).
 
 use crate::common::{flat_name, flat_stem, init_threads, progress_bar};
 use crate::cpu_time::process_cpu_seconds;

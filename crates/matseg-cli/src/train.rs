@@ -1,4 +1,4 @@
-//! `matseg train`: trains the material-descriptor net (SPEC 8) from a
+//! `matseg train`: trains the material-descriptor net (pipeline.md §8) from a
 //! dataset or straight from the 2D generator, into a run folder that
 //! `--resume` continues exactly.
 

@@ -1,4 +1,4 @@
-//! The MatSeg folder layout (SPEC 7.1): one folder per sample holding
+//! The MatSeg folder layout (pipeline.md §7.1): one folder per sample holding
 //! `RGB__RGB.jpg`, `mask0.png`..., `ObjectMaskOcluded.png`, our `meta.json`,
 //! and `Finished.txt`, written last.
 

@@ -29,7 +29,7 @@ pub trait SampleMaker: Sync {
     fn make(&self, seed: u64, index: u64) -> Result<EncodedSample, String>;
 }
 
-/// 2D scenes (SPEC section 2).
+/// 2D scenes (pipeline.md §2).
 pub struct Generator2d<'a> {
     /// The recipe.
     pub recipe: &'a Recipe2d,
@@ -57,7 +57,7 @@ impl SampleMaker for Generator2d<'_> {
     }
 }
 
-/// 3D scenes (SPEC section 3): drawn by the scene builder, rendered by the
+/// 3D scenes (pipeline.md §3): drawn by the scene builder, rendered by the
 /// path tracer, annotated from the primary hits.
 pub struct Generator3d<'a> {
     /// The recipe.

@@ -24,7 +24,7 @@ pub struct Sample {
     pub meta: Option<serde_json::Value>,
 }
 
-/// What training reads from a sample (SPEC 7.1): `s = sum of masks`,
+/// What training reads from a sample (pipeline.md §7.1): `s = sum of masks`,
 /// ROI = `s >= 10`, weight_k = `mask_k / s`.
 #[derive(Clone, Debug)]
 pub struct TrainingTargets {

@@ -1,4 +1,4 @@
-//! WebDataset tar shards (SPEC 7.2): `KEY.jpg`, `KEY.mask_00.png`...,
+//! WebDataset tar shards (pipeline.md §7.2): `KEY.jpg`, `KEY.mask_00.png`...,
 //! `KEY.roi.png`, `KEY.json` per sample; a shard is written under a temporary
 //! name and renamed when complete.
 

@@ -8,7 +8,7 @@ use image::RgbImage;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Comparison {
     /// Cosine similarity. A point's descriptor is the normalised sum of the
-    /// normalised pixel descriptors in its disc (SPEC 8, inference).
+    /// normalised pixel descriptors in its disc (pipeline.md §8, inference).
     Cosine,
     /// Minus the Euclidean distance. A point's descriptor is the mean of
     /// the pixel descriptors in its disc (the colour baselines).

@@ -1,4 +1,4 @@
-//! IoU at the best threshold (SPEC 9.3): the prediction `score >= t` is
+//! IoU at the best threshold (pipeline.md §9.3): the prediction `score >= t` is
 //! compared with a ground-truth mask for every `t`, and the best IoU wins.
 
 use serde::Serialize;

@@ -1,4 +1,4 @@
-//! Evaluation of material descriptors on real photos (SPEC section 9): point
+//! Evaluation of material descriptors on real photos (pipeline.md §9): point
 //! benchmarks in the MatSeg format scored by the triplet metric, mask
 //! benchmarks scored by IoU at the best threshold, and training-free
 //! baselines behind the same [`DescriptorModel`] trait a trained net uses.

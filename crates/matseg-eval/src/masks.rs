@@ -1,4 +1,4 @@
-//! Mask benchmarks (SPEC 9.3): photos with ground-truth masks, queried from
+//! Mask benchmarks (pipeline.md §9.3): photos with ground-truth masks, queried from
 //! points sampled inside each mask and scored by IoU at the best threshold.
 //!
 //! Layout, one image per name in one folder:

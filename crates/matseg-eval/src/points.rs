@@ -1,4 +1,4 @@
-//! Point benchmarks in the MatSeg format (SPEC 9.1):
+//! Point benchmarks in the MatSeg format (pipeline.md §9.1):
 //!
 //! ```text
 //! BENCH_DIR/images/NAME.jpg                 (or .jpeg, .png)

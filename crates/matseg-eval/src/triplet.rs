@@ -1,4 +1,4 @@
-//! The triplet metric (SPEC 9.2) and top-1, for one image's points.
+//! The triplet metric (pipeline.md §9.2) and top-1, for one image's points.
 //!
 //! For an anchor `a` and another point `p`, every other point `q` whose
 //! ground-truth weight to `a` differs from `p`'s is a triplet: it is correct

@@ -1,4 +1,4 @@
-//! From photos to material placements: the soft maps of SPEC section 1 and
+//! From photos to material placements: the soft maps of pipeline.md §1 and
 //! the uniform textures of section 4 and the PBR materials of section 5.
 
 #![warn(missing_docs)]

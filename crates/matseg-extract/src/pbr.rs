@@ -1,4 +1,4 @@
-//! PBR materials guessed from one texture (SPEC section 5): each property
+//! PBR materials guessed from one texture (pipeline.md §5): each property
 //! map is a random image channel (or a constant), maybe inverted, blurred
 //! and rescaled; normals come from the height map (OpenGL convention).
 
@@ -11,7 +11,7 @@ use rand::Rng;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-/// Every probability of PBR drawing, with the SPEC's values as defaults.
+/// Every probability of PBR drawing, with the paper's values as defaults.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PbrRecipe {
@@ -329,7 +329,7 @@ fn normalise(v: [f32; 3]) -> [f32; 3] {
     v.map(|c| c / len)
 }
 
-/// Draws a PBR material from `texture` (SPEC 5).
+/// Draws a PBR material from `texture` (pipeline.md §5).
 pub fn make_pbr<R: Rng + ?Sized>(
     rng: &mut R,
     texture: &RgbImage,

@@ -1,4 +1,4 @@
-//! New PBR materials by mixing existing ones (SPEC 5, mixing): 2 sources
+//! New PBR materials by mixing existing ones (pipeline.md §5, mixing): 2 sources
 //! with p = 0.5, 3 with 0.25, ...; one weight per source for all maps
 //! ("equal"), the per-pixel maximum ("max"), or a weight per source per map
 //! ("flexible"). Weights sum to 1; mixed normals are renormalised.
@@ -13,7 +13,7 @@ use rand::Rng;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-/// Probabilities of mixing, with the SPEC's values as defaults.
+/// Probabilities of mixing, with the paper's values as defaults.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct MixRecipe {

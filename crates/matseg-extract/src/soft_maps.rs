@@ -1,4 +1,4 @@
-//! Soft maps (SPEC section 1): a random photo channel through a random ramp
+//! Soft maps (pipeline.md §1): a random photo channel through a random ramp
 //! gives a map with natural-image shapes; K of them become material weights.
 
 use matseg_image::coverage::BLOCK;
@@ -10,7 +10,7 @@ use matseg_image::{
 use rand::Rng;
 use serde::{Deserialize, Serialize};
 
-/// Every probability and limit of map drawing, with the SPEC's values as defaults.
+/// Every probability and limit of map drawing, with the paper's values as defaults.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SoftMapRecipe {
@@ -128,7 +128,7 @@ pub struct MapRecord {
     pub ramp: Ramp,
 }
 
-/// A map drawn from a photo (SPEC 1, steps 1-5), before combination: its
+/// A map drawn from a photo (pipeline.md §1, steps 1-5), before combination: its
 /// channel window's levels and the table that takes each level to the map's
 /// value (normalisation and ramp together), with the blocks where that value
 /// is positive. A map is positive on a few percent of the scene, so only
@@ -408,7 +408,7 @@ fn try_map_from_photo<R: Rng + ?Sized>(
     Some((RawMap::new(window, table), record))
 }
 
-/// Draws one soft map of size `w x h` (SPEC 1, steps 1-5), redrawing photos
+/// Draws one soft map of size `w x h` (pipeline.md §1, steps 1-5), redrawing photos
 /// until one gives an acceptable map.
 pub fn draw_channel_map<R: Rng + ?Sized>(
     rng: &mut R,
@@ -431,7 +431,7 @@ pub fn draw_channel_map<R: Rng + ?Sized>(
     })
 }
 
-/// Combines raw maps into material weights (SPEC 1, step 6): optional blur,
+/// Combines raw maps into material weights (pipeline.md §1, step 6): optional blur,
 /// sum or priority normalisation, one-hot for hard scenes; returns the weights,
 /// where they are positive, the background weight and the record of what was drawn.
 ///
@@ -737,7 +737,7 @@ fn combine_lanes<const LANES: usize, R: AsMut<[f32]>>(
     }
 }
 
-/// Draws `k` soft maps for a `w x h` scene and combines them (all of SPEC 1).
+/// Draws `k` soft maps for a `w x h` scene and combines them (all of pipeline.md §1).
 #[allow(clippy::too_many_arguments)]
 pub fn make_soft_maps<R: Rng + ?Sized>(
     rng: &mut R,
@@ -769,7 +769,7 @@ mod tests {
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
 
-    /// SPEC 1 step 6 pixel by pixel on whole planes: the reference the
+    /// pipeline.md §1 step 6 pixel by pixel on whole planes: the reference the
     /// block-sparse [`combine_maps`] must equal bit for bit.
     fn reference(maps: &[Plane], record: &CombineRecord, min: f32) -> (Vec<Plane>, Plane) {
         let mut maps: Vec<Plane> = match record.blur_kernel {

@@ -1,4 +1,4 @@
-//! Uniform textures from natural photos (SPEC section 4): regions whose
+//! Uniform textures from natural photos (pipeline.md §4): regions whose
 //! local statistics are the same everywhere, found as squares of cells that
 //! are pairwise similar in every property channel.
 //!
@@ -72,7 +72,7 @@ pub fn js_distance(p: &[f64], q: &[f64]) -> f64 {
     divergence.max(0.0).sqrt()
 }
 
-/// Number of property channels (SPEC 4.1).
+/// Number of property channels (pipeline.md §4.1).
 pub const CHANNELS: usize = 13;
 
 /// Names of the property channels, in order (for records).
@@ -81,7 +81,7 @@ pub const CHANNEL_NAMES: [&str; CHANNELS] = [
     "|grad B|",
 ];
 
-/// The 13 property channels of SPEC 4.1 at pixel `(x, y)`: R, G, B, the sum
+/// The 13 property channels of pipeline.md §4.1 at pixel `(x, y)`: R, G, B, the sum
 /// R + G + B (the mean times 3: histograms over a pair's joint range do not
 /// see the scale), the horizontal and vertical 3x3 Sobel derivatives of R,
 /// G, B (borders replicated), and the rounded gradient magnitude of R, G, B.
@@ -243,7 +243,7 @@ impl Cells {
     }
 }
 
-/// Finds the uniform squares of a photo (SPEC 4.2-4.3): from every start
+/// Finds the uniform squares of a photo (pipeline.md §4.2-4.3): from every start
 /// cell, the largest square of pairwise-similar cells (every pair tested),
 /// kept when at least `min_cells` a side; squares inside or overlapping a
 /// larger kept one are dropped.
@@ -317,7 +317,7 @@ fn prune(mut squares: Vec<TextureSquare>, max_overlap: f64) -> Vec<TextureSquare
     kept
 }
 
-/// True when a crop is too uniform to be a texture (SPEC 4.4): one of its
+/// True when a crop is too uniform to be a texture (pipeline.md §4.4): one of its
 /// four quadrants has a grey-level standard deviation below 3.5, or below 6
 /// with a mean above 245.
 pub fn too_uniform(crop: &RgbImage) -> bool {

@@ -103,7 +103,7 @@ pub fn look_up_scaled(levels: &[u8], divisor: u8, out: &mut [f32]) {
 }
 
 /// The level at which `table` steps from exactly 0 to exactly 1, when it is
-/// such a step (the table of a binary map: SPEC 1.4 with `t_lo = t_hi`).
+/// such a step (the table of a binary map: pipeline.md §1.4 with `t_lo = t_hi`).
 pub fn step_level(table: &LevelTable) -> Option<u8> {
     let step = table.iter().position(|&v| v == 1.0)?;
     let is_step =

@@ -1,4 +1,4 @@
-//! Training augmentation (SPEC 8): flips (of the image and its ground
+//! Training augmentation (pipeline.md §8): flips (of the image and its ground
 //! truth), blur, brightness x U(0.5, 1.15), partial or full greyscale and
 //! Gaussian noise, each drawn independently.
 

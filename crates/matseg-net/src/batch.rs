@@ -15,14 +15,14 @@ pub struct TrainingSample {
     pub width: usize,
     /// Height in pixels.
     pub height: usize,
-    /// Per-material weights, `width * height` each (SPEC 7.1: mask / sum).
+    /// Per-material weights, `width * height` each (pipeline.md §7.1: mask / sum).
     pub weights: Vec<Vec<f32>>,
     /// 1 inside the ROI, 0 outside, `width * height`.
     pub roi: Vec<f32>,
 }
 
 impl TrainingSample {
-    /// A stored sample as training reads it (SPEC 7.1).
+    /// A stored sample as training reads it (pipeline.md §7.1).
     pub fn from_sample(sample: Sample) -> Self {
         let (width, height) = sample.image.dimensions();
         let targets = sample.targets();

@@ -1,6 +1,6 @@
 //! Where training batches come from: a stored dataset or the 2D generator
 //! (online, no disk in between), fitted to one random size per batch and
-//! augmented (SPEC 8). Batch `s` depends only on (seed, s), so a resumed run
+//! augmented (pipeline.md §8). Batch `s` depends only on (seed, s), so a resumed run
 //! sees the very batches the interrupted one would have.
 
 use crate::augment::augment;
@@ -121,7 +121,7 @@ impl SampleSource for MixedSource<'_> {
     }
 }
 
-/// How batch sizes are drawn (SPEC 8: 2-7 images of one size, sides
+/// How batch sizes are drawn (pipeline.md §8: 2-7 images of one size, sides
 /// multiples of 32, about `pixels` per batch).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct BatchPlan {
@@ -140,7 +140,7 @@ pub struct BatchPlan {
 }
 
 impl BatchPlan {
-    /// The SPEC's plan: sides 224..768, ~1 MP, 2-7 images, half augmented.
+    /// The paper's plan: sides 224..768, ~1 MP, 2-7 images, half augmented.
     pub const SPEC: Self = Self {
         min_side: 224,
         max_side: 768,

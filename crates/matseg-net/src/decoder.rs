@@ -1,4 +1,4 @@
-//! The decoder (SPEC 8): three steps from the PSP output at stride 32 to
+//! The decoder (pipeline.md §8): three steps from the PSP output at stride 32 to
 //! stride 4; each is conv3x3 + BN + GELU, bilinear x2 (to the skip's exact
 //! size), plus the skip: conv1x1 + BN + GELU of the encoder tap.
 

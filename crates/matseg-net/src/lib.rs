@@ -1,4 +1,4 @@
-//! The per-pixel material-descriptor net of SPEC 8 on libtorch (tch):
+//! The per-pixel material-descriptor net of pipeline.md §8 on libtorch (tch):
 //! ConvNeXt and MobileNetV2 encoders, the PSP module, the decoder, the
 //! MatSeg loss, and loading imported weights.
 //!

@@ -1,4 +1,4 @@
-//! The MatSeg loss (SPEC 8).
+//! The MatSeg loss (pipeline.md §8).
 //!
 //! For every image of the batch and every material in it, the material's
 //! descriptor is the mean of the (normalised) pixel descriptors where its

@@ -1,4 +1,4 @@
-//! The material-descriptor net (SPEC 8): encoder, PSP, decoder, a 1x1 conv
+//! The material-descriptor net (pipeline.md §8): encoder, PSP, decoder, a 1x1 conv
 //! head to D channels at stride 4, bilinear up to the input size, per-pixel
 //! L2 normalisation.
 
@@ -12,9 +12,9 @@ use serde::{Deserialize, Serialize};
 use tch::nn;
 use tch::Tensor;
 
-/// Per-channel mean subtracted from 0..255 RGB input (SPEC 8).
+/// Per-channel mean subtracted from 0..255 RGB input (pipeline.md §8).
 pub const INPUT_MEAN: [f64; 3] = [123.68, 116.78, 103.94];
-/// Divisor of the mean-subtracted input (SPEC 8).
+/// Divisor of the mean-subtracted input (pipeline.md §8).
 pub const INPUT_SCALE: f64 = 65.0;
 /// Descriptor channels of the paper's net.
 pub const DESCRIPTOR_DIM: i64 = 128;

@@ -13,7 +13,7 @@ pub struct AdamWConfig {
     pub beta2: f64,
     /// Added to the second moment's square root.
     pub eps: f64,
-    /// Decoupled weight decay (SPEC 8: 4e-5).
+    /// Decoupled weight decay (pipeline.md §8: 4e-5).
     pub weight_decay: f64,
 }
 

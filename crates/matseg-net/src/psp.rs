@@ -1,4 +1,4 @@
-//! The pyramid pooling module on the stride-32 features (SPEC 8): branches
+//! The pyramid pooling module on the stride-32 features (pipeline.md §8): branches
 //! at scales 1, 1/2, 1/4 and 1/8 (average pooling, conv3x3 + BN + GELU,
 //! bilinear back), concatenated, then conv3x3 + BN + GELU.
 

@@ -67,7 +67,7 @@ pub struct LrScale {
     pub scale: f64,
 }
 
-/// Learning rate for an ImageNet-initialised encoder (SPEC 8).
+/// Learning rate for an ImageNet-initialised encoder (pipeline.md §8).
 pub const LR_PRETRAINED: f64 = 1e-5;
 /// Learning rate from scratch: a randomly initialised net needs larger
 /// steps; 1e-4 with warm-up trains our ConvNeXt and MobileNetV2 nets stably.

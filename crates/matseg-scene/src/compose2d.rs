@@ -1,5 +1,5 @@
-//! The 2D scene (SPEC 2): background photo and K material layers mixed by the
-//! soft maps of SPEC 1; the weights are the exact annotation.
+//! The 2D scene (pipeline.md §2): background photo and K material layers mixed by the
+//! soft maps of pipeline.md §1; the weights are the exact annotation.
 
 use crate::material::{draw_material, Layer, MaterialRecord};
 use crate::recipe::{Recipe2d, SceneShape};
@@ -73,7 +73,7 @@ pub enum SceneError {
     Maps(#[from] SoftMapError),
 }
 
-/// Generates one 2D scene from `rng` (SPEC 1 and 2).
+/// Generates one 2D scene from `rng` (pipeline.md §1 and 2).
 pub fn generate_2d<R: Rng + ?Sized>(
     rng: &mut R,
     recipe: &Recipe2d,

@@ -1,5 +1,5 @@
-//! Scene recipes: the 2D composer of SPEC section 2 and the 3D scene builder
-//! of SPEC section 3, with exact soft annotations.
+//! Scene recipes: the 2D composer of pipeline.md §2 and the 3D scene builder
+//! of pipeline.md §3, with exact soft annotations.
 
 #![warn(missing_docs)]
 

@@ -1,4 +1,4 @@
-//! One material layer of a 2D scene (SPEC 2): a texture (tiled or stretched,
+//! One material layer of a 2D scene (pipeline.md §2): a texture (tiled or stretched,
 //! rotated, mirrored, hue-shifted) or a flat colour, with optional shading.
 
 use crate::recipe::CompositionRecipe;
@@ -98,7 +98,7 @@ pub(crate) struct DrawnMaterial {
     shading: Option<Shading>,
 }
 
-/// Draws one material of a `w x h` scene (SPEC 2): a texture or a flat
+/// Draws one material of a `w x h` scene (pipeline.md §2): a texture or a flat
 /// colour, and its shading; its pixels are made as it is blended.
 pub(crate) fn draw_material<R: Rng + ?Sized>(
     rng: &mut R,
@@ -280,7 +280,7 @@ fn drawn_pixels(texture: &Photo, rot90: bool) -> &Pyramid {
     }
 }
 
-/// Draws a texture's placement (SPEC 2); the pixels are rendered later, only
+/// Draws a texture's placement (pipeline.md §2); the pixels are rendered later, only
 /// where the material is visible (see [`Colour`]).
 fn draw_texture<R: Rng + ?Sized>(
     rng: &mut R,
@@ -577,7 +577,7 @@ struct Shading {
 
 /// A shading as it is blended, before its blur: the photo channel's
 /// window, made only on the runs the blur reads, and its maximum, which
-/// divides it (SPEC 2).
+/// divides it (pipeline.md §2).
 struct Shade<'a> {
     rows: ChannelRows<'a>,
     max_level: u8,

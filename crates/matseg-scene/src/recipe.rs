@@ -1,11 +1,11 @@
-//! The 2D recipe: every probability and range of SPEC sections 1 and 2 as a
-//! named field with the SPEC's value as default, overridable from TOML.
+//! The 2D recipe: every probability and range of pipeline.md §1 and §2 as a
+//! named field with the paper's value as default, overridable from TOML.
 
 use matseg_extract::{check_probabilities, SoftMapRecipe};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-/// Scene-level draws (SPEC 1, last paragraph).
+/// Scene-level draws (pipeline.md §1, last paragraph).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SceneDraws {
@@ -102,7 +102,7 @@ impl Default for SceneDraws {
     }
 }
 
-/// How materials and the background are drawn and composed (SPEC 2).
+/// How materials and the background are drawn and composed (pipeline.md §2).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct CompositionRecipe {
@@ -165,9 +165,9 @@ impl Default for CompositionRecipe {
 pub struct Recipe2d {
     /// Scene size, material count, hardness, occupancy.
     pub scene: SceneDraws,
-    /// Soft map drawing (SPEC 1).
+    /// Soft map drawing (pipeline.md §1).
     pub maps: SoftMapRecipe,
-    /// Background, textures and shading (SPEC 2).
+    /// Background, textures and shading (pipeline.md §2).
     pub composition: CompositionRecipe,
 }
 
@@ -316,7 +316,7 @@ mod tests {
 
     /// The distribution's means equal the means over every equally likely
     /// draw (each side and K uniform on their ranges, sides independent),
-    /// for the SPEC's ranges and a small recipe's.
+    /// for the paper's ranges and a small recipe's.
     #[test]
     fn mean_pixels_and_materials_are_the_draws_means() {
         let small = SceneDraws {

@@ -1,5 +1,5 @@
-//! The 3D recipe: every probability and range of SPEC section 3 as a named
-//! field with the SPEC's value as default, overridable from TOML.
+//! The 3D recipe: every probability and range of pipeline.md §3 as a named
+//! field with the paper's value as default, overridable from TOML.
 
 use crate::recipe::{read_toml, RecipeError};
 use serde::{Deserialize, Serialize};
@@ -86,9 +86,9 @@ pub struct Recipe3d {
     /// Camera focal length in millimetres (36 mm sensor).
     pub focal_mm: f32,
     /// The camera is `distance_unit * (2 + 3U)` from the main object's
-    /// bounding sphere (SPEC: 20).
+    /// bounding sphere (the paper: 20).
     pub distance_unit: f32,
-    /// Elevation is `(1 - elevation_drop * U²) * 90°` (SPEC: 1.1) ...
+    /// Elevation is `(1 - elevation_drop * U²) * 90°` (the paper: 1.1) ...
     pub elevation_drop: f32,
     /// ... but at least this many degrees above a ground plane.
     pub min_elevation_over_ground_deg: f32,

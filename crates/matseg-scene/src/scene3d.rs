@@ -1,4 +1,4 @@
-//! The 3D scene builder (SPEC section 3): draws a complete scene
+//! The 3D scene builder (pipeline.md §3): draws a complete scene
 //! description (main object(s) with a binary tree of natural-photo splits
 //! deciding where each material is, PBR or principled materials, HDRI,
 //! ground, distractors, lights, camera) from one seeded RNG. Rendering it

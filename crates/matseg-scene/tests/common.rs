@@ -15,7 +15,7 @@ pub fn libraries() -> (PhotoLibrary, PhotoLibrary) {
     (photos, textures)
 }
 
-/// The SPEC recipe with small scenes, so tests stay fast.
+/// The default recipe with small scenes, so tests stay fast.
 pub fn small_recipe() -> Recipe2d {
     let mut r = Recipe2d::default();
     r.scene.size_min = 64;
