@@ -4,9 +4,10 @@ use anyhow::{bail, Result};
 use clap::Subcommand;
 use matseg_eval::baselines::{baseline, BASELINES};
 use matseg_eval::{
-    evaluate_masks, evaluate_points, load_point_benchmark, scan_mask_benchmark, DescriptorModel,
-    MaskEvalOptions, QueryOptions,
+    evaluate_masks, evaluate_points, load_point_benchmark, scan_mask_benchmark, MaskEvalOptions,
+    QueryOptions,
 };
+use matseg_image::descriptor::DescriptorModel;
 use std::path::PathBuf;
 
 /// `matseg eval` subcommands.

@@ -6,8 +6,8 @@
 use crate::train::parse_device;
 use anyhow::{bail, Context, Result};
 use image::RgbImage;
-use matseg_eval::coarse::CoarseDescriptors;
 use matseg_eval::{cluster_descriptors, ClusterOptions};
+use matseg_image::coarse::CoarseDescriptors;
 use matseg_image::io::{encode_png_gray, encode_png_rgb, read_rgb, write_atomic};
 use matseg_net::infer::TrainedNet;
 use matseg_net::TEMPERATURE;

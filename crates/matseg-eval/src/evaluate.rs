@@ -1,12 +1,12 @@
 //! Running a model over a benchmark: images resized to the evaluation size,
 //! descriptor maps, point descriptors, and the dataset means of the scores.
 
-use crate::descriptor::DescriptorModel;
 use crate::iou::{best_iou, best_iou_on_grid};
 use crate::masks::{query_points, MaskImage, QueryOptions};
 use crate::points::{flatten, BenchError, PointBenchmark};
 use crate::triplet::{score_image, ImageScores, PointScores};
 use image::{GrayImage, RgbImage};
+use matseg_image::descriptor::DescriptorModel;
 use matseg_image::io::{decode_gray, read_rgb};
 use matseg_image::Pyramid;
 use rayon::prelude::*;

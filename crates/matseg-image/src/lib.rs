@@ -1,7 +1,9 @@
 //! Pixels for matseg: float planes and RGB images, colour channels (RGB/HSV)
 //! on 8-bit levels with their counts and histograms,
 //! threshold ramps, Gaussian blur, mip-pyramid resampling, image I/O and the
-//! bounded, decode-once photo library every generator draws from.
+//! bounded, decode-once photo library every generator draws from; per-pixel
+//! descriptor maps (the interface every model, trained or not, implements)
+//! and the CIE L*a*b* conversion.
 
 #![warn(missing_docs)]
 
@@ -9,8 +11,11 @@ pub mod bilinear;
 pub mod blur;
 pub mod channel;
 pub mod channel_rows;
+pub mod coarse;
 pub mod coverage;
+pub mod descriptor;
 pub mod io;
+pub mod lab;
 pub mod levels;
 pub mod library;
 pub mod licence;

@@ -8,7 +8,7 @@
 //! stride-4 features, smoothed by its decoder, lose some of it.
 
 use crate::net::denormalise_input;
-use matseg_eval::baselines::{D65_WHITE_XZ, LAB_EPSILON, LAB_KAPPA, LINEAR_SRGB_TO_XYZ};
+use matseg_image::lab::{D65_WHITE_XZ, LAB_EPSILON, LAB_KAPPA, LINEAR_SRGB_TO_XYZ};
 use tch::{nn, Tensor};
 
 /// Random Fourier features of a cell's colour.
@@ -151,7 +151,7 @@ impl SplitMix64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use matseg_eval::baselines::srgb_to_lab as reference_lab;
+    use matseg_image::lab::srgb_to_lab as reference_lab;
     use tch::{Device, Kind};
 
     /// An `[1, 3, 1, n]` tensor of 0..255 colours.

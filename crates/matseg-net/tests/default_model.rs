@@ -2,7 +2,7 @@
 //! descriptors, and tells materials of a bundled photo apart: two points on
 //! one material are more alike than points on two materials.
 
-use matseg_eval::descriptor::{Comparison, DescriptorModel};
+use matseg_image::descriptor::{Comparison, DescriptorModel};
 use matseg_net::infer::{default_model_dir, NetModel, DEFAULT_MODEL};
 use std::path::Path;
 use tch::Device;

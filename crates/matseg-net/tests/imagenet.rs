@@ -3,7 +3,7 @@
 //! classifies bundled CC0 photos correctly: the weights are wired right.
 
 use image::imageops::{self, FilterType};
-use matseg_eval::descriptor::{Comparison, DescriptorModel};
+use matseg_image::descriptor::{Comparison, DescriptorModel};
 use matseg_net::imagenet::{ImagenetBaseline, ImagenetFeatures, IMAGENET_DIM};
 use matseg_net::mobilenet_v2::IMAGENET_MEAN_STD;
 use matseg_net::{load_named, rgb8_to_tensor, MobileNetV2Classifier};

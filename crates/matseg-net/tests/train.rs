@@ -4,7 +4,7 @@
 
 mod common;
 
-use matseg_eval::descriptor::Comparison;
+use matseg_image::descriptor::Comparison;
 use matseg_net::colour::COLOUR_PART;
 use matseg_net::data::{batch_samples, BatchPlan, GeneratorSource};
 use matseg_net::infer::{PixelDescriptors, TrainedNet};
