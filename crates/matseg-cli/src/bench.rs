@@ -1,11 +1,12 @@
 //! `matseg bench`: generator throughput at the paper's scene-size distribution.
 
-use crate::common::{Defaults, Libraries, DEFAULT_CACHE_MB};
+use crate::common::load_libraries;
 use crate::cpu_time::process_cpu_seconds;
 use anyhow::Result;
 use matseg_data::{encode_scene, generate_dataset, sample_rng, Format, GenerateOptions, JobSlice};
 use matseg_extract::make_soft_maps;
 use matseg_image::LicenceFilter;
+use matseg_pipeline::sources::{Defaults, DEFAULT_CACHE_MB};
 use matseg_scene::{generate_2d, Recipe2d, Scene2d};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -102,7 +103,7 @@ const IN_MEMORY: &str = "generate in memory (no encoding)";
 /// Runs `matseg bench`: measures each row and prints the table.
 pub fn run(args: Args) -> Result<()> {
     anyhow::ensure!(args.scenes >= 1, "--scenes must be at least 1");
-    let libs = Libraries::load(
+    let libs = load_libraries(
         &args.sources,
         &args.textures,
         args.cache_mb,

@@ -2,7 +2,7 @@
 //! evaluation can run end to end without external data; `matseg bench-set
 //! draw`: any point benchmark's annotations drawn on its photos.
 
-use crate::common::{Defaults, Libraries, LicenceArgs, DEFAULT_CACHE_MB};
+use crate::common::{load_libraries, LicenceArgs};
 use anyhow::{ensure, Context, Result};
 use clap::Subcommand;
 use matseg_data::sample_rng;
@@ -10,6 +10,7 @@ use matseg_eval::load_point_benchmark;
 use matseg_eval::overlay::draw_points;
 use matseg_eval::synthetic::{annotate_points, write_point_image, SyntheticOptions};
 use matseg_image::io::{encode_png_rgb, read_rgb, write_atomic};
+use matseg_pipeline::sources::{Defaults, DEFAULT_CACHE_MB};
 use matseg_scene::{generate_2d, Recipe2d};
 use std::path::PathBuf;
 
@@ -97,7 +98,7 @@ fn draw(args: DrawArgs) -> Result<()> {
 
 fn make(args: MakeArgs) -> Result<()> {
     ensure!(args.points >= 1, "--points must be at least 1");
-    let libs = Libraries::load(
+    let libs = load_libraries(
         &args.sources,
         &args.textures,
         DEFAULT_CACHE_MB,

@@ -2,8 +2,8 @@
 
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
-use matseg_extract::material_library::{colour_map, find_materials};
-use matseg_image::{LicenceFilter, PhotoLibrary, SkippedFile};
+use matseg_image::{LicenceFilter, SkippedFile};
+use matseg_pipeline::{Defaults, Libraries};
 use matseg_scene::Recipe2d;
 use std::path::{Path, PathBuf};
 
@@ -20,126 +20,6 @@ pub fn flat_stem(name: &str) -> String {
         Some((stem, _)) => stem.to_string(),
         None => flat,
     }
-}
-
-/// Writes a material folder: `write_maps` fills `DIR.partial/`, with a
-/// `licenses.json` giving every file `licence`; the folder is renamed to
-/// `dir`, and `material.json` (the `record` object plus the licence, the
-/// colour spaces and the normal convention) is written last, so a folder
-/// with `material.json` is complete and anything else is redone.
-pub fn write_material_folder(
-    dir: &Path,
-    licence: &str,
-    write_maps: impl FnOnce(&Path) -> std::io::Result<()>,
-    mut record: serde_json::Value,
-) -> Result<()> {
-    // `NAME.partial` beside `dir`, appended rather than swapped for an
-    // extension: material names hold dots (`Terrain.winter__Town1`), and
-    // two such names must not share one partial folder when written in
-    // parallel.
-    let mut partial_name = dir.file_name().unwrap_or_default().to_os_string();
-    partial_name.push(".partial");
-    let partial = dir.with_file_name(partial_name);
-    if partial.exists() {
-        std::fs::remove_dir_all(&partial)?;
-    }
-    std::fs::create_dir_all(&partial)?;
-    write_maps(&partial)
-        .and_then(|()| {
-            let licences = serde_json::json!({ "*": licence }).to_string();
-            std::fs::write(partial.join("licenses.json"), licences)
-        })
-        .with_context(|| format!("{}: cannot write", partial.display()))?;
-    record["licence"] = licence.into();
-    record["color_space"] = serde_json::json!({"Color": "sRGB", "other maps": "linear"});
-    record["normal_convention"] = "OpenGL (+Y up)".into();
-    if dir.exists() {
-        std::fs::remove_dir_all(dir)?;
-    }
-    std::fs::rename(&partial, dir)?;
-    std::fs::write(
-        dir.join("material.json"),
-        serde_json::to_vec_pretty(&record)?,
-    )
-    .with_context(|| format!("{}: cannot write material.json", dir.display()))
-}
-
-/// The user's matseg cache: `$MATSEG_CACHE`, else `$XDG_CACHE_HOME/matseg`,
-/// else `~/.cache/matseg`.
-pub fn cache_root() -> Result<PathBuf> {
-    let var = |k: &str| {
-        std::env::var_os(k)
-            .filter(|v| !v.is_empty())
-            .map(PathBuf::from)
-    };
-    if let Some(dir) = var("MATSEG_CACHE") {
-        return Ok(dir);
-    }
-    if let Some(dir) = var("XDG_CACHE_HOME") {
-        return Ok(dir.join("matseg"));
-    }
-    match var("HOME") {
-        Some(home) => Ok(home.join(".cache/matseg")),
-        None => anyhow::bail!("no cache folder: set MATSEG_CACHE"),
-    }
-}
-
-/// Default bound on decoded source photos held in memory, per process.
-pub const DEFAULT_CACHE_MB: usize = 2048;
-
-/// The bundled sample assets: `$MATSEG_ASSETS`, else the repository's `assets/`.
-pub fn assets_dir() -> PathBuf {
-    std::env::var_os("MATSEG_ASSETS")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets"))
-}
-
-/// Where a command's sources come from when the user names none.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Defaults {
-    /// The corpus `matseg assets fetch` made, for each kind it holds; the
-    /// bundled sample set otherwise (generators and training).
-    CorpusOrBundled,
-    /// Always the bundled sample set (the demo and the benchmarks, whose
-    /// results must not depend on what a machine has fetched).
-    Bundled,
-}
-
-impl Defaults {
-    /// The corpus folder of `kind` when these defaults take the corpus and
-    /// it holds that kind.
-    pub fn corpus_folder(self, kind: &str) -> Option<PathBuf> {
-        if self != Defaults::CorpusOrBundled {
-            return None;
-        }
-        corpus_dir().map(|c| c.join(kind)).filter(|d| d.is_dir())
-    }
-
-    /// The default folders of `kind` (`photos`, `textures`, `hdris`,
-    /// `meshes`); empty when there are none.
-    pub fn folders(self, kind: &str) -> Vec<PathBuf> {
-        let folder = self
-            .corpus_folder(kind)
-            .or_else(|| Some(assets_dir().join(kind)).filter(|d| d.is_dir()));
-        folder.into_iter().collect()
-    }
-
-    /// `given` when the user named any, else the default folders of `kind`.
-    pub fn or(self, given: &[PathBuf], kind: &str) -> Vec<PathBuf> {
-        if given.is_empty() {
-            self.folders(kind)
-        } else {
-            given.to_vec()
-        }
-    }
-}
-
-/// The fetched corpus (`CACHE/corpus`), when it has a catalogue.
-pub fn corpus_dir() -> Option<PathBuf> {
-    let dir = cache_root().ok()?.join("corpus");
-    dir.join(matseg_assets::catalog::CATALOG_FILE)
-        .is_file()
-        .then_some(dir)
 }
 
 /// The `--licences` option of the commands that draw from source folders.
@@ -160,85 +40,37 @@ impl LicenceArgs {
     }
 }
 
-/// Texture sources: a folder of PBR material folders (from `matseg pbr`,
-/// ambientCG, MatSeg or MatSynth) stands for the colour maps of its
-/// materials; anything else (a texture library, image files) for itself.
-fn texture_sources(given: &[PathBuf]) -> Result<Vec<PathBuf>> {
-    let mut sources = Vec::new();
-    for path in given {
-        let materials = if path.is_dir() {
-            find_materials(path).map_err(anyhow::Error::msg)?
-        } else {
-            Vec::new()
-        };
-        if materials.is_empty() {
-            sources.push(path.clone());
-        }
-        for dir in materials {
-            sources.extend(colour_map(&dir).map_err(anyhow::Error::msg)?);
-        }
+/// Scans the photo and texture libraries ([`Libraries::load`]) and prints
+/// a warning for each unreadable file.
+pub fn load_libraries(
+    photos: &[PathBuf],
+    textures: &[PathBuf],
+    cache_mb: usize,
+    defaults: Defaults,
+    licences: &LicenceFilter,
+) -> Result<Libraries> {
+    let libraries = Libraries::load(photos, textures, cache_mb, defaults, licences)?;
+    for s in libraries.skipped_at_scan() {
+        eprintln!("warning: skipped {}: {}", s.path.display(), s.reason);
     }
-    Ok(sources)
+    Ok(libraries)
 }
 
-/// Photo and texture libraries from the given folders, or the bundled ones.
-pub struct Libraries {
-    pub photos: PhotoLibrary,
-    pub textures: PhotoLibrary,
-    scan_skipped: Vec<SkippedFile>,
-}
-
-impl Libraries {
-    /// Scans `photos` and `textures` (the `defaults` when empty), keeps the
-    /// files whose licence `licences` accepts, and prints a warning for each
-    /// unreadable file.
-    pub fn load(
-        photos: &[PathBuf],
-        textures: &[PathBuf],
-        cache_mb: usize,
-        defaults: Defaults,
-        licences: &LicenceFilter,
-    ) -> Result<Self> {
-        let budget = cache_mb.saturating_mul(1 << 20);
-        let (photos, r1) = PhotoLibrary::scan(&defaults.or(photos, "photos"), budget / 2)?;
-        let photos = photos.retain_licences(licences)?;
-        let textures = texture_sources(&defaults.or(textures, "textures"))?;
-        let (textures, r2) = PhotoLibrary::scan(&textures, budget / 2)?;
-        let textures = textures.retain_licences(licences)?;
-        let scan_skipped: Vec<SkippedFile> = r1.skipped.into_iter().chain(r2.skipped).collect();
-        for s in &scan_skipped {
-            eprintln!("warning: skipped {}: {}", s.path.display(), s.reason);
-        }
-        Ok(Self {
-            photos,
-            textures,
-            scan_skipped,
-        })
+/// Prints the source files that failed to decode during the run and the
+/// count of all unreadable ones.
+pub fn report_skipped(libraries: &Libraries) {
+    let late: Vec<SkippedFile> = libraries
+        .photos
+        .failures()
+        .into_iter()
+        .chain(libraries.textures.failures())
+        .collect();
+    for s in &late {
+        eprintln!("warning: skipped {}: {}", s.path.display(), s.reason);
     }
-
-    /// The scene sources.
-    pub fn sources(&self) -> matseg_scene::Sources<'_> {
-        matseg_scene::Sources {
-            photos: &self.photos,
-            textures: &self.textures,
-        }
-    }
-
-    /// Prints files that failed to decode during the run and the total count.
-    pub fn report_skipped(&self) {
-        let late: Vec<SkippedFile> = self
-            .photos
-            .failures()
-            .into_iter()
-            .chain(self.textures.failures())
-            .collect();
-        for s in &late {
-            eprintln!("warning: skipped {}: {}", s.path.display(), s.reason);
-        }
-        let total = self.scan_skipped.len() + late.len();
-        if total > 0 {
-            eprintln!("warning: {total} unreadable source file(s) skipped");
-        }
+    let total = libraries.skipped_at_scan().len() + late.len();
+    if total > 0 {
+        eprintln!("warning: {total} unreadable source file(s) skipped");
     }
 }
 
@@ -309,32 +141,6 @@ pub fn init_threads(threads: Option<usize>) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn material_folders_with_dots_in_their_names_keep_their_own_partial_folder() {
-        let root = std::env::temp_dir().join(format!("matseg-folders-{}", std::process::id()));
-        let names = ["Terrain.winter__Town1__pbr0", "Terrain.winter__airport__pbr0"];
-        for name in names {
-            let dir = root.join(name);
-            write_material_folder(
-                &dir,
-                "CC0",
-                |partial| {
-                    assert_eq!(partial, root.join(format!("{name}.partial")));
-                    std::fs::write(partial.join("basecolor.png"), name)
-                },
-                serde_json::json!({ "name": name }),
-            )
-            .unwrap();
-        }
-        for name in names {
-            let dir = root.join(name);
-            assert_eq!(std::fs::read_to_string(dir.join("basecolor.png")).unwrap(), name);
-            assert!(dir.join("material.json").is_file());
-            assert!(!root.join(format!("{name}.partial")).exists());
-        }
-        std::fs::remove_dir_all(&root).unwrap();
-    }
 
     #[test]
     fn ranges_parse_and_reject_nonsense() {

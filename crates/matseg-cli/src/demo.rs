@@ -1,14 +1,13 @@
 //! `matseg demo`: the pipeline on the bundled assets, with an HTML report.
 
-use crate::common::{
-    assets_dir, flat_stem, init_threads, progress_bar, Defaults, Libraries, DEFAULT_CACHE_MB,
-};
+use crate::common::{flat_stem, init_threads, load_libraries, progress_bar, report_skipped};
 use anyhow::{Context, Result};
 use matseg_data::{generate_dataset, sample_rng, Dataset, Format, GenerateOptions, JobSlice};
 use matseg_extract::pbr::{make_pbr, preview_sphere, PbrRecipe};
 use matseg_extract::textures::{extract_textures, TextureOptions};
 use matseg_image::io::{encode_png_gray, encode_png_rgb, read_rgb, write_atomic};
 use matseg_image::{LicenceFilter, PhotoLibrary};
+use matseg_pipeline::sources::{assets_dir, Defaults, DEFAULT_CACHE_MB};
 use matseg_scene::{colorize, Recipe2d};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -44,7 +43,7 @@ pub struct Args {
 /// Runs `matseg demo`: generates samples from the bundled assets and writes the HTML report.
 pub fn run(args: Args) -> Result<()> {
     init_threads(args.threads)?;
-    let libs = Libraries::load(
+    let libs = load_libraries(
         &[],
         &[],
         DEFAULT_CACHE_MB,
@@ -63,7 +62,7 @@ pub fn run(args: Args) -> Result<()> {
     let bar = progress_bar(args.n, "2D samples");
     generate_dataset(&opts, &Recipe2d::default(), libs.sources(), &|k| bar.inc(k))?;
     bar.finish_and_clear();
-    libs.report_skipped();
+    report_skipped(&libs);
 
     // Read the samples back through the dataset reader, so the report shows
     // what a training run would see.

@@ -2,13 +2,13 @@
 //! photos, materials and HDRIs, path traced, and shown beside their exact
 //! annotations (`scenes-3d.html`).
 
-use crate::common::Defaults;
 use crate::demo::sample_cards;
 use crate::generate::{load_recipe_3d, Files3d};
 use anyhow::{Context, Result};
 use matseg_data::{generate_with, Dataset, Format, GenerateOptions, Generator3d, JobSlice};
 use matseg_image::io::write_atomic;
 use matseg_image::LicenceFilter;
+use matseg_pipeline::sources::Defaults;
 use matseg_render::cache::{AssetCache, DEFAULT_CACHE_BYTES};
 use std::path::Path;
 

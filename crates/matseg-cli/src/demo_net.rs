@@ -5,7 +5,6 @@
 //! the same maps from it. The page lists the `matseg` commands that redo
 //! each step by hand: training runs through that command's own parser.
 
-use crate::common::assets_dir;
 use crate::segment::{write_clusters, write_point_maps, DEFAULT_RADIUS};
 use anyhow::{bail, Context, Result};
 use clap::Parser;
@@ -13,6 +12,7 @@ use matseg_eval::ClusterOptions;
 use matseg_image::io::{read_rgb, write_atomic};
 use matseg_net::infer::{default_model_dir, TrainedNet, DEFAULT_MODEL};
 use matseg_net::train::{read_run_config, RUN_FILE};
+use matseg_pipeline::sources::assets_dir;
 use std::fmt::Write as _;
 use std::path::Path;
 use tch::Device;

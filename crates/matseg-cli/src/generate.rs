@@ -1,8 +1,7 @@
 //! `matseg generate`.
 
 use crate::common::{
-    assets_dir, cache_root, init_threads, load_recipe, progress_bar, Defaults, Libraries,
-    LicenceArgs, DEFAULT_CACHE_MB,
+    init_threads, load_libraries, load_recipe, progress_bar, report_skipped, LicenceArgs,
 };
 use anyhow::{bail, Result};
 use clap::ValueEnum;
@@ -13,6 +12,7 @@ use matseg_data::{
 use matseg_extract::material_library::find_materials;
 use matseg_image::io::find_files;
 use matseg_image::{licence_of, LicenceFilter, PhotoLibrary};
+use matseg_pipeline::sources::{assets_dir, cache_root, Defaults, DEFAULT_CACHE_MB};
 use matseg_render::cache::AssetCache;
 use matseg_render::hdr_io::HDR_EXTENSIONS;
 use matseg_render::mesh_io::MESH_EXTENSIONS;
@@ -145,7 +145,7 @@ pub fn run(args: Args) -> Result<()> {
     let report = match args.kind {
         Kind::TwoD => {
             let recipe = load_recipe(args.config.as_deref(), args.size_range.as_deref())?;
-            let libs = Libraries::load(
+            let libs = load_libraries(
                 &args.sources,
                 &args.textures,
                 args.cache_mb,
@@ -159,7 +159,7 @@ pub fn run(args: Args) -> Result<()> {
                     sources: libs.sources(),
                 },
             )?;
-            libs.report_skipped();
+            report_skipped(&libs);
             report
         }
         Kind::ThreeD => {
@@ -260,7 +260,7 @@ impl Files3d {
             if !root.is_dir() {
                 bail!("{}: no such folder", root.display());
             }
-            found.extend(find_materials(root).map_err(anyhow::Error::msg)?);
+            found.extend(find_materials(root)?);
         }
         let materials = licensed(found, licences, "materials")?;
         let materials = keep_readable(materials, |p| cache.material(p).map(drop));

@@ -1,8 +1,9 @@
 //! `matseg pbr`: PBR materials from a texture library (pipeline.md §5).
 
-use crate::common::{flat_stem, init_threads, progress_bar, write_material_folder};
+use crate::common::{flat_stem, init_threads, progress_bar};
 use anyhow::{Context, Result};
 use matseg_data::sample_rng;
+use matseg_extract::material_library::write_material_folder;
 use matseg_extract::pbr::{make_pbr, PbrRecipe};
 use matseg_image::io::read_rgb;
 use matseg_image::PhotoLibrary;

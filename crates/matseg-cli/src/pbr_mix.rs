@@ -1,9 +1,11 @@
 //! `matseg pbr-mix`: new PBR materials by mixing existing ones (pipeline.md §5).
 
-use crate::common::{init_threads, progress_bar, write_material_folder};
+use crate::common::{init_threads, progress_bar};
 use anyhow::{ensure, Context, Result};
 use matseg_data::sample_rng;
-use matseg_extract::material_library::{find_materials, read_material, MaterialMaps};
+use matseg_extract::material_library::{
+    find_materials, read_material, write_material_folder, MaterialMaps,
+};
 use matseg_extract::pbr_mix::{mix_materials, MixRecipe};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -30,7 +32,7 @@ pub struct Args {
 /// Runs `matseg pbr-mix`.
 pub fn run(args: Args) -> Result<()> {
     init_threads(args.threads)?;
-    let dirs = find_materials(&args.materials).map_err(anyhow::Error::msg)?;
+    let dirs = find_materials(&args.materials)?;
     ensure!(
         dirs.len() >= 2,
         "{}: mixing needs at least two material folders, found {}",
@@ -40,8 +42,7 @@ pub fn run(args: Args) -> Result<()> {
     let library: Vec<MaterialMaps> = dirs
         .par_iter()
         .map(|d| read_material(d))
-        .collect::<Result<_, _>>()
-        .map_err(anyhow::Error::msg)?;
+        .collect::<Result<_, _>>()?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("{}: cannot create", args.out.display()))?;
     let todo: Vec<u64> = (0..args.n)
@@ -105,7 +106,8 @@ fn write_mix(
         "weights": record.weights,
         "seed": seed,
     });
-    write_material_folder(&mix_dir(out, i), &licence, |d| mixed.write_maps(d), json)
+    write_material_folder(&mix_dir(out, i), &licence, |d| mixed.write_maps(d), json)?;
+    Ok(())
 }
 
 /// The licence a material folder's `licenses.json` gives all its files

@@ -2,7 +2,7 @@
 //! dataset or straight from the 2D generator, into a run folder that
 //! `--resume` continues exactly.
 
-use crate::common::{Defaults, Libraries, LicenceArgs};
+use crate::common::{load_libraries, LicenceArgs};
 use crate::weights::{fetched, ArchArg};
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -16,6 +16,7 @@ use matseg_net::train::{
     self, LrScale, Mix, NetScore, RunConfig, TrainOptions, Trainer, Validation,
 };
 use matseg_net::{load_named, load_net_adding, EncoderConfig, NetConfig, PRESETS};
+use matseg_pipeline::sources::Defaults;
 use matseg_scene::Recipe2d;
 use matseg_weights::read_safetensors;
 use std::path::{Path, PathBuf};
@@ -182,7 +183,7 @@ pub fn run(args: Args) -> Result<()> {
     };
     let config = trainer.config.clone();
     // One scan of the libraries serves the online source and validation.
-    let libraries = Libraries::load(
+    let libraries = load_libraries(
         &args.sources,
         &args.textures,
         1024,

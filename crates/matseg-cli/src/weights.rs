@@ -181,7 +181,7 @@ fn import(args: ImportArgs) -> Result<()> {
 
 /// The default cache folder for weights.
 fn default_cache() -> Result<PathBuf> {
-    Ok(crate::common::cache_root()?.join("weights"))
+    Ok(matseg_pipeline::sources::cache_root()?.join("weights"))
 }
 
 fn fetch(args: FetchArgs) -> Result<()> {

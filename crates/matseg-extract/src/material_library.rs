@@ -3,11 +3,48 @@
 //! `Displacement`, `AmbientOcclusion`, `Opacity`, also as `NAME_1K_Color.jpg`),
 //! MatSeg's (`OriginColor`, `Normal`, `Height`, `Metallic`, `Specular`) and
 //! MatSynth's (`basecolor`, `diffuse`, `normal`, `height`, `displacement`,
-//! `roughness`, `metallic`, `opacity`, `specular`).
+//! `roughness`, `metallic`, `opacity`, `specular`); and writing our own
+//! folders so that an interrupted write is never taken for a material.
 
 use crate::pbr::MapKind;
 use image::{GrayImage, RgbImage};
 use std::path::{Path, PathBuf};
+
+/// What went wrong reading or writing a material folder; the message names
+/// the folder or file.
+#[derive(Debug, thiserror::Error)]
+pub enum MaterialError {
+    /// A folder could not be listed.
+    #[error("{}: cannot list: {source}", path.display())]
+    List {
+        /// The folder.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// A material folder without a colour map.
+    #[error("{}: no colour map (Color, basecolor, OriginColor, ...)", dir.display())]
+    NoColourMap {
+        /// The folder.
+        dir: PathBuf,
+    },
+    /// A map that does not decode.
+    #[error("{}: {source}", path.display())]
+    Image {
+        /// The map file.
+        path: PathBuf,
+        /// Why.
+        source: image::ImageError,
+    },
+    /// A folder or file that could not be written.
+    #[error("{}: cannot write: {source}", path.display())]
+    Write {
+        /// The folder or file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+}
 
 /// The maps of one material; only the colour is required.
 #[derive(Clone, Debug)]
@@ -63,9 +100,12 @@ fn role(stem: &str) -> Option<Role> {
 }
 
 /// The image files of a material folder, sorted.
-fn map_files(dir: &Path) -> Result<Vec<PathBuf>, String> {
+fn map_files(dir: &Path) -> Result<Vec<PathBuf>, MaterialError> {
     let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
-        .map_err(|e| format!("{}: cannot list: {e}", dir.display()))?
+        .map_err(|source| MaterialError::List {
+            path: dir.to_path_buf(),
+            source,
+        })?
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| matseg_image::io::has_image_extension(p))
         .collect();
@@ -84,27 +124,29 @@ fn find_role(files: &[PathBuf], wanted: Role) -> Option<&PathBuf> {
 }
 
 /// The colour map of the material in `dir`, if it has one.
-pub fn colour_map(dir: &Path) -> Result<Option<PathBuf>, String> {
+pub fn colour_map(dir: &Path) -> Result<Option<PathBuf>, MaterialError> {
     Ok(find_role(&map_files(dir)?, Role::Color).cloned())
 }
 
 /// Reads the material in `dir`. An error names the folder (no colour map)
 /// or the file (unreadable).
-pub fn read_material(dir: &Path) -> Result<MaterialMaps, String> {
+pub fn read_material(dir: &Path) -> Result<MaterialMaps, MaterialError> {
     let files = map_files(dir)?;
     let find = |wanted: Role| find_role(&files, wanted);
-    let open = |p: &PathBuf| image::open(p).map_err(|e| format!("{}: {e}", p.display()));
-    let grey = |kind: MapKind| -> Result<Option<GrayImage>, String> {
+    let open = |p: &PathBuf| {
+        image::open(p).map_err(|source| MaterialError::Image {
+            path: p.clone(),
+            source,
+        })
+    };
+    let grey = |kind: MapKind| -> Result<Option<GrayImage>, MaterialError> {
         find(Role::Scalar(kind))
             .map(|p| open(p).map(|i| i.to_luma8()))
             .transpose()
     };
     let color = find(Role::Color)
-        .ok_or_else(|| {
-            format!(
-                "{}: no colour map (Color, basecolor, OriginColor, ...)",
-                dir.display()
-            )
+        .ok_or_else(|| MaterialError::NoColourMap {
+            dir: dir.to_path_buf(),
         })
         .and_then(|p| open(p).map(|i| i.to_rgb8()))?;
     let normal = match (find(Role::NormalGl), find(Role::NormalDx)) {
@@ -132,12 +174,14 @@ pub fn read_material(dir: &Path) -> Result<MaterialMaps, String> {
 
 /// Every material folder below `root` (a folder holding a colour map),
 /// sorted by path.
-pub fn find_materials(root: &Path) -> Result<Vec<PathBuf>, String> {
+pub fn find_materials(root: &Path) -> Result<Vec<PathBuf>, MaterialError> {
     let mut found = Vec::new();
     let mut stack = vec![root.to_path_buf()];
     while let Some(dir) = stack.pop() {
-        let entries =
-            std::fs::read_dir(&dir).map_err(|e| format!("{}: cannot list: {e}", dir.display()))?;
+        let entries = std::fs::read_dir(&dir).map_err(|source| MaterialError::List {
+            path: dir.clone(),
+            source,
+        })?;
         let mut has_colour = false;
         for entry in entries.filter_map(|e| e.ok()) {
             let path = entry.path();
@@ -157,9 +201,86 @@ pub fn find_materials(root: &Path) -> Result<Vec<PathBuf>, String> {
     Ok(found)
 }
 
+/// Writes a material folder: `write_maps` fills `DIR.partial/`, with a
+/// `licenses.json` giving every file `licence`; the folder is renamed to
+/// `dir`, and `material.json` (the `record` object plus the licence, the
+/// colour spaces and the normal convention) is written last, so a folder
+/// with `material.json` is complete and anything else is redone.
+pub fn write_material_folder(
+    dir: &Path,
+    licence: &str,
+    write_maps: impl FnOnce(&Path) -> std::io::Result<()>,
+    mut record: serde_json::Value,
+) -> Result<(), MaterialError> {
+    // `NAME.partial` beside `dir`, appended rather than swapped for an
+    // extension: material names hold dots (`Terrain.winter__Town1`), and
+    // two such names must not share one partial folder when written in
+    // parallel.
+    let mut partial_name = dir.file_name().unwrap_or_default().to_os_string();
+    partial_name.push(".partial");
+    let partial = dir.with_file_name(partial_name);
+    let failed = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| MaterialError::Write { path, source }
+    };
+    if partial.exists() {
+        std::fs::remove_dir_all(&partial).map_err(failed(&partial))?;
+    }
+    std::fs::create_dir_all(&partial).map_err(failed(&partial))?;
+    write_maps(&partial)
+        .and_then(|()| {
+            let licences = serde_json::json!({ "*": licence }).to_string();
+            std::fs::write(partial.join("licenses.json"), licences)
+        })
+        .map_err(failed(&partial))?;
+    record["licence"] = licence.into();
+    record["color_space"] = serde_json::json!({"Color": "sRGB", "other maps": "linear"});
+    record["normal_convention"] = "OpenGL (+Y up)".into();
+    if dir.exists() {
+        std::fs::remove_dir_all(dir).map_err(failed(dir))?;
+    }
+    std::fs::rename(&partial, dir).map_err(failed(dir))?;
+    let json = serde_json::to_vec_pretty(&record).expect("a JSON value serialises");
+    let file = dir.join("material.json");
+    std::fs::write(&file, json).map_err(failed(&file))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn material_folders_with_dots_in_their_names_keep_their_own_partial_folder() {
+        let root = tempfile::tempdir().unwrap();
+        let names = [
+            "Terrain.winter__Town1__pbr0",
+            "Terrain.winter__airport__pbr0",
+        ];
+        for name in names {
+            write_material_folder(
+                &root.path().join(name),
+                "CC0",
+                |partial| {
+                    assert_eq!(partial, root.path().join(format!("{name}.partial")));
+                    std::fs::write(partial.join("Color.png"), name)
+                },
+                serde_json::json!({ "name": name }),
+            )
+            .unwrap();
+        }
+        for name in names {
+            let dir = root.path().join(name);
+            assert_eq!(
+                std::fs::read_to_string(dir.join("Color.png")).unwrap(),
+                name
+            );
+            let record: serde_json::Value =
+                serde_json::from_slice(&std::fs::read(dir.join("material.json")).unwrap()).unwrap();
+            assert_eq!(record["name"], name);
+            assert_eq!(record["licence"], "CC0");
+            assert!(!root.path().join(format!("{name}.partial")).exists());
+        }
+    }
 
     #[test]
     fn names_map_to_roles_in_every_convention() {

@@ -85,7 +85,10 @@ fn ambientcg_matseg_and_matsynth_folders_read_alike() {
         [128, 55, 255]
     );
     std::fs::remove_file(ms.join("OriginColor.png")).unwrap();
-    assert!(read_material(&ms).unwrap_err().contains("no colour map"));
+    assert!(read_material(&ms)
+        .unwrap_err()
+        .to_string()
+        .contains("no colour map"));
 }
 
 #[test]

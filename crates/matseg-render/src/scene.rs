@@ -297,7 +297,8 @@ pub struct MaterialTextures {
 impl MaterialTextures {
     /// Reads the maps of the material folder `dir`.
     pub fn read(dir: &Path) -> Result<Self, SceneError> {
-        let maps = matseg_extract::material_library::read_material(dir).map_err(SceneError)?;
+        let maps = matseg_extract::material_library::read_material(dir)
+            .map_err(|e| SceneError(e.to_string()))?;
         Ok(MaterialTextures {
             color: Some(Texture::from_rgb(maps.color)),
             roughness: maps.roughness.map(Texture::from_gray),
