@@ -5,11 +5,12 @@
 //! scene (JSON and world-space OBJ meshes) for `scripts/bench-render-cycles.py`,
 //! which renders the same scene with Blender Cycles.
 
+use crate::common::BarProgress;
 use crate::cpu_time::{median, peak_rss_mib, process_cpu_seconds};
-use crate::generate::bundled_materials;
 use anyhow::{Context, Result};
 use matseg_extract::material_library::find_materials;
 use matseg_image::{Channel, Ramp};
+use matseg_pipeline::materials::bundled_materials;
 use matseg_pipeline::sources::assets_dir;
 use matseg_render::camera::Camera;
 use matseg_render::mesh::Mesh;
@@ -216,7 +217,7 @@ pub fn run(args: Args) -> Result<()> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(args.threads.unwrap_or(0))
         .build()?;
-    let materials = find_materials(&bundled_materials()?)?;
+    let materials = find_materials(&bundled_materials(&BarProgress::default())?)?;
     anyhow::ensure!(!materials.is_empty(), "no bundled materials");
     let assets = assets_dir();
     let photos: Vec<PathBuf> = ["coffee.jpg", "chelsea.jpg", "astronaut.jpg", "rocket.jpg"]

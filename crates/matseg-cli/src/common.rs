@@ -3,24 +3,9 @@
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use matseg_image::{LicenceFilter, SkippedFile};
-use matseg_pipeline::{Defaults, Libraries};
+use matseg_pipeline::{Defaults, Libraries, Progress};
 use matseg_scene::Recipe2d;
 use std::path::{Path, PathBuf};
-
-/// A library entry's name (a path below its source folder) as one file
-/// name: separators become `__`.
-pub fn flat_name(name: &str) -> String {
-    name.replace(['/', '\\'], "__")
-}
-
-/// [`flat_name`] without the file extension.
-pub fn flat_stem(name: &str) -> String {
-    let flat = flat_name(name);
-    match flat.rsplit_once('.') {
-        Some((stem, _)) => stem.to_string(),
-        None => flat,
-    }
-}
 
 /// The `--licences` option of the commands that draw from source folders.
 #[derive(clap::Args)]
@@ -123,6 +108,35 @@ pub fn progress_bar(len: u64, what: &str) -> ProgressBar {
         .progress_chars("=> "),
     );
     bar
+}
+
+/// A job's progress as a bar on stderr, made when the job says how long it
+/// is, and its warnings as `warning: skipped ...` lines.
+#[derive(Default)]
+pub struct BarProgress {
+    bar: std::sync::OnceLock<ProgressBar>,
+}
+
+impl Progress for BarProgress {
+    fn start(&self, total: u64, what: &str) {
+        let _ = self.bar.set(progress_bar(total, what));
+    }
+
+    fn advance(&self) {
+        if let Some(bar) = self.bar.get() {
+            bar.inc(1);
+        }
+    }
+
+    fn finish(&self) {
+        if let Some(bar) = self.bar.get() {
+            bar.finish_and_clear();
+        }
+    }
+
+    fn warn(&self, message: &str) {
+        eprintln!("warning: skipped {message}");
+    }
 }
 
 /// Sets the global rayon thread count when given.

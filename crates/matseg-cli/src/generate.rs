@@ -1,7 +1,8 @@
 //! `matseg generate`.
 
 use crate::common::{
-    init_threads, load_libraries, load_recipe, progress_bar, report_skipped, LicenceArgs,
+    init_threads, load_libraries, load_recipe, progress_bar, report_skipped, BarProgress,
+    LicenceArgs,
 };
 use anyhow::{bail, Result};
 use clap::ValueEnum;
@@ -12,7 +13,8 @@ use matseg_data::{
 use matseg_extract::material_library::find_materials;
 use matseg_image::io::find_files;
 use matseg_image::{licence_of, LicenceFilter, PhotoLibrary};
-use matseg_pipeline::sources::{assets_dir, cache_root, Defaults, DEFAULT_CACHE_MB};
+use matseg_pipeline::materials::default_materials;
+use matseg_pipeline::sources::{Defaults, DEFAULT_CACHE_MB};
 use matseg_render::cache::AssetCache;
 use matseg_render::hdr_io::HDR_EXTENSIONS;
 use matseg_render::mesh_io::MESH_EXTENSIONS;
@@ -251,7 +253,7 @@ impl Files3d {
         }
         let photos: Vec<PathBuf> = library.entries().iter().map(|e| e.path.clone()).collect();
         let material_roots = if materials.is_empty() {
-            vec![default_materials(defaults)?]
+            vec![default_materials(defaults, &BarProgress::default())?]
         } else {
             materials.to_vec()
         };
@@ -336,24 +338,4 @@ fn keep_readable(
         eprintln!("warning: {skipped} unreadable files skipped");
     }
     kept
-}
-
-/// The default 3D material library: one seamless PBR material per bundled
-/// texture, made once (seed 0) into the cache.
-pub fn bundled_materials() -> Result<PathBuf> {
-    let dir = cache_root()?.join("materials/bundled-textures-seed0");
-    crate::pbr::make_library(&[assets_dir().join("textures")], &dir, 1, 0, true)?;
-    Ok(dir)
-}
-
-/// The 3D materials when none are given: made once (seed 0) from the
-/// corpus's textures when `defaults` takes the corpus and it has textures,
-/// else [`bundled_materials`].
-fn default_materials(defaults: Defaults) -> Result<PathBuf> {
-    let Some(textures) = defaults.corpus_folder("textures") else {
-        return bundled_materials();
-    };
-    let dir = cache_root()?.join("materials/corpus-textures-seed0");
-    crate::pbr::make_library(&[textures], &dir, 1, 0, true)?;
-    Ok(dir)
 }

@@ -13,9 +13,6 @@ mod bench_set;
 mod common;
 mod cpu_time;
 mod demo;
-mod demo_3d;
-#[cfg(feature = "net")]
-mod demo_net;
 mod eval;
 mod generate;
 mod maps;

@@ -1,10 +1,11 @@
 //! `matseg textures`: a library of uniform-texture crops from photos (pipeline.md §4).
 
-use crate::common::{flat_name, flat_stem, init_threads, progress_bar};
+use crate::common::{init_threads, progress_bar};
 use crate::cpu_time::process_cpu_seconds;
 use anyhow::{Context, Result};
 use matseg_extract::textures::{extract_textures, TextureOptions, TextureSquare, CHANNEL_NAMES};
 use matseg_image::io::{encode_jpeg, read_rgb, write_atomic};
+use matseg_image::library::PhotoEntry;
 use matseg_image::PhotoLibrary;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -55,9 +56,9 @@ struct TextureRecord {
 }
 
 /// The record file of a photo: its path in the sources, flattened.
-fn record_path(out: &Path, name: &str) -> PathBuf {
+fn record_path(out: &Path, entry: &PhotoEntry) -> PathBuf {
     out.join("records")
-        .join(format!("{}.json", flat_name(name)))
+        .join(format!("{}.json", entry.flat_name()))
 }
 
 /// Runs `matseg textures`.
@@ -81,7 +82,7 @@ pub fn run(args: Args) -> Result<()> {
         .with_context(|| format!("{}: cannot create", args.out.display()))?;
     let smallest = (options.cell * options.min_cells) as u32;
     let todo: Vec<usize> = (0..library.len())
-        .filter(|&i| !record_path(&args.out, &library.entries()[i].name).is_file())
+        .filter(|&i| !record_path(&args.out, &library.entries()[i]).is_file())
         .collect();
     // The headers tell which photos cannot hold the smallest square.
     let (too_small, todo): (Vec<usize>, Vec<usize>) = todo.into_iter().partition(|&i| {
@@ -139,7 +140,7 @@ fn extract_one(
 ) -> Result<(usize, u64), String> {
     let entry = &library.entries()[i];
     let img = read_rgb(&entry.path).map_err(|e| e.to_string())?;
-    let stem = flat_stem(&entry.name);
+    let stem = entry.flat_stem();
     let mut textures = Vec::new();
     for (k, (square, crop)) in extract_textures(&img, options).into_iter().enumerate() {
         let file = format!("{stem}__{k}.jpg");
@@ -158,7 +159,7 @@ fn extract_one(
     };
     let n = record.textures.len();
     let json = serde_json::to_vec_pretty(&record).expect("JSON");
-    let path = record_path(out, &entry.name);
+    let path = record_path(out, entry);
     write_atomic(&path, &json).map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
     Ok((n, img.width() as u64 * img.height() as u64))
 }

@@ -67,6 +67,22 @@ pub struct PhotoEntry {
     pub height: u32,
 }
 
+impl PhotoEntry {
+    /// [`PhotoEntry::name`] as one file name: path separators become `__`.
+    pub fn flat_name(&self) -> String {
+        self.name.replace(['/', '\\'], "__")
+    }
+
+    /// [`PhotoEntry::flat_name`] without the file extension.
+    pub fn flat_stem(&self) -> String {
+        let flat = self.flat_name();
+        match flat.rsplit_once('.') {
+            Some((stem, _)) => stem.to_string(),
+            None => flat,
+        }
+    }
+}
+
 /// A decoded photo, ready for resampling.
 #[derive(Debug)]
 pub struct Photo {

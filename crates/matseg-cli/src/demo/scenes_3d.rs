@@ -2,7 +2,7 @@
 //! photos, materials and HDRIs, path traced, and shown beside their exact
 //! annotations (`scenes-3d.html`).
 
-use crate::demo::sample_cards;
+use super::page::{sample_cards, STYLE};
 use crate::generate::{load_recipe_3d, Files3d};
 use anyhow::{Context, Result};
 use matseg_data::{generate_with, Dataset, Format, GenerateOptions, Generator3d, JobSlice};
@@ -75,7 +75,7 @@ Each sample's <code>meta.json</code> holds its scene description: <code>matseg r
 <div class="grid">
 {cards}</div></body></html>
 "#,
-        style = crate::demo::STYLE,
+        style = STYLE,
         n = dataset.len(),
         spp = recipe.spp,
     );

@@ -1,6 +1,11 @@
 //! `matseg demo`: the pipeline on the bundled assets, with an HTML report.
 
-use crate::common::{flat_stem, init_threads, load_libraries, progress_bar, report_skipped};
+#[cfg(feature = "net")]
+mod net;
+mod page;
+mod scenes_3d;
+
+use crate::common::{init_threads, load_libraries, progress_bar, report_skipped};
 use anyhow::{Context, Result};
 use matseg_data::{generate_dataset, sample_rng, Dataset, Format, GenerateOptions, JobSlice};
 use matseg_extract::pbr::{make_pbr, preview_sphere, PbrRecipe};
@@ -8,7 +13,8 @@ use matseg_extract::textures::{extract_textures, TextureOptions};
 use matseg_image::io::{encode_png_gray, encode_png_rgb, read_rgb, write_atomic};
 use matseg_image::{LicenceFilter, PhotoLibrary};
 use matseg_pipeline::sources::{assets_dir, Defaults, DEFAULT_CACHE_MB};
-use matseg_scene::{colorize, Recipe2d};
+use matseg_scene::Recipe2d;
+use page::{sample_cards, STYLE};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -101,79 +107,16 @@ Samples are in MatSeg folder layout under <code>samples-2d/</code>.</p>
     write_atomic(&index, html.as_bytes()).with_context(|| index.display().to_string())?;
     materials_page(&args.out, args.seed)?;
     if args.samples_3d > 0 {
-        crate::demo_3d::scenes_page(&args.out, args.samples_3d, args.size_3d, args.seed)?;
+        scenes_3d::scenes_page(&args.out, args.samples_3d, args.size_3d, args.seed)?;
     }
     #[cfg(feature = "net")]
-    crate::demo_net::net_page(&args.out, args.train_steps, args.seed)?;
+    net::net_page(&args.out, args.train_steps, args.seed)?;
     eprintln!(
         "{}: demo report with {} samples",
         index.display(),
         dataset.len()
     );
     Ok(())
-}
-
-/// The report pages' shared style sheet.
-pub const STYLE: &str = r#"<style>
-body { font-family: sans-serif; margin: 1.5em; background: #fafafa; }
-.grid { display: grid; grid-template-columns: repeat(auto-fill, minmax(420px, 1fr)); gap: 1em; }
-figure { margin: 0; background: #fff; padding: .5em; border: 1px solid #ddd; }
-.pair { display: grid; grid-template-columns: 1fr 1fr; gap: 4px; }
-.pair img { width: 100%; height: 200px; object-fit: contain; background: #000; }
-figcaption { font-size: .8em; color: #444; margin-top: .3em; }
-</style>"#;
-
-/// One figure per sample of `dataset` (stored under `out/sub`): the image
-/// beside its colour annotation (written to
-/// `out/previews/{preview_prefix}KEY_annotation.png`), captioned with size,
-/// material count, `describe(sidecar)` and licences.
-pub fn sample_cards(
-    dataset: &Dataset,
-    out: &Path,
-    sub: &str,
-    preview_prefix: &str,
-    describe: impl Fn(&serde_json::Value) -> String,
-) -> Result<String> {
-    let previews = out.join("previews");
-    std::fs::create_dir_all(&previews).with_context(|| previews.display().to_string())?;
-    let mut cards = String::new();
-    for sample in dataset.iter() {
-        let sample = sample?;
-        let (w, h) = sample.image.dimensions();
-        let masks: Vec<Vec<f32>> = sample
-            .masks
-            .iter()
-            .map(|m| m.as_raw().iter().map(|&v| v as f32 / 255.0).collect())
-            .collect();
-        let slices: Vec<&[f32]> = masks.iter().map(Vec::as_slice).collect();
-        let name = format!("{preview_prefix}{}_annotation.png", sample.key);
-        let path = previews.join(&name);
-        write_atomic(
-            &path,
-            &encode_png_rgb(&colorize(w as usize, h as usize, &slices)),
-        )
-        .with_context(|| path.display().to_string())?;
-        let meta = sample.meta.clone().unwrap_or_default();
-        let licences = meta["licences"]
-            .as_array()
-            .map(|l| {
-                l.iter()
-                    .filter_map(|v| v.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            })
-            .unwrap_or_default();
-        write!(
-            cards,
-            r#"<figure><div class="pair"><img src="{sub}/{key}/RGB__RGB.jpg"><img src="previews/{name}"></div>
-<figcaption>#{key}: {w}x{h}, {k} material(s), {what}; {licences}</figcaption></figure>
-"#,
-            key = sample.key,
-            k = sample.masks.len(),
-            what = describe(&meta),
-        )?;
-    }
-    Ok(cards)
 }
 
 /// `materials.html`: uniform textures extracted from the bundled photos
@@ -199,7 +142,7 @@ fn materials_page(out: &Path, seed: u64) -> Result<()> {
     for entry in photos.entries() {
         let img = read_rgb(&entry.path)?;
         for (k, (square, crop)) in extract_textures(&img, &options).into_iter().enumerate() {
-            let stem = flat_stem(&entry.name);
+            let stem = entry.flat_stem();
             let src = write_png(&format!("texture_{stem}_{k}.png"), encode_png_rgb(&crop))?;
             writeln!(
                 textures,
@@ -223,7 +166,7 @@ fn materials_page(out: &Path, seed: u64) -> Result<()> {
             &texture,
             &PbrRecipe::default(),
         );
-        let stem = flat_stem(&entry.name);
+        let stem = entry.flat_stem();
         let grey = |k: usize, what: &str| -> Result<String> {
             let map = &m.maps[k].1;
             write_png(
