@@ -4,7 +4,7 @@
 //! net and step in PyTorch for the ratio in BENCHMARKS.md.
 
 use crate::cpu_time::{median, peak_rss_mib};
-use crate::train::{parse_device, preset};
+use crate::net_args::{parse_device, preset};
 use anyhow::{bail, Result};
 use matseg_net::batch::{Batch, TrainingSample};
 use matseg_net::data::BatchPlan;

@@ -151,7 +151,7 @@ fn models(args: &ModelArgs) -> Result<Vec<Box<dyn DescriptorModel>>> {
 pub fn imagenet_baseline(device: &str) -> Result<matseg_net::imagenet::ImagenetBaseline> {
     use anyhow::Context;
     use matseg_net::imagenet::{ImagenetBaseline, ImagenetFeatures};
-    let device = crate::train::parse_device(device)?;
+    let device = crate::net_args::parse_device(device)?;
     let path = crate::weights::fetched(crate::weights::ArchArg::MobilenetV2, None)?.0;
     let label = path.display().to_string();
     let bytes = std::fs::read(&path).with_context(|| format!("{label}: cannot read"))?;
@@ -164,7 +164,7 @@ pub fn imagenet_baseline(device: &str) -> Result<matseg_net::imagenet::ImagenetB
 /// The trained nets named by `--model`, each named after its run folder.
 #[cfg(feature = "net")]
 fn nets(args: &ModelArgs) -> Result<Vec<Box<dyn DescriptorModel>>> {
-    let device = crate::train::parse_device(&args.device)?;
+    let device = crate::net_args::parse_device(&args.device)?;
     let mut nets: Vec<Box<dyn DescriptorModel>> = Vec::new();
     for path in args.nets.iter().filter(|p| p.as_os_str() != "none") {
         let mut net = matseg_net::infer::NetModel::load(path, device)?;

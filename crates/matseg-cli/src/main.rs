@@ -16,6 +16,8 @@ mod demo;
 mod eval;
 mod generate;
 mod maps;
+#[cfg(feature = "net")]
+mod net_args;
 mod pbr;
 mod pbr_mix;
 mod recipe;

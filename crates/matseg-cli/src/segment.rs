@@ -3,7 +3,7 @@
 //! segmentation when several points are given, or with no points by
 //! clustering the descriptors (`--auto K`).
 
-use crate::train::parse_device;
+use crate::net_args::parse_device;
 use anyhow::{bail, Context, Result};
 use image::RgbImage;
 use matseg_eval::{cluster_descriptors, ClusterOptions};

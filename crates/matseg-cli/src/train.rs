@@ -3,6 +3,7 @@
 //! `--resume` continues exactly.
 
 use crate::common::{load_libraries, LicenceArgs};
+use crate::net_args::{parse_device, preset};
 use crate::weights::{fetched, ArchArg};
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -15,7 +16,7 @@ use matseg_net::loader::default_workers;
 use matseg_net::train::{
     self, LrScale, Mix, NetScore, RunConfig, TrainOptions, Trainer, Validation,
 };
-use matseg_net::{load_named, load_net_adding, EncoderConfig, NetConfig, PRESETS};
+use matseg_net::{load_named, load_net_adding, EncoderConfig, NetConfig};
 use matseg_pipeline::sources::Defaults;
 use matseg_scene::Recipe2d;
 use matseg_weights::read_safetensors;
@@ -148,29 +149,6 @@ fn parse_lr_scale(s: &str) -> Result<LrScale, String> {
     Ok(LrScale {
         prefix: prefix.to_string(),
         scale,
-    })
-}
-
-/// The device named on the command line.
-pub fn parse_device(name: &str) -> Result<Device> {
-    match name {
-        "cpu" => Ok(Device::Cpu),
-        "cuda" if !cfg!(feature = "cuda") => bail!(
-            "--device cuda: this matseg was built without CUDA; build it with `--features cuda` (docs/gpu.md)"
-        ),
-        "cuda" if tch::Cuda::is_available() => Ok(Device::Cuda(0)),
-        "cuda" => bail!("--device cuda: libtorch sees no CUDA device here"),
-        other => bail!("--device {other}: expected cpu or cuda"),
-    }
-}
-
-/// The net preset named by `--encoder`.
-pub fn preset(encoder: &str) -> Result<NetConfig> {
-    NetConfig::preset(encoder).with_context(|| {
-        format!(
-            "--encoder {encoder}: expected one of {}",
-            PRESETS.join(", ")
-        )
     })
 }
 
