@@ -1,6 +1,7 @@
-//! CIE L*a*b* (D65 white) of 8-bit sRGB colours: the colour space of the
-//! `lab` baseline and of the net's colour part, which share these constants
-//! so that both convert alike.
+//! 8-bit sRGB levels as linear light (what the renderer's colour maps
+//! read), and CIE L*a*b* (D65 white) of sRGB colours: the colour space of
+//! the `lab` baseline and of the net's colour part, which share these
+//! constants so that both convert alike.
 
 /// Linear sRGB to CIE XYZ, rows X, Y, Z.
 pub const LINEAR_SRGB_TO_XYZ: [[f32; 3]; 3] = [
@@ -38,8 +39,9 @@ pub fn srgb_to_lab(rgb: [u8; 3]) -> [f32; 3] {
     [116.0 * fy - 16.0, 500.0 * (fx - fy), 200.0 * (fy - fz)]
 }
 
-/// Linear light of each 8-bit sRGB level, computed once.
-fn linear_table() -> &'static [f32; 256] {
+/// Linear light of each 8-bit sRGB level (the sRGB transfer function
+/// undone), computed once.
+pub fn linear_table() -> &'static [f32; 256] {
     static TABLE: std::sync::OnceLock<[f32; 256]> = std::sync::OnceLock::new();
     TABLE.get_or_init(|| {
         std::array::from_fn(|v| {

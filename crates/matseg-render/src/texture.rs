@@ -2,8 +2,8 @@
 //! bilinear lookups with wrap-around, sRGB decoding for colour maps, and
 //! the placement (scale, rotation, offset) of a texture on a surface.
 
+use matseg_image::lab::linear_table;
 use serde::{Deserialize, Serialize};
-use std::sync::OnceLock;
 
 /// An 8-bit image with 1 or 3 channels, row-major, top row first.
 #[derive(Clone, Debug, PartialEq)]
@@ -12,21 +12,6 @@ pub struct Texture {
     height: usize,
     channels: usize,
     data: Vec<u8>,
-}
-
-/// sRGB-encoded level to linear value.
-fn srgb_table() -> &'static [f32; 256] {
-    static TABLE: OnceLock<[f32; 256]> = OnceLock::new();
-    TABLE.get_or_init(|| {
-        std::array::from_fn(|i| {
-            let c = i as f32 / 255.0;
-            if c <= 0.04045 {
-                c / 12.92
-            } else {
-                ((c + 0.055) / 1.055).powf(2.4)
-            }
-        })
-    })
 }
 
 /// Linear value to an sRGB-encoded value in [0, 1].
@@ -151,7 +136,7 @@ impl Texture {
     /// Linear RGB at (u, v) of an sRGB colour texture.
     #[inline]
     pub fn linear_rgb(&self, u: f32, v: f32) -> [f32; 3] {
-        let t = srgb_table();
+        let t = linear_table();
         std::array::from_fn(|c| self.lookup(u, v, c, |l| t[l as usize]))
     }
 }
