@@ -104,11 +104,14 @@ pub fn run(command: Command) -> Result<()> {
 /// Baseline names `--baseline` accepts, in table order: the colour and
 /// texture statistics, then (in a build with the net) the ImageNet features.
 fn known_baselines() -> Vec<&'static str> {
-    let mut names = BASELINES.to_vec();
-    #[cfg(feature = "net")]
-    names.push(matseg_net::imagenet::IMAGENET_BASELINE);
-    names
+    [BASELINES.as_slice(), NET_BASELINES].concat()
 }
+
+/// The baselines that need the net's crate (none in a build without it).
+#[cfg(feature = "net")]
+const NET_BASELINES: &[&str] = &[matseg_net::imagenet::IMAGENET_BASELINE];
+#[cfg(not(feature = "net"))]
+const NET_BASELINES: &[&str] = &[];
 
 /// The models named by `--baseline` (in table order), then the nets named by
 /// `--model`.
