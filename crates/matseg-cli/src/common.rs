@@ -3,7 +3,8 @@
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use matseg_image::{LicenceFilter, SkippedFile};
-use matseg_pipeline::{Defaults, Libraries, Progress};
+use matseg_pipeline::progress::Progress;
+use matseg_pipeline::sources::{Defaults, Libraries};
 use matseg_scene::Recipe2d;
 use std::path::{Path, PathBuf};
 

@@ -16,6 +16,3 @@
 pub mod materials;
 pub mod progress;
 pub mod sources;
-
-pub use progress::{Progress, Silent};
-pub use sources::{Defaults, Libraries, SourceError};

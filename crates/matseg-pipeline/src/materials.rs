@@ -57,7 +57,7 @@ pub fn make_library(
         .filter(|&(i, j)| !folder(out, &library, i, j).join("material.json").is_file())
         .collect();
     progress.start(jobs.len() as u64, "materials");
-    let results: Vec<Result<LibraryReport, String>> = jobs
+    let results: Vec<Result<Timing, String>> = jobs
         .par_iter()
         .map(|&(i, j)| {
             let result = make_one(out, &library, (i, j), seed, seamless, &recipe);
@@ -92,6 +92,13 @@ fn folder(out: &Path, library: &PhotoLibrary, i: usize, j: u64) -> PathBuf {
     out.join(format!("{}__pbr{j}", library.entries()[i].flat_stem()))
 }
 
+/// One material's size and where its time went (thread seconds).
+struct Timing {
+    megapixels: f64,
+    make_seconds: f64,
+    write_seconds: f64,
+}
+
 /// Makes one material and writes its folder; the error names the file.
 fn make_one(
     out: &Path,
@@ -100,7 +107,7 @@ fn make_one(
     seed: u64,
     seamless: bool,
     recipe: &PbrRecipe,
-) -> Result<LibraryReport, String> {
+) -> Result<Timing, String> {
     let entry = &library.entries()[i];
     let texture = read_rgb(&entry.path).map_err(|e| e.to_string())?;
     let start = Instant::now();
@@ -123,11 +130,10 @@ fn make_one(
         json,
     )
     .map_err(|e| e.to_string())?;
-    Ok(LibraryReport {
+    Ok(Timing {
         megapixels: (texture.width() as f64 * texture.height() as f64) / 1e6,
         make_seconds,
         write_seconds: start.elapsed().as_secs_f64(),
-        ..LibraryReport::default()
     })
 }
 
@@ -157,7 +163,6 @@ pub fn default_materials(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::progress::Silent;
     use std::sync::Mutex;
 
     /// Progress that records what it was told.
@@ -207,7 +212,7 @@ mod tests {
             assert!(dir.join("material.json").is_file(), "{}", dir.display());
         }
 
-        let again = make_library(&[textures], &out, 2, 7, false, &Silent).unwrap();
+        let again = make_library(&[textures], &out, 2, 7, false, &Recorded::default()).unwrap();
         assert_eq!((again.written, again.existing, again.failed), (0, 2, 0));
     }
 }

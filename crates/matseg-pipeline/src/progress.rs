@@ -13,13 +13,3 @@ pub trait Progress: Sync {
     /// and the problem.
     fn warn(&self, message: &str);
 }
-
-/// Progress that nobody watches.
-pub struct Silent;
-
-impl Progress for Silent {
-    fn start(&self, _total: u64, _what: &str) {}
-    fn advance(&self) {}
-    fn finish(&self) {}
-    fn warn(&self, _message: &str) {}
-}

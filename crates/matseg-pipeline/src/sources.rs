@@ -101,7 +101,7 @@ impl Defaults {
 /// Texture sources: a folder of PBR material folders (from `matseg pbr`,
 /// ambientCG, MatSeg or MatSynth) stands for the colour maps of its
 /// materials; anything else (a texture library, image files) for itself.
-pub fn texture_sources(given: &[PathBuf]) -> Result<Vec<PathBuf>, MaterialError> {
+fn texture_sources(given: &[PathBuf]) -> Result<Vec<PathBuf>, MaterialError> {
     let mut sources = Vec::new();
     for path in given {
         let materials = if path.is_dir() {
