@@ -3,10 +3,25 @@
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use matseg_image::{LicenceFilter, SkippedFile};
+use matseg_pipeline::error::PipelineError;
+use matseg_pipeline::files3d::{Files3d, Folders3d};
 use matseg_pipeline::progress::Progress;
 use matseg_pipeline::sources::{Defaults, Libraries};
+use matseg_render::cache::AssetCache;
 use matseg_scene::Recipe2d;
 use std::path::{Path, PathBuf};
+
+/// Scene kinds, as command-line values (`generate --kind`, `recipe --kind`).
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum SceneKind {
+    /// Textures mixed by soft maps over a photo background (pipeline.md §2).
+    #[value(name = "2d")]
+    TwoD,
+    /// Objects carrying several PBR materials split by photo channels, lit
+    /// by HDRIs and path traced (pipeline.md §3).
+    #[value(name = "3d")]
+    ThreeD,
+}
 
 /// The `--licences` option of the commands that draw from source folders.
 #[derive(clap::Args)]
@@ -40,6 +55,24 @@ pub fn load_libraries(
         eprintln!("warning: skipped {}: {}", s.path.display(), s.reason);
     }
     Ok(libraries)
+}
+
+/// Finds and checks the files of 3D scenes ([`Files3d::load`]) and prints
+/// a warning for each unreadable file.
+pub fn load_files_3d(
+    folders: &Folders3d,
+    cache: &AssetCache,
+    defaults: Defaults,
+    licences: &LicenceFilter,
+) -> Result<Files3d> {
+    let files = Files3d::load(folders, cache, defaults, licences, &BarProgress::default())?;
+    for s in &files.skipped {
+        eprintln!("warning: skipped {s}");
+    }
+    if !files.skipped.is_empty() {
+        eprintln!("warning: {} unreadable files skipped", files.skipped.len());
+    }
+    Ok(files)
 }
 
 /// Prints the source files that failed to decode during the run and the
@@ -111,26 +144,32 @@ pub fn progress_bar(len: u64, what: &str) -> ProgressBar {
     bar
 }
 
-/// A job's progress as a bar on stderr, made when the job says how long it
-/// is, and its warnings as `warning: skipped ...` lines.
+/// Jobs' progress as a bar on stderr, one per job, made when the job says
+/// how long it is; their warnings as `warning: skipped ...` lines.
 #[derive(Default)]
 pub struct BarProgress {
-    bar: std::sync::OnceLock<ProgressBar>,
+    bar: std::sync::Mutex<Option<ProgressBar>>,
+}
+
+impl BarProgress {
+    fn bar(&self) -> std::sync::MutexGuard<'_, Option<ProgressBar>> {
+        self.bar.lock().unwrap_or_else(|e| e.into_inner())
+    }
 }
 
 impl Progress for BarProgress {
     fn start(&self, total: u64, what: &str) {
-        let _ = self.bar.set(progress_bar(total, what));
+        *self.bar() = Some(progress_bar(total, what));
     }
 
     fn advance(&self) {
-        if let Some(bar) = self.bar.get() {
+        if let Some(bar) = self.bar().as_ref() {
             bar.inc(1);
         }
     }
 
     fn finish(&self) {
-        if let Some(bar) = self.bar.get() {
+        if let Some(bar) = self.bar().take() {
             bar.finish_and_clear();
         }
     }
@@ -138,6 +177,23 @@ impl Progress for BarProgress {
     fn warn(&self, message: &str) {
         eprintln!("warning: skipped {message}");
     }
+}
+
+/// An error as one line; a library setting at fault is named by its flag
+/// (`mix fraction` as `--mix-fraction`).
+pub fn one_line(e: &anyhow::Error) -> String {
+    let text = match e.downcast_ref::<PipelineError>() {
+        Some(PipelineError::Setting {
+            name,
+            value,
+            message,
+        }) => {
+            let value = value.as_ref().map(|v| format!(" {v}")).unwrap_or_default();
+            format!("--{}{value}: {message}", name.replace(' ', "-"))
+        }
+        _ => format!("{e:#}"),
+    };
+    text.replace('\n', " ")
 }
 
 /// Sets the global rayon thread count when given.
@@ -164,5 +220,16 @@ mod tests {
         assert_eq!(parse_range("512").unwrap(), (512, 512));
         assert!(parse_range("999..400").is_err());
         assert!(parse_range("a..b").is_err());
+    }
+
+    #[test]
+    fn library_settings_are_named_by_their_flags() {
+        let setting = PipelineError::setting("mix fraction", Some(1.5), "expected 0..1");
+        assert_eq!(
+            one_line(&anyhow::Error::from(setting)),
+            "--mix-fraction 1.5: expected 0..1"
+        );
+        let file = PipelineError::file("a.json", "cannot read");
+        assert_eq!(one_line(&anyhow::Error::from(file)), "a.json: cannot read");
     }
 }

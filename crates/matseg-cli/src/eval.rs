@@ -1,13 +1,13 @@
 //! `matseg eval points|masks`: score models on real-photo benchmarks.
 
-use anyhow::{bail, Result};
+use anyhow::Result;
 use clap::Subcommand;
-use matseg_eval::baselines::{baseline, BASELINES};
 use matseg_eval::{
     evaluate_masks, evaluate_points, load_point_benchmark, scan_mask_benchmark, MaskEvalOptions,
     QueryOptions,
 };
 use matseg_image::descriptor::DescriptorModel;
+use matseg_pipeline::models::ModelChoice;
 use std::path::PathBuf;
 
 /// `matseg eval` subcommands.
@@ -101,84 +101,18 @@ pub fn run(command: Command) -> Result<()> {
     }
 }
 
-/// Baseline names `--baseline` accepts, in table order: the colour and
-/// texture statistics, then (in a build with the net) the ImageNet features.
-fn known_baselines() -> Vec<&'static str> {
-    [BASELINES.as_slice(), NET_BASELINES].concat()
-}
-
-/// The baselines that need the net's crate (none in a build without it).
-#[cfg(feature = "net")]
-const NET_BASELINES: &[&str] = &[matseg_net::imagenet::IMAGENET_BASELINE];
-#[cfg(not(feature = "net"))]
-const NET_BASELINES: &[&str] = &[];
-
-/// The models named by `--baseline` (in table order), then the nets named by
-/// `--model`.
+/// The models `args` choose.
 fn models(args: &ModelArgs) -> Result<Vec<Box<dyn DescriptorModel>>> {
-    let known = known_baselines();
-    let mut wanted: Vec<&str> = Vec::new();
-    for name in &args.baselines {
-        if name == "all" {
-            wanted.extend(&known);
-        } else if known.contains(&name.as_str()) {
-            wanted.push(name);
-        } else {
-            bail!(
-                "unknown baseline {name:?}; known: {}, all",
-                known.join(", ")
-            );
-        }
-    }
-    let mut models: Vec<Box<dyn DescriptorModel>> = Vec::new();
-    for name in known.iter().filter(|b| wanted.contains(b)) {
-        match baseline(name) {
-            Some(model) => models.push(model),
-            #[cfg(feature = "net")]
-            None => models.push(Box::new(imagenet_baseline(&args.device)?)),
-            #[cfg(not(feature = "net"))]
-            None => unreachable!("every known baseline is built"),
-        }
-    }
-    #[cfg(feature = "net")]
-    models.extend(nets(args)?);
-    if models.is_empty() {
-        bail!("nothing to score: give --baseline NAME... or --model RUN...");
-    }
-    Ok(models)
-}
-
-/// The ImageNet MobileNetV2 feature baseline on `device`, with the
-/// registry's weights (fetched into the cache the first time).
-#[cfg(feature = "net")]
-pub fn imagenet_baseline(device: &str) -> Result<matseg_net::imagenet::ImagenetBaseline> {
-    use anyhow::Context;
-    use matseg_net::imagenet::{ImagenetBaseline, ImagenetFeatures};
-    let device = crate::net_args::parse_device(device)?;
-    let path = crate::weights::fetched(crate::weights::ArchArg::MobilenetV2, None)?.0;
-    let label = path.display().to_string();
-    let bytes = std::fs::read(&path).with_context(|| format!("{label}: cannot read"))?;
-    let tensors = matseg_weights::read_safetensors(&bytes, &label)?;
-    Ok(ImagenetBaseline::imagenet(ImagenetFeatures::new(
-        &tensors, &label, device,
-    )?))
-}
-
-/// The trained nets named by `--model`, each named after its run folder.
-#[cfg(feature = "net")]
-fn nets(args: &ModelArgs) -> Result<Vec<Box<dyn DescriptorModel>>> {
-    let device = crate::net_args::parse_device(&args.device)?;
-    let mut nets: Vec<Box<dyn DescriptorModel>> = Vec::new();
-    for path in args.nets.iter().filter(|p| p.as_os_str() != "none") {
-        let mut net = matseg_net::infer::NetModel::load(path, device)?;
-        if let Some((&main, extra)) = args.net_side.split_first() {
-            let net = net.model_mut();
-            net.inference_side = Some(main);
-            net.extra_inference_sides = extra.to_vec();
-        }
-        nets.push(Box::new(net));
-    }
-    Ok(nets)
+    let choice = ModelChoice {
+        baselines: args.baselines.clone(),
+        #[cfg(feature = "net")]
+        nets: args.nets.clone(),
+        #[cfg(feature = "net")]
+        net_sides: args.net_side.clone(),
+        #[cfg(feature = "net")]
+        device: crate::net_args::parse_device(&args.device)?,
+    };
+    Ok(matseg_pipeline::models::models(&choice)?)
 }
 
 fn score(v: Option<f64>) -> String {

@@ -1,8 +1,8 @@
 //! `matseg generate`.
 
 use crate::common::{
-    init_threads, load_libraries, load_recipe, progress_bar, report_skipped, BarProgress,
-    LicenceArgs,
+    init_threads, load_files_3d, load_libraries, load_recipe, progress_bar, report_skipped,
+    LicenceArgs, SceneKind as Kind,
 };
 use anyhow::{bail, Result};
 use clap::ValueEnum;
@@ -10,30 +10,11 @@ use matseg_data::{
     generate_with, Format, GenerateOptions, GenerateReport, Generator2d, Generator3d, JobSlice,
     SampleMaker,
 };
-use matseg_extract::material_library::find_materials;
-use matseg_image::io::find_files;
-use matseg_image::{licence_of, LicenceFilter, PhotoLibrary};
-use matseg_pipeline::materials::default_materials;
+use matseg_pipeline::files3d::{recipe_3d, Folders3d};
 use matseg_pipeline::sources::{Defaults, DEFAULT_CACHE_MB};
 use matseg_render::cache::AssetCache;
-use matseg_render::hdr_io::HDR_EXTENSIONS;
-use matseg_render::mesh_io::MESH_EXTENSIONS;
-use matseg_scene::{Recipe3d, Sources3d};
-use rayon::prelude::*;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
-
-/// Scene kinds `generate` can make.
-#[derive(Clone, Copy, ValueEnum)]
-pub enum Kind {
-    /// Textures mixed by soft maps over a photo background (pipeline.md §2).
-    #[value(name = "2d")]
-    TwoD,
-    /// Objects carrying several PBR materials split by photo channels, lit
-    /// by HDRIs and path traced (pipeline.md §3).
-    #[value(name = "3d")]
-    ThreeD,
-}
 
 /// Output layouts, as command-line values.
 #[derive(Clone, Copy, ValueEnum)]
@@ -165,17 +146,15 @@ pub fn run(args: Args) -> Result<()> {
             report
         }
         Kind::ThreeD => {
-            let recipe = load_recipe_3d(args.config.as_deref(), args.size, args.spp)?;
+            let recipe = recipe_3d(args.config.as_deref(), args.size, args.spp)?;
             let cache = AssetCache::new(args.cache_mb.saturating_mul(1 << 20));
-            let files = Files3d::load(
-                &args.sources,
-                &args.materials,
-                &args.meshes,
-                &args.hdris,
-                &cache,
-                Defaults::CorpusOrBundled,
-                &licences,
-            )?;
+            let folders = Folders3d {
+                photos: args.sources.clone(),
+                materials: args.materials.clone(),
+                meshes: args.meshes.clone(),
+                hdris: args.hdris.clone(),
+            };
+            let files = load_files_3d(&folders, &cache, Defaults::CorpusOrBundled, &licences)?;
             with_progress(
                 &opts,
                 &Generator3d {
@@ -205,137 +184,4 @@ fn with_progress(opts: &GenerateOptions, maker: &dyn SampleMaker) -> Result<Gene
     let report = generate_with(opts, maker, &|k| bar.inc(k))?;
     bar.finish_and_clear();
     Ok(report)
-}
-
-/// The 3D recipe: defaults, then a TOML file, then the size and spp options.
-pub fn load_recipe_3d(
-    config: Option<&Path>,
-    size: Option<u32>,
-    spp: Option<u32>,
-) -> Result<Recipe3d> {
-    let mut recipe = match config {
-        Some(path) => Recipe3d::from_toml_file(path)?,
-        None => Recipe3d::default(),
-    };
-    recipe.size = size.unwrap_or(recipe.size);
-    recipe.spp = spp.unwrap_or(recipe.spp);
-    recipe
-        .validate()
-        .map_err(|e| anyhow::anyhow!("--size/--spp: invalid recipe: {e}"))?;
-    Ok(recipe)
-}
-
-/// The files 3D scenes draw from, each checked by decoding it once (into
-/// the asset cache); unreadable ones are skipped with a warning.
-pub struct Files3d {
-    photos: Vec<PathBuf>,
-    materials: Vec<PathBuf>,
-    meshes: Vec<PathBuf>,
-    hdris: Vec<PathBuf>,
-}
-
-impl Files3d {
-    /// Finds and checks the files whose licence `licences` accepts; empty
-    /// lists take the `defaults`.
-    pub fn load(
-        photos: &[PathBuf],
-        materials: &[PathBuf],
-        meshes: &[PathBuf],
-        hdris: &[PathBuf],
-        cache: &AssetCache,
-        defaults: Defaults,
-        licences: &LicenceFilter,
-    ) -> Result<Self> {
-        let (library, report) = PhotoLibrary::scan(&defaults.or(photos, "photos"), 0)?;
-        let library = library.retain_licences(licences)?;
-        for s in &report.skipped {
-            eprintln!("warning: skipped {}: {}", s.path.display(), s.reason);
-        }
-        let photos: Vec<PathBuf> = library.entries().iter().map(|e| e.path.clone()).collect();
-        let material_roots = if materials.is_empty() {
-            vec![default_materials(defaults, &BarProgress::default())?]
-        } else {
-            materials.to_vec()
-        };
-        let mut found = Vec::new();
-        for root in &material_roots {
-            if !root.is_dir() {
-                bail!("{}: no such folder", root.display());
-            }
-            found.extend(find_materials(root)?);
-        }
-        let materials = licensed(found, licences, "materials")?;
-        let materials = keep_readable(materials, |p| cache.material(p).map(drop));
-        let meshes = find_files(&defaults.or(meshes, "meshes"), &MESH_EXTENSIONS)
-            .map_err(anyhow::Error::msg)?;
-        let meshes = licensed(meshes, licences, "meshes")?;
-        let meshes = keep_readable(meshes, |p| cache.mesh(p).map(drop));
-        let hdris = find_files(&defaults.or(hdris, "hdris"), &HDR_EXTENSIONS)
-            .map_err(anyhow::Error::msg)?;
-        let hdris = licensed(hdris, licences, "HDRIs")?;
-        let hdris = keep_readable(hdris, |p| cache.hdri(p).map(drop));
-        Ok(Files3d {
-            photos,
-            materials,
-            meshes,
-            hdris,
-        })
-    }
-
-    /// As scene sources.
-    pub fn sources(&self) -> Sources3d<'_> {
-        Sources3d {
-            photos: &self.photos,
-            materials: &self.materials,
-            meshes: &self.meshes,
-            hdris: &self.hdris,
-        }
-    }
-}
-
-/// The paths whose licence (from the `licenses.json` beside or inside
-/// them) `filter` accepts; an error naming `what` when the filter removed
-/// every one.
-fn licensed(paths: Vec<PathBuf>, filter: &LicenceFilter, what: &str) -> Result<Vec<PathBuf>> {
-    if filter.accepts_all() || paths.is_empty() {
-        return Ok(paths);
-    }
-    let kept: Vec<PathBuf> = paths
-        .into_iter()
-        .filter(|p| filter.accepts(&licence_of(p)))
-        .collect();
-    if kept.is_empty() {
-        bail!("--licences {filter}: none of the {what} has such a licence");
-    }
-    Ok(kept)
-}
-
-/// The paths `check` accepts, warning about the others (in parallel: the
-/// checks decode files).
-fn keep_readable(
-    paths: Vec<PathBuf>,
-    check: impl Fn(&Path) -> Result<(), matseg_render::SceneError> + Sync,
-) -> Vec<PathBuf> {
-    let results: Vec<(PathBuf, Result<(), matseg_render::SceneError>)> = paths
-        .into_par_iter()
-        .map(|p| {
-            let r = check(&p);
-            (p, r)
-        })
-        .collect();
-    let mut kept = Vec::new();
-    let mut skipped = 0;
-    for (path, result) in results {
-        match result {
-            Ok(()) => kept.push(path),
-            Err(e) => {
-                eprintln!("warning: skipped {e}");
-                skipped += 1;
-            }
-        }
-    }
-    if skipped > 0 {
-        eprintln!("warning: {skipped} unreadable files skipped");
-    }
-    kept
 }

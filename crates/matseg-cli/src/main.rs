@@ -11,7 +11,6 @@ mod bench_net;
 mod bench_render;
 mod bench_set;
 mod common;
-mod cpu_time;
 mod demo;
 mod eval;
 mod generate;
@@ -27,6 +26,8 @@ mod segment;
 mod textures;
 #[cfg(feature = "net")]
 mod train;
+#[cfg(feature = "net")]
+mod training;
 mod weights;
 
 use clap::{Parser, Subcommand};
@@ -116,7 +117,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {}", format!("{e:#}").replace('\n', " "));
+            eprintln!("error: {}", common::one_line(&e));
             ExitCode::FAILURE
         }
     }

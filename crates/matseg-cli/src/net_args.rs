@@ -1,8 +1,7 @@
-//! Arguments the net commands share (`train`, `segment`, `eval`,
-//! `bench-net`): the device and the encoder preset.
+//! The device argument the net commands share (`train`, `segment`,
+//! `eval`, `bench-net`).
 
-use anyhow::{bail, Context, Result};
-use matseg_net::{NetConfig, PRESETS};
+use anyhow::{bail, Result};
 use tch::Device;
 
 /// The device named on the command line.
@@ -16,14 +15,4 @@ pub fn parse_device(name: &str) -> Result<Device> {
         "cuda" => bail!("--device cuda: libtorch sees no CUDA device here"),
         other => bail!("--device {other}: expected cpu or cuda"),
     }
-}
-
-/// The net preset named by `--encoder`.
-pub fn preset(encoder: &str) -> Result<NetConfig> {
-    NetConfig::preset(encoder).with_context(|| {
-        format!(
-            "--encoder {encoder}: expected one of {}",
-            PRESETS.join(", ")
-        )
-    })
 }

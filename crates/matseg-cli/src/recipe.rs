@@ -1,6 +1,6 @@
 //! `matseg recipe`: a default recipe as TOML, a starting point for `--config`.
 
-use crate::generate::Kind;
+use crate::common::SceneKind as Kind;
 use anyhow::Result;
 use matseg_scene::{Recipe2d, Recipe3d};
 

@@ -72,13 +72,13 @@ pub fn run(args: Args) -> Result<()> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(args.threads.unwrap_or(0))
         .build()?;
-    let cpu_before = crate::cpu_time::process_cpu_seconds();
+    let cpu_before = matseg_pipeline::bench::clock::process_cpu_seconds();
     let started = Instant::now();
     let out = pool
         .install(|| render(&scene))
         .map_err(|e| anyhow::anyhow!("{}: {e}", args.scene.display()))?;
     let render_seconds = started.elapsed().as_secs_f64();
-    let render_cpu_seconds = crate::cpu_time::process_cpu_seconds()
+    let render_cpu_seconds = matseg_pipeline::bench::clock::process_cpu_seconds()
         .zip(cpu_before)
         .map(|(after, before)| after - before);
 

@@ -1,12 +1,12 @@
 //! `matseg textures`: a library of uniform-texture crops from photos (pipeline.md §4).
 
 use crate::common::{init_threads, progress_bar};
-use crate::cpu_time::process_cpu_seconds;
 use anyhow::{Context, Result};
 use matseg_extract::textures::{extract_textures, TextureOptions, TextureSquare, CHANNEL_NAMES};
 use matseg_image::io::{encode_jpeg, read_rgb, write_atomic};
 use matseg_image::library::PhotoEntry;
 use matseg_image::PhotoLibrary;
+use matseg_pipeline::bench::clock::process_cpu_seconds;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;

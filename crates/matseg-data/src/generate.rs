@@ -80,6 +80,19 @@ pub struct GenerateOptions {
 }
 
 impl GenerateOptions {
+    /// `n` samples of the dataset `seed` as MatSeg folders in `out`, all
+    /// in this process.
+    pub fn folders(out: impl Into<PathBuf>, n: u64, seed: u64) -> Self {
+        Self {
+            out: out.into(),
+            n,
+            seed,
+            format: Format::Folders,
+            shard_size: 1000,
+            job: JobSlice { count: 1, index: 0 },
+        }
+    }
+
     /// The work unit of sample `index`: the sample itself for folders, its
     /// shard for WebDataset.
     fn unit_of(&self, index: u64) -> u64 {

@@ -8,11 +8,37 @@
 //!   resolved once per process.
 //! - [`materials`]: PBR material libraries made from textures, and the
 //!   default ones of the 3D generator.
+//! - [`files3d`]: the photos, materials, meshes and HDRIs of 3D scenes,
+//!   checked once into the asset cache, and the 3D recipe.
+//! - [`models`]: the descriptor models to score or segment with, baselines
+//!   by name and trained nets by folder.
+//! - [`weights`]: checkpoints converted to safetensors, and the registry's
+//!   ImageNet weights fetched once into the cache.
+//! - [`train`] (feature `net`): training runs started from a configuration
+//!   or resumed from their folder, with each step reported to a callback.
+//! - [`segment`] (feature `net`): a model's descriptors of a photo,
+//!   similarity maps of points, segmentations and their overlays.
+//! - [`bench`]: the benchmark harnesses behind `matseg bench*` and
+//!   `cargo bench`.
+//! - [`demo`]: the pipeline on the bundled assets as an HTML report.
 //! - [`progress`]: how a long job reports progress and warnings to its
 //!   front end.
+//! - [`error`]: the one error type of these jobs.
+//!
+//! docs/library.md walks through them with an example.
 
 #![warn(missing_docs)]
 
+pub mod bench;
+pub mod demo;
+pub mod error;
+pub mod files3d;
 pub mod materials;
+pub mod models;
 pub mod progress;
+#[cfg(feature = "net")]
+pub mod segment;
 pub mod sources;
+#[cfg(feature = "net")]
+pub mod train;
+pub mod weights;

@@ -3,16 +3,20 @@
 //! segmentations, then a short training run from the ImageNet MobileNetV2
 //! encoder straight from the generator, labelled as a demonstration, with
 //! the same maps from it. The page lists the `matseg` commands that redo
-//! each step by hand: training runs through that command's own parser.
+//! each step by hand.
 
-use crate::segment::{write_clusters, write_point_maps, DEFAULT_RADIUS};
-use anyhow::{bail, Context, Result};
-use clap::Parser;
+use super::page::write_file;
+use crate::error::PipelineError;
+use crate::progress::Progress;
+use crate::segment::{describe, write_clusters, write_point_maps, Model, DEFAULT_RADIUS};
+use crate::sources::{assets_dir, Defaults, Libraries};
+use crate::train::{resume, start, Session, TrainConfig, TrainData, TrainSummary};
 use matseg_eval::ClusterOptions;
-use matseg_image::io::{read_rgb, write_atomic};
-use matseg_net::infer::{default_model_dir, TrainedNet, DEFAULT_MODEL};
+use matseg_image::io::read_rgb;
+use matseg_image::LicenceFilter;
+use matseg_net::data::BatchPlan;
+use matseg_net::infer::{default_model_dir, DEFAULT_MODEL};
 use matseg_net::train::{read_run_config, RUN_FILE};
-use matseg_pipeline::sources::assets_dir;
 use std::fmt::Write as _;
 use std::path::Path;
 use tch::Device;
@@ -46,24 +50,36 @@ const CLICKS: [(&str, &[(f32, f32)]); 4] = [
 /// Clusters of the automatic segmentations.
 const AUTO_K: usize = 4;
 
-/// Parses a `matseg train` command line.
-#[derive(Parser)]
-#[command(name = "matseg train")]
-struct TrainCommand {
-    #[command(flatten)]
-    args: crate::train::Args,
+/// The demo's training run, when it trained.
+#[derive(Clone, Debug)]
+pub struct DemoTraining {
+    /// The run folder.
+    pub dir: std::path::PathBuf,
+    /// Steps trained in all.
+    pub step: u64,
+    /// The run's latest weights.
+    pub model_file: std::path::PathBuf,
+    /// Where its initial weights came from (a new run).
+    pub initial_weights: Option<String>,
+    /// What this session did.
+    pub summary: TrainSummary,
 }
 
 /// Writes `OUT/net.html`: the shipped default model's similarity maps and
 /// segmentations of the bundled photos, then, with `steps > 0`, a
 /// training demonstration: `OUT/net-run` trained for `steps` steps (or
-/// continued, if an earlier demo left it unfinished) and the same maps
-/// from it.
-pub fn net_page(out: &Path, steps: u64, seed: u64) -> Result<()> {
+/// continued, if an earlier demo left it unfinished; its steps reported to
+/// `progress`) and the same maps from it.
+pub fn net_page(
+    out: &Path,
+    steps: u64,
+    seed: u64,
+    progress: &dyn Progress,
+) -> Result<Option<DemoTraining>, PipelineError> {
     let mut commands = Vec::new();
     let shipped = match default_model_dir() {
         Some(dir) => {
-            let net = TrainedNet::load(&dir, Device::Cpu)?;
+            let net = Model::load(&dir, Device::Cpu)?;
             let rows = segmentation_rows(&net, DEFAULT_MODEL, "net/default", out, &mut commands)?;
             format!(
                 r#"<h2>The shipped model</h2>
@@ -77,10 +93,12 @@ at all.</p>
         }
         None => "<h2>The shipped model</h2><p>Not in this checkout (models/default).</p>".into(),
     };
-    let demonstration = if steps > 0 {
-        training_demonstration(out, steps, seed, &mut commands)?
+    let (demonstration, training) = if steps > 0 {
+        let (section, training) =
+            training_demonstration(out, steps, seed, &mut commands, progress)?;
+        (section, Some(training))
     } else {
-        String::new()
+        (String::new(), None)
     };
     let html = format!(
         r#"<!doctype html>
@@ -101,8 +119,8 @@ pre {{ font-size: .75em; white-space: pre-wrap; }}
 "#,
         commands = commands.join("\n"),
     );
-    let page = out.join("net.html");
-    write_atomic(&page, html.as_bytes()).with_context(|| page.display().to_string())
+    write_file(&out.join("net.html"), html.as_bytes())?;
+    Ok(training)
 }
 
 /// Trains `OUT/net-run` for `steps` steps (or continues it) and returns
@@ -112,38 +130,61 @@ fn training_demonstration(
     steps: u64,
     seed: u64,
     commands: &mut Vec<String>,
-) -> Result<String> {
+    progress: &dyn Progress,
+) -> Result<(String, DemoTraining), PipelineError> {
     let run = out.join("net-run");
     let run_arg = run.display().to_string();
-    let mut train: Vec<String> = if run.join(RUN_FILE).is_file() {
+    // 224 x 224, 4 images a batch: about 1 s a step on 2 CPU cores.
+    let config = TrainConfig {
+        init: "imagenet".into(),
+        plan: BatchPlan {
+            min_side: 224,
+            max_side: 224,
+            pixels: 200_704,
+            ..BatchPlan::SPEC
+        },
+        lr: Some(1e-4),
+        warmup: 30,
+        validation_batches: 2,
+        steps,
+        checkpoint_every: steps,
+        seed,
+        ..TrainConfig::new(&run, TrainData::Online)
+    };
+    let (mut training, arguments) = if run.join(RUN_FILE).is_file() {
         let planned = read_run_config(&run)?.options.steps;
         if planned != steps {
-            bail!(
-                "{}: holds a demo run of {planned} steps; pass --train-steps {planned}, or remove it",
-                run.display()
-            );
+            return Err(PipelineError::file(
+                run.display(),
+                format!("holds a demo run of {planned} steps; pass --train-steps {planned}, or remove it"),
+            ));
         }
-        vec!["--resume".into()]
+        (resume(&run, Device::Cpu)?, "--resume".to_string())
     } else {
-        // 224 x 224, 4 images a batch: about 1 s a step on 2 CPU cores.
-        format!(
+        let arguments = format!(
             "--online --init imagenet --min-side 224 --max-side 224 --batch-pixels 200704 \
              --lr 1e-4 --warmup 30 --validation-batches 2 --steps {steps} \
              --checkpoint-every {steps} --seed {seed} --out"
-        )
-        .split_whitespace()
-        .map(String::from)
-        .collect()
+        );
+        (start(&config, Device::Cpu)?, arguments)
     };
-    train.push(run_arg.clone());
-    let command =
-        TrainCommand::try_parse_from(std::iter::once("matseg train".into()).chain(train.clone()))
-            .context("the demo's training command")?;
-    crate::train::run(command.args)?;
-    commands.push(format!("matseg train {}", train.join(" ")));
-    let net = TrainedNet::load(&run, Device::Cpu)?;
+    let libraries = Libraries::load(
+        &[],
+        &[],
+        1024,
+        Defaults::CorpusOrBundled,
+        &LicenceFilter::default(),
+    )?;
+    for s in libraries.skipped_at_scan() {
+        progress.warn(&format!("{}: {}", s.path.display(), s.reason));
+    }
+    progress.start(steps - training.step().min(steps), "steps");
+    let summary = training.train(&Session::new(&libraries), |_| progress.advance())?;
+    progress.finish();
+    commands.push(format!("matseg train {arguments} {run_arg}"));
+    let net = Model::load(&run, Device::Cpu)?;
     let rows = segmentation_rows(&net, &run_arg, "net/demo-run", out, commands)?;
-    Ok(format!(
+    let section = format!(
         r#"<h2>A training demonstration</h2>
 <p>How a model is made, in miniature: a MobileNetV2 net (ImageNet encoder) trained here for {steps}
 steps on scenes generated on the fly from the bundled assets, a few minutes on a laptop CPU. It is
@@ -151,19 +192,27 @@ a demonstration of the training, not a model to use: the shipped model above was
 longer on the whole corpus.</p>
 <p><img src="net-run/loss.png" alt="training loss"></p>
 <table>{rows}</table>"#
-    ))
+    );
+    let done = DemoTraining {
+        dir: run.clone(),
+        step: training.step(),
+        model_file: training.model_file(),
+        initial_weights: training.initial_weights().map(String::from),
+        summary,
+    };
+    Ok((section, done))
 }
 
 /// The table rows of `net`'s maps of the bundled photos (written under
 /// `OUT/DIR/PHOTO` and `OUT/DIR/PHOTO-auto`), adding to `commands` the
 /// `matseg segment` lines that redo them with `--model MODEL`.
 fn segmentation_rows(
-    net: &TrainedNet,
+    net: &Model,
     model: &str,
     dir: &str,
     out: &Path,
     commands: &mut Vec<String>,
-) -> Result<String> {
+) -> Result<String, PipelineError> {
     let photos = assets_dir().join("photos");
     let mut rows = String::new();
     for (name, points) in CLICKS {
@@ -172,11 +221,7 @@ fn segmentation_rows(
         let by_points = format!("{dir}/{stem}");
         let auto = format!("{dir}/{stem}-auto");
         let image = read_rgb(&photo)?;
-        let map = net.describe_coarse(
-            image.as_raw(),
-            image.width() as usize,
-            image.height() as usize,
-        );
+        let map = describe(net, &image);
         write_point_maps(&image, &map, points, DEFAULT_RADIUS, &out.join(&by_points))?;
         write_clusters(&image, &map, &ClusterOptions::new(AUTO_K), &out.join(&auto))?;
         let point_args: String = points
@@ -195,18 +240,18 @@ fn segmentation_rows(
         ));
         rows.push_str("<tr>");
         for (i, (x, y)) in points.iter().enumerate() {
-            write!(
+            let _ = write!(
                 rows,
                 r#"<td><img src="{by_points}/overlay_{i}.png"><br>point ({x}, {y})</td>"#
-            )?;
+            );
         }
         for _ in points.len()..4 {
             rows.push_str("<td></td>");
         }
-        writeln!(
+        let _ = writeln!(
             rows,
             r#"<td><img src="{by_points}/segmentation.png"><br>nearest point</td><td><img src="{auto}/segmentation.png"><br>{AUTO_K} clusters</td></tr>"#
-        )?;
+        );
     }
     Ok(rows)
 }

@@ -1,79 +1,99 @@
-//! `matseg demo`: the pipeline on the bundled assets, with an HTML report.
+//! `matseg demo`: the pipeline on the bundled assets, written as an HTML
+//! report: 2D scenes beside their annotations (`index.html`), textures and
+//! PBR materials extracted from the bundled photos (`materials.html`), 3D
+//! scenes path traced with their exact annotations (`scenes-3d.html`) and,
+//! with the net, the shipped model's segmentations and a short training
+//! demonstration (`net.html`).
 
 #[cfg(feature = "net")]
 mod net;
 mod page;
 mod scenes_3d;
 
-use crate::common::{init_threads, load_libraries, progress_bar, report_skipped};
-use anyhow::{Context, Result};
+use crate::error::PipelineError;
+use crate::progress::Progress;
+use crate::sources::{assets_dir, Defaults, Libraries, DEFAULT_CACHE_MB};
 use matseg_data::{generate_dataset, sample_rng, Dataset, Format, GenerateOptions, JobSlice};
 use matseg_extract::pbr::{make_pbr, preview_sphere, PbrRecipe};
 use matseg_extract::textures::{extract_textures, TextureOptions};
-use matseg_image::io::{encode_png_gray, encode_png_rgb, read_rgb, write_atomic};
+use matseg_image::io::{encode_png_gray, encode_png_rgb, read_rgb};
 use matseg_image::{LicenceFilter, PhotoLibrary};
-use matseg_pipeline::sources::{assets_dir, Defaults, DEFAULT_CACHE_MB};
 use matseg_scene::Recipe2d;
-use page::{sample_cards, STYLE};
+#[cfg(feature = "net")]
+pub use net::DemoTraining;
+use page::{create_folder, sample_cards, write_file, STYLE};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-/// Arguments of `matseg demo`.
-#[derive(clap::Args)]
-pub struct Args {
+/// What the demo makes.
+#[derive(Clone, Debug)]
+pub struct DemoOptions {
     /// Output folder for the samples and `index.html`.
-    #[arg(long, default_value = "demo-out")]
-    out: PathBuf,
+    pub out: PathBuf,
     /// Number of 2D samples.
-    #[arg(short = 'n', long = "samples", value_name = "N", default_value_t = 36)]
-    n: u64,
+    pub samples_2d: u64,
     /// Number of 3D samples (0: no 3D page).
-    #[arg(long, default_value_t = 6)]
-    samples_3d: u64,
+    pub samples_3d: u64,
     /// Side of the 3D samples, in pixels.
-    #[arg(long, default_value_t = 256)]
-    size_3d: u32,
+    pub size_3d: u32,
     /// Seed.
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
-    threads: Option<usize>,
-    /// Steps of the demo's training demonstration (0: none; the net page
-    /// still shows the shipped model).
+    pub seed: u64,
+    /// Steps of the training demonstration (0: none; the net page still
+    /// shows the shipped model).
     #[cfg(feature = "net")]
-    #[arg(long, default_value_t = 150)]
-    train_steps: u64,
+    pub train_steps: u64,
 }
 
-/// Runs `matseg demo`: generates samples from the bundled assets and writes the HTML report.
-pub fn run(args: Args) -> Result<()> {
-    init_threads(args.threads)?;
-    let libs = load_libraries(
+/// What the demo wrote.
+#[derive(Clone, Debug)]
+pub struct DemoReport {
+    /// The report's first page.
+    pub index: PathBuf,
+    /// 2D samples on it.
+    pub samples: usize,
+    /// The training demonstration, when one ran.
+    #[cfg(feature = "net")]
+    pub training: Option<DemoTraining>,
+}
+
+/// Runs the demo: generates samples from the bundled assets and writes
+/// the HTML report, reporting each long step (2D and 3D samples, training
+/// steps) and each unreadable file to `progress`.
+pub fn run(options: &DemoOptions, progress: &dyn Progress) -> Result<DemoReport, PipelineError> {
+    let libs = Libraries::load(
         &[],
         &[],
         DEFAULT_CACHE_MB,
         Defaults::Bundled,
         &LicenceFilter::default(),
     )?;
-    let samples_dir = args.out.join("samples-2d");
+    let samples_dir = options.out.join("samples-2d");
     let opts = GenerateOptions {
         out: samples_dir.clone(),
-        n: args.n,
-        seed: args.seed,
+        n: options.samples_2d,
+        seed: options.seed,
         format: Format::Folders,
         shard_size: 1,
         job: JobSlice::ALL,
     };
-    let bar = progress_bar(args.n, "2D samples");
-    generate_dataset(&opts, &Recipe2d::default(), libs.sources(), &|k| bar.inc(k))?;
-    bar.finish_and_clear();
-    report_skipped(&libs);
+    progress.start(options.samples_2d, "2D samples");
+    generate_dataset(&opts, &Recipe2d::default(), libs.sources(), &|k| {
+        (0..k).for_each(|_| progress.advance())
+    })?;
+    progress.finish();
+    for s in libs
+        .skipped_at_scan()
+        .iter()
+        .chain(&libs.photos.failures())
+        .chain(&libs.textures.failures())
+    {
+        progress.warn(&format!("{}: {}", s.path.display(), s.reason));
+    }
 
     // Read the samples back through the dataset reader, so the report shows
     // what a training run would see.
     let dataset = Dataset::open(&samples_dir)?;
-    let cards = sample_cards(&dataset, &args.out, "samples-2d", "", |meta| {
+    let cards = sample_cards(&dataset, &options.out, "samples-2d", "", |meta| {
         let hard = meta["scene"]["hard"].as_bool().unwrap_or(false);
         (if hard { "hard" } else { "soft" }).to_string()
     })?;
@@ -91,8 +111,8 @@ Samples are in MatSeg folder layout under <code>samples-2d/</code>.</p>
 "#,
         style = STYLE,
         n = dataset.len(),
-        seed = args.seed,
-        scenes_3d = if args.samples_3d > 0 {
+        seed = options.seed,
+        scenes_3d = if options.samples_3d > 0 {
             r#", <a href="scenes-3d.html">3D scenes</a> path traced with their annotations"#
         } else {
             ""
@@ -103,32 +123,37 @@ Samples are in MatSeg folder layout under <code>samples-2d/</code>.</p>
             ""
         },
     );
-    let index = args.out.join("index.html");
-    write_atomic(&index, html.as_bytes()).with_context(|| index.display().to_string())?;
-    materials_page(&args.out, args.seed)?;
-    if args.samples_3d > 0 {
-        scenes_3d::scenes_page(&args.out, args.samples_3d, args.size_3d, args.seed)?;
+    let index = options.out.join("index.html");
+    write_file(&index, html.as_bytes())?;
+    materials_page(&options.out, options.seed)?;
+    if options.samples_3d > 0 {
+        scenes_3d::scenes_page(
+            &options.out,
+            options.samples_3d,
+            options.size_3d,
+            options.seed,
+            progress,
+        )?;
     }
     #[cfg(feature = "net")]
-    net::net_page(&args.out, args.train_steps, args.seed)?;
-    eprintln!(
-        "{}: demo report with {} samples",
-        index.display(),
-        dataset.len()
-    );
-    Ok(())
+    let training = net::net_page(&options.out, options.train_steps, options.seed, progress)?;
+    Ok(DemoReport {
+        index,
+        samples: dataset.len(),
+        #[cfg(feature = "net")]
+        training,
+    })
 }
 
 /// `materials.html`: uniform textures extracted from the bundled photos
 /// (pipeline.md §4) and one PBR material per bundled texture (pipeline.md §5), each with
 /// its main maps and a lit-sphere preview.
-fn materials_page(out: &Path, seed: u64) -> Result<()> {
+fn materials_page(out: &Path, seed: u64) -> Result<(), PipelineError> {
     let assets = assets_dir();
     let dir = out.join("materials");
-    std::fs::create_dir_all(&dir).with_context(|| dir.display().to_string())?;
-    let write_png = |name: &str, bytes: Vec<u8>| -> Result<String> {
-        let path = dir.join(name);
-        write_atomic(&path, &bytes).with_context(|| path.display().to_string())?;
+    create_folder(&dir)?;
+    let write_png = |name: &str, bytes: Vec<u8>| -> Result<String, PipelineError> {
+        write_file(&dir.join(name), &bytes)?;
         Ok(format!("materials/{name}"))
     };
 
@@ -137,14 +162,14 @@ fn materials_page(out: &Path, seed: u64) -> Result<()> {
         cell: 20,
         ..TextureOptions::default()
     };
-    let (photos, _) = PhotoLibrary::scan(&[assets.join("photos")], 0)?;
+    let (photos, _) = scan(&assets.join("photos"))?;
     let mut textures = String::new();
     for entry in photos.entries() {
         let img = read_rgb(&entry.path)?;
         for (k, (square, crop)) in extract_textures(&img, &options).into_iter().enumerate() {
             let stem = entry.flat_stem();
             let src = write_png(&format!("texture_{stem}_{k}.png"), encode_png_rgb(&crop))?;
-            writeln!(
+            let _ = writeln!(
                 textures,
                 r#"<figure><img src="{src}"><figcaption>{name}: {side}px at ({x}, {y}), score {score:.2}</figcaption></figure>"#,
                 name = entry.name,
@@ -152,12 +177,12 @@ fn materials_page(out: &Path, seed: u64) -> Result<()> {
                 x = square.x,
                 y = square.y,
                 score = square.score
-            )?;
+            );
         }
     }
 
     // PBR: one material per bundled texture, its maps and a sphere.
-    let (library, _) = PhotoLibrary::scan(&[assets.join("textures")], 0)?;
+    let (library, _) = scan(&assets.join("textures"))?;
     let mut rows = String::new();
     for (i, entry) in library.entries().iter().enumerate() {
         let texture = read_rgb(&entry.path)?;
@@ -167,7 +192,7 @@ fn materials_page(out: &Path, seed: u64) -> Result<()> {
             &PbrRecipe::default(),
         );
         let stem = entry.flat_stem();
-        let grey = |k: usize, what: &str| -> Result<String> {
+        let grey = |k: usize, what: &str| -> Result<String, PipelineError> {
             let map = &m.maps[k].1;
             write_png(
                 &format!("pbr_{stem}_{what}.png"),
@@ -187,9 +212,9 @@ fn materials_page(out: &Path, seed: u64) -> Result<()> {
         ];
         rows.push_str("<tr>");
         for src in cells {
-            write!(rows, r#"<td><img src="{src}"></td>"#)?;
+            let _ = write!(rows, r#"<td><img src="{src}"></td>"#);
         }
-        writeln!(rows, "<td>{}</td></tr>", entry.name)?;
+        let _ = writeln!(rows, "<td>{}</td></tr>", entry.name);
     }
     let html = format!(
         r#"<!doctype html>
@@ -217,6 +242,11 @@ normals (OpenGL), height, roughness and metalness.</p>
 {rows}</table></body></html>
 "#
     );
-    let page = out.join("materials.html");
-    write_atomic(&page, html.as_bytes()).with_context(|| page.display().to_string())
+    write_file(&out.join("materials.html"), html.as_bytes())
+}
+
+/// The photo library of one bundled folder.
+fn scan(folder: &Path) -> Result<(PhotoLibrary, matseg_image::ScanReport), PipelineError> {
+    PhotoLibrary::scan(&[folder.to_path_buf()], 0)
+        .map_err(|e| crate::sources::SourceError::from(e).into())
 }

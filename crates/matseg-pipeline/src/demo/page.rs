@@ -1,7 +1,7 @@
 //! What the demo's HTML pages share: the style sheet and the cards that
 //! show a dataset's samples beside their annotations.
 
-use anyhow::{Context, Result};
+use crate::error::PipelineError;
 use matseg_data::Dataset;
 use matseg_image::io::{encode_png_rgb, write_atomic};
 use matseg_scene::colorize;
@@ -28,9 +28,9 @@ pub fn sample_cards(
     sub: &str,
     preview_prefix: &str,
     describe: impl Fn(&serde_json::Value) -> String,
-) -> Result<String> {
+) -> Result<String, PipelineError> {
     let previews = out.join("previews");
-    std::fs::create_dir_all(&previews).with_context(|| previews.display().to_string())?;
+    create_folder(&previews)?;
     let mut cards = String::new();
     for sample in dataset.iter() {
         let sample = sample?;
@@ -43,11 +43,10 @@ pub fn sample_cards(
         let slices: Vec<&[f32]> = masks.iter().map(Vec::as_slice).collect();
         let name = format!("{preview_prefix}{}_annotation.png", sample.key);
         let path = previews.join(&name);
-        write_atomic(
+        write_file(
             &path,
             &encode_png_rgb(&colorize(w as usize, h as usize, &slices)),
-        )
-        .with_context(|| path.display().to_string())?;
+        )?;
         let meta = sample.meta.clone().unwrap_or_default();
         let licences = meta["licences"]
             .as_array()
@@ -58,7 +57,7 @@ pub fn sample_cards(
                     .join(", ")
             })
             .unwrap_or_default();
-        write!(
+        let _ = write!(
             cards,
             r#"<figure><div class="pair"><img src="{sub}/{key}/RGB__RGB.jpg"><img src="previews/{name}"></div>
 <figcaption>#{key}: {w}x{h}, {k} material(s), {what}; {licences}</figcaption></figure>
@@ -66,7 +65,19 @@ pub fn sample_cards(
             key = sample.key,
             k = sample.masks.len(),
             what = describe(&meta),
-        )?;
+        );
     }
     Ok(cards)
+}
+
+/// Creates `dir` and its parents.
+pub fn create_folder(dir: &Path) -> Result<(), PipelineError> {
+    std::fs::create_dir_all(dir)
+        .map_err(|e| PipelineError::file(dir.display(), format!("cannot create: {e}")))
+}
+
+/// Writes `bytes` to `path` atomically.
+pub fn write_file(path: &Path, bytes: &[u8]) -> Result<(), PipelineError> {
+    write_atomic(path, bytes)
+        .map_err(|e| PipelineError::file(path.display(), format!("cannot write: {e}")))
 }

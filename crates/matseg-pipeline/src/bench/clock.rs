@@ -28,6 +28,34 @@ pub fn peak_rss_mib() -> Option<f64> {
     Some(kib / 1024.0)
 }
 
+/// Wall-clock and process CPU time, read together.
+#[derive(Clone, Copy, Debug)]
+pub struct Clock {
+    wall: std::time::Instant,
+    cpu: Option<f64>,
+}
+
+impl Clock {
+    /// The clock now.
+    pub fn now() -> Self {
+        Self {
+            wall: std::time::Instant::now(),
+            cpu: process_cpu_seconds(),
+        }
+    }
+
+    /// Wall seconds and CPU seconds since `self`; CPU seconds are wall
+    /// seconds times `threads` where the platform gives no CPU time.
+    pub fn elapsed(self, threads: usize) -> (f64, f64) {
+        let wall = self.wall.elapsed().as_secs_f64();
+        let cpu = match (self.cpu, process_cpu_seconds()) {
+            (Some(a), Some(b)) => b - a,
+            _ => wall * threads as f64,
+        };
+        (wall, cpu)
+    }
+}
+
 /// The median (mean of the middle two for an even count); NaN when empty.
 pub fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
@@ -39,5 +67,29 @@ pub fn median(mut v: Vec<f64>) -> f64 {
         v[n / 2]
     } else {
         (v[n / 2 - 1] + v[n / 2]) / 2.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_median_of_odd_and_even_counts() {
+        assert_eq!(median(vec![3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(vec![4.0, 1.0, 2.0, 3.0]), 2.5);
+        assert!(median(Vec::new()).is_nan());
+    }
+
+    #[test]
+    fn cpu_time_counts_work_done() {
+        let clock = Clock::now();
+        let mut x = 0u64;
+        for i in 0..5_000_000u64 {
+            x = x.wrapping_mul(31).wrapping_add(i);
+        }
+        std::hint::black_box(x);
+        let (wall, cpu) = clock.elapsed(1);
+        assert!(wall > 0.0 && cpu > 0.0, "{wall} {cpu}");
     }
 }

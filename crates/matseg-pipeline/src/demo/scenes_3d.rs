@@ -2,30 +2,37 @@
 //! photos, materials and HDRIs, path traced, and shown beside their exact
 //! annotations (`scenes-3d.html`).
 
-use super::page::{sample_cards, STYLE};
-use crate::generate::{load_recipe_3d, Files3d};
-use anyhow::{Context, Result};
+use super::page::{sample_cards, write_file, STYLE};
+use crate::error::PipelineError;
+use crate::files3d::{recipe_3d, Files3d, Folders3d};
+use crate::progress::Progress;
+use crate::sources::Defaults;
 use matseg_data::{generate_with, Dataset, Format, GenerateOptions, Generator3d, JobSlice};
-use matseg_image::io::write_atomic;
 use matseg_image::LicenceFilter;
-use matseg_pipeline::sources::Defaults;
 use matseg_render::cache::{AssetCache, DEFAULT_CACHE_BYTES};
 use std::path::Path;
 
 /// Renders `n` 3D samples of side `size` into `out/samples-3d` and writes
 /// `out/scenes-3d.html`.
-pub fn scenes_page(out: &Path, n: u64, size: u32, seed: u64) -> Result<()> {
-    let recipe = load_recipe_3d(None, Some(size), None)?;
+pub fn scenes_page(
+    out: &Path,
+    n: u64,
+    size: u32,
+    seed: u64,
+    progress: &dyn Progress,
+) -> Result<(), PipelineError> {
+    let recipe = recipe_3d(None, Some(size), None)?;
     let cache = AssetCache::new(DEFAULT_CACHE_BYTES);
     let files = Files3d::load(
-        &[],
-        &[],
-        &[],
-        &[],
+        &Folders3d::default(),
         &cache,
         Defaults::Bundled,
         &LicenceFilter::default(),
+        progress,
     )?;
+    for skipped in &files.skipped {
+        progress.warn(skipped);
+    }
     let samples = out.join("samples-3d");
     let opts = GenerateOptions {
         out: samples.clone(),
@@ -35,14 +42,14 @@ pub fn scenes_page(out: &Path, n: u64, size: u32, seed: u64) -> Result<()> {
         shard_size: 1,
         job: JobSlice::ALL,
     };
-    let bar = crate::common::progress_bar(n, "3D samples");
+    progress.start(n, "3D samples");
     let maker = Generator3d {
         recipe: &recipe,
         sources: files.sources(),
         cache: &cache,
     };
-    generate_with(&opts, &maker, &|k| bar.inc(k))?;
-    bar.finish_and_clear();
+    generate_with(&opts, &maker, &|k| (0..k).for_each(|_| progress.advance()))?;
+    progress.finish();
     let dataset = Dataset::open(&samples)?;
     let cards = sample_cards(&dataset, out, "samples-3d", "samples-3d_", |meta| {
         let scene = &meta["scene"];
@@ -80,5 +87,5 @@ Each sample's <code>meta.json</code> holds its scene description: <code>matseg r
         spp = recipe.spp,
     );
     let page = out.join("scenes-3d.html");
-    write_atomic(&page, html.as_bytes()).with_context(|| page.display().to_string())
+    write_file(&page, html.as_bytes())
 }

@@ -1,0 +1,47 @@
+//! The library in one page (docs/library.md): generate 10 scenes, train a
+//! net on them for 5 steps, and segment a photo with it.
+//! `cargo run --release -p matseg-pipeline --features net --example library -- OUT`
+
+use matseg_data::{generate_dataset, GenerateOptions};
+use matseg_image::{io::read_rgb, LicenceFilter};
+use matseg_pipeline::segment::{describe, write_point_maps, Model, DEFAULT_RADIUS};
+use matseg_pipeline::sources::{assets_dir, Defaults, Libraries};
+use matseg_pipeline::train::{start, Session, TrainConfig, TrainData};
+use matseg_scene::Recipe2d;
+use tch::Device;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let out = std::path::PathBuf::from(std::env::args().nth(1).unwrap_or("library-out".into()));
+    let libraries = Libraries::load(&[], &[], 512, Defaults::Bundled, &LicenceFilter::parse("")?)?;
+    // 10 synthetic scenes with exact soft annotations.
+    let data = out.join("data");
+    let scenes = GenerateOptions::folders(&data, 10, 0);
+    generate_dataset(&scenes, &Recipe2d::default(), libraries.sources(), &|_| {})?;
+    // A net trained on them for 5 steps (from scratch: nothing to fetch).
+    let config = TrainConfig::new(out.join("run"), TrainData::Dataset(data));
+    let config = TrainConfig {
+        steps: 5,
+        init: "scratch".into(),
+        ..config
+    };
+    let mut run = start(&config, Device::Cpu)?;
+    run.train(&Session::new(&libraries), |m| {
+        println!("step {}: loss {:?}", m.step, m.loss)
+    })?;
+    // Where else in the photo is the material under this point?
+    let model = Model::load(&run.model_file(), Device::Cpu)?;
+    let photo = read_rgb(&assets_dir().join("photos/coffee.jpg"))?;
+    let map = describe(&model, &photo);
+    write_point_maps(
+        &photo,
+        &map,
+        &[(290.0, 130.0)],
+        DEFAULT_RADIUS,
+        &out.join("segment"),
+    )?;
+    println!(
+        "{}: similarity map and overlay",
+        out.join("segment").display()
+    );
+    Ok(())
+}

@@ -1,0 +1,109 @@
+//! The descriptor models a front end scores or segments with: baselines
+//! by name (colour and texture statistics; with the net, the ImageNet
+//! encoder's features) and trained nets by folder, file or `default`.
+
+use crate::error::PipelineError;
+use matseg_eval::baselines::{baseline, BASELINES};
+use matseg_image::descriptor::DescriptorModel;
+#[cfg(feature = "net")]
+use std::path::PathBuf;
+
+/// Which models to build.
+#[derive(Clone, Debug)]
+pub struct ModelChoice {
+    /// Baselines by name (see [`known_baselines`]; `all` for every one).
+    pub baselines: Vec<String>,
+    /// Trained nets: `default` (the shipped model), run folders or weights
+    /// files; `none` stands for no net.
+    #[cfg(feature = "net")]
+    pub nets: Vec<PathBuf>,
+    /// Longer sides the nets describe photos at instead of their runs' own
+    /// setting (empty: their own); several sides average the descriptors.
+    #[cfg(feature = "net")]
+    pub net_sides: Vec<u32>,
+    /// The device the nets and the ImageNet baseline run on.
+    #[cfg(feature = "net")]
+    pub device: tch::Device,
+}
+
+/// Baseline names, in table order: the colour and texture statistics, then
+/// (in a build with the net) the ImageNet features.
+pub fn known_baselines() -> Vec<&'static str> {
+    [BASELINES.as_slice(), NET_BASELINES].concat()
+}
+
+/// The baselines that need the net (none in a build without it).
+#[cfg(feature = "net")]
+const NET_BASELINES: &[&str] = &[matseg_net::imagenet::IMAGENET_BASELINE];
+#[cfg(not(feature = "net"))]
+const NET_BASELINES: &[&str] = &[];
+
+/// The chosen baselines (in table order), then the nets (each named after
+/// its run folder); at least one model.
+pub fn models(choice: &ModelChoice) -> Result<Vec<Box<dyn DescriptorModel>>, PipelineError> {
+    let known = known_baselines();
+    let mut wanted: Vec<&str> = Vec::new();
+    for name in &choice.baselines {
+        if name == "all" {
+            wanted.extend(&known);
+        } else if known.contains(&name.as_str()) {
+            wanted.push(name);
+        } else {
+            return Err(PipelineError::Settings(format!(
+                "unknown baseline {name:?}; known: {}, all",
+                known.join(", ")
+            )));
+        }
+    }
+    let mut models: Vec<Box<dyn DescriptorModel>> = Vec::new();
+    for name in known.iter().filter(|b| wanted.contains(b)) {
+        match baseline(name) {
+            Some(model) => models.push(model),
+            #[cfg(feature = "net")]
+            None => models.push(Box::new(imagenet_baseline(choice.device)?)),
+            #[cfg(not(feature = "net"))]
+            None => unreachable!("every known baseline is built"),
+        }
+    }
+    #[cfg(feature = "net")]
+    models.extend(nets(choice)?);
+    if models.is_empty() {
+        return Err(PipelineError::Settings(
+            "nothing to score: give --baseline NAME... or --model RUN...".into(),
+        ));
+    }
+    Ok(models)
+}
+
+/// The ImageNet MobileNetV2 feature baseline on `device`, with the
+/// registry's weights (fetched into the cache the first time).
+#[cfg(feature = "net")]
+pub fn imagenet_baseline(
+    device: tch::Device,
+) -> Result<matseg_net::imagenet::ImagenetBaseline, PipelineError> {
+    use matseg_net::imagenet::{ImagenetBaseline, ImagenetFeatures};
+    let path = crate::weights::imagenet_weights(matseg_weights::Arch::MobilenetV2, None)?.path;
+    let label = path.display().to_string();
+    let bytes = std::fs::read(&path)
+        .map_err(|e| PipelineError::file(&label, format!("cannot read: {e}")))?;
+    let tensors = matseg_weights::read_safetensors(&bytes, &label)?;
+    Ok(ImagenetBaseline::imagenet(ImagenetFeatures::new(
+        &tensors, &label, device,
+    )?))
+}
+
+/// The chosen trained nets.
+#[cfg(feature = "net")]
+fn nets(choice: &ModelChoice) -> Result<Vec<Box<dyn DescriptorModel>>, PipelineError> {
+    let mut nets: Vec<Box<dyn DescriptorModel>> = Vec::new();
+    for path in choice.nets.iter().filter(|p| p.as_os_str() != "none") {
+        let mut net = matseg_net::infer::NetModel::load(path, choice.device)?;
+        if let Some((&main, extra)) = choice.net_sides.split_first() {
+            let net = net.model_mut();
+            net.inference_side = Some(main);
+            net.extra_inference_sides = extra.to_vec();
+        }
+        nets.push(Box::new(net));
+    }
+    Ok(nets)
+}

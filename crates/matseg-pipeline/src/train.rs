@@ -1,0 +1,526 @@
+//! Training the material-descriptor net (pipeline.md §8): a run is
+//! started from a [`TrainConfig`] ([`start`]) or continued from its folder
+//! ([`resume`]), then trained with [`TrainingRun::train`], which reports
+//! each step to a callback. The run folder (`run.json`, checkpoints, the
+//! metrics log) makes a resumed run continue exactly where it stopped.
+
+use crate::error::PipelineError;
+use crate::sources::Libraries;
+use crate::weights::imagenet_weights;
+use matseg_data::Dataset;
+use matseg_eval::{evaluate_points, load_point_benchmark};
+use matseg_net::colour::COLOUR_PART;
+use matseg_net::data::{BatchPlan, DatasetSource, GeneratorSource, MixedSource, SampleSource};
+use matseg_net::infer::{NetModel, TrainedNet};
+use matseg_net::loader::default_workers;
+use matseg_net::train::{
+    self, LrScale, Mix, NetScore, RunConfig, StepMetrics, TrainOptions, Trainer, Validation,
+};
+use matseg_net::{load_named, load_net_adding, EncoderConfig, NetConfig, PRESETS};
+use matseg_scene::Recipe2d;
+use matseg_weights::{read_safetensors, Arch};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+use tch::Device;
+
+/// Where a new run's training samples come from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum TrainData {
+    /// Scenes from the 2D generator, made as they are needed (no disk).
+    Online,
+    /// A stored dataset: MatSeg folders or WebDataset shards.
+    Dataset(PathBuf),
+}
+
+/// A stored dataset mixed into the training data.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MixIn {
+    /// The dataset (e.g. 3D renders).
+    pub data: PathBuf,
+    /// The share of samples taken from it, in 0..=1.
+    pub fraction: f64,
+}
+
+/// Everything a new run is made from; [`TrainConfig::new`] gives the
+/// defaults of `matseg train`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrainConfig {
+    /// The run folder (must not hold a run yet).
+    pub out: PathBuf,
+    /// The training samples.
+    pub data: TrainData,
+    /// A second dataset mixed in.
+    pub mix: Option<MixIn>,
+    /// The encoder preset: one of [`PRESETS`].
+    pub encoder: String,
+    /// The encoder's own stride-4, 8 and 16 features join the descriptor.
+    pub encoder_features: bool,
+    /// Each stride-4 cell's mean colour joins the descriptor.
+    pub colour_features: bool,
+    /// Initial weights: `imagenet` (the registry's MobileNetV2 encoder),
+    /// `scratch`, an encoder's safetensors file with its standard names, or
+    /// a whole net's weights of the same shape to continue from.
+    pub init: String,
+    /// Steps (batches) in all.
+    pub steps: u64,
+    /// Peak learning rate; `None`: [`train::LR_PRETRAINED`] from trained
+    /// weights, [`train::LR_SCRATCH`] from scratch.
+    pub lr: Option<f64>,
+    /// Warm-up steps.
+    pub warmup: u64,
+    /// The learning rate falls linearly towards 0 over the last this many
+    /// steps (0: constant after the warm-up).
+    pub decay: u64,
+    /// Learning-rate factors of groups of variables.
+    pub lr_scales: Vec<LrScale>,
+    /// Batch sizes and augmentation.
+    pub plan: BatchPlan,
+    /// Steps between checkpoints and validations.
+    pub checkpoint_every: u64,
+    /// Held-out generated batches per validation (0: none).
+    pub validation_batches: u64,
+    /// Seed of the batch stream and of the generator.
+    pub seed: u64,
+    /// Longer sides photos are described at, at inference (empty: at their
+    /// own size; several: their descriptors averaged, the first sets the
+    /// grid).
+    pub inference_sides: Vec<u32>,
+}
+
+impl TrainConfig {
+    /// Default steps of a run.
+    pub const STEPS: u64 = 10_000;
+    /// Default steps between checkpoints.
+    pub const CHECKPOINT_EVERY: u64 = 500;
+    /// Default held-out batches per validation.
+    pub const VALIDATION_BATCHES: u64 = 4;
+    /// Default share of a mixed-in dataset.
+    pub const MIX_FRACTION: f64 = 0.3;
+    /// Default encoder preset.
+    pub const ENCODER: &'static str = "mobilenet-v2";
+    /// Default initial weights.
+    pub const INIT: &'static str = "imagenet";
+    /// Weight decay of every run.
+    pub const WEIGHT_DECAY: f64 = 4e-5;
+
+    /// A run into `out` from `data` with `matseg train`'s defaults.
+    pub fn new(out: impl Into<PathBuf>, data: TrainData) -> Self {
+        Self {
+            out: out.into(),
+            data,
+            mix: None,
+            encoder: Self::ENCODER.to_string(),
+            encoder_features: false,
+            colour_features: false,
+            init: Self::INIT.to_string(),
+            steps: Self::STEPS,
+            lr: None,
+            warmup: train::WARMUP_STEPS,
+            decay: 0,
+            lr_scales: Vec::new(),
+            plan: BatchPlan::SPEC,
+            checkpoint_every: Self::CHECKPOINT_EVERY,
+            validation_batches: Self::VALIDATION_BATCHES,
+            seed: 0,
+            inference_sides: Vec::new(),
+        }
+    }
+
+    /// The `run.json` this configuration makes, checked.
+    fn run_config(&self) -> Result<RunConfig, PipelineError> {
+        let net = NetConfig {
+            encoder_features: self.encoder_features,
+            colour_features: self.colour_features,
+            ..NetConfig::preset(&self.encoder).ok_or_else(|| {
+                PipelineError::setting(
+                    "encoder",
+                    Some(&self.encoder),
+                    format!("expected one of {}", PRESETS.join(", ")),
+                )
+            })?
+        };
+        let pretrained = self.init != "scratch";
+        let options = TrainOptions {
+            steps: self.steps,
+            lr: self.lr.unwrap_or(if pretrained {
+                train::LR_PRETRAINED
+            } else {
+                train::LR_SCRATCH
+            }),
+            warmup: self.warmup,
+            decay: self.decay,
+            weight_decay: Self::WEIGHT_DECAY,
+            plan: self.plan,
+            seed: self.seed,
+            checkpoint_every: self.checkpoint_every,
+            validation_batches: self.validation_batches,
+            lr_scales: self.lr_scales.clone(),
+        };
+        options.plan.validate().map_err(PipelineError::Settings)?;
+        if let Some(mix) = &self.mix {
+            if !(0.0..=1.0).contains(&mix.fraction) {
+                return Err(PipelineError::setting(
+                    "mix fraction",
+                    Some(mix.fraction),
+                    "expected 0..1",
+                ));
+            }
+        }
+        Ok(RunConfig {
+            net,
+            options,
+            init: self.init.clone(),
+            data: match &self.data {
+                TrainData::Online => ONLINE.to_string(),
+                TrainData::Dataset(path) => path.display().to_string(),
+            },
+            mix: self.mix.as_ref().map(|m| Mix {
+                data: m.data.display().to_string(),
+                fraction: m.fraction,
+            }),
+            inference_side: self.inference_sides.first().copied(),
+            extra_inference_sides: self.inference_sides.iter().skip(1).copied().collect(),
+        })
+    }
+}
+
+/// What `run.json` records as the data of an online run.
+const ONLINE: &str = "online";
+
+/// Validation scenes come from the generator under this seed offset, apart
+/// from the online training scenes.
+const VALIDATION_GENERATOR_SEED: u64 = 0x5eed;
+
+/// A run being trained: its folder and its net, optimiser and step.
+pub struct TrainingRun {
+    trainer: Trainer,
+    dir: PathBuf,
+    initial_weights: Option<String>,
+}
+
+/// Starts a new run: checks `config`, makes the net on `device`, loads its
+/// initial weights (fetching the ImageNet ones once when needed), and
+/// writes the run folder's `run.json`.
+pub fn start(config: &TrainConfig, device: Device) -> Result<TrainingRun, PipelineError> {
+    let dir = config.out.clone();
+    if dir.join(train::RUN_FILE).exists() {
+        return Err(PipelineError::file(
+            dir.display(),
+            "already holds a run; resume it (matseg train --resume), or choose another folder",
+        ));
+    }
+    let trainer = Trainer::new(config.run_config()?, device);
+    for group in &config.lr_scales {
+        if !trainer
+            .vs
+            .variables()
+            .keys()
+            .any(|n| n.starts_with(&group.prefix))
+        {
+            return Err(PipelineError::setting(
+                "lr scale",
+                Some(format!("{}={}", group.prefix, group.scale)),
+                format!(
+                    "no variable of the {} net starts with {:?}",
+                    config.encoder, group.prefix
+                ),
+            ));
+        }
+    }
+    let initial_weights = load_initial_weights(&trainer, &config.init)?;
+    std::fs::create_dir_all(&dir)
+        .map_err(|e| PipelineError::file(dir.display(), format!("cannot create: {e}")))?;
+    train::write_run_config(&dir, &trainer.config)?;
+    Ok(TrainingRun {
+        trainer,
+        dir,
+        initial_weights,
+    })
+}
+
+/// Continues the run in `dir` from its last checkpoint, on `device`.
+pub fn resume(dir: &Path, device: Device) -> Result<TrainingRun, PipelineError> {
+    Ok(TrainingRun {
+        trainer: Trainer::resume(dir, device)?,
+        dir: dir.to_path_buf(),
+        initial_weights: None,
+    })
+}
+
+/// What a training session reads besides the run itself.
+pub struct Session<'a> {
+    /// The photo and texture libraries of the online generator and of the
+    /// held-out validation scenes.
+    pub libraries: &'a Libraries,
+    /// A point benchmark (MatSeg layout) to score the net on at each
+    /// checkpoint (`val_points` in the metrics log).
+    pub val_points: Option<&'a Path>,
+    /// Longer side of the benchmark's photos, in pixels (0: as they are).
+    pub val_max_side: u32,
+    /// Threads preparing batches ahead (`None`: one on the CPU, all cores
+    /// but two on a GPU); the batches do not depend on it.
+    pub loader_threads: Option<usize>,
+}
+
+impl<'a> Session<'a> {
+    /// A session drawing online and validation scenes from `libraries`,
+    /// with no point benchmark and the default loader threads.
+    pub fn new(libraries: &'a Libraries) -> Self {
+        Self {
+            libraries,
+            val_points: None,
+            val_max_side: 0,
+            loader_threads: None,
+        }
+    }
+}
+
+/// What a training session did.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrainSummary {
+    /// Steps trained in this session.
+    pub steps: u64,
+    /// Images in those steps.
+    pub images: usize,
+    /// Pixels in those steps.
+    pub pixels: usize,
+    /// Wall seconds, checkpoints and validation included.
+    pub seconds: f64,
+    /// Seconds the trainer waited for batches.
+    pub waited: f64,
+    /// Loader threads used.
+    pub loader_threads: usize,
+}
+
+impl TrainingRun {
+    /// The run folder.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// Steps trained so far.
+    pub fn step(&self) -> u64 {
+        self.trainer.step
+    }
+
+    /// The run's configuration (`run.json`).
+    pub fn config(&self) -> &RunConfig {
+        &self.trainer.config
+    }
+
+    /// The latest weights, for `matseg segment --model` and [`TrainedNet::load`].
+    pub fn model_file(&self) -> PathBuf {
+        self.dir.join(train::MODEL_FILE)
+    }
+
+    /// For a new run, where its initial weights came from (`net: N tensors
+    /// from FILE`, `encoder: N tensors from FILE`); `None` from scratch or
+    /// when resumed.
+    pub fn initial_weights(&self) -> Option<&str> {
+        self.initial_weights.as_deref()
+    }
+
+    /// Trains until the run's planned steps, checkpointing into the run
+    /// folder; `on_step` gets each step's metrics (loss, learning rate,
+    /// batch size, validation scores at checkpoints).
+    pub fn train(
+        &mut self,
+        session: &Session,
+        mut on_step: impl FnMut(&StepMetrics),
+    ) -> Result<TrainSummary, PipelineError> {
+        let config = self.trainer.config.clone();
+        let device = self.trainer.vs.device();
+        let generator = |seed| GeneratorSource {
+            sources: session.libraries.sources(),
+            recipe: Recipe2d::default(),
+            seed,
+        };
+        let main: Box<dyn SampleSource + '_> = if config.data == ONLINE {
+            Box::new(generator(config.options.seed))
+        } else {
+            Box::new(dataset_source(&config.data)?)
+        };
+        let mixed_in = match &config.mix {
+            Some(mix) => Some((dataset_source(&mix.data)?, mix.fraction)),
+            None => None,
+        };
+        let mixture = mixed_in.as_ref().map(|(other, fraction)| MixedSource {
+            main: main.as_ref(),
+            other,
+            fraction: *fraction,
+        });
+        let source: &dyn SampleSource = match &mixture {
+            Some(mixture) => mixture,
+            None => main.as_ref(),
+        };
+        let held_out = generator(config.options.seed ^ VALIDATION_GENERATOR_SEED);
+        let bench = match session.val_points {
+            Some(dir) => Some(load_point_benchmark(dir, false)?),
+            None => None,
+        };
+        let score_points = |trainer: &Trainer| -> Result<f64, String> {
+            let bench = bench.as_ref().expect("only called with a benchmark");
+            let net = TrainedNet::snapshot(trainer).map_err(|e| e.to_string())?;
+            let report = evaluate_points(&NetModel::new("net", net), bench, session.val_max_side)
+                .map_err(|e| e.to_string())?;
+            report
+                .all_by_material
+                .ok_or_else(|| "the validation benchmark has no triplets".to_string())
+        };
+        let validation = Validation {
+            samples: Some(&held_out),
+            points: bench.is_some().then_some(&score_points as NetScore),
+        };
+        let loader_threads = session
+            .loader_threads
+            .unwrap_or_else(|| default_workers(device.is_cuda()));
+        if device.is_cuda() {
+            // On a GPU the trainer's CPU work is converting each batch: one
+            // libtorch thread, so that its thread pool does not fight the
+            // loader threads for the cores (which made steps 10x slower).
+            tch::set_num_threads(1);
+        }
+        let (first_step, started) = (self.trainer.step, Instant::now());
+        let (mut images, mut pixels, mut waited) = (0, 0, 0.0);
+        train::run(
+            &mut self.trainer,
+            source,
+            validation,
+            &self.dir,
+            loader_threads,
+            |m| {
+                images += m.images;
+                pixels += m.images * m.width * m.height;
+                waited += m.data_seconds;
+                on_step(m);
+            },
+        )?;
+        Ok(TrainSummary {
+            steps: self.trainer.step - first_step,
+            images,
+            pixels,
+            seconds: started.elapsed().as_secs_f64(),
+            waited,
+            loader_threads,
+        })
+    }
+}
+
+/// Loads the initial weights `init` names into a new run's net; says what
+/// it loaded.
+fn load_initial_weights(trainer: &Trainer, init: &str) -> Result<Option<String>, PipelineError> {
+    let path = match init {
+        "scratch" => return Ok(None),
+        "imagenet" => {
+            if trainer.config.net.encoder != EncoderConfig::MobilenetV2 {
+                return Err(PipelineError::setting(
+                    "init",
+                    Some("imagenet"),
+                    "the registry has ImageNet weights for mobilenet-v2 only; give a safetensors file for ConvNeXt, or start from scratch",
+                ));
+            }
+            imagenet_weights(Arch::MobilenetV2, None)?.path
+        }
+        file => PathBuf::from(file),
+    };
+    let label = path.display().to_string();
+    let bytes = std::fs::read(&path)
+        .map_err(|e| PipelineError::file(&label, format!("cannot read: {e}")))?;
+    let tensors = read_safetensors(&bytes, &label)?;
+    // A whole net's weights (a run's model.safetensors or best.safetensors)
+    // carry the net's own names; an encoder's, the encoder's standard ones.
+    let whole_net = tensors.iter().any(|t| t.name.starts_with("encoder."));
+    Ok(Some(if whole_net {
+        let (copied, fresh) = load_net_adding(&trainer.vs, &tensors, COLOUR_PART, &label)?;
+        let fresh = match fresh {
+            0 => String::new(),
+            n => format!(" ({n} of a new colour part start fresh)"),
+        };
+        format!("net: {copied} tensors from {label}{fresh}")
+    } else {
+        let copied = load_named(&trainer.vs, "encoder", &tensors, &label)?;
+        format!("encoder: {copied} tensors from {label}")
+    }))
+}
+
+/// The dataset `run.json`'s `data` names.
+fn dataset_source(data: &str) -> Result<DatasetSource, PipelineError> {
+    let dataset = Dataset::open(Path::new(data))?;
+    if dataset.is_empty() {
+        return Err(PipelineError::file(data, "no complete samples"));
+    }
+    Ok(DatasetSource(dataset))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_config_makes_its_run_json_with_the_learning_rate_of_its_start() {
+        let config = TrainConfig::new("run", TrainData::Online);
+        let run = config.run_config().unwrap();
+        assert_eq!(run.data, "online");
+        assert_eq!(run.options.lr, train::LR_PRETRAINED);
+        assert_eq!(run.options.weight_decay, TrainConfig::WEIGHT_DECAY);
+        let scratch = TrainConfig {
+            init: "scratch".into(),
+            data: TrainData::Dataset("data".into()),
+            inference_sides: vec![320, 256],
+            ..config
+        };
+        let run = scratch.run_config().unwrap();
+        assert_eq!(run.options.lr, train::LR_SCRATCH);
+        assert_eq!(run.data, "data");
+        assert_eq!(
+            (run.inference_side, run.extra_inference_sides),
+            (Some(320), vec![256])
+        );
+    }
+
+    #[test]
+    fn bad_settings_name_the_setting() {
+        let base = TrainConfig::new("run", TrainData::Online);
+        let encoder = TrainConfig {
+            encoder: "resnet".into(),
+            ..base.clone()
+        };
+        let e = encoder.run_config().unwrap_err().to_string();
+        assert!(
+            e.starts_with("encoder resnet: expected one of mobilenet-v2"),
+            "{e}"
+        );
+        let mix = TrainConfig {
+            mix: Some(MixIn {
+                data: "renders".into(),
+                fraction: 1.5,
+            }),
+            ..base.clone()
+        };
+        assert_eq!(
+            mix.run_config().unwrap_err().to_string(),
+            "mix fraction 1.5: expected 0..1"
+        );
+        let plan = TrainConfig {
+            plan: BatchPlan {
+                min_side: 100,
+                ..BatchPlan::SPEC
+            },
+            ..base
+        };
+        assert!(plan
+            .run_config()
+            .unwrap_err()
+            .to_string()
+            .contains("multiples of 32"));
+    }
+
+    #[test]
+    fn a_folder_holding_a_run_is_not_started_again() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join(train::RUN_FILE), "{}").unwrap();
+        let config = TrainConfig::new(dir.path(), TrainData::Online);
+        let e = start(&config, Device::Cpu).err().expect("refused");
+        assert!(e.to_string().contains("already holds a run"), "{e}");
+    }
+}
