@@ -212,6 +212,7 @@ fn unzip<R: Read + Seek>(
 /// Archives of the supported formats built in memory (a `.deb` with
 /// gzipped members, tarballs, stored zips), for tests across the workspace:
 /// the reader is only trusted on files it did not write.
+#[cfg(any(test, feature = "fixtures"))]
 pub mod fixtures {
     use flate2::write::GzEncoder;
     use std::io::Write;

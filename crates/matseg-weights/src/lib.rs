@@ -5,6 +5,7 @@
 #![warn(missing_docs)]
 
 pub mod arch;
+#[cfg(any(test, feature = "fixtures"))]
 pub mod fixtures;
 pub mod pickle;
 pub mod safetensors;
