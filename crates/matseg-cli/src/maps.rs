@@ -5,7 +5,7 @@ use matseg_data::sample_rng;
 use matseg_extract::{combine_maps, draw_channel_map, CombinedMaps, MapRecord, MAX_MAPS};
 use matseg_image::io::{encode_png_gray, encode_png_rgb, read_rgb, write_atomic};
 use matseg_image::{PhotoLibrary, Plane};
-use matseg_scene::colorize;
+use matseg_scene::colourise;
 use rand::Rng;
 use serde::Serialize;
 use std::path::PathBuf;
@@ -106,7 +106,7 @@ pub fn run(args: Args) -> Result<()> {
     let slices: Vec<&[f32]> = weights.iter().map(|p| p.data.as_slice()).collect();
     write(
         "colour.png".into(),
-        encode_png_rgb(&colorize(w, h, &slices)),
+        encode_png_rgb(&colourise(w, h, &slices)),
     )?;
     let file = MapsFile {
         photo: args.photo.display().to_string(),

@@ -5,7 +5,7 @@ use anyhow::{Context, Result};
 use matseg_image::io::{encode_png_gray, encode_png_rgb, write_atomic};
 use matseg_render::hdr_io::{encode_radiance, HdrImage};
 use matseg_render::{render, tone_map, SceneDescription};
-use matseg_scene::{colorize, quantise_fractions};
+use matseg_scene::{colourise, quantise_fractions};
 use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -109,7 +109,7 @@ pub fn run(args: Args) -> Result<()> {
     }
     write("roi.png", encode_png_gray(w as u32, h as u32, &masks.roi))?;
     let planes: Vec<&[f32]> = out.fractions.iter().map(|f| f.as_slice()).collect();
-    write("annotation.png", encode_png_rgb(&colorize(w, h, &planes)))?;
+    write("annotation.png", encode_png_rgb(&colourise(w, h, &planes)))?;
     let report = RenderReport {
         scene: args.scene.display().to_string(),
         width: w,

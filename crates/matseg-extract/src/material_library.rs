@@ -52,7 +52,7 @@ pub struct MaterialMaps {
     /// The folder it was read from.
     pub dir: PathBuf,
     /// Base colour (sRGB).
-    pub color: RgbImage,
+    pub colour: RgbImage,
     /// Normals, OpenGL convention (DirectX normals are converted).
     pub normal: Option<RgbImage>,
     /// Height / displacement.
@@ -72,7 +72,7 @@ pub struct MaterialMaps {
 /// What a file holds, from its name.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Role {
-    Color,
+    Colour,
     NormalGl,
     NormalDx,
     Scalar(MapKind),
@@ -85,7 +85,7 @@ fn role(stem: &str) -> Option<Role> {
     let token = lower.rsplit('_').next().unwrap_or(&lower);
     [lower.as_str(), token].iter().find_map(|name| {
         Some(match *name {
-            "color" | "basecolor" | "albedo" | "diffuse" | "origincolor" => Role::Color,
+            "color" | "basecolor" | "albedo" | "diffuse" | "origincolor" => Role::Colour,
             "normalgl" | "normal" => Role::NormalGl,
             "normaldx" => Role::NormalDx,
             "displacement" | "height" => Role::Scalar(MapKind::Height),
@@ -125,7 +125,7 @@ fn find_role(files: &[PathBuf], wanted: Role) -> Option<&PathBuf> {
 
 /// The colour map of the material in `dir`, if it has one.
 pub fn colour_map(dir: &Path) -> Result<Option<PathBuf>, MaterialError> {
-    Ok(find_role(&map_files(dir)?, Role::Color).cloned())
+    Ok(find_role(&map_files(dir)?, Role::Colour).cloned())
 }
 
 /// Reads the material in `dir`. An error names the folder (no colour map)
@@ -144,7 +144,7 @@ pub fn read_material(dir: &Path) -> Result<MaterialMaps, MaterialError> {
             .map(|p| open(p).map(|i| i.to_luma8()))
             .transpose()
     };
-    let color = find(Role::Color)
+    let colour = find(Role::Colour)
         .ok_or_else(|| MaterialError::NoColourMap {
             dir: dir.to_path_buf(),
         })
@@ -161,7 +161,7 @@ pub fn read_material(dir: &Path) -> Result<MaterialMaps, MaterialError> {
     };
     Ok(MaterialMaps {
         dir: dir.to_path_buf(),
-        color,
+        colour,
         normal,
         height: grey(MapKind::Height)?,
         roughness: grey(MapKind::Roughness)?,
@@ -188,7 +188,7 @@ pub fn find_materials(root: &Path) -> Result<Vec<PathBuf>, MaterialError> {
             if path.is_dir() {
                 stack.push(path);
             } else if matseg_image::io::has_image_extension(&path)
-                && path.file_stem().and_then(|s| s.to_str()).and_then(role) == Some(Role::Color)
+                && path.file_stem().and_then(|s| s.to_str()).and_then(role) == Some(Role::Colour)
             {
                 has_colour = true;
             }
@@ -285,10 +285,10 @@ mod tests {
     #[test]
     fn names_map_to_roles_in_every_convention() {
         for (stem, want) in [
-            ("Color", Role::Color),
-            ("Bricks076_1K_Color", Role::Color),
-            ("basecolor", Role::Color),
-            ("OriginColor", Role::Color),
+            ("Color", Role::Colour),
+            ("Bricks076_1K_Color", Role::Colour),
+            ("basecolor", Role::Colour),
+            ("OriginColor", Role::Colour),
             ("NormalGL", Role::NormalGl),
             ("Rock_2K_NormalDX", Role::NormalDx),
             ("Normal", Role::NormalGl),

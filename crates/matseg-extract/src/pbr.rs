@@ -134,7 +134,7 @@ pub enum MapSource {
 
 /// How one map was made.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct MapRecord {
+pub struct PbrMapRecord {
     /// The map.
     pub kind: MapKind,
     /// Its values' source.
@@ -156,7 +156,7 @@ pub struct PbrRecord {
     /// Quarter turn, left-right and top-bottom mirror of the texture.
     pub turned: [bool; 3],
     /// The maps.
-    pub maps: Vec<MapRecord>,
+    pub maps: Vec<PbrMapRecord>,
     /// The "shiny" rule was applied.
     pub shiny: bool,
     /// The "non-metal" rule was applied.
@@ -172,7 +172,7 @@ pub struct PbrRecord {
 #[derive(Clone, Debug)]
 pub struct PbrMaterial {
     /// Base colour, sRGB.
-    pub color: RgbImage,
+    pub colour: RgbImage,
     /// The scalar maps, in [`MapKind::ALL`] order.
     pub maps: Vec<(MapKind, GrayImage)>,
     /// Tangent-space normals, OpenGL convention (green up), 0..255 encoding.
@@ -189,7 +189,7 @@ impl PbrMaterial {
     /// The same blend for all maps keeps them consistent; normals are
     /// renormalised.
     pub fn make_seamless(&mut self) {
-        let (w, h) = self.color.dimensions();
+        let (w, h) = self.colour.dimensions();
         for vertical in [false, true] {
             let n = if vertical { h } else { w };
             // 1 in the middle, 0 at the edges, linear over a quarter of the side.
@@ -205,10 +205,10 @@ impl PbrMaterial {
                 }
             };
             let blend = |a: f32, b: f32, k: f32| a * k + b * (1.0 - k);
-            let color = self.color.clone();
-            for (x, y, px) in self.color.enumerate_pixels_mut() {
+            let colour = self.colour.clone();
+            for (x, y, px) in self.colour.enumerate_pixels_mut() {
                 let (sx, sy) = shifted(x, y);
-                let other = color.get_pixel(sx, sy).0;
+                let other = colour.get_pixel(sx, sy).0;
                 let k = keep(x, y);
                 px.0 =
                     std::array::from_fn(|c| round_to_u8(blend(px.0[c] as f32, other[c] as f32, k)));
@@ -238,7 +238,7 @@ impl PbrMaterial {
     /// Writes the maps into `dir` with ambientCG names (`Color.png`,
     /// `NormalGL.png`, `Displacement.png`, `Roughness.png`, ...), as PNG.
     pub fn write_maps(&self, dir: &Path) -> std::io::Result<()> {
-        std::fs::write(dir.join("Color.png"), encode_png_rgb(&self.color))?;
+        std::fs::write(dir.join("Color.png"), encode_png_rgb(&self.colour))?;
         std::fs::write(dir.join("NormalGL.png"), encode_png_rgb(&self.normal))?;
         for (kind, map) in &self.maps {
             let (w, h) = map.dimensions();
@@ -257,7 +257,7 @@ impl PbrMaterial {
 /// highlight whose sharpness follows the roughness and whose colour follows
 /// the metalness. For looking at materials, not a physically based renderer.
 pub fn preview_sphere(material: &PbrMaterial, size: u32) -> RgbImage {
-    let (tw, th) = material.color.dimensions();
+    let (tw, th) = material.colour.dimensions();
     let roughness = &material.maps[1].1;
     let metalness = &material.maps[2].1;
     let light = normalise([-0.5, 0.6, 0.65]);
@@ -291,7 +291,7 @@ pub fn preview_sphere(material: &PbrMaterial, size: u32) -> RgbImage {
         let metal = metalness.get_pixel(tx, ty).0[0] as f32 / 255.0;
         let shininess = 2.0 + (1.0 - rough).powi(2) * 200.0;
         let highlight = dot(bent, half).max(0.0).powf(shininess) * (1.0 - rough * 0.8);
-        let colour = material.color.get_pixel(tx, ty).0;
+        let colour = material.colour.get_pixel(tx, ty).0;
         image::Rgb(std::array::from_fn(|c| {
             let albedo = to_linear(colour[c]);
             let specular_tint = metal * albedo + (1.0 - metal) * 0.04;
@@ -339,18 +339,18 @@ pub fn make_pbr<R: Rng + ?Sized>(
         .random_bool(recipe.p_hue_rotation)
         .then(|| rng.random_range(0.0..360.0f32));
     let turned = [(); 3].map(|_| rng.random_bool(recipe.p_turn_or_flip));
-    let mut color = texture.clone();
+    let mut colour = texture.clone();
     if turned[0] {
-        color = image::imageops::rotate270(&color);
+        colour = image::imageops::rotate270(&colour);
     }
     if turned[1] {
-        image::imageops::flip_horizontal_in_place(&mut color);
+        image::imageops::flip_horizontal_in_place(&mut colour);
     }
     if turned[2] {
-        image::imageops::flip_vertical_in_place(&mut color);
+        image::imageops::flip_vertical_in_place(&mut colour);
     }
     if let Some(degrees) = hue_degrees {
-        for px in color.pixels_mut() {
+        for px in colour.pixels_mut() {
             let turned = rotate_hue(px.0.map(f32::from), degrees);
             px.0 = turned.map(round_to_u8);
         }
@@ -358,7 +358,7 @@ pub fn make_pbr<R: Rng + ?Sized>(
     let mut maps = Vec::new();
     let mut records = Vec::new();
     for kind in MapKind::ALL {
-        let (map, record) = draw_map(rng, &color, kind, recipe);
+        let (map, record) = draw_map(rng, &colour, kind, recipe);
         maps.push((kind, map));
         records.push(record);
     }
@@ -387,7 +387,7 @@ pub fn make_pbr<R: Rng + ?Sized>(
     };
     let normal = normal_map(&maps[0].1, normal_strength);
     PbrMaterial {
-        color,
+        colour,
         maps,
         normal,
         record: PbrRecord {
@@ -405,10 +405,10 @@ pub fn make_pbr<R: Rng + ?Sized>(
 /// One scalar map: its source, then the optional inversion, blur and rescale.
 fn draw_map<R: Rng + ?Sized>(
     rng: &mut R,
-    color: &RgbImage,
+    colour: &RgbImage,
     kind: MapKind,
     recipe: &PbrRecipe,
-) -> (GrayImage, MapRecord) {
+) -> (GrayImage, PbrMapRecord) {
     let source = if rng.random_bool(recipe.p_constant) {
         let value = match (kind, rng.random_range(0..3)) {
             (MapKind::Height, _) => 0,
@@ -432,7 +432,10 @@ fn draw_map<R: Rng + ?Sized>(
             },
         }
     };
-    let mut values: Vec<f32> = color.pixels().map(|p| source_value(&source, p.0)).collect();
+    let mut values: Vec<f32> = colour
+        .pixels()
+        .map(|p| source_value(&source, p.0))
+        .collect();
     if let MapSource::Relative { .. } = source {
         // c / (mean + 10) lies in 0..~25: bring it to 0..255 by its maximum.
         let max = values.iter().copied().fold(0.0f32, f32::max).max(1e-6);
@@ -447,7 +450,7 @@ fn draw_map<R: Rng + ?Sized>(
     if inverted {
         values.iter_mut().for_each(|v| *v = 255.0 - *v);
     }
-    let (w, h) = color.dimensions();
+    let (w, h) = colour.dimensions();
     let blur = rng
         .random_bool(recipe.p_blur)
         .then(|| recipe.blur_kernels[rng.random_range(0..recipe.blur_kernels.len())]);
@@ -480,7 +483,7 @@ fn draw_map<R: Rng + ?Sized>(
     }
     let map = GrayImage::from_raw(w, h, values.iter().map(|&v| round_to_u8(v)).collect())
         .expect("map size");
-    let record = MapRecord {
+    let record = PbrMapRecord {
         kind,
         source,
         inverted,
@@ -569,10 +572,10 @@ mod tests {
             &texture(),
             &PbrRecipe::default(),
         );
-        let before = m.color.clone();
+        let before = m.colour.clone();
         m.make_seamless();
         assert!(m.record.seamless);
-        let (w, h) = m.color.dimensions();
+        let (w, h) = m.colour.dimensions();
         let step = |img: &RgbImage, x0: u32, x1: u32| {
             (0..h)
                 .map(|y| {
@@ -586,14 +589,14 @@ mod tests {
         };
         // Across the wrap (last column to first) the colour changes no more
         // than between typical neighbouring columns of the tile.
-        let interior = (1..w - 1).map(|x| step(&m.color, x - 1, x)).sum::<f32>() / (w - 2) as f32;
+        let interior = (1..w - 1).map(|x| step(&m.colour, x - 1, x)).sum::<f32>() / (w - 2) as f32;
         assert!(
-            step(&m.color, w - 1, 0) <= 1.5 * interior + 1.0,
+            step(&m.colour, w - 1, 0) <= 1.5 * interior + 1.0,
             "{} vs {interior}",
-            step(&m.color, w - 1, 0)
+            step(&m.colour, w - 1, 0)
         );
         // Nor is there a step in the middle (where a shifted copy's seam would be).
-        assert!(step(&m.color, w / 2 - 1, w / 2) <= 1.5 * interior + 1.0);
+        assert!(step(&m.colour, w / 2 - 1, w / 2) <= 1.5 * interior + 1.0);
         // Before, the texture's own edges did not match.
         assert!(step(&before, w - 1, 0) > 3.0 * interior);
     }
@@ -631,11 +634,11 @@ mod tests {
                 )
             };
             let (a, b) = (make(), make());
-            assert_eq!(a.color, b.color);
+            assert_eq!(a.colour, b.colour);
             assert_eq!(a.normal, b.normal);
             assert_eq!(a.record, b.record);
             assert_eq!(a.maps.len(), 6);
-            let (w, h) = a.color.dimensions();
+            let (w, h) = a.colour.dimensions();
             for ((kind, map), record) in a.maps.iter().zip(&a.record.maps) {
                 assert_eq!(map.dimensions(), (w, h));
                 assert_eq!(*kind, record.kind);

@@ -77,7 +77,7 @@ pub struct MixRecord {
 #[derive(Clone, Debug)]
 pub struct MixedMaterial {
     /// Base colour (sRGB).
-    pub color: RgbImage,
+    pub colour: RgbImage,
     /// Normals, OpenGL convention.
     pub normal: RgbImage,
     /// Displacement, roughness, metalness, AO, opacity, specular.
@@ -87,7 +87,7 @@ pub struct MixedMaterial {
 impl MixedMaterial {
     /// Writes the maps into `dir` with the names of [`MIXED_MAPS`], as PNG.
     pub fn write_maps(&self, dir: &Path) -> std::io::Result<()> {
-        std::fs::write(dir.join("Color.png"), encode_png_rgb(&self.color))?;
+        std::fs::write(dir.join("Color.png"), encode_png_rgb(&self.colour))?;
         std::fs::write(dir.join("NormalGL.png"), encode_png_rgb(&self.normal))?;
         for (name, map) in MIXED_MAPS[2..].iter().zip(&self.maps) {
             let (w, h) = map.dimensions();
@@ -136,7 +136,7 @@ pub fn mix_materials<R: Rng + ?Sized>(
         MixMode::Flexible => (0..MIXED_MAPS.len()).map(|_| draw_weights(rng)).collect(),
         MixMode::Max => Vec::new(),
     };
-    let first = &library[sources[0]].color;
+    let first = &library[sources[0]].colour;
     let (w, h) = first.dimensions();
     let members: Vec<&MaterialMaps> = sources.iter().map(|&i| &library[i]).collect();
     // Each source's channels as planes of the first source's size.
@@ -144,7 +144,7 @@ pub fn mix_materials<R: Rng + ?Sized>(
         |img: &RgbImage| image::imageops::resize(img, w, h, image::imageops::FilterType::Triangle);
     let resize_grey =
         |img: &GrayImage| image::imageops::resize(img, w, h, image::imageops::FilterType::Triangle);
-    let colours: Vec<RgbImage> = members.iter().map(|m| resize_rgb(&m.color)).collect();
+    let colours: Vec<RgbImage> = members.iter().map(|m| resize_rgb(&m.colour)).collect();
     let normals: Vec<RgbImage> = members
         .iter()
         .map(|m| match &m.normal {
@@ -158,7 +158,7 @@ pub fn mix_materials<R: Rng + ?Sized>(
             _ => values.iter().zip(&weights[map]).map(|(v, w)| v * w).sum(),
         }
     };
-    let color = RgbImage::from_fn(w, h, |x, y| {
+    let colour = RgbImage::from_fn(w, h, |x, y| {
         image::Rgb(std::array::from_fn(|c| {
             let values: Vec<f32> = colours
                 .iter()
@@ -208,7 +208,7 @@ pub fn mix_materials<R: Rng + ?Sized>(
     });
     (
         MixedMaterial {
-            color,
+            colour,
             normal,
             maps,
         },
@@ -228,7 +228,7 @@ mod tests {
     fn flat(level: u8, normal: [u8; 3]) -> MaterialMaps {
         MaterialMaps {
             dir: "mem".into(),
-            color: RgbImage::from_pixel(4, 3, image::Rgb([level; 3])),
+            colour: RgbImage::from_pixel(4, 3, image::Rgb([level; 3])),
             normal: Some(RgbImage::from_pixel(4, 3, image::Rgb(normal))),
             height: Some(GrayImage::from_pixel(4, 3, image::Luma([level]))),
             roughness: None,
@@ -256,7 +256,7 @@ mod tests {
                 .iter()
                 .map(|&i| [0.0, 200.0, 100.0][i])
                 .collect();
-            let got = m.color.get_pixel(0, 0).0[0] as f32;
+            let got = m.colour.get_pixel(0, 0).0[0] as f32;
             match record.mode {
                 MixMode::Max => assert_eq!(got, levels.iter().copied().fold(0.0, f32::max)),
                 _ => {

@@ -4,8 +4,8 @@
 use matseg_image::coverage::BLOCK;
 use matseg_image::levels::{look_up_step, step_level};
 use matseg_image::{
-    level_values, Channel, ChannelWindow, Coverage, CoveredBlur, LevelCounts, LevelTable,
-    LibraryError, Photo, PhotoLibrary, Placement, Plane, Ramp, SparsePlane,
+    level_values, Channel, ChannelWindow, Coverage, CoveredBlur, CropWindow, LevelCounts,
+    LevelTable, LibraryError, Photo, PhotoLibrary, Plane, Ramp, SparsePlane,
 };
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -119,7 +119,7 @@ pub struct MapRecord {
     /// Index of the source photo in the library.
     pub photo: usize,
     /// How the photo was resized and cropped.
-    pub placement: Placement,
+    pub placement: CropWindow,
     /// The channel used.
     pub channel: Channel,
     /// Whether the channel was divided by its maximum.
@@ -281,9 +281,9 @@ pub fn random_placement<R: Rng + ?Sized>(
     h: usize,
     p_downscale: f64,
     fit_by_default: bool,
-) -> Placement {
+) -> CropWindow {
     let (pw, ph) = (photo.pyramid.width(), photo.pyramid.height());
-    let cover = Placement::cover_scale(pw, ph, w, h);
+    let cover = CropWindow::cover_scale(pw, ph, w, h);
     let scale = if cover >= 1.0 {
         cover
     } else if rng.random_bool(p_downscale) {
@@ -293,8 +293,8 @@ pub fn random_placement<R: Rng + ?Sized>(
     } else {
         1.0
     };
-    let (rw, rh) = Placement::resized_size(pw, ph, scale, w, h);
-    Placement {
+    let (rw, rh) = CropWindow::resized_size(pw, ph, scale, w, h);
+    CropWindow {
         resized_w: rw,
         resized_h: rh,
         x0: rng.random_range(0..=rw - w as u32),
@@ -312,7 +312,7 @@ pub fn random_channel_placement<R: Rng + ?Sized>(
     h: usize,
     p_downscale: f64,
     p_hsv: f64,
-) -> (Placement, Channel) {
+) -> (CropWindow, Channel) {
     let placement = random_placement(rng, photo, w, h, p_downscale, false);
     let channels = if rng.random_bool(p_hsv) {
         Channel::HSV

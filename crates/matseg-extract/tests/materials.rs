@@ -70,7 +70,7 @@ fn ambientcg_matseg_and_matsynth_folders_read_alike() {
     assert_eq!(found, [cg.clone(), ms.clone(), synth.clone()]);
     for dir in &found {
         let m = read_material(dir).unwrap();
-        assert_eq!(m.color, colour());
+        assert_eq!(m.colour, colour());
         assert_eq!(m.roughness, Some(grey(10)));
         assert_eq!(m.metalness, Some(grey(20)));
         assert_eq!(m.height, Some(grey(30)));
@@ -101,7 +101,7 @@ fn our_pbr_output_reads_back_exactly() {
     );
     m.write_maps(dir.path()).unwrap();
     let back = read_material(dir.path()).unwrap();
-    assert_eq!(back.color, m.color);
+    assert_eq!(back.colour, m.colour);
     assert_eq!(back.normal.as_ref(), Some(&m.normal));
     let by_kind = |k: usize| Some(m.maps[k].1.clone());
     assert_eq!(back.height, by_kind(0));

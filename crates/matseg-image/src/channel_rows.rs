@@ -7,7 +7,7 @@
 
 use crate::channel::{write_levels, Channel};
 use crate::levels::{highest, ChannelWindow};
-use crate::resample::{Placement, Pyramid, WindowReader};
+use crate::resample::{CropWindow, Pyramid, WindowReader};
 
 /// The R, G and B planes of a window, read run by run.
 pub struct WindowRows<'a> {
@@ -18,7 +18,7 @@ pub struct WindowRows<'a> {
 
 impl<'a> WindowRows<'a> {
     /// The `w x h` window `placement` selects from `pyramid`.
-    pub fn new(pyramid: &'a Pyramid, placement: &Placement, w: usize, h: usize) -> Self {
+    pub fn new(pyramid: &'a Pyramid, placement: &CropWindow, w: usize, h: usize) -> Self {
         Self {
             reader: pyramid.window(placement, w, h),
             blended: Vec::new(),
@@ -137,7 +137,7 @@ impl<'a> ChannelRows<'a> {
     /// `channel` of the `w x h` window `placement` selects from `pyramid`.
     pub fn new(
         pyramid: &'a Pyramid,
-        placement: &Placement,
+        placement: &CropWindow,
         w: usize,
         h: usize,
         channel: Channel,
@@ -257,7 +257,7 @@ mod tests {
             (137, 94, 7, 2),
         ];
         for (resized_w, resized_h, x0, y0) in placements {
-            let placement = Placement {
+            let placement = CropWindow {
                 resized_w,
                 resized_h,
                 x0,
@@ -296,7 +296,7 @@ mod tests {
         let mut img = RgbImage::from_pixel(40, 40, image::Rgb([10, 10, 10]));
         img.put_pixel(20, 20, image::Rgb([250, 10, 10]));
         let pyramid = Pyramid::new(img);
-        let placement = Placement {
+        let placement = CropWindow {
             resized_w: 70,
             resized_h: 70,
             x0: 0,

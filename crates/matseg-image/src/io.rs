@@ -125,10 +125,10 @@ pub fn encode_jpeg(img: &RgbImage, quality: u8) -> Vec<u8> {
     out
 }
 
-fn encode_png(data: &[u8], w: u32, h: u32, color: ExtendedColorType) -> Vec<u8> {
+fn encode_png(data: &[u8], w: u32, h: u32, colour: ExtendedColorType) -> Vec<u8> {
     let mut out = Vec::new();
     PngEncoder::new_with_quality(&mut out, CompressionType::Fast, FilterType::Adaptive)
-        .write_image(data, w, h, color)
+        .write_image(data, w, h, colour)
         .expect("encoding to memory cannot fail for a valid image");
     out
 }

@@ -37,5 +37,5 @@ pub use licence::{licence_family, LicenceFilter};
 pub use mirrors::Mirrors;
 pub use plane::Plane;
 pub use ramp::Ramp;
-pub use resample::{Placement, Pyramid};
+pub use resample::{CropWindow, Pyramid};
 pub use sparse::SparsePlane;

@@ -177,7 +177,7 @@ impl Pyramid {
     /// worked out once and shared by every plane read from it.
     pub(crate) fn window(
         &self,
-        placement: &Placement,
+        placement: &CropWindow,
         out_w: usize,
         out_h: usize,
     ) -> WindowReader<'_> {
@@ -224,7 +224,7 @@ impl Pyramid {
     /// Plane `lane` (0 = R, 1 = G, 2 = B) of the window `placement` selects.
     fn sample_plane(
         &self,
-        placement: &Placement,
+        placement: &CropWindow,
         out_w: usize,
         out_h: usize,
         lane: usize,
@@ -238,7 +238,7 @@ impl Pyramid {
     /// [`Pyramid::sample_planes`].
     pub fn sample_rows(
         &self,
-        placement: &Placement,
+        placement: &CropWindow,
         out_w: usize,
         out_h: usize,
         mut each: impl FnMut(usize, [&[u8]; 3]),
@@ -250,14 +250,19 @@ impl Pyramid {
     }
 
     /// The R, G and B planes of the selected window.
-    pub fn sample_planes(&self, placement: &Placement, out_w: usize, out_h: usize) -> [Vec<u8>; 3] {
+    pub fn sample_planes(
+        &self,
+        placement: &CropWindow,
+        out_w: usize,
+        out_h: usize,
+    ) -> [Vec<u8>; 3] {
         let window = self.window(placement, out_w, out_h);
         std::array::from_fn(|lane| window.plane(lane))
     }
 
     /// The whole image resized to `w x h`, as an 8-bit RGB image.
     pub fn resize(&self, w: usize, h: usize) -> RgbImage {
-        let whole = Placement {
+        let whole = CropWindow {
             resized_w: w as u32,
             resized_h: h as u32,
             x0: 0,
@@ -277,7 +282,7 @@ impl Pyramid {
     /// them needs the three planes.
     pub fn sample_channel(
         &self,
-        placement: &Placement,
+        placement: &CropWindow,
         out_w: usize,
         out_h: usize,
         channel: Channel,
@@ -638,7 +643,7 @@ fn round_non_negative(x: f64) -> u64 {
 /// Where a scene-sized window comes from: resize the source to
 /// `resized_w x resized_h`, then crop at `(x0, y0)` in resized pixels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub struct Placement {
+pub struct CropWindow {
     /// Width the source is resized to.
     pub resized_w: u32,
     /// Height the source is resized to.
@@ -649,7 +654,7 @@ pub struct Placement {
     pub y0: u32,
 }
 
-impl Placement {
+impl CropWindow {
     /// The smallest uniform scale at which a `src` image covers an `out` window.
     pub fn cover_scale(src_w: u32, src_h: u32, out_w: usize, out_h: usize) -> f64 {
         (out_w as f64 / src_w as f64).max(out_h as f64 / src_h as f64)
@@ -709,7 +714,7 @@ mod tests {
         let (w, h) = (40, 30);
         for (resized_w, resized_h, x0, y0) in [(97, 83, 9, 40), (170, 145, 130, 2), (44, 37, 4, 7)]
         {
-            let placement = Placement {
+            let placement = CropWindow {
                 resized_w,
                 resized_h,
                 x0,
@@ -732,7 +737,7 @@ mod tests {
     fn identity_placement_reproduces_the_image() {
         let img = gradient(40, 30);
         let p = Pyramid::new(img.clone());
-        let place = Placement {
+        let place = CropWindow {
             resized_w: 40,
             resized_h: 30,
             x0: 5,
@@ -764,7 +769,7 @@ mod tests {
         let p = Pyramid::new(img.clone());
         let (rw, rh, w, h) = (67u32, 50u32, 25usize, 20usize);
         for (x0, y0) in [(rw - w as u32, rh - h as u32), (0, 0), (9, 13)] {
-            let place = Placement {
+            let place = CropWindow {
                 resized_w: rw,
                 resized_h: rh,
                 x0,
@@ -825,8 +830,8 @@ mod tests {
 
     #[test]
     fn cover_scale_covers_the_window() {
-        let s = Placement::cover_scale(300, 200, 600, 600);
+        let s = CropWindow::cover_scale(300, 200, 600, 600);
         assert_eq!(s, 3.0);
-        assert_eq!(Placement::resized_size(300, 200, s, 600, 600), (900, 600));
+        assert_eq!(CropWindow::resized_size(300, 200, s, 600, 600), (900, 600));
     }
 }

@@ -30,7 +30,7 @@ pub enum PipelineError {
     Recipe(#[from] matseg_scene::RecipeError),
     /// A 2D scene could not be composed.
     #[error(transparent)]
-    Compose(#[from] matseg_scene::SceneError),
+    Compose(#[from] matseg_scene::ComposeError),
     /// Soft maps could not be drawn.
     #[error(transparent)]
     SoftMaps(#[from] matseg_extract::SoftMapError),

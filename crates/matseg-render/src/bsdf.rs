@@ -71,7 +71,7 @@ impl Lobe {
                 if wo.z <= 0.0 || wi.z <= 0.0 {
                     return (Vec3::ZERO, 0.0);
                 }
-                let wm = (wo + wi).normalized();
+                let wm = (wo + wi).normalised();
                 let f = fresnel_dielectric(wo.dot(wm), eta);
                 let spec = ggx.d(wm) * ggx.g(wo, wi) * f / (4.0 * wo.z * wi.z);
                 let f_o = fresnel_dielectric(wo.z, eta);
@@ -86,7 +86,7 @@ impl Lobe {
                 if wo.z <= 0.0 || wi.z <= 0.0 {
                     return (Vec3::ZERO, 0.0);
                 }
-                let wm = (wo + wi).normalized();
+                let wm = (wo + wi).normalised();
                 let f = fresnel_schlick(f0, wo.dot(wm));
                 let value = f * (ggx.d(wm) * ggx.g(wo, wi) / (4.0 * wo.z * wi.z));
                 (value, ggx.visible_pdf(wo, wm) / (4.0 * wo.dot(wm)))
@@ -152,7 +152,7 @@ fn glass_eval(tint: Vec3, ggx: Ggx, eta: f32, wo: Vec3, wi: Vec3) -> (Vec3, f32)
     if wm.dot(wm) == 0.0 {
         return (Vec3::ZERO, 0.0);
     }
-    let mut wm = wm.normalized();
+    let mut wm = wm.normalised();
     if wm.z < 0.0 {
         wm = -wm;
     }

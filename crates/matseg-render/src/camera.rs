@@ -46,7 +46,7 @@ impl Camera {
     /// Prepares rays for a `width x height` image. Fails when the camera
     /// sits on its target.
     pub fn rays(&self, width: u32, height: u32) -> Result<CameraRays, String> {
-        let forward = (self.target - self.position).normalized();
+        let forward = (self.target - self.position).normalised();
         if forward == Vec3::ZERO || !forward.is_finite() {
             return Err("the camera's position and target coincide".into());
         }
@@ -83,7 +83,7 @@ impl CameraRays {
         let dy = (0.5 * self.height - y) * self.scale;
         Ray {
             origin: self.origin,
-            dir: (self.forward + self.right * dx + self.up * dy).normalized(),
+            dir: (self.forward + self.right * dx + self.up * dy).normalised(),
         }
     }
 }

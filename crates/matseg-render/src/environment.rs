@@ -274,7 +274,7 @@ impl Light {
             ..
         } = self
         {
-            let axis = (*target - position).normalized();
+            let axis = (*target - position).normalised();
             let cos = (-wi).dot(axis);
             let half = (angle_deg * 0.5).to_radians();
             let outer = half.cos();
@@ -365,7 +365,7 @@ mod tests {
     fn rotation_turns_the_map_about_the_vertical() {
         let env = sky();
         let turned = Environment::with_map(env.map.clone(), 1.5, 120.0);
-        let d = Vec3::new(0.3, 0.5, 0.2).normalized();
+        let d = Vec3::new(0.3, 0.5, 0.2).normalised();
         let (s, c) = (-90f32).to_radians().sin_cos();
         let d_turned = Vec3::new(c * d.x - s * d.y, s * d.x + c * d.y, d.z);
         assert!((env.radiance(d) - turned.radiance(d_turned)).length() < 1e-3);

@@ -124,7 +124,7 @@ pub fn render(scene: &LoadedScene) -> Result<Rendered, String> {
     for p in pixels {
         out.radiance.push(p.radiance * n);
         out.albedo.push(p.albedo * n);
-        out.normal.push(p.normal.normalized());
+        out.normal.push(p.normal.normalised());
         for (f, v) in out.fractions.iter_mut().zip(&p.fractions) {
             f.push(v * n);
         }

@@ -59,7 +59,7 @@ impl Vec3 {
 
     /// The unit vector in the same direction (zero stays zero).
     #[inline]
-    pub fn normalized(self) -> Vec3 {
+    pub fn normalised(self) -> Vec3 {
         let l = self.length();
         if l > 0.0 {
             self * (1.0 / l)
@@ -419,7 +419,7 @@ impl Transform {
         let m = Vec3::new(cof[0].x, cof[1].x, cof[2].x) * n.x
             + Vec3::new(cof[0].y, cof[1].y, cof[2].y) * n.y
             + Vec3::new(cof[0].z, cof[1].z, cof[2].z) * n.z;
-        (m * det.signum()).normalized()
+        (m * det.signum()).normalised()
     }
 }
 
@@ -436,7 +436,7 @@ mod tests {
         for n in [
             Vec3::Z,
             -Vec3::Z,
-            Vec3::new(0.3, -0.5, 0.81).normalized(),
+            Vec3::new(0.3, -0.5, 0.81).normalised(),
             Vec3::new(1.0, 0.0, 0.0),
         ] {
             let f = Frame::from_normal(n);
@@ -460,7 +460,7 @@ mod tests {
         ));
         let t = Transform::from_parts(1.5, Vec3::new(30.0, -20.0, 75.0), Vec3::ZERO);
         let (a, b) = (Vec3::new(1.0, 0.2, 0.0), Vec3::new(0.0, 0.3, 1.0));
-        let n = a.cross(b).normalized();
+        let n = a.cross(b).normalised();
         let tn = t.normal(n);
         assert!(tn.dot(t.vector(a)).abs() < 1e-4 && tn.dot(t.vector(b)).abs() < 1e-4);
         assert!(

@@ -66,7 +66,7 @@ impl Mesh {
         self.normals = normals
             .into_iter()
             .map(|n| {
-                let n = n.normalized();
+                let n = n.normalised();
                 if n == Vec3::ZERO {
                     Vec3::Z
                 } else {
@@ -103,7 +103,7 @@ impl Mesh {
                         }
                     }
                     UvProjection::Sphere => {
-                        let d = q.normalized();
+                        let d = q.normalised();
                         let u = 0.5 + d.y.atan2(d.x) / (2.0 * PI);
                         let v = 0.5 + d.z.clamp(-1.0, 1.0).asin() / PI;
                         [u, v]

@@ -121,7 +121,7 @@ fn parse_obj(text: &str) -> Result<Mesh, String> {
             }
             Some("vn") => nor.push(
                 Vec3::from(parse_floats::<3>(&mut parts).ok_or_else(|| bad("bad normal"))?)
-                    .normalized(),
+                    .normalised(),
             ),
             Some("f") => {
                 let mut poly = Vec::new();
@@ -456,7 +456,7 @@ fn parse_ply(bytes: &[u8]) -> Result<Mesh, String> {
                 };
                 mesh.positions.push(Vec3::new(x, y, z));
                 if let [Some(x), Some(y), Some(z)] = nxyz.map(get) {
-                    normals.push(Vec3::new(x, y, z).normalized());
+                    normals.push(Vec3::new(x, y, z).normalised());
                 }
                 if let [Some(u), Some(v)] = uv.map(get) {
                     uvs.push([u, v]);

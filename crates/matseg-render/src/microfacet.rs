@@ -74,12 +74,12 @@ impl Ggx {
     /// Draws a visible normal seen from `w` (Heitz 2018, the spherical-cap
     /// free version of the stretched disk construction).
     pub fn sample_visible(&self, w: Vec3, u: [f32; 2]) -> Vec3 {
-        let mut wh = Vec3::new(self.alpha * w.x, self.alpha * w.y, w.z).normalized();
+        let mut wh = Vec3::new(self.alpha * w.x, self.alpha * w.y, w.z).normalised();
         if wh.z < 0.0 {
             wh = -wh;
         }
         let t1 = if wh.z < 0.99999 {
-            Vec3::Z.cross(wh).normalized()
+            Vec3::Z.cross(wh).normalised()
         } else {
             Vec3::new(1.0, 0.0, 0.0)
         };
@@ -90,7 +90,7 @@ impl Ggx {
         let py = (1.0 - s) * h + s * py;
         let pz = (1.0 - px * px - py * py).max(0.0).sqrt();
         let nh = t1 * px + t2 * py + wh * pz;
-        Vec3::new(self.alpha * nh.x, self.alpha * nh.y, nh.z.max(1e-6)).normalized()
+        Vec3::new(self.alpha * nh.x, self.alpha * nh.y, nh.z.max(1e-6)).normalised()
     }
 }
 

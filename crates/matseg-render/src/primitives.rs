@@ -199,7 +199,7 @@ fn weld_normals(m: &mut Mesh) {
         *sums.entry(key(*p)).or_default() += *n;
     }
     for (p, n) in m.positions.iter().zip(m.normals.iter_mut()) {
-        let s = sums[&key(*p)].normalized();
+        let s = sums[&key(*p)].normalised();
         if s != Vec3::ZERO {
             *n = s;
         }

@@ -70,8 +70,8 @@ pub struct EnvironmentDescription {
     #[serde(default)]
     pub hdri: Option<PathBuf>,
     /// Radiance when there is no HDRI.
-    #[serde(default = "default_sky")]
-    pub color: Vec3,
+    #[serde(default = "default_sky", rename = "color")]
+    pub colour: Vec3,
     /// Multiplier.
     #[serde(default = "one")]
     pub strength: f32,
@@ -96,8 +96,8 @@ pub struct MaterialDescription {
     #[serde(default)]
     pub pbr: Option<PathBuf>,
     /// Base colour (linear RGB) when there is no colour map.
-    #[serde(default = "default_base")]
-    pub base_color: Vec3,
+    #[serde(default = "default_base", rename = "base_color")]
+    pub base_colour: Vec3,
     /// Roughness when there is no roughness map.
     #[serde(default = "half")]
     pub roughness: f32,
@@ -124,7 +124,7 @@ impl MaterialDescription {
     pub fn pbr(dir: PathBuf, placement: Placement) -> Self {
         MaterialDescription {
             pbr: Some(dir),
-            base_color: default_base(),
+            base_colour: default_base(),
             roughness: half(),
             metallic: 0.0,
             transmission: 0.0,
@@ -283,7 +283,7 @@ pub struct SceneError(pub String);
 #[derive(Clone, Debug, Default)]
 pub struct MaterialTextures {
     /// Colour map (sRGB).
-    pub color: Option<Texture>,
+    pub colour: Option<Texture>,
     /// Roughness map.
     pub roughness: Option<Texture>,
     /// Metalness map.
@@ -300,7 +300,7 @@ impl MaterialTextures {
         let maps = matseg_extract::material_library::read_material(dir)
             .map_err(|e| SceneError(e.to_string()))?;
         Ok(MaterialTextures {
-            color: Some(Texture::from_rgb(maps.color)),
+            colour: Some(Texture::from_rgb(maps.colour)),
             roughness: maps.roughness.map(Texture::from_gray),
             metalness: maps.metalness.map(Texture::from_gray),
             normal: maps.normal.map(Texture::from_rgb),
@@ -311,7 +311,7 @@ impl MaterialTextures {
     /// Bytes held.
     pub fn bytes(&self) -> usize {
         [
-            &self.color,
+            &self.colour,
             &self.roughness,
             &self.metalness,
             &self.normal,
@@ -538,7 +538,7 @@ impl SceneDescription {
             Some(p) => {
                 Environment::with_map(cache.hdri(&resolve(p))?, env.strength, env.rotation_deg)
             }
-            None => Environment::uniform(env.color * env.strength),
+            None => Environment::uniform(env.colour * env.strength),
         };
         let mut annotated = Vec::new();
         for o in self.objects.iter().filter(|o| o.main) {

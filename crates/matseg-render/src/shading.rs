@@ -38,9 +38,9 @@ impl LoadedScene {
             m.positions[b] - m.positions[a],
             m.positions[c] - m.positions[a],
         );
-        let mut geometric_normal = e1.cross(e2).normalized();
+        let mut geometric_normal = e1.cross(e2).normalised();
         let shading_normal =
-            (m.normals[a] * b0 + m.normals[b] * hit.b1 + m.normals[c] * hit.b2).normalized();
+            (m.normals[a] * b0 + m.normals[b] * hit.b1 + m.normals[c] * hit.b2).normalised();
         if geometric_normal.dot(shading_normal) < 0.0 {
             geometric_normal = -geometric_normal;
         }
@@ -56,7 +56,7 @@ impl LoadedScene {
         );
         let det = d1[0] * d2[1] - d1[1] * d2[0];
         let tangent = if det.abs() > 1e-12 {
-            ((e1 * d2[1] - e2 * d1[1]) / det).normalized()
+            ((e1 * d2[1] - e2 * d1[1]) / det).normalised()
         } else {
             Frame::from_normal(shading_normal).s
         };
@@ -125,9 +125,9 @@ impl LoadedMaterial {
         let [u, v] = d.placement.apply(sp.uv);
         let base = self
             .maps
-            .color
+            .colour
             .as_ref()
-            .map_or(d.base_color, |t| Vec3::from(t.linear_rgb(u, v)));
+            .map_or(d.base_colour, |t| Vec3::from(t.linear_rgb(u, v)));
         let roughness = self
             .maps
             .roughness
@@ -143,7 +143,7 @@ impl LoadedMaterial {
         let bitangent = if sp.mirrored { -frame.t } else { frame.t };
         let normal = if let Some(nm) = &self.maps.normal {
             let [x, y, z] = nm.raw_rgb(u, v).map(|c| 2.0 * c - 1.0);
-            let mapped = (frame.s * x + bitangent * y + n * z.max(0.05)).normalized();
+            let mapped = (frame.s * x + bitangent * y + n * z.max(0.05)).normalised();
             if mapped.is_finite() && mapped != Vec3::ZERO {
                 mapped
             } else {
@@ -154,7 +154,7 @@ impl LoadedMaterial {
             let (du, dv) = (1.0 / h.width() as f32, 1.0 / h.height() as f32);
             let hu = (h.scalar(u + du, v) - h.scalar(u - du, v)) / (2.0 * du);
             let hv = (h.scalar(u, v + dv) - h.scalar(u, v - dv)) / (2.0 * dv);
-            (n - (frame.s * hu + bitangent * hv) * d.bump).normalized()
+            (n - (frame.s * hu + bitangent * hv) * d.bump).normalised()
         } else {
             n
         };

@@ -14,10 +14,10 @@ fn assets() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets")
 }
 
-fn material(color: Vec3) -> MaterialDescription {
+fn material(colour: Vec3) -> MaterialDescription {
     MaterialDescription {
         pbr: None,
-        base_color: color,
+        base_colour: colour,
         roughness: 0.5,
         metallic: 0.0,
         transmission: 0.0,
@@ -56,7 +56,7 @@ fn sphere_scene(size: u32, spp: u32) -> SceneDescription {
         },
         environment: EnvironmentDescription {
             hdri: None,
-            color: Vec3::splat(0.5),
+            colour: Vec3::splat(0.5),
             strength: 1.0,
             rotation_deg: 0.0,
         },

@@ -99,14 +99,14 @@ pub const PALETTE: [[u8; 3]; 20] = [
 
 /// A colour preview of soft weights (row-major, `width x height`): each
 /// material in its palette colour, mixtures as mixed colours, background black.
-pub fn colorize(width: usize, height: usize, weights: &[&[f32]]) -> image::RgbImage {
+pub fn colourise(width: usize, height: usize, weights: &[&[f32]]) -> image::RgbImage {
     let mut raw = vec![0u8; width * height * 3];
     for (i, px) in raw.chunks_exact_mut(3).enumerate() {
         let mut acc = [0f32; 3];
         for (k, w) in weights.iter().enumerate() {
-            let color = PALETTE[k % PALETTE.len()];
+            let colour = PALETTE[k % PALETTE.len()];
             for c in 0..3 {
-                acc[c] += w[i] * color[c] as f32;
+                acc[c] += w[i] * colour[c] as f32;
             }
         }
         for c in 0..3 {
@@ -194,10 +194,10 @@ mod tests {
     }
 
     #[test]
-    fn colorize_mixes_palette_colours() {
+    fn colourise_mixes_palette_colours() {
         let a = [1.0f32, 0.5, 0.0];
         let b = [0.0f32, 0.5, 0.0];
-        let img = colorize(3, 1, &[&a, &b]);
+        let img = colourise(3, 1, &[&a, &b]);
         assert_eq!(img.get_pixel(0, 0).0, PALETTE[0]);
         let mix: Vec<u8> = (0..3)
             .map(|c| ((PALETTE[0][c] as f32 + PALETTE[1][c] as f32) / 2.0).round() as u8)

@@ -5,7 +5,7 @@ use crate::material::{draw_material, Layer, MaterialRecord};
 use crate::recipe::{Recipe2d, SceneShape};
 use matseg_extract::{make_soft_maps, random_placement, CombineRecord, MapRecord, SoftMapError};
 use matseg_image::rgb::interleave_rounded;
-use matseg_image::{LibraryError, PhotoLibrary, Placement, Plane, Pyramid, SparsePlane};
+use matseg_image::{CropWindow, LibraryError, PhotoLibrary, Plane, Pyramid, SparsePlane};
 use rand::Rng;
 use serde::{Deserialize, Serialize};
 
@@ -24,7 +24,7 @@ pub struct BackgroundRecord {
     /// Index in the photo library.
     pub photo: usize,
     /// Resize and crop.
-    pub placement: Placement,
+    pub placement: CropWindow,
 }
 
 /// Every drawn parameter of a 2D scene: with the sources, enough to redraw it.
@@ -64,7 +64,7 @@ pub struct Scene2d {
 
 /// Failure to generate a scene.
 #[derive(Debug, thiserror::Error)]
-pub enum SceneError {
+pub enum ComposeError {
     /// A source library failed.
     #[error(transparent)]
     Library(#[from] LibraryError),
@@ -78,7 +78,7 @@ pub fn generate_2d<R: Rng + ?Sized>(
     rng: &mut R,
     recipe: &Recipe2d,
     sources: Sources<'_>,
-) -> Result<Scene2d, SceneError> {
+) -> Result<Scene2d, ComposeError> {
     let SceneShape {
         width,
         height,
@@ -156,7 +156,7 @@ pub fn generate_2d<R: Rng + ?Sized>(
 fn compose_rows(
     w: usize,
     h: usize,
-    (background, placement): (&Pyramid, &Placement),
+    (background, placement): (&Pyramid, &CropWindow),
     wb: &Plane,
     layers: &mut [Layer],
 ) -> image::RgbImage {

@@ -11,10 +11,10 @@ pub mod recipe3d;
 pub mod scene3d;
 
 pub use annotation::{
-    colorize, quantise_fractions, quantise_weights, QuantisedAnnotation, PALETTE,
+    colourise, quantise_fractions, quantise_weights, QuantisedAnnotation, PALETTE,
 };
 pub use compose2d::{
-    generate_2d, BackgroundRecord, Scene2d, SceneError, SceneRecord, SourceRef, Sources,
+    generate_2d, BackgroundRecord, ComposeError, Scene2d, SceneRecord, SourceRef, Sources,
 };
 pub use material::{Fill, MaterialRecord, MaterialSource, ShadingRecord};
 pub use recipe::{CompositionRecipe, Recipe2d, RecipeError, SceneDraws, SceneShape};

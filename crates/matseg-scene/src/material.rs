@@ -6,8 +6,8 @@ use matseg_extract::random_channel_placement;
 use matseg_image::levels::look_up_scaled;
 use matseg_image::rgb::rotate_hue_planes;
 use matseg_image::{
-    Channel, ChannelRows, Coverage, CoveredBlur, LibraryError, Mirrors, Photo, PhotoLibrary,
-    Placement, Pyramid, SparsePlane, WindowRows,
+    Channel, ChannelRows, Coverage, CoveredBlur, CropWindow, LibraryError, Mirrors, Photo,
+    PhotoLibrary, Pyramid, SparsePlane, WindowRows,
 };
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -35,7 +35,7 @@ pub enum Fill {
     /// Scaled (aspect ratio kept) to cover the scene and cropped.
     Stretch {
         /// Resize and crop.
-        placement: Placement,
+        placement: CropWindow,
     },
 }
 
@@ -72,7 +72,7 @@ pub struct ShadingRecord {
     /// Index of the photo in the photo library.
     pub photo: usize,
     /// How it was resized and cropped.
-    pub placement: Placement,
+    pub placement: CropWindow,
     /// Channel used.
     pub channel: Channel,
     /// Gaussian kernel size.
@@ -312,10 +312,10 @@ fn draw_texture<R: Rng + ?Sized>(
             offset_y: rng.random_range(0..tile_h),
         }
     } else {
-        let scale = Placement::cover_scale(tw, th, w, h);
-        let (rw, rh) = Placement::resized_size(tw, th, scale, w, h);
+        let scale = CropWindow::cover_scale(tw, th, w, h);
+        let (rw, rh) = CropWindow::resized_size(tw, th, scale, w, h);
         Fill::Stretch {
-            placement: Placement {
+            placement: CropWindow {
                 resized_w: rw,
                 resized_h: rh,
                 x0: rng.random_range(0..=rw - w as u32),
@@ -431,7 +431,7 @@ impl<'a> Colour<'a> {
                 // unmirrored one at the mirrored corner.
                 let (rw, rh) = (placement.resized_w as usize, placement.resized_h as usize);
                 let (x0, y0) = (placement.x0 as usize, placement.y0 as usize);
-                let window = Placement {
+                let window = CropWindow {
                     x0: if flip_x { rw - x0 - w } else { x0 } as u32,
                     y0: if flip_y { rh - y0 - h } else { y0 } as u32,
                     ..placement
@@ -455,7 +455,7 @@ impl<'a> Colour<'a> {
                 let planes = if (tile_w, tile_h) == (pyramid.width(), pyramid.height()) {
                     pyramid.planes().map(Cow::Borrowed)
                 } else {
-                    let whole = Placement {
+                    let whole = CropWindow {
                         resized_w: tile_w,
                         resized_h: tile_h,
                         x0: 0,
@@ -680,7 +680,7 @@ mod tests {
                 offset_y: 2,
             };
             let stretch = |x0, y0| Fill::Stretch {
-                placement: Placement {
+                placement: CropWindow {
                     resized_w: tw,
                     resized_h: th,
                     x0,

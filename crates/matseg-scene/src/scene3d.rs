@@ -152,7 +152,7 @@ fn material<R: Rng + ?Sized>(
     let transmissive = !metal && rng.random_bool(recipe.p_transmissive);
     MaterialDescription {
         pbr: None,
-        base_color: Vec3::new(rng.random(), rng.random(), rng.random()),
+        base_colour: Vec3::new(rng.random(), rng.random(), rng.random()),
         roughness: rng.random(),
         metallic: if metal { 1.0 } else { 0.0 },
         transmission: if transmissive {
@@ -362,13 +362,13 @@ pub fn build_scene_3d<R: Rng + ?Sized>(
     let environment = match sources.hdris.choose(rng) {
         Some(hdri) => EnvironmentDescription {
             hdri: Some(hdri.clone()),
-            color: Vec3::ONE,
+            colour: Vec3::ONE,
             strength,
             rotation_deg: rng.random_range(0.0..360.0),
         },
         None => EnvironmentDescription {
             hdri: None,
-            color: Vec3::new(
+            colour: Vec3::new(
                 rng.random_range(0.3..1.0),
                 rng.random_range(0.3..1.0),
                 rng.random_range(0.3..1.0),

@@ -198,7 +198,7 @@ pub fn reference_scene(
                 }
                 _ => MaterialDescription {
                     pbr: None,
-                    base_color: Vec3::new(0.9, 0.6 + 0.05 * i as f32, 0.3),
+                    base_colour: Vec3::new(0.9, 0.6 + 0.05 * i as f32, 0.3),
                     roughness: 0.25,
                     metallic: (i % 2) as f32,
                     transmission: if i == 2 { 1.0 } else { 0.0 },
@@ -260,7 +260,7 @@ pub fn reference_scene(
         },
         environment: EnvironmentDescription {
             hdri: Some(hdri.to_path_buf()),
-            color: Vec3::ONE,
+            colour: Vec3::ONE,
             strength: 1.0,
             rotation_deg: 120.0,
         },

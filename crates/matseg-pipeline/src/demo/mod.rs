@@ -204,7 +204,7 @@ fn materials_page(out: &Path, seed: u64) -> Result<(), PipelineError> {
                 &format!("pbr_{stem}_sphere.png"),
                 encode_png_rgb(&preview_sphere(&m, 200)),
             )?,
-            write_png(&format!("pbr_{stem}_color.png"), encode_png_rgb(&m.color))?,
+            write_png(&format!("pbr_{stem}_color.png"), encode_png_rgb(&m.colour))?,
             write_png(&format!("pbr_{stem}_normal.png"), encode_png_rgb(&m.normal))?,
             grey(0, "height")?,
             grey(1, "roughness")?,

@@ -4,7 +4,7 @@
 use crate::error::PipelineError;
 use matseg_data::Dataset;
 use matseg_image::io::{encode_png_rgb, write_atomic};
-use matseg_scene::colorize;
+use matseg_scene::colourise;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -45,7 +45,7 @@ pub fn sample_cards(
         let path = previews.join(&name);
         write_file(
             &path,
-            &encode_png_rgb(&colorize(w as usize, h as usize, &slices)),
+            &encode_png_rgb(&colourise(w as usize, h as usize, &slices)),
         )?;
         let meta = sample.meta.clone().unwrap_or_default();
         let licences = meta["licences"]
