@@ -4,7 +4,7 @@ use crate::common::{
     init_threads, load_files_3d, load_libraries, load_recipe, progress_bar, report_skipped,
     LicenceArgs, SceneKind as Kind,
 };
-use anyhow::{bail, Result};
+use anyhow::Result;
 use clap::ValueEnum;
 use matseg_data::{
     generate_with, Format, GenerateOptions, GenerateReport, Generator2d, Generator3d, JobSlice,
@@ -100,18 +100,14 @@ pub fn run(args: Args) -> Result<()> {
     // The job index comes from the job array only when the work is split.
     let index = match args.shard_index {
         Some(i) => i,
-        None if args.num_shards > 1 => JobSlice::index_from_env()
-            .map_err(anyhow::Error::msg)?
-            .unwrap_or(0),
+        None if args.num_shards > 1 => JobSlice::index_from_env()?.unwrap_or(0),
         None => 0,
     };
     let job = JobSlice {
         count: args.num_shards,
         index,
     };
-    if let Err(e) = job.validate() {
-        bail!("{e}");
-    }
+    job.validate()?;
     let opts = GenerateOptions {
         out: args.out.clone(),
         n: args.n,

@@ -37,26 +37,26 @@ impl JobSlice {
 
     /// The job index from `SLURM_ARRAY_TASK_ID` or `JOB_COMPLETION_INDEX`
     /// (Kubernetes indexed jobs), if either is set.
-    pub fn index_from_env() -> Result<Option<u64>, String> {
+    pub fn index_from_env() -> Result<Option<u64>, JobError> {
         for var in ["SLURM_ARRAY_TASK_ID", "JOB_COMPLETION_INDEX"] {
-            if let Ok(v) = std::env::var(var) {
-                return v
+            if let Ok(value) = std::env::var(var) {
+                return value
                     .trim()
                     .parse()
                     .map(Some)
-                    .map_err(|_| format!("{var}={v} is not a job index"));
+                    .map_err(|_| JobError::NotAnIndex { var, value });
             }
         }
         Ok(None)
     }
 
     /// Checks `index < count` and `count >= 1`.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), JobError> {
         if self.count == 0 || self.index >= self.count {
-            return Err(format!(
-                "shard index {} is not below the number of shards {}",
-                self.index, self.count
-            ));
+            return Err(JobError::OutOfRange {
+                index: self.index,
+                count: self.count,
+            });
         }
         Ok(())
     }
@@ -166,7 +166,7 @@ pub enum GenerateError {
         /// Sample index.
         index: u64,
         /// Why.
-        error: String,
+        error: crate::maker::SampleError,
     },
     /// The output folder holds a dataset made with other settings.
     #[error("{}: holds a dataset made with other settings ({reason}); choose another --out", path.display())]
@@ -176,9 +176,33 @@ pub enum GenerateError {
         /// What differs.
         reason: String,
     },
-    /// Bad options.
-    #[error("{0}")]
-    Options(String),
+    /// This job is not one of the jobs the work is split into.
+    #[error(transparent)]
+    Job(#[from] JobError),
+    /// Shards of no samples.
+    #[error("--shard-size must be at least 1")]
+    EmptyShards,
+}
+
+/// A job index that does not fit the split of the work.
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+pub enum JobError {
+    /// A job array's variable that is not a number.
+    #[error("{var}={value} is not a job index")]
+    NotAnIndex {
+        /// The variable (`SLURM_ARRAY_TASK_ID`, `JOB_COMPLETION_INDEX`).
+        var: &'static str,
+        /// Its value.
+        value: String,
+    },
+    /// An index past the number of jobs (or no jobs at all).
+    #[error("shard index {index} is not below the number of shards {count}")]
+    OutOfRange {
+        /// The job's index.
+        index: u64,
+        /// The number of jobs.
+        count: u64,
+    },
 }
 
 fn io_err(path: &Path) -> impl Fn(std::io::Error) -> GenerateError + '_ {
@@ -302,11 +326,9 @@ pub fn generate_with(
     maker: &dyn SampleMaker,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<GenerateReport, GenerateError> {
-    opts.job.validate().map_err(GenerateError::Options)?;
+    opts.job.validate()?;
     if opts.format == Format::Wds && opts.shard_size == 0 {
-        return Err(GenerateError::Options(
-            "--shard-size must be at least 1".into(),
-        ));
+        return Err(GenerateError::EmptyShards);
     }
     std::fs::create_dir_all(&opts.out).map_err(io_err(&opts.out))?;
     let manifest = DatasetManifest {
@@ -352,7 +374,7 @@ fn generate_folders(
             folders::write_sample(&opts.out, &sample)
                 .map_err(io_err(&folders::sample_dir(&opts.out, index)))?;
             progress(1);
-            Ok(sample.bytes() as u64)
+            Ok::<u64, GenerateError>(sample.bytes() as u64)
         })
         .try_reduce(|| 0, |a, b| Ok(a + b))?;
     Ok(GenerateReport {

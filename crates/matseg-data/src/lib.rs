@@ -14,8 +14,8 @@ pub mod wds;
 pub use encode::{encode_sample, encode_scene, EncodedSample, SampleMeta};
 pub use generate::{
     generate_dataset, generate_with, DatasetManifest, Format, GenerateError, GenerateOptions,
-    GenerateReport, JobSlice,
+    GenerateReport, JobError, JobSlice,
 };
-pub use maker::{Generator2d, Generator3d, SampleMaker};
+pub use maker::{Generator2d, Generator3d, SampleError, SampleMaker};
 pub use reader::{Dataset, ReadError, Sample, TrainingTargets};
 pub use seed::sample_rng;

@@ -16,6 +16,17 @@ use matseg_scene::{
 use rand::Rng;
 use std::path::Path;
 
+/// Why a sample could not be made.
+#[derive(Debug, thiserror::Error)]
+pub enum SampleError {
+    /// The 2D composer failed (a source that cannot be read).
+    #[error(transparent)]
+    Compose(#[from] matseg_scene::ComposeError),
+    /// The 3D scene could not be loaded or rendered.
+    #[error(transparent)]
+    Render(#[from] matseg_render::SceneError),
+}
+
 /// Makes sample `index` of a dataset seeded with `seed`; sample i depends
 /// only on (seed, i) and the sources.
 pub trait SampleMaker: Sync {
@@ -26,7 +37,7 @@ pub trait SampleMaker: Sync {
     /// A fingerprint of the source files, so a resumed run notices changes.
     fn sources_fingerprint(&self) -> String;
     /// The encoded sample, or why it could not be made.
-    fn make(&self, seed: u64, index: u64) -> Result<EncodedSample, String>;
+    fn make(&self, seed: u64, index: u64) -> Result<EncodedSample, SampleError>;
 }
 
 /// 2D scenes (pipeline.md §2).
@@ -50,9 +61,9 @@ impl SampleMaker for Generator2d<'_> {
         sources_fingerprint(self.sources)
     }
 
-    fn make(&self, seed: u64, index: u64) -> Result<EncodedSample, String> {
+    fn make(&self, seed: u64, index: u64) -> Result<EncodedSample, SampleError> {
         let mut rng = sample_rng(seed, index);
-        let scene = generate_2d(&mut rng, self.recipe, self.sources).map_err(|e| e.to_string())?;
+        let scene = generate_2d(&mut rng, self.recipe, self.sources)?;
         Ok(encode_scene(&scene, seed, index, self.sources))
     }
 }
@@ -122,16 +133,14 @@ impl SampleMaker for Generator3d<'_> {
         h.hex()
     }
 
-    fn make(&self, seed: u64, index: u64) -> Result<EncodedSample, String> {
+    fn make(&self, seed: u64, index: u64) -> Result<EncodedSample, SampleError> {
         let scene = self.describe(seed, index);
-        let loaded = scene
-            .load_cached(Path::new(""), self.cache)
-            .map_err(|e| e.to_string())?;
-        let out = render(&loaded)?;
+        let loaded = scene.load_cached(Path::new(""), self.cache)?;
+        let out = render(&loaded).map_err(matseg_render::SceneError)?;
         let (w, h) = (out.width, out.height);
         let image = tone_map(&out.radiance, w, h, scene.exposure_ev);
         let annotation = quantise_fractions(w, h, &out.fractions, &out.roi);
-        let scene_json = serde_json::to_value(&scene).map_err(|e| e.to_string())?;
+        let scene_json = serde_json::to_value(&scene).expect("a scene description serialises");
         let meta = SampleMeta::new("3d", seed, index, scene_sources(&scene), scene_json);
         Ok(encode_sample(index, &image, &annotation, &meta))
     }

@@ -44,10 +44,16 @@ pub fn has_extension(path: &Path, extensions: &[&str]) -> bool {
 /// The files below `roots` (walked recursively) whose extension is one of
 /// `extensions`, sorted; a root that is such a file stands for itself. An
 /// error names a root that is neither, or a folder that cannot be listed.
-pub fn find_files(roots: &[PathBuf], extensions: &[&str]) -> Result<Vec<PathBuf>, String> {
-    fn walk(dir: &Path, extensions: &[&str], out: &mut Vec<PathBuf>) -> Result<(), String> {
-        let listing =
-            std::fs::read_dir(dir).map_err(|e| format!("{}: cannot list: {e}", dir.display()))?;
+pub fn find_files(
+    roots: &[PathBuf],
+    extensions: &[&str],
+) -> Result<Vec<PathBuf>, crate::LibraryError> {
+    use crate::LibraryError;
+    fn walk(dir: &Path, extensions: &[&str], out: &mut Vec<PathBuf>) -> Result<(), LibraryError> {
+        let listing = std::fs::read_dir(dir).map_err(|e| LibraryError::Unlistable {
+            path: dir.to_path_buf(),
+            reason: e.to_string(),
+        })?;
         for path in listing.filter_map(|e| e.ok().map(|e| e.path())) {
             if path.is_dir() {
                 walk(&path, extensions, out)?;
@@ -64,7 +70,7 @@ pub fn find_files(roots: &[PathBuf], extensions: &[&str]) -> Result<Vec<PathBuf>
         } else if root.is_file() && has_extension(root, extensions) {
             out.push(root.clone());
         } else {
-            return Err(format!("{}: no such folder", root.display()));
+            return Err(LibraryError::Missing(root.clone()));
         }
     }
     out.sort();

@@ -36,6 +36,14 @@ pub enum LibraryError {
         /// What is wrong with it.
         reason: String,
     },
+    /// An image that cannot be decoded.
+    #[error("{}: {reason}", path.display())]
+    Undecodable {
+        /// The image.
+        path: PathBuf,
+        /// Why decoding failed.
+        reason: String,
+    },
     /// No readable image in any of the sources.
     #[error("{0}: no readable images (jpg, jpeg, png)")]
     Empty(String),
@@ -229,9 +237,13 @@ impl PhotoLibrary {
     }
 
     /// The decoded photo `index`, from the cache or decoded now.
-    pub fn get(&self, index: usize) -> Result<Arc<Photo>, String> {
+    pub fn get(&self, index: usize) -> Result<Arc<Photo>, LibraryError> {
+        let undecodable = |reason: &str| LibraryError::Undecodable {
+            path: self.entries[index].path.clone(),
+            reason: reason.to_string(),
+        };
         if let Some(reason) = self.failed.lock().expect("lock").get(&index) {
-            return Err(reason.clone());
+            return Err(undecodable(reason));
         }
         {
             let mut cache = self.cache.lock().expect("lock");
@@ -251,7 +263,7 @@ impl PhotoLibrary {
                     .lock()
                     .expect("lock")
                     .insert(index, e.message.clone());
-                return Err(e.message);
+                return Err(undecodable(&e.message));
             }
         };
         let photo = Arc::new(Photo::new(index, img));

@@ -124,7 +124,7 @@ pub fn recipe_3d(
 
 /// The files under `roots` with one of `extensions`.
 fn find(roots: &[PathBuf], extensions: &[&str]) -> Result<Vec<PathBuf>, PipelineError> {
-    find_files(roots, extensions).map_err(PipelineError::Settings)
+    Ok(find_files(roots, extensions).map_err(crate::sources::SourceError::from)?)
 }
 
 /// The paths whose licence (from the `licenses.json` beside or inside
