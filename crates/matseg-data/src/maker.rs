@@ -136,7 +136,7 @@ impl SampleMaker for Generator3d<'_> {
     fn make(&self, seed: u64, index: u64) -> Result<EncodedSample, SampleError> {
         let scene = self.describe(seed, index);
         let loaded = scene.load_cached(Path::new(""), self.cache)?;
-        let out = render(&loaded).map_err(matseg_render::SceneError)?;
+        let out = render(&loaded)?;
         let (w, h) = (out.width, out.height);
         let image = tone_map(&out.radiance, w, h, scene.exposure_ev);
         let annotation = quantise_fractions(w, h, &out.fractions, &out.roi);

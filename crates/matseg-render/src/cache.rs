@@ -112,7 +112,7 @@ impl AssetCache {
             path.to_path_buf(),
             EnvironmentMap::bytes,
             || {
-                let img = crate::hdr_io::read_hdr(path).map_err(|e| SceneError(e.to_string()))?;
+                let img = crate::hdr_io::read_hdr(path)?;
                 Ok(EnvironmentMap::new(img))
             },
         )
@@ -121,7 +121,7 @@ impl AssetCache {
     /// The mesh file `path`.
     pub fn mesh(&self, path: &Path) -> Result<Arc<Mesh>, SceneError> {
         self.get(&self.meshes, path.to_path_buf(), Mesh::bytes, || {
-            crate::mesh_io::read_mesh(path).map_err(|e| SceneError(e.to_string()))
+            Ok(crate::mesh_io::read_mesh(path)?)
         })
     }
 }

@@ -45,10 +45,12 @@ pub struct CameraRays {
 impl Camera {
     /// Prepares rays for a `width x height` image. Fails when the camera
     /// sits on its target.
-    pub fn rays(&self, width: u32, height: u32) -> Result<CameraRays, String> {
+    pub fn rays(&self, width: u32, height: u32) -> Result<CameraRays, crate::SceneError> {
         let forward = (self.target - self.position).normalised();
         if forward == Vec3::ZERO || !forward.is_finite() {
-            return Err("the camera's position and target coincide".into());
+            return Err(crate::SceneError::Invalid(
+                "the camera's position and target coincide".into(),
+            ));
         }
         // Up is world z, unless looking straight up or down.
         let world_up = if forward.cross(Vec3::Z).length() < 1e-4 {

@@ -119,7 +119,7 @@ fn rgb_to_rgbe(c: Vec3) -> [u8; 4] {
 }
 
 /// Decodes a Radiance file's bytes.
-pub fn decode_radiance(bytes: &[u8]) -> Result<HdrImage, String> {
+fn decode_radiance(bytes: &[u8]) -> Result<HdrImage, String> {
     if !bytes.starts_with(b"#?") {
         return Err("not a Radiance HDR file (no #? signature)".into());
     }

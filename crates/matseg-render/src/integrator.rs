@@ -69,7 +69,7 @@ pub fn scene_bvh(scene: &LoadedScene) -> Bvh {
 }
 
 /// Renders the scene with its own settings.
-pub fn render(scene: &LoadedScene) -> Result<Rendered, String> {
+pub fn render(scene: &LoadedScene) -> Result<Rendered, crate::SceneError> {
     let d = &scene.description;
     let (w, h) = (d.width as usize, d.height as usize);
     let rays = d.camera.rays(d.width, d.height)?;

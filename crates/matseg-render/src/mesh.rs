@@ -145,7 +145,12 @@ impl Mesh {
 
     /// Checks the invariants the renderer relies on: every index in range,
     /// attribute arrays as long as the positions, finite coordinates.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), InvalidMesh> {
+        self.check().map_err(InvalidMesh)
+    }
+
+    /// [`Mesh::validate`]'s invariants; the first broken one.
+    fn check(&self) -> Result<(), String> {
         let n = self.positions.len();
         if self.triangles.is_empty() {
             return Err("no triangles".into());
@@ -170,6 +175,12 @@ impl Mesh {
         Ok(())
     }
 }
+
+/// A mesh that breaks an invariant the renderer relies on; the message
+/// says which.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct InvalidMesh(pub String);
 
 #[cfg(test)]
 mod tests {
@@ -209,7 +220,7 @@ mod tests {
         m.compute_normals();
         m.project_uvs(UvProjection::Sphere);
         m.triangles.push([0, 1, 9]);
-        assert!(m.validate().unwrap_err().contains("past 4 vertices"));
+        assert!(m.validate().unwrap_err().0.contains("past 4 vertices"));
     }
 
     #[test]

@@ -81,7 +81,7 @@ fn finish(mesh: &mut Mesh) -> Result<(), String> {
     if mesh.uvs.len() != mesh.positions.len() {
         mesh.project_uvs(UvProjection::Box);
     }
-    mesh.validate()
+    mesh.validate().map_err(|e| e.0)
 }
 
 /// Triangle fan of a polygon.

@@ -274,10 +274,35 @@ fn positive(v: f32) -> bool {
     v > 0.0 && v.is_finite()
 }
 
-/// A scene that cannot be loaded: the file or item, and what is wrong.
+/// A scene that cannot be loaded or rendered: the file or item, and what is
+/// wrong.
 #[derive(Debug, thiserror::Error)]
-#[error("{0}")]
-pub struct SceneError(pub String);
+pub enum SceneError {
+    /// The scene file cannot be read or parsed.
+    #[error("{}: {message}", path.display())]
+    File {
+        /// The scene file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// A material folder it names cannot be read.
+    #[error(transparent)]
+    Material(#[from] matseg_extract::material_library::MaterialError),
+    /// A photo it names cannot be read.
+    #[error(transparent)]
+    Image(#[from] matseg_image::ImageIoError),
+    /// An HDRI it names cannot be read.
+    #[error(transparent)]
+    Hdr(#[from] crate::hdr_io::HdrError),
+    /// A mesh it names cannot be read.
+    #[error(transparent)]
+    Mesh(#[from] crate::mesh_io::MeshError),
+    /// The description breaks a rule (an index out of range, a size or
+    /// scale out of bounds, a camera on its target); the message says which.
+    #[error("{0}")]
+    Invalid(String),
+}
 
 /// The decoded maps of a PBR material folder.
 #[derive(Clone, Debug, Default)]
@@ -297,8 +322,7 @@ pub struct MaterialTextures {
 impl MaterialTextures {
     /// Reads the maps of the material folder `dir`.
     pub fn read(dir: &Path) -> Result<Self, SceneError> {
-        let maps = matseg_extract::material_library::read_material(dir)
-            .map_err(|e| SceneError(e.to_string()))?;
+        let maps = matseg_extract::material_library::read_material(dir)?;
         Ok(MaterialTextures {
             colour: Some(Texture::from_rgb(maps.colour)),
             roughness: maps.roughness.map(Texture::from_gray),
@@ -345,7 +369,7 @@ pub struct LoadedMap {
 impl LoadedMap {
     /// Channel `channel` of the photo at `path`.
     pub fn read(path: &Path, channel: Channel) -> Result<Self, SceneError> {
-        let img = matseg_image::io::read_rgb(path).map_err(|e| SceneError(e.to_string()))?;
+        let img = matseg_image::io::read_rgb(path)?;
         let levels: Vec<u8> = img.pixels().map(|p| channel.level(p.0)).collect();
         Ok(LoadedMap {
             max_level: levels.iter().copied().max().unwrap_or(0),
@@ -404,13 +428,21 @@ pub struct LoadedScene {
 impl SceneDescription {
     /// Reads a scene file.
     pub fn read(path: &Path) -> Result<SceneDescription, SceneError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| SceneError(format!("{}: cannot read: {e}", path.display())))?;
-        serde_json::from_str(&text).map_err(|e| SceneError(format!("{}: {e}", path.display())))
+        let file = |message: String| SceneError::File {
+            path: path.to_path_buf(),
+            message,
+        };
+        let text = std::fs::read_to_string(path).map_err(|e| file(format!("cannot read: {e}")))?;
+        serde_json::from_str(&text).map_err(|e| file(e.to_string()))
     }
 
     /// Checks indices and numbers before anything is decoded.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), SceneError> {
+        self.check().map_err(SceneError::Invalid)
+    }
+
+    /// [`SceneDescription::validate`]'s rules; the first broken one.
+    fn check(&self) -> Result<(), String> {
         if self.width == 0 || self.height == 0 || self.width > 16384 || self.height > 16384 {
             return Err(format!(
                 "image size {}x{} out of 1..16384",
@@ -479,7 +511,7 @@ impl SceneDescription {
     /// As [`SceneDescription::load`], taking decoded files from `cache`
     /// (and leaving new ones there).
     pub fn load_cached(&self, base: &Path, cache: &AssetCache) -> Result<LoadedScene, SceneError> {
-        self.validate().map_err(SceneError)?;
+        self.validate()?;
         let resolve = |p: &Path| {
             if p.is_absolute() {
                 p.to_path_buf()

@@ -103,9 +103,7 @@ impl RenderBench {
         let mut last = None;
         for _ in 0..self.repeats {
             let (c0, t0) = (process_cpu_seconds(), Instant::now());
-            let out = pool
-                .install(|| render(&loaded))
-                .map_err(PipelineError::Settings)?;
+            let out = pool.install(|| render(&loaded))?;
             wall.push(t0.elapsed().as_secs_f64());
             if let (Some(a), Some(b)) = (c0, process_cpu_seconds()) {
                 cpu.push(b - a);
