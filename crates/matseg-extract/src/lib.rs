@@ -11,6 +11,6 @@ pub mod textures;
 
 pub use soft_maps::{
     check_probabilities, combine_maps, draw_channel_map, make_soft_maps, random_channel_placement,
-    random_placement, CombineRecord, CombinedMaps, MapNormalisation, MapRecord, RawMap,
+    random_placement, CombineRecord, CombinedMaps, MapNormalisation, MapRecord, OutOfRange, RawMap,
     SoftMapError, SoftMapRecipe, SoftMaps, MAX_MAPS,
 };

@@ -70,18 +70,26 @@ impl Default for SoftMapRecipe {
     }
 }
 
+/// A recipe value out of its range; the message names the field and the
+/// rule.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct OutOfRange(pub String);
+
 /// Checks that each named value is a probability; the error names the first
 /// that is not.
-pub fn check_probabilities(values: &[(&str, f64)]) -> Result<(), String> {
+pub fn check_probabilities(values: &[(&str, f64)]) -> Result<(), OutOfRange> {
     match values.iter().find(|(_, p)| !(0.0..=1.0).contains(p)) {
-        Some((name, p)) => Err(format!("{name} = {p} is not a probability in [0, 1]")),
+        Some((name, p)) => Err(OutOfRange(format!(
+            "{name} = {p} is not a probability in [0, 1]"
+        ))),
         None => Ok(()),
     }
 }
 
 impl SoftMapRecipe {
     /// Checks ranges; the message names the offending field.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), OutOfRange> {
         check_probabilities(&[
             ("p_downscale", self.p_downscale),
             ("p_hsv_channel", self.p_hsv_channel),
@@ -95,19 +103,23 @@ impl SoftMapRecipe {
             || self.low_threshold_tries == 0
             || self.max_map_draws == 0
         {
-            return Err("threshold tries and max_map_draws must be at least 1".into());
+            return Err(OutOfRange(
+                "threshold tries and max_map_draws must be at least 1".into(),
+            ));
         }
         if self.blur_kernels.is_empty() || self.blur_kernels.iter().any(|k| k % 2 == 0) {
-            return Err("blur_kernels must be a non-empty list of odd sizes".into());
+            return Err(OutOfRange(
+                "blur_kernels must be a non-empty list of odd sizes".into(),
+            ));
         }
         if !(0.0..=1.0).contains(&self.hard_min_weight)
             || self.max_band_to_side_ratio < 0.0
             || self.min_map_mass < 0.0
         {
-            return Err(
+            return Err(OutOfRange(
                 "hard_min_weight must be in [0, 1]; max_band_to_side_ratio and min_map_mass >= 0"
                     .into(),
-            );
+            ));
         }
         Ok(())
     }

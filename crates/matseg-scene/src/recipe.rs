@@ -256,7 +256,7 @@ impl Recipe2d {
                 c.p_shading_full_strength,
             ),
         ])
-        .map_err(invalid)?;
+        .map_err(|e| invalid(e.0))?;
         let occ_max = s.occupancy_base + s.occupancy_span;
         if s.occupancy_base <= 0.0
             || s.occupancy_span < 0.0

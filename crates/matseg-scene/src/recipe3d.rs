@@ -2,6 +2,7 @@
 //! field with the paper's value as default, overridable from TOML.
 
 use crate::recipe::{read_toml, RecipeError};
+use matseg_extract::OutOfRange;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -149,15 +150,15 @@ impl Recipe3d {
     /// unknown ones are refused) and validates it; errors name the file.
     pub fn from_toml_file(path: &Path) -> Result<Self, RecipeError> {
         let recipe: Self = read_toml(path)?;
-        recipe.validate().map_err(|reason| RecipeError::Invalid {
+        recipe.validate().map_err(|e| RecipeError::Invalid {
             origin: path.display().to_string(),
-            reason,
+            reason: e.0,
         })?;
         Ok(recipe)
     }
 
     /// Checks probabilities, ranges and sizes; the message names the field.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), OutOfRange> {
         let probabilities = [
             ("p_single_object", self.p_single_object),
             ("p_merged_objects", self.p_merged_objects),
@@ -176,7 +177,7 @@ impl Recipe3d {
         ];
         for (name, p) in probabilities {
             if !(0.0..=1.0).contains(&p) {
-                return Err(format!("{name} = {p} is not a probability"));
+                return Err(OutOfRange(format!("{name} = {p} is not a probability")));
             }
         }
         let ranges = [
@@ -193,7 +194,7 @@ impl Recipe3d {
         ];
         for (name, [lo, hi]) in ranges {
             if lo > hi || !lo.is_finite() || !hi.is_finite() {
-                return Err(format!("{name} = [{lo}, {hi}] is not a range"));
+                return Err(OutOfRange(format!("{name} = [{lo}, {hi}] is not a range")));
             }
         }
         let counts = [
@@ -204,23 +205,27 @@ impl Recipe3d {
         ];
         for (name, [lo, hi]) in counts {
             if lo < 1 || lo > hi {
-                return Err(format!("{name} = [{lo}, {hi}] must be a range from 1 up"));
+                return Err(OutOfRange(format!(
+                    "{name} = [{lo}, {hi}] must be a range from 1 up"
+                )));
             }
         }
         if self.materials_min < 2 || self.materials_min > self.materials_max {
-            return Err(format!(
+            return Err(OutOfRange(format!(
                 "materials_min..materials_max = {}..{} must be a range from 2 up",
                 self.materials_min, self.materials_max
-            ));
+            )));
         }
         if self.size < 8 || self.size > 8192 || self.spp == 0 {
-            return Err(format!(
+            return Err(OutOfRange(format!(
                 "size {} must be in 8..8192 and spp at least 1",
                 self.size
-            ));
+            )));
         }
         if self.single_radius[0] <= 0.0 || self.focal_mm <= 0.0 || self.distance_unit <= 0.0 {
-            return Err("radii, focal_mm and distance_unit must be positive".into());
+            return Err(OutOfRange(
+                "radii, focal_mm and distance_unit must be positive".into(),
+            ));
         }
         Ok(())
     }
