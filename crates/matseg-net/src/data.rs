@@ -13,10 +13,33 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+/// Why a training sample or batch could not be had.
+#[derive(Debug, thiserror::Error)]
+pub enum DataError {
+    /// A stored sample could not be read.
+    #[error(transparent)]
+    Read(#[from] matseg_data::ReadError),
+    /// The generator could not compose a scene.
+    #[error(transparent)]
+    Compose(#[from] matseg_scene::ComposeError),
+    /// A source of a mixture has no samples.
+    #[error("a mixed source has no samples")]
+    EmptyMix,
+    /// A batch loader's worker ended before making its batch.
+    #[error("batch {0}: its worker stopped early")]
+    WorkerStopped(u64),
+}
+
+/// A batch plan that makes no batches (sides not multiples of 32, empty
+/// ranges); the message says which.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct InvalidPlan(pub String);
+
 /// Training samples by index.
 pub trait SampleSource: Send + Sync {
     /// The sample with this index, at its own size.
-    fn sample(&self, index: u64) -> Result<TrainingSample, String>;
+    fn sample(&self, index: u64) -> Result<TrainingSample, DataError>;
     /// How many distinct samples there are (`None`: unbounded, generated).
     fn count(&self) -> Option<u64>;
 }
@@ -25,8 +48,8 @@ pub trait SampleSource: Send + Sync {
 pub struct DatasetSource(pub Dataset);
 
 impl SampleSource for DatasetSource {
-    fn sample(&self, index: u64) -> Result<TrainingSample, String> {
-        let sample = self.0.get(index as usize).map_err(|e| e.to_string())?;
+    fn sample(&self, index: u64) -> Result<TrainingSample, DataError> {
+        let sample = self.0.get(index as usize)?;
         Ok(TrainingSample::from_sample(sample))
     }
 
@@ -48,13 +71,12 @@ pub struct GeneratorSource<'a> {
 }
 
 impl SampleSource for GeneratorSource<'_> {
-    fn sample(&self, index: u64) -> Result<TrainingSample, String> {
+    fn sample(&self, index: u64) -> Result<TrainingSample, DataError> {
         let scene = generate_2d(
             &mut sample_rng(self.seed, index),
             &self.recipe,
             self.sources,
-        )
-        .map_err(|e| e.to_string())?;
+        )?;
         let (w, h) = scene.image.dimensions();
         let q = quantise_weights(&scene.weights, &scene.background);
         let masks = q
@@ -101,14 +123,14 @@ impl MixedSource<'_> {
 }
 
 impl SampleSource for MixedSource<'_> {
-    fn sample(&self, index: u64) -> Result<TrainingSample, String> {
+    fn sample(&self, index: u64) -> Result<TrainingSample, DataError> {
         let source = if self.from_other(index) {
             self.other
         } else {
             self.main
         };
         match source.count() {
-            Some(0) => Err("a mixed source has no samples".into()),
+            Some(0) => Err(DataError::EmptyMix),
             Some(n) => source.sample(index % n),
             None => source.sample(index),
         }
@@ -151,24 +173,24 @@ impl BatchPlan {
     };
 
     /// Checks the plan; the message says what is wrong.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), InvalidPlan> {
         if self.min_side < 32
             || !self.min_side.is_multiple_of(32)
             || !self.max_side.is_multiple_of(32)
         {
-            return Err(format!(
+            return Err(InvalidPlan(format!(
                 "batch sides {}..{} must be multiples of 32, at least 32",
                 self.min_side, self.max_side
-            ));
+            )));
         }
         if self.min_side > self.max_side
             || self.min_images == 0
             || self.min_images > self.max_images
         {
-            return Err(format!(
+            return Err(InvalidPlan(format!(
                 "empty batch plan: sides {}..{}, images {}..{}",
                 self.min_side, self.max_side, self.min_images, self.max_images
-            ));
+            )));
         }
         Ok(())
     }
@@ -192,7 +214,7 @@ pub fn batch_samples(
     plan: &BatchPlan,
     seed: u64,
     step: u64,
-) -> Result<Vec<TrainingSample>, String> {
+) -> Result<Vec<TrainingSample>, DataError> {
     let mut rng = sample_rng(seed ^ BATCH_STREAM, step);
     let (w, h, images) = plan.draw(&mut rng);
     let mut samples = Vec::with_capacity(images);
@@ -278,9 +300,12 @@ mod tests {
     }
 
     impl SampleSource for Tagged {
-        fn sample(&self, index: u64) -> Result<TrainingSample, String> {
+        fn sample(&self, index: u64) -> Result<TrainingSample, DataError> {
             if self.count.is_some_and(|n| index >= n) {
-                return Err(format!("index {index} past the end"));
+                return Err(DataError::Read(matseg_data::ReadError::Io {
+                    path: format!("sample {index}").into(),
+                    reason: "past the end".into(),
+                }));
             }
             Ok(TrainingSample {
                 rgb: Vec::new(),

@@ -47,11 +47,8 @@ pub enum NetError {
         message: String,
     },
     /// Training data that cannot be read or generated.
-    #[error("training data: {message}")]
-    Data {
-        /// What is wrong.
-        message: String,
-    },
+    #[error("training data: {0}")]
+    Data(#[from] crate::data::DataError),
     /// The net could not be scored on a validation benchmark.
     #[error("validation: {message}")]
     Validation {

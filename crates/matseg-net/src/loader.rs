@@ -5,7 +5,7 @@
 //! the number of threads.
 
 use crate::batch::TrainingSample;
-use crate::data::{batch_samples, BatchPlan, SampleSource};
+use crate::data::{batch_samples, BatchPlan, DataError, SampleSource};
 use std::sync::mpsc::{sync_channel, Receiver};
 use std::thread::Scope;
 
@@ -13,7 +13,7 @@ use std::thread::Scope;
 const READY_PER_WORKER: usize = 1;
 
 /// One prepared batch, or why it could not be prepared.
-pub type PreparedBatch = Result<Vec<TrainingSample>, String>;
+pub type PreparedBatch = Result<Vec<TrainingSample>, DataError>;
 
 /// The receiving end of the workers [`BatchLoader::spawn`] started.
 pub struct BatchLoader {
@@ -61,7 +61,7 @@ impl BatchLoader {
         let worker = ((step - self.first) % self.workers.len() as u64) as usize;
         self.workers[worker]
             .recv()
-            .unwrap_or_else(|_| Err(format!("batch {step}: its worker stopped early")))
+            .unwrap_or(Err(DataError::WorkerStopped(step)))
     }
 }
 
@@ -88,9 +88,12 @@ mod tests {
     }
 
     impl SampleSource for Counting {
-        fn sample(&self, index: u64) -> Result<TrainingSample, String> {
+        fn sample(&self, index: u64) -> Result<TrainingSample, DataError> {
             if Some(index) == self.fail_at {
-                return Err(format!("sample {index} is broken"));
+                return Err(DataError::Read(matseg_data::ReadError::Io {
+                    path: format!("sample {index}").into(),
+                    reason: "broken".into(),
+                }));
             }
             let (w, h) = (8, 6);
             Ok(TrainingSample {
@@ -152,6 +155,6 @@ mod tests {
             let loader = BatchLoader::spawn(scope, &source, PLAN, 5, (0, 50), 3);
             loader.batch(0)
         });
-        assert_eq!(first.unwrap_err(), "sample 0 is broken");
+        assert_eq!(first.unwrap_err().to_string(), "sample 0: broken");
     }
 }

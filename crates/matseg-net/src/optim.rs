@@ -201,7 +201,7 @@ impl AdamW {
 
     /// Restores a [`AdamW::state`]; the error names what is missing or
     /// misshapen.
-    pub fn load_state(&mut self, state: &[(String, Tensor)]) -> Result<(), String> {
+    pub(crate) fn load_state(&mut self, state: &[(String, Tensor)]) -> Result<(), String> {
         let find = |key: &str| {
             state
                 .iter()

@@ -148,7 +148,7 @@ pub struct StepMetrics {
 
 /// A score of the net as it is now, higher is better (e.g. triplet
 /// accuracy on a point benchmark); errors are one-line messages.
-pub type NetScore<'a> = &'a dyn Fn(&Trainer) -> Result<f64, String>;
+pub type NetScore<'a> = &'a dyn Fn(&Trainer) -> Result<f64, NetError>;
 
 /// What a run validates on at each checkpoint.
 #[derive(Clone, Copy)]
@@ -378,8 +378,7 @@ pub fn run(
     let validation_sets: Vec<Vec<TrainingSample>> = match validation.samples {
         Some(v) => (0..options.validation_batches)
             .map(|i| batch_samples(v, &options.plan, options.seed ^ VALIDATION_SEED, i))
-            .collect::<Result<_, _>>()
-            .map_err(|message| NetError::Data { message })?,
+            .collect::<Result<_, _>>()?,
         None => Vec::new(),
     };
     std::thread::scope(|scope| -> Result<(), NetError> {
@@ -394,9 +393,7 @@ pub fn run(
         while trainer.step < options.steps {
             let step = trainer.step;
             let started = Instant::now();
-            let samples = loader
-                .batch(step)
-                .map_err(|message| NetError::Data { message })?;
+            let samples = loader.batch(step)?;
             let data_seconds = started.elapsed().as_secs_f64();
             let lr = trainer.lr(step);
             let loss = trainer.train_step(&samples);
@@ -404,9 +401,7 @@ pub fn run(
             let checkpoint = trainer.step.is_multiple_of(options.checkpoint_every.max(1))
                 || trainer.step == options.steps;
             let val_points = match validation.points.filter(|_| checkpoint) {
-                Some(score) => {
-                    Some(score(trainer).map_err(|message| NetError::Validation { message })?)
-                }
+                Some(score) => Some(score(trainer)?),
                 None => None,
             };
             let validation = (checkpoint && !validation_sets.is_empty()).then(|| {

@@ -109,7 +109,7 @@ fn float_tensor(tensor: &matseg_weights::Tensor) -> Result<Tensor, String> {
 /// Copies a checkpoint's `named` tensors into all variables of `vs`; the
 /// error says the checkpoint is of another net when one is missing or
 /// misshapen.
-pub fn load_tensors(vs: &nn::VarStore, named: &[(String, Tensor)]) -> Result<(), String> {
+pub(crate) fn load_tensors(vs: &nn::VarStore, named: &[(String, Tensor)]) -> Result<(), String> {
     copy_by_name(vs, "", None, |key| {
         named
             .iter()

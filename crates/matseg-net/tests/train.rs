@@ -9,7 +9,7 @@ use matseg_net::colour::COLOUR_PART;
 use matseg_net::data::{batch_samples, BatchPlan, GeneratorSource};
 use matseg_net::infer::{PixelDescriptors, TrainedNet};
 use matseg_net::train::{self, RunConfig, StepMetrics, TrainOptions, Trainer, Validation};
-use matseg_net::{load_net_adding, ConvNextConfig, EncoderConfig, NetConfig};
+use matseg_net::{load_net_adding, ConvNextConfig, EncoderConfig, NetConfig, NetError};
 use matseg_scene::Recipe2d;
 use std::path::Path;
 use tch::Device;
@@ -73,10 +73,8 @@ fn photo() -> image::RgbImage {
 
 /// A score that depends on every weight: the mean first descriptor
 /// component of [`photo`] under a snapshot of the net.
-fn first_component(trainer: &Trainer) -> Result<f64, String> {
-    let map = TrainedNet::snapshot(trainer)
-        .map_err(|e| e.to_string())?
-        .descriptor_map(&photo());
+fn first_component(trainer: &Trainer) -> Result<f64, NetError> {
+    let map = TrainedNet::snapshot(trainer)?.descriptor_map(&photo());
     let firsts: Vec<f32> = map.data.iter().step_by(map.dim).copied().collect();
     Ok(firsts.iter().map(|&v| v as f64).sum::<f64>() / firsts.len() as f64)
 }

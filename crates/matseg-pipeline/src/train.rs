@@ -16,7 +16,7 @@ use matseg_net::loader::default_workers;
 use matseg_net::train::{
     self, LrScale, Mix, NetScore, RunConfig, StepMetrics, TrainOptions, Trainer, Validation,
 };
-use matseg_net::{load_named, load_net_adding, EncoderConfig, NetConfig, PRESETS};
+use matseg_net::{load_named, load_net_adding, EncoderConfig, NetConfig, NetError, PRESETS};
 use matseg_scene::Recipe2d;
 use matseg_weights::{read_safetensors, Arch};
 use std::path::{Path, PathBuf};
@@ -156,7 +156,10 @@ impl TrainConfig {
             validation_batches: self.validation_batches,
             lr_scales: self.lr_scales.clone(),
         };
-        options.plan.validate().map_err(PipelineError::Settings)?;
+        options
+            .plan
+            .validate()
+            .map_err(|e| PipelineError::Settings(e.0))?;
         if let Some(mix) = &self.mix {
             if !(0.0..=1.0).contains(&mix.fraction) {
                 return Err(PipelineError::setting(
@@ -358,14 +361,15 @@ impl TrainingRun {
             Some(dir) => Some(load_point_benchmark(dir, false)?),
             None => None,
         };
-        let score_points = |trainer: &Trainer| -> Result<f64, String> {
+        let score_points = |trainer: &Trainer| -> Result<f64, NetError> {
             let bench = bench.as_ref().expect("only called with a benchmark");
-            let net = TrainedNet::snapshot(trainer).map_err(|e| e.to_string())?;
+            let net = TrainedNet::snapshot(trainer)?;
+            let invalid = |message: String| NetError::Validation { message };
             let report = evaluate_points(&NetModel::new("net", net), bench, session.val_max_side)
-                .map_err(|e| e.to_string())?;
+                .map_err(|e| invalid(e.to_string()))?;
             report
                 .all_by_material
-                .ok_or_else(|| "the validation benchmark has no triplets".to_string())
+                .ok_or_else(|| invalid("the benchmark has no triplets".into()))
         };
         let validation = Validation {
             samples: Some(&held_out),
