@@ -5,6 +5,7 @@
 //! from any seekable source (a file, or bytes in memory): a package of
 //! gigabytes needs no more memory than the entries a caller keeps.
 
+use crate::error::AssetError;
 use flate2::read::GzDecoder;
 use matseg_weights::zip::ZipFile;
 use std::io::{BufReader, Cursor, Read, Seek, SeekFrom};
@@ -20,7 +21,7 @@ pub struct Entry {
 
 /// What [`visit`] calls with each wanted file: its path inside the archive
 /// and a reader of its contents.
-pub type OnEntry<'a> = dyn FnMut(&str, &mut dyn Read) -> Result<(), String> + 'a;
+pub type OnEntry<'a> = dyn FnMut(&str, &mut dyn Read) -> Result<(), AssetError> + 'a;
 
 /// The regular files of the archive `name` (its format comes from the file
 /// name) held in `bytes` whose path `want` accepts, in archive order.
@@ -28,7 +29,7 @@ pub fn extract(
     name: &str,
     bytes: &[u8],
     want: &dyn Fn(&str) -> bool,
-) -> Result<Vec<Entry>, String> {
+) -> Result<Vec<Entry>, AssetError> {
     extract_from(name, Cursor::new(bytes), want)
 }
 
@@ -37,13 +38,13 @@ pub fn extract_from<R: Read + Seek + Send>(
     name: &str,
     source: R,
     want: &dyn Fn(&str) -> bool,
-) -> Result<Vec<Entry>, String> {
+) -> Result<Vec<Entry>, AssetError> {
     let mut entries = Vec::new();
     visit(name, source, want, &mut |path, reader| {
         let mut bytes = Vec::new();
         reader
             .read_to_end(&mut bytes)
-            .map_err(|e| format!("{path}: {e}"))?;
+            .map_err(|e| AssetError::Archive(format!("{path}: {e}")))?;
         entries.push(Entry {
             path: path.to_string(),
             bytes,
@@ -62,10 +63,11 @@ pub fn visit<R: Read + Seek + Send>(
     mut source: R,
     want: &dyn Fn(&str) -> bool,
     on_entry: &mut OnEntry<'_>,
-) -> Result<(), String> {
+) -> Result<(), AssetError> {
     let lower = name.to_ascii_lowercase();
     if lower.ends_with(".deb") {
-        let (size, compression) = deb_member(&mut source, "data.tar")?;
+        let (size, compression) =
+            deb_member(&mut source, "data.tar").map_err(AssetError::Archive)?;
         untar(source.take(size), compression, want, on_entry)
     } else if [".whl", ".zip", ".sh3f"].iter().any(|e| lower.ends_with(e)) {
         unzip(source, want, on_entry)
@@ -76,9 +78,9 @@ pub fn visit<R: Read + Seek + Send>(
     } else if lower.ends_with(".tar") {
         untar(source, Compression::None, want, on_entry)
     } else {
-        Err(format!(
+        Err(AssetError::Archive(format!(
             "{name}: not a known archive (.deb, .whl, .zip, .sh3f, .tgz, .tar.gz, .tar.xz, .tar)"
-        ))
+        )))
     }
 }
 
@@ -141,12 +143,13 @@ fn untar<R: Read + Send>(
     compression: Compression,
     want: &dyn Fn(&str) -> bool,
     on_entry: &mut OnEntry<'_>,
-) -> Result<(), String> {
+) -> Result<(), AssetError> {
+    let xz = |e: String| AssetError::Archive(format!("xz: {e}"));
     match compression {
         Compression::None => read_tar(source, "tar", want, on_entry),
         Compression::Gzip => read_tar(GzDecoder::new(source), "gzip", want, on_entry),
         Compression::Xz => std::thread::scope(|scope| {
-            let (plain, mut sink) = std::io::pipe().map_err(|e| format!("xz: {e}"))?;
+            let (plain, mut sink) = std::io::pipe().map_err(|e| xz(e.to_string()))?;
             let decompress = scope.spawn(move || {
                 lzma_rs::xz_decompress(&mut BufReader::with_capacity(1 << 20, source), &mut sink)
             });
@@ -160,7 +163,7 @@ fn untar<R: Read + Send>(
                 {
                     read
                 }
-                Err(e) => Err(format!("xz: {e}")),
+                Err(e) => Err(xz(e.to_string())),
                 Ok(()) => read,
             }
         }),
@@ -174,9 +177,9 @@ fn read_tar(
     format: &str,
     want: &dyn Fn(&str) -> bool,
     on_entry: &mut OnEntry<'_>,
-) -> Result<(), String> {
+) -> Result<(), AssetError> {
     let mut archive = tar::Archive::new(reader);
-    let error = |e: std::io::Error| format!("{format}: {e}");
+    let error = |e: std::io::Error| AssetError::Archive(format!("{format}: {e}"));
     for entry in archive.entries().map_err(error)? {
         let mut entry = entry.map_err(error)?;
         if !entry.header().entry_type().is_file() {
@@ -195,7 +198,7 @@ fn unzip<R: Read + Seek>(
     source: R,
     want: &dyn Fn(&str) -> bool,
     on_entry: &mut OnEntry<'_>,
-) -> Result<(), String> {
+) -> Result<(), AssetError> {
     let mut archive = ZipFile::new(source)?;
     let names: Vec<String> = archive
         .names()
@@ -360,11 +363,14 @@ mod tests {
             &|_| true,
             &mut |path, _| {
                 calls += 1;
-                Err(format!("{path}: refused"))
+                Err(AssetError::Content(format!("{path}: refused")))
             },
         )
         .unwrap_err();
-        assert_eq!((calls, e.as_str()), (1, "usr/share/a.jpg: refused"));
+        assert_eq!(
+            (calls, e.to_string()),
+            (1, "usr/share/a.jpg: refused".into())
+        );
         // So with an archive larger than the pipe's buffer, whose decompressor
         // then finds the pipe closed.
         let big = vec![7u8; 1 << 20];
@@ -373,12 +379,14 @@ mod tests {
             "p.deb",
             Cursor::new(deb_xz(&files)),
             &|_| true,
-            &mut |path, _| Err(format!("{path}: refused")),
+            &mut |path, _| Err(AssetError::Content(format!("{path}: refused"))),
         )
         .unwrap_err();
-        assert_eq!(e, "a.bin: refused");
+        assert_eq!(e.to_string(), "a.bin: refused");
         let whole = xz(&tar(&FILES));
-        let e = extract("p.tar.xz", &whole[..whole.len() / 2], &under_share).unwrap_err();
+        let e = extract("p.tar.xz", &whole[..whole.len() / 2], &under_share)
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("xz: "), "{e}");
     }
 
@@ -412,15 +420,21 @@ mod tests {
 
     #[test]
     fn broken_archives_are_named_errors() {
-        let e = extract("p.deb", b"not an archive", &|_| true).unwrap_err();
+        let e = extract("p.deb", b"not an archive", &|_| true)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("not a Debian package"), "{e}");
         let mut truncated = deb(&FILES);
         truncated.truncate(truncated.len() - 10);
-        let e = extract("p.deb", &truncated, &|_| true).unwrap_err();
+        let e = extract("p.deb", &truncated, &|_| true)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("truncated"), "{e}");
-        let e = extract("p.tgz", b"\x1f\x8b garbage", &|_| true).unwrap_err();
+        let e = extract("p.tgz", b"\x1f\x8b garbage", &|_| true)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("gzip"), "{e}");
-        let e = extract("p.rar", b"", &|_| true).unwrap_err();
+        let e = extract("p.rar", b"", &|_| true).unwrap_err().to_string();
         assert!(e.contains("not a known archive"), "{e}");
     }
 }

@@ -2,6 +2,7 @@
 //! package with a record is complete) and `catalog.json`, every corpus file
 //! with its kind, size, source package and version, and licence.
 
+use crate::error::AssetError;
 use crate::manifest::{Kind, Registry};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -76,11 +77,12 @@ pub struct Catalog {
 
 impl Catalog {
     /// The catalogue of every package record under `corpus`.
-    pub fn from_records(corpus: &Path) -> Result<Self, String> {
+    pub fn from_records(corpus: &Path) -> Result<Self, AssetError> {
         let dir = corpus.join(PACKAGES_DIR);
         let mut files = Vec::new();
         if dir.is_dir() {
-            let listing = std::fs::read_dir(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+            let listing = std::fs::read_dir(&dir)
+                .map_err(|e| AssetError::File(format!("{}: {e}", dir.display())))?;
             for entry in listing.filter_map(Result::ok) {
                 let path = entry.path();
                 if path.extension().is_some_and(|e| e == "json") {
@@ -93,20 +95,20 @@ impl Catalog {
     }
 
     /// Reads `catalog.json` from `corpus`.
-    pub fn read(corpus: &Path) -> Result<Self, String> {
+    pub fn read(corpus: &Path) -> Result<Self, AssetError> {
         let path = corpus.join(CATALOG_FILE);
         let text = std::fs::read_to_string(&path)
-            .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+            .map_err(|e| AssetError::File(format!("{}: cannot read: {e}", path.display())))?;
         serde_json::from_str(&text)
-            .map_err(|e| format!("{}: invalid catalogue: {e}", path.display()))
+            .map_err(|e| AssetError::File(format!("{}: invalid catalogue: {e}", path.display())))
     }
 
     /// Writes `catalog.json` into `corpus` (atomically).
-    pub fn write(&self, corpus: &Path) -> Result<(), String> {
+    pub fn write(&self, corpus: &Path) -> Result<(), AssetError> {
         let path = corpus.join(CATALOG_FILE);
         let text = serde_json::to_vec_pretty(self).expect("serialisable");
         matseg_image::io::write_atomic(&path, &text)
-            .map_err(|e| format!("{}: cannot write: {e}", path.display()))
+            .map_err(|e| AssetError::File(format!("{}: cannot write: {e}", path.display())))
     }
 
     /// Per (kind, licence family): the count of files of their own and
@@ -123,9 +125,9 @@ impl Catalog {
 }
 
 /// Reads one package record.
-pub fn read_record(path: &Path) -> Result<PackageRecord, String> {
+pub fn read_record(path: &Path) -> Result<PackageRecord, AssetError> {
     let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+        .map_err(|e| AssetError::File(format!("{}: cannot read: {e}", path.display())))?;
     serde_json::from_str(&text)
-        .map_err(|e| format!("{}: invalid package record: {e}", path.display()))
+        .map_err(|e| AssetError::File(format!("{}: invalid package record: {e}", path.display())))
 }

@@ -6,6 +6,7 @@
 //! catalogue. EXRs of any compression (DWAB included) are kept as they are:
 //! matseg's HDR reader reads them.
 
+use crate::error::{content, AssetError};
 use crate::manifest::Kind;
 use image::RgbImage;
 use serde_json::{json, Value};
@@ -39,7 +40,7 @@ impl Converted {
 
 /// Converts one taken file of kind `kind`; `name` is its corpus name before
 /// conversion. An error says what is wrong with the file.
-pub fn convert(kind: Kind, name: &str, bytes: Vec<u8>) -> Result<Vec<Converted>, String> {
+pub fn convert(kind: Kind, name: &str, bytes: Vec<u8>) -> Result<Vec<Converted>, AssetError> {
     let lower = name.to_ascii_lowercase();
     if kind == Kind::Meshes && lower.ends_with(".sh3f") {
         return furniture_models(name, &bytes);
@@ -60,7 +61,12 @@ pub fn convert(kind: Kind, name: &str, bytes: Vec<u8>) -> Result<Vec<Converted>,
 /// A photo or texture: formats matseg does not read (GIMP patterns, DDS)
 /// decoded once to pixels, checked (textures) and written as PNG; JPEG
 /// and PNG files checked and kept as they are.
-fn convert_image(kind: Kind, name: &str, lower: &str, bytes: Vec<u8>) -> Result<Converted, String> {
+fn convert_image(
+    kind: Kind,
+    name: &str,
+    lower: &str,
+    bytes: Vec<u8>,
+) -> Result<Converted, AssetError> {
     let textures = kind == Kind::Textures;
     match image_conversion(lower) {
         Some((from, to, decode)) => {
@@ -79,7 +85,7 @@ fn convert_image(kind: Kind, name: &str, lower: &str, bytes: Vec<u8>) -> Result<
         None => {
             let info = if textures {
                 let img = image::load_from_memory(&bytes)
-                    .map_err(|e| format!("not a readable image: {e}"))?;
+                    .map_err(|e| content(format!("not a readable image: {e}")))?;
                 texture_info(&img.into_rgb8())?
             } else {
                 image_info(&bytes)?
@@ -91,8 +97,9 @@ fn convert_image(kind: Kind, name: &str, lower: &str, bytes: Vec<u8>) -> Result<
 
 /// A PyTorch checkpoint (legacy or zip) as a safetensors file of the same
 /// stem.
-fn checkpoint_to_safetensors(name: &str, bytes: &[u8]) -> Result<Vec<Converted>, String> {
-    let tensors = matseg_weights::read_checkpoint(bytes, name).map_err(|e| e.to_string())?;
+fn checkpoint_to_safetensors(name: &str, bytes: &[u8]) -> Result<Vec<Converted>, AssetError> {
+    let tensors =
+        matseg_weights::read_checkpoint(bytes, name).map_err(|e| content(e.to_string()))?;
     let parameters: usize = tensors
         .iter()
         .map(|t| t.shape.iter().product::<usize>())
@@ -107,13 +114,13 @@ fn checkpoint_to_safetensors(name: &str, bytes: &[u8]) -> Result<Vec<Converted>,
 }
 
 /// Turns one file's bytes into another's.
-type Decode = fn(&[u8]) -> Result<Vec<u8>, String>;
+type Decode = fn(&[u8]) -> Result<Vec<u8>, AssetError>;
 
 /// A file-to-file conversion: its extension in, its extension out, how.
 type OneToOne = (&'static str, &'static str, Decode);
 
 /// Turns an image file's bytes into pixels.
-type DecodeImage = fn(&[u8]) -> Result<RgbImage, String>;
+type DecodeImage = fn(&[u8]) -> Result<RgbImage, AssetError>;
 
 /// The decoder a photo or texture named `lower` (lowercase) needs, if any,
 /// with its extension in and the PNG's extension out.
@@ -145,15 +152,15 @@ fn replace_ext(name: &str, old: &str, new: &str) -> String {
 }
 
 /// Width and height from an image's header (JPEG or PNG).
-fn image_info(bytes: &[u8]) -> Result<Value, String> {
+fn image_info(bytes: &[u8]) -> Result<Value, AssetError> {
     let reader = image::ImageReader::new(Cursor::new(bytes))
         .with_guessed_format()
-        .map_err(|e| e.to_string())?;
+        .map_err(|e| content(e.to_string()))?;
     let (w, h) = reader
         .into_dimensions()
-        .map_err(|e| format!("not a readable image: {e}"))?;
+        .map_err(|e| content(format!("not a readable image: {e}")))?;
     if w == 0 || h == 0 {
-        return Err("image has no pixels".into());
+        return Err(content("image has no pixels"));
     }
     Ok(json!({ "width": w, "height": h }))
 }
@@ -167,12 +174,12 @@ pub const MIN_TEXTURE_SIDE: u32 = 32;
 /// tangent-space normal map (games ship those beside their colour maps,
 /// often without a telling name: bluish, red and green about mid-grey, and
 /// blue at least half on nearly every pixel).
-fn texture_info(img: &RgbImage) -> Result<Value, String> {
+fn texture_info(img: &RgbImage) -> Result<Value, AssetError> {
     let (w, h) = img.dimensions();
     if w.min(h) < MIN_TEXTURE_SIDE {
-        return Err(format!(
+        return Err(content(format!(
             "{w}x{h} is too small for a texture (sides of at least {MIN_TEXTURE_SIDE})"
-        ));
+        )));
     }
     let n = f64::from(w) * f64::from(h);
     let mut sum = [0f64; 3];
@@ -191,56 +198,56 @@ fn texture_info(img: &RgbImage) -> Result<Value, String> {
     let grey_sd = (sum_sq / n - grey_mean * grey_mean).max(0.0).sqrt();
     let rounded = mean.map(|m| m.round() as u8);
     if grey_sd < 1.0 {
-        return Err(format!(
+        return Err(content(format!(
             "flat: one colour {rounded:?} (a placeholder, not a texture)"
-        ));
+        )));
     }
     let near_mid = |m: f64| (m - 128.0).abs() < 32.0;
     if mean[2] >= 180.0 && near_mid(mean[0]) && near_mid(mean[1]) && blue_half as f64 >= 0.99 * n {
-        return Err(format!(
+        return Err(content(format!(
             "looks like a normal map (mean colour {rounded:?}), not a colour texture"
-        ));
+        )));
     }
     Ok(json!({ "width": w, "height": h, "mean_rgb": rounded }))
 }
 
 /// A `.dds` texture's largest mipmap level.
-pub fn dds_image(bytes: &[u8]) -> Result<RgbImage, String> {
+pub fn dds_image(bytes: &[u8]) -> Result<RgbImage, AssetError> {
     let dds = crate::dds::decode_dds(bytes)?;
     Ok(RgbImage::from_raw(dds.width, dds.height, dds.rgb).expect("w * h * 3 bytes"))
 }
 
 /// `img` encoded as PNG.
-fn png(img: &RgbImage) -> Result<Vec<u8>, String> {
+fn png(img: &RgbImage) -> Result<Vec<u8>, AssetError> {
     let mut out = Vec::new();
     img.write_to(&mut Cursor::new(&mut out), image::ImageFormat::Png)
-        .map_err(|e| format!("PNG: {e}"))?;
+        .map_err(|e| content(format!("PNG: {e}")))?;
     Ok(out)
 }
 
 /// A GIMP pattern (`.pat`: a big-endian header, magic `GPAT`, then 1-4
 /// bytes per pixel: grey, grey+alpha, RGB, RGBA) as RGB pixels; alpha is
 /// dropped, grey repeated.
-pub fn gimp_pattern(bytes: &[u8]) -> Result<RgbImage, String> {
+pub fn gimp_pattern(bytes: &[u8]) -> Result<RgbImage, AssetError> {
     let word = |i: usize| {
         bytes
             .get(4 * i..4 * i + 4)
             .map(|b| u32::from_be_bytes(b.try_into().expect("4 bytes")) as usize)
-            .ok_or("GIMP pattern: truncated header")
+            .ok_or_else(|| content("GIMP pattern: truncated header"))
     };
     let (header, version, width, height, depth) =
         (word(0)?, word(1)?, word(2)?, word(3)?, word(4)?);
     if bytes.get(20..24) != Some(b"GPAT") || version != 1 {
-        return Err("not a GIMP pattern (no GPAT magic, version 1)".into());
+        return Err(content("not a GIMP pattern (no GPAT magic, version 1)"));
     }
     if !(1..=4).contains(&depth) || width == 0 || height == 0 || header < 24 {
-        return Err(format!(
+        return Err(content(format!(
             "GIMP pattern: bad header ({width}x{height}, {depth} bytes per pixel)"
-        ));
+        )));
     }
     let pixels = bytes
         .get(header..header + width * height * depth)
-        .ok_or("GIMP pattern: truncated pixels")?;
+        .ok_or_else(|| content("GIMP pattern: truncated pixels"))?;
     let rgb: Vec<u8> = pixels
         .chunks_exact(depth)
         .flat_map(|p| {
@@ -256,18 +263,20 @@ pub fn gimp_pattern(bytes: &[u8]) -> Result<RgbImage, String> {
 
 /// The bytes of the base64 `data:` URL inside a JavaScript module
 /// (`export default 'data:application/exr;base64,...'`).
-pub fn base64_data_url(js: &[u8]) -> Result<Vec<u8>, String> {
+pub fn base64_data_url(js: &[u8]) -> Result<Vec<u8>, AssetError> {
     let text = String::from_utf8_lossy(js);
     let start = text
         .find(";base64,")
-        .ok_or("no base64 data URL in the module")?
+        .ok_or_else(|| content("no base64 data URL in the module"))?
         + 8;
     let body = &text[start..];
-    let end = body.find(['\'', '"', '`']).ok_or("unterminated data URL")?;
+    let end = body
+        .find(['\'', '"', '`'])
+        .ok_or_else(|| content("unterminated data URL"))?;
     base64_decode(&body[..end])
 }
 
-fn base64_decode(text: &str) -> Result<Vec<u8>, String> {
+fn base64_decode(text: &str) -> Result<Vec<u8>, AssetError> {
     let value = |c: u8| match c {
         b'A'..=b'Z' => Some(c - b'A'),
         b'a'..=b'z' => Some(c - b'a' + 26),
@@ -282,7 +291,8 @@ fn base64_decode(text: &str) -> Result<Vec<u8>, String> {
         if c.is_ascii_whitespace() {
             continue;
         }
-        let v = value(c).ok_or_else(|| format!("invalid base64 character {:?}", c as char))?;
+        let v =
+            value(c).ok_or_else(|| content(format!("invalid base64 character {:?}", c as char)))?;
         acc = (acc << 6) | v as u32;
         bits += 6;
         if bits >= 8 {
@@ -296,35 +306,37 @@ fn base64_decode(text: &str) -> Result<Vec<u8>, String> {
 /// A JavaScript mesh module (`exports.positions=[[x,y,z],...]` and
 /// `exports.cells=[[i,j,k],...]`, as the npm `bunny` and `teapot` packages
 /// ship them) as OBJ text.
-pub fn js_mesh_to_obj(js: &[u8]) -> Result<Vec<u8>, String> {
+pub fn js_mesh_to_obj(js: &[u8]) -> Result<Vec<u8>, AssetError> {
     let text = String::from_utf8_lossy(js);
-    let array_after = |key: &str| -> Result<serde_json::Value, String> {
+    let array_after = |key: &str| -> Result<serde_json::Value, AssetError> {
         let at = text
             .find(&format!("{key}="))
             .or_else(|| text.find(&format!("{key} =")))
-            .ok_or_else(|| format!("no `{key}` array"))?;
+            .ok_or_else(|| content(format!("no `{key}` array")))?;
         let rest = &text[at..];
-        let start = rest.find('[').ok_or_else(|| format!("no `{key}` array"))?;
+        let start = rest
+            .find('[')
+            .ok_or_else(|| content(format!("no `{key}` array")))?;
         serde_json::Deserializer::from_str(&rest[start..])
             .into_iter::<Value>()
             .next()
-            .ok_or_else(|| format!("no `{key}` array"))?
-            .map_err(|e| format!("`{key}`: {e}"))
+            .ok_or_else(|| content(format!("no `{key}` array")))?
+            .map_err(|e| content(format!("`{key}`: {e}")))
     };
     let positions: Vec<[f64; 3]> = serde_json::from_value(array_after("positions")?)
-        .map_err(|e| format!("`positions`: {e}"))?;
-    let cells: Vec<Vec<usize>> =
-        serde_json::from_value(array_after("cells")?).map_err(|e| format!("`cells`: {e}"))?;
+        .map_err(|e| content(format!("`positions`: {e}")))?;
+    let cells: Vec<Vec<usize>> = serde_json::from_value(array_after("cells")?)
+        .map_err(|e| content(format!("`cells`: {e}")))?;
     let mut obj = String::with_capacity(positions.len() * 40 + cells.len() * 24);
     for [x, y, z] in &positions {
         obj.push_str(&format!("v {x} {y} {z}\n"));
     }
     for cell in &cells {
         if cell.len() < 3 || cell.iter().any(|&i| i >= positions.len()) {
-            return Err(format!(
+            return Err(content(format!(
                 "`cells`: face {cell:?} is not a polygon of the {} positions",
                 positions.len()
-            ));
+            )));
         }
         let ids: Vec<String> = cell.iter().map(|i| (i + 1).to_string()).collect();
         obj.push_str(&format!("f {}\n", ids.join(" ")));
@@ -336,13 +348,15 @@ pub fn js_mesh_to_obj(js: &[u8]) -> Result<Vec<u8>, String> {
 /// `PluginFurnitureCatalog.properties` naming each `model#N`): every OBJ
 /// with the material libraries and textures it references, under
 /// `STEM/` + its path in the zip.
-pub fn furniture_models(name: &str, bytes: &[u8]) -> Result<Vec<Converted>, String> {
+pub fn furniture_models(name: &str, bytes: &[u8]) -> Result<Vec<Converted>, AssetError> {
     let stem = name.strip_suffix(".sh3f").unwrap_or(name);
     let zip = matseg_weights::zip::ZipArchive::new(bytes)?;
     let properties = zip.read("PluginFurnitureCatalog.properties")?;
     let models = model_paths(&String::from_utf8_lossy(&properties));
     if models.is_empty() {
-        return Err("no model#N entries in PluginFurnitureCatalog.properties".into());
+        return Err(content(
+            "no model#N entries in PluginFurnitureCatalog.properties",
+        ));
     }
     let names: std::collections::HashSet<&str> = zip.names().collect();
     let mut out: Vec<Converted> = Vec::new();
@@ -424,7 +438,6 @@ fn join(dir: &str, name: &str) -> String {
         format!("{dir}/{name}")
     }
 }
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -442,9 +455,13 @@ mod tests {
         let img = gimp_pattern(&pat).unwrap();
         assert_eq!(img.dimensions(), (2, 1));
         assert_eq!(img.into_raw(), vec![10, 20, 30, 40, 50, 60]);
-        assert!(gimp_pattern(&pat[..30]).unwrap_err().contains("truncated"));
+        assert!(gimp_pattern(&pat[..30])
+            .unwrap_err()
+            .to_string()
+            .contains("truncated"));
         assert!(gimp_pattern(b"0123456789012345678901234")
             .unwrap_err()
+            .to_string()
             .contains("GPAT"));
     }
 
@@ -460,9 +477,13 @@ mod tests {
             (info["width"].as_u64(), info["height"].as_u64()),
             (Some(40), Some(32))
         );
-        let e = texture_info(&rgb_image(40, 31, stone)).unwrap_err();
+        let e = texture_info(&rgb_image(40, 31, stone))
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("40x31 is too small"), "{e}");
-        let e = texture_info(&rgb_image(64, 64, |_, _| [200, 10, 10])).unwrap_err();
+        let e = texture_info(&rgb_image(64, 64, |_, _| [200, 10, 10]))
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("flat: one colour [200, 10, 10]"), "{e}");
         // A normal map: R and G vary about 128, B high everywhere.
         let normal = |x: u32, y: u32| {
@@ -472,7 +493,9 @@ mod tests {
                 200 + (x % 50) as u8,
             ]
         };
-        let e = texture_info(&rgb_image(64, 64, normal)).unwrap_err();
+        let e = texture_info(&rgb_image(64, 64, normal))
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("looks like a normal map"), "{e}");
         // A blue texture with dark patches is not one (blue < 128 on them).
         let tiles = |x: u32, y: u32| {
@@ -491,6 +514,7 @@ mod tests {
         assert_eq!(base64_data_url(js).unwrap(), b"MatSeg!");
         assert!(base64_data_url(b"export default 1")
             .unwrap_err()
+            .to_string()
             .contains("no base64"));
     }
 
@@ -504,7 +528,10 @@ mod tests {
         let mesh = matseg_render::mesh_io::read_mesh(&path).unwrap();
         assert_eq!((mesh.positions.len(), mesh.triangles.len()), (4, 4));
         let bad = b"exports.positions=[[0,0,0]]\nexports.cells=[[0,1,2]]";
-        assert!(js_mesh_to_obj(bad).unwrap_err().contains("not a polygon"));
+        assert!(js_mesh_to_obj(bad)
+            .unwrap_err()
+            .to_string()
+            .contains("not a polygon"));
     }
 
     #[test]
@@ -537,7 +564,8 @@ mod tests {
             "E.sh3f",
             &zip(&[("PluginFurnitureCatalog.properties", b"id=x\n")]),
         )
-        .unwrap_err();
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("no model#N"), "{e}");
     }
 }

@@ -3,6 +3,8 @@
 //! BC2 (`DXT3`) and BC3 (`DXT5`), and uncompressed RGB or RGBA given by
 //! channel bit masks. Alpha is dropped: matseg's textures are RGB.
 
+use crate::error::{content, AssetError};
+
 /// The size of the header after the `DDS ` magic.
 const HEADER_SIZE: usize = 124;
 /// Pixel-format flag: the format is a FourCC code (compressed).
@@ -27,17 +29,19 @@ fn u32_at(b: &[u8], at: usize) -> u32 {
 
 /// Decodes the largest mipmap level of a `.dds` file to RGB; the error says
 /// what is wrong (not a DDS file, a format not handled, truncated data).
-pub fn decode_dds(bytes: &[u8]) -> Result<DdsImage, String> {
+pub fn decode_dds(bytes: &[u8]) -> Result<DdsImage, AssetError> {
     if bytes.len() < 4 + HEADER_SIZE || &bytes[..4] != b"DDS " {
-        return Err("not a DDS file (no `DDS ` magic and 124-byte header)".into());
+        return Err(content(
+            "not a DDS file (no `DDS ` magic and 124-byte header)",
+        ));
     }
     let header = &bytes[4..4 + HEADER_SIZE];
     if u32_at(header, 0) as usize != HEADER_SIZE {
-        return Err("DDS: bad header size".into());
+        return Err(content("DDS: bad header size"));
     }
     let (height, width) = (u32_at(header, 8), u32_at(header, 12));
     if width == 0 || height == 0 || width > 16_384 || height > 16_384 {
-        return Err(format!("DDS: bad size {width}x{height}"));
+        return Err(content(format!("DDS: bad size {width}x{height}")));
     }
     // The pixel format starts at byte 72 of the header.
     let pf_flags = u32_at(header, 76);
@@ -49,10 +53,10 @@ pub fn decode_dds(bytes: &[u8]) -> Result<DdsImage, String> {
             b"DXT1" => (8, 0),
             b"DXT3" | b"DXT5" => (16, 8),
             other => {
-                return Err(format!(
+                return Err(content(format!(
                     "DDS: compression {} not handled (DXT1, DXT3, DXT5)",
                     String::from_utf8_lossy(other).trim_end_matches('\0')
-                ))
+                )))
             }
         };
         decode_blocks(data, w, h, block_bytes, colour_offset, fourcc == b"DXT1")?
@@ -61,9 +65,9 @@ pub fn decode_dds(bytes: &[u8]) -> Result<DdsImage, String> {
         let masks = [u32_at(header, 88), u32_at(header, 92), u32_at(header, 96)];
         decode_masked(data, w, h, bits, masks)?
     } else {
-        return Err(
-            "DDS: neither compressed nor RGB (luminance or YUV formats not handled)".into(),
-        );
+        return Err(content(
+            "DDS: neither compressed nor RGB (luminance or YUV formats not handled)",
+        ));
     };
     Ok(DdsImage { width, height, rgb })
 }
@@ -103,14 +107,14 @@ fn decode_blocks(
     block_bytes: usize,
     colour_offset: usize,
     bc1: bool,
-) -> Result<Vec<u8>, String> {
+) -> Result<Vec<u8>, AssetError> {
     let (bw, bh) = (w.div_ceil(4), h.div_ceil(4));
     let need = bw * bh * block_bytes;
     if data.len() < need {
-        return Err(format!(
+        return Err(content(format!(
             "DDS: truncated ({} of {need} bytes of pixel data)",
             data.len()
-        ));
+        )));
     }
     let mut rgb = vec![0u8; w * h * 3];
     for (i, block) in data[..need].chunks_exact(block_bytes).enumerate() {
@@ -154,17 +158,17 @@ fn decode_masked(
     h: usize,
     bits: u32,
     masks: [u32; 3],
-) -> Result<Vec<u8>, String> {
+) -> Result<Vec<u8>, AssetError> {
     if ![8, 16, 24, 32].contains(&bits) {
-        return Err(format!("DDS: {bits} bits a pixel not handled"));
+        return Err(content(format!("DDS: {bits} bits a pixel not handled")));
     }
     let bpp = bits as usize / 8;
     let need = w * h * bpp;
     if data.len() < need {
-        return Err(format!(
+        return Err(content(format!(
             "DDS: truncated ({} of {need} bytes of pixel data)",
             data.len()
-        ));
+        )));
     }
     let mut rgb = Vec::with_capacity(w * h * 3);
     for px in data[..need].chunks_exact(bpp) {
@@ -268,12 +272,22 @@ mod tests {
     fn bad_files_are_named_errors() {
         assert!(decode_dds(b"PNG...")
             .unwrap_err()
+            .to_string()
             .contains("not a DDS file"));
         let file = header(8, 8, PF_FOURCC, b"DXT1", 0, [0; 3]);
-        assert!(decode_dds(&file).unwrap_err().contains("truncated"));
+        assert!(decode_dds(&file)
+            .unwrap_err()
+            .to_string()
+            .contains("truncated"));
         let file = header(8, 8, PF_FOURCC, b"DX10", 0, [0; 3]);
-        assert!(decode_dds(&file).unwrap_err().contains("DX10 not handled"));
+        assert!(decode_dds(&file)
+            .unwrap_err()
+            .to_string()
+            .contains("DX10 not handled"));
         let file = header(0, 8, PF_FOURCC, b"DXT1", 0, [0; 3]);
-        assert!(decode_dds(&file).unwrap_err().contains("bad size"));
+        assert!(decode_dds(&file)
+            .unwrap_err()
+            .to_string()
+            .contains("bad size"));
     }
 }

@@ -5,6 +5,7 @@
 //! not fetched again; an interrupted one is redone from its download.
 
 use crate::catalog::{Catalog, PackageRecord, PACKAGES_DIR};
+use crate::error::AssetError;
 use crate::install::install;
 use crate::manifest::{Kind, Manifest, PackageSpec, Registry};
 use std::path::{Path, PathBuf};
@@ -14,7 +15,7 @@ use std::process::Command;
 pub trait Downloader {
     /// Downloads `spec` into `dir` (or finds it there from an earlier run);
     /// the file and the package's version.
-    fn download(&self, spec: &PackageSpec, dir: &Path) -> Result<(PathBuf, String), String>;
+    fn download(&self, spec: &PackageSpec, dir: &Path) -> Result<(PathBuf, String), AssetError>;
 }
 
 /// The real registries, through their command-line clients.
@@ -53,7 +54,7 @@ pub struct FetchReport {
     /// Packages already complete in the corpus.
     pub already: Vec<String>,
     /// Packages that failed, each with why.
-    pub failed: Vec<(String, String)>,
+    pub failed: Vec<(String, AssetError)>,
 }
 
 /// What happens to one package, for progress displays.
@@ -89,7 +90,7 @@ pub fn fetch(
     layout: &CacheLayout,
     downloader: &dyn Downloader,
     progress: &mut dyn FnMut(Progress<'_>),
-) -> Result<FetchReport, String> {
+) -> Result<FetchReport, AssetError> {
     let selected = manifest.select(kinds);
     let mut report = FetchReport::default();
     for (index, spec) in selected.iter().enumerate() {
@@ -107,7 +108,7 @@ pub fn fetch(
         } else {
             let dir = layout.downloads.join(spec.folder());
             let downloaded = std::fs::create_dir_all(&dir)
-                .map_err(|e| format!("{}: {e}", dir.display()))
+                .map_err(|e| AssetError::File(format!("{}: {e}", dir.display())))
                 .and_then(|()| downloader.download(spec, &dir));
             let result = downloaded.and_then(|(file, version)| {
                 progress(Progress::Unpacking {
@@ -124,13 +125,13 @@ pub fn fetch(
         progress(Progress::Done);
     }
     std::fs::create_dir_all(&layout.corpus)
-        .map_err(|e| format!("{}: {e}", layout.corpus.display()))?;
+        .map_err(|e| AssetError::File(format!("{}: {e}", layout.corpus.display())))?;
     Catalog::from_records(&layout.corpus)?.write(&layout.corpus)?;
     Ok(report)
 }
 
 impl Downloader for RegistryClients {
-    fn download(&self, spec: &PackageSpec, dir: &Path) -> Result<(PathBuf, String), String> {
+    fn download(&self, spec: &PackageSpec, dir: &Path) -> Result<(PathBuf, String), AssetError> {
         if let Some(found) = find_download(spec, dir) {
             return Ok(found);
         }
@@ -138,7 +139,8 @@ impl Downloader for RegistryClients {
         // only once the client succeeded, so `dir` never holds half a file.
         let scratch = dir.join(".partial");
         let _ = std::fs::remove_dir_all(&scratch);
-        std::fs::create_dir_all(&scratch).map_err(|e| format!("{}: {e}", scratch.display()))?;
+        std::fs::create_dir_all(&scratch)
+            .map_err(|e| AssetError::File(format!("{}: {e}", scratch.display())))?;
         match spec.registry {
             Registry::Deb => self.apt_download(&spec.name, &scratch)?,
             Registry::Pypi => run_client(
@@ -165,18 +167,18 @@ impl Downloader for RegistryClients {
             )?,
         }
         for entry in std::fs::read_dir(&scratch)
-            .map_err(|e| e.to_string())?
+            .map_err(|e| AssetError::File(format!("{}: {e}", scratch.display())))?
             .filter_map(Result::ok)
         {
             let _ = std::fs::rename(entry.path(), dir.join(entry.file_name()));
         }
         let _ = std::fs::remove_dir_all(&scratch);
         find_download(spec, dir).ok_or_else(|| {
-            format!(
+            AssetError::Client(format!(
                 "{}: the client reported success but left no package file in {}",
                 spec.name,
                 dir.display()
-            )
+            ))
         })
     }
 }
@@ -185,7 +187,7 @@ impl RegistryClients {
     /// `apt-get download NAME` into `dir`; when the system's package lists
     /// do not know the package (a fresh machine), refreshes a private list
     /// under `apt_state` (no root needed) and retries with it.
-    fn apt_download(&self, name: &str, dir: &Path) -> Result<(), String> {
+    fn apt_download(&self, name: &str, dir: &Path) -> Result<(), AssetError> {
         let first = run_client(
             Command::new("apt-get")
                 .arg("download")
@@ -199,8 +201,10 @@ impl RegistryClients {
         }
         let lists = self.apt_state.join("lists");
         let cache = self.apt_state.join("cache");
-        std::fs::create_dir_all(lists.join("partial")).map_err(|e| e.to_string())?;
-        std::fs::create_dir_all(cache.join("archives/partial")).map_err(|e| e.to_string())?;
+        let file =
+            |e: std::io::Error| AssetError::File(format!("{}: {e}", self.apt_state.display()));
+        std::fs::create_dir_all(lists.join("partial")).map_err(file)?;
+        std::fs::create_dir_all(cache.join("archives/partial")).map_err(file)?;
         let private = |cmd: &mut Command| {
             cmd.arg("-o")
                 .arg(format!("Dir::State::Lists={}", lists.display()))
@@ -212,7 +216,7 @@ impl RegistryClients {
         private(&mut update);
         update.arg("update");
         run_client(&mut update, "apt-get update (private list)", name)
-            .map_err(|e| format!("{}; {e}", first.unwrap_err()))?;
+            .map_err(|e| AssetError::Client(format!("{}; {e}", first.unwrap_err())))?;
         let mut download = Command::new("apt-get");
         private(&mut download);
         download.arg("download").arg(name).current_dir(dir);
@@ -222,13 +226,13 @@ impl RegistryClients {
 
 /// Runs a registry client; an error names the client, the package and the
 /// client's last line of complaint.
-fn run_client(cmd: &mut Command, client: &str, package: &str) -> Result<(), String> {
+fn run_client(cmd: &mut Command, client: &str, package: &str) -> Result<(), AssetError> {
     let out = cmd.output().map_err(|e| {
-        if e.kind() == std::io::ErrorKind::NotFound {
+        AssetError::Client(if e.kind() == std::io::ErrorKind::NotFound {
             format!("{package}: {client} is not installed (needed to fetch this package)")
         } else {
             format!("{package}: cannot run {client}: {e}")
-        }
+        })
     })?;
     if out.status.success() {
         return Ok(());
@@ -239,10 +243,10 @@ fn run_client(cmd: &mut Command, client: &str, package: &str) -> Result<(), Stri
         .rev()
         .find(|l| !l.trim().is_empty())
         .unwrap_or("no message");
-    Err(format!(
+    Err(AssetError::Client(format!(
         "{package}: {client} failed ({}): {last}",
         out.status
-    ))
+    )))
 }
 
 /// A file of `spec` already in `dir`, with its version: Debian's

@@ -7,6 +7,7 @@ use crate::archive::{extract_from, visit, Entry};
 use crate::catalog::{CatalogEntry, PackageRecord, PACKAGES_DIR};
 use crate::convert::convert;
 use crate::dep5::Copyright;
+use crate::error::AssetError;
 use crate::glob::{glob_match, literal_prefix};
 use crate::manifest::{Kind, PackageSpec, Registry};
 use matseg_image::library::{LICENSES_FILE, UNKNOWN_LICENCE};
@@ -49,17 +50,17 @@ pub fn install(
     archive: &Path,
     version: &str,
     corpus: &Path,
-) -> Result<PackageRecord, String> {
+) -> Result<PackageRecord, AssetError> {
     let label = archive.display().to_string();
     let folder = spec.folder();
     let staging_root = corpus.join(".staging");
     let staging = staging_root.join(format!("{}-{folder}", spec.kind));
     let spill = staging_root.join(format!("{}-{folder}.nested", spec.kind));
-    let io = |e: std::io::Error, p: &Path| format!("{}: {e}", p.display());
+    let io = |e: std::io::Error, p: &Path| AssetError::File(format!("{}: {e}", p.display()));
     std::fs::create_dir_all(&staging_root).map_err(|e| io(e, &staging_root))?;
     let taken = take_files(spec, archive, &spill);
     let _ = std::fs::remove_file(&spill);
-    let taken = taken.map_err(|e| format!("{label}: {e}"))?;
+    let taken = taken.map_err(|e| AssetError::Archive(format!("{label}: {e}")))?;
     if staging.exists() {
         std::fs::remove_dir_all(&staging).map_err(|e| io(e, &staging))?;
     }
@@ -112,7 +113,9 @@ pub fn install(
             "it holds none of the files the manifest names".to_string(),
             |w| w.clone(),
         );
-        return Err(format!("{label}: no usable file ({why})"));
+        return Err(AssetError::Content(format!(
+            "{label}: no usable file ({why})"
+        )));
     }
     write_licence_lists(&staging, &staged)?;
 
@@ -162,7 +165,7 @@ pub fn install(
 /// The files `spec` takes from the package file `archive`, with their
 /// corpus names and licences. The package is streamed; a nested archive is
 /// copied to the file `spill` and read from there.
-fn take_files(spec: &PackageSpec, archive: &Path, spill: &Path) -> Result<Vec<Taken>, String> {
+fn take_files(spec: &PackageSpec, archive: &Path, spill: &Path) -> Result<Vec<Taken>, AssetError> {
     let copyright = format!("usr/share/doc/{}/copyright", spec.name);
     let metadata = |p: &str| match spec.registry {
         Registry::Deb => p == copyright,
@@ -175,7 +178,8 @@ fn take_files(spec: &PackageSpec, archive: &Path, spill: &Path) -> Result<Vec<Ta
         .file_name()
         .and_then(|n| n.to_str())
         .unwrap_or_default();
-    let file = std::fs::File::open(archive).map_err(|e| format!("cannot read: {e}"))?;
+    let file =
+        std::fs::File::open(archive).map_err(|e| AssetError::File(format!("cannot read: {e}")))?;
     // Files of the package itself, and (outer path, file) of nested archives.
     let mut entries = Vec::new();
     let mut inner_entries = Vec::new();
@@ -187,14 +191,15 @@ fn take_files(spec: &PackageSpec, archive: &Path, spill: &Path) -> Result<Vec<Ta
             let taken = spec.taken_by(path).is_some();
             let mut bytes = Vec::new();
             if let Some(nested) = nested_in(path) {
-                let io = |e: std::io::Error| format!("{}: {e}", spill.display());
+                let io = |e: std::io::Error| AssetError::File(format!("{}: {e}", spill.display()));
                 let mut copy = std::fs::File::create(spill).map_err(io)?;
-                std::io::copy(reader, &mut copy).map_err(|e| format!("{path}: {e}"))?;
+                std::io::copy(reader, &mut copy)
+                    .map_err(|e| AssetError::Archive(format!("{path}: {e}")))?;
                 drop(copy);
                 let inner_take = |p: &str| nested.takes(p) && !spec.skips(p);
                 let inner = BufReader::new(std::fs::File::open(spill).map_err(io)?);
-                let inner =
-                    extract_from(path, inner, &inner_take).map_err(|e| format!("{path}: {e}"))?;
+                let inner = extract_from(path, inner, &inner_take)
+                    .map_err(|e| AssetError::Archive(format!("{path}: {e}")))?;
                 inner_entries.extend(inner.into_iter().map(|e| (path.to_string(), e)));
                 if taken {
                     bytes = std::fs::read(spill).map_err(io)?;
@@ -202,7 +207,7 @@ fn take_files(spec: &PackageSpec, archive: &Path, spill: &Path) -> Result<Vec<Ta
             } else {
                 reader
                     .read_to_end(&mut bytes)
-                    .map_err(|e| format!("{path}: {e}"))?;
+                    .map_err(|e| AssetError::Archive(format!("{path}: {e}")))?;
             }
             if taken || metadata(path) {
                 entries.push(Entry {
@@ -292,7 +297,7 @@ fn check(kind: Kind, path: &Path, info: serde_json::Value) -> Result<serde_json:
 
 /// One `licenses.json` per staged folder, naming each file's licence, so
 /// the photo library and the 3D sidecars find them.
-fn write_licence_lists(staging: &Path, staged: &[Staged]) -> Result<(), String> {
+fn write_licence_lists(staging: &Path, staged: &[Staged]) -> Result<(), AssetError> {
     let mut lists: BTreeMap<PathBuf, BTreeMap<String, String>> = BTreeMap::new();
     for s in staged {
         let path = staging.join(&s.name);
@@ -310,7 +315,8 @@ fn write_licence_lists(staging: &Path, staged: &[Staged]) -> Result<(), String> 
     for (dir, list) in lists {
         let path = dir.join(LICENSES_FILE);
         let text = serde_json::to_vec_pretty(&list).expect("serialisable");
-        std::fs::write(&path, text).map_err(|e| format!("{}: {e}", path.display()))?;
+        std::fs::write(&path, text)
+            .map_err(|e| AssetError::File(format!("{}: {e}", path.display())))?;
     }
     Ok(())
 }

@@ -12,11 +12,13 @@ pub mod catalog;
 pub mod convert;
 pub mod dds;
 pub mod dep5;
+pub mod error;
 pub mod fetch;
 pub mod glob;
 pub mod install;
 pub mod manifest;
 
 pub use catalog::{Catalog, CatalogEntry, PackageRecord};
+pub use error::AssetError;
 pub use fetch::{fetch, CacheLayout, Downloader, FetchReport, Progress, RegistryClients};
 pub use manifest::{Kind, Manifest, PackageSpec, Registry};

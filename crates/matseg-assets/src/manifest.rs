@@ -2,6 +2,7 @@
 //! built in; users may pass their own): what to take from each and under
 //! which licence.
 
+use crate::error::AssetError;
 use crate::glob::glob_match;
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -180,18 +181,18 @@ pub struct Manifest {
 
 impl Manifest {
     /// Parses manifest text; `label` names it in errors.
-    pub fn parse(text: &str, label: &str) -> Result<Self, String> {
-        let manifest: Manifest =
-            toml::from_str(text).map_err(|e| format!("{label}: {}", e.message()))?;
+    pub fn parse(text: &str, label: &str) -> Result<Self, AssetError> {
+        let invalid = |message: String| AssetError::Manifest(format!("{label}: {message}"));
+        let manifest: Manifest = toml::from_str(text).map_err(|e| invalid(e.message().into()))?;
         for p in &manifest.packages {
             if p.registry != Registry::Deb && p.version.is_none() {
-                return Err(format!(
-                    "{label}: package {} needs an exact version",
+                return Err(invalid(format!(
+                    "package {} needs an exact version",
                     p.name
-                ));
+                )));
             }
             if p.take.is_empty() && p.nested.is_empty() {
-                return Err(format!("{label}: package {} takes nothing", p.name));
+                return Err(invalid(format!("package {} takes nothing", p.name)));
             }
         }
         Ok(manifest)
@@ -289,19 +290,22 @@ skip = ["*_n.*", "data/sky/*"]
             "[[package]]\nname = \"x\"\nregistry = \"pypi\"\nkind = \"photos\"\ntake = [\"*\"]\n",
             "m.toml",
         )
-        .unwrap_err();
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("m.toml") && e.contains("exact version"), "{e}");
         let e = Manifest::parse(
             "[[package]]\nname = \"x\"\nregistry = \"cran\"\nkind = \"photos\"\n",
             "m.toml",
         )
-        .unwrap_err();
+        .unwrap_err()
+        .to_string();
         assert!(e.starts_with("m.toml:"), "{e}");
         let e = Manifest::parse(
             "[[package]]\nname = \"x\"\nregistry = \"deb\"\nkind = \"photos\"\n",
             "m.toml",
         )
-        .unwrap_err();
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("takes nothing"), "{e}");
     }
 }

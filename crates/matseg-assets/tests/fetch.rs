@@ -8,7 +8,7 @@
 use matseg_assets::archive::fixtures::{self as archive_fixtures, gzip, tar};
 use matseg_assets::fetch::CacheLayout;
 use matseg_assets::{
-    fetch, Catalog, Downloader, Kind, Manifest, PackageSpec, Progress, RegistryClients,
+    fetch, AssetError, Catalog, Downloader, Kind, Manifest, PackageSpec, Progress, RegistryClients,
 };
 use matseg_weights::fixtures::{legacy, Storage};
 use matseg_weights::zip::write_stored;
@@ -138,12 +138,12 @@ struct Fixtures {
 }
 
 impl Downloader for Fixtures {
-    fn download(&self, spec: &PackageSpec, dir: &Path) -> Result<(PathBuf, String), String> {
+    fn download(&self, spec: &PackageSpec, dir: &Path) -> Result<(PathBuf, String), AssetError> {
         if self.fail.as_deref() == Some(spec.name.as_str()) {
-            return Err(format!(
+            return Err(AssetError::Client(format!(
                 "{}: apt-get failed (exit status: 100): E: Unable to locate package",
                 spec.name
-            ));
+            )));
         }
         *self.downloads.borrow_mut() += 1;
         let (name, bytes) = &self.files[&spec.name];
@@ -480,12 +480,16 @@ fn a_failing_package_is_named_and_the_others_still_land() {
     let failed: Vec<&str> = report.failed.iter().map(|(n, _)| n.as_str()).collect();
     assert_eq!(failed, ["wallpapers", "patterns"]);
     assert!(
-        report.failed[0].1.contains("no usable file") && report.failed[0].1.contains("x.jpg"),
+        report.failed[0].1.to_string().contains("no usable file")
+            && report.failed[0].1.to_string().contains("x.jpg"),
         "{:?}",
         report.failed
     );
     assert!(
-        report.failed[1].1.contains("Unable to locate package"),
+        report.failed[1]
+            .1
+            .to_string()
+            .contains("Unable to locate package"),
         "{:?}",
         report.failed
     );

@@ -93,7 +93,7 @@ fn run_fetch(args: FetchArgs) -> Result<()> {
         Some(path) => {
             let text = std::fs::read_to_string(path)
                 .with_context(|| format!("{}: cannot read", path.display()))?;
-            Manifest::parse(&text, &path.display().to_string()).map_err(anyhow::Error::msg)?
+            Manifest::parse(&text, &path.display().to_string())?
         }
         None => Manifest::builtin(),
     };
@@ -115,8 +115,7 @@ fn run_fetch(args: FetchArgs) -> Result<()> {
             }
             Progress::Done => bar.inc(1),
         },
-    )
-    .map_err(anyhow::Error::msg)?;
+    )?;
     bar.finish_and_clear();
     for record in &report.installed {
         for w in &record.warnings {
@@ -157,7 +156,7 @@ fn run_list(args: ListArgs) -> Result<()> {
 
 /// The table of files and megabytes per kind and licence family.
 fn print_summary(corpus: &Path) -> Result<()> {
-    let catalog = Catalog::read(corpus).map_err(anyhow::Error::msg)?;
+    let catalog = Catalog::read(corpus)?;
     let parts = catalog.files.iter().filter(|f| f.part_of.is_some()).count();
     println!(
         "{}: {} files, and {parts} materials and textures of models",

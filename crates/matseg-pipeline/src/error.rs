@@ -22,6 +22,9 @@ pub enum PipelineError {
     /// An image could not be read or written.
     #[error(transparent)]
     Image(#[from] ImageIoError),
+    /// A registry package could not be fetched or installed.
+    #[error(transparent)]
+    Asset(#[from] matseg_assets::AssetError),
     /// A weights file could not be read.
     #[error(transparent)]
     Weights(#[from] matseg_weights::WeightsError),

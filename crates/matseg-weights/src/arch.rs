@@ -3,6 +3,16 @@
 
 use crate::Tensor;
 
+/// A checkpoint that is not of the architecture it was checked against.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("not a {arch} checkpoint: {problem}")]
+pub struct ArchMismatch {
+    /// The architecture's name.
+    pub arch: &'static str,
+    /// The first missing or misshapen parameter.
+    pub problem: String,
+}
+
 /// Architectures whose checkpoints can be checked.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Arch {
@@ -33,22 +43,20 @@ impl Arch {
 
     /// Checks that `tensors` hold this architecture's parameters; the error
     /// names the first missing or misshapen one.
-    pub fn check(self, tensors: &[Tensor]) -> Result<(), String> {
+    pub fn check(self, tensors: &[Tensor]) -> Result<(), ArchMismatch> {
         for (name, shape) in self.required() {
             match tensors.iter().find(|t| t.name == *name) {
                 None => {
-                    return Err(format!(
-                        "not a {} checkpoint: no parameter {name}",
-                        self.name()
-                    ))
+                    return Err(ArchMismatch {
+                        arch: self.name(),
+                        problem: format!("no parameter {name}"),
+                    })
                 }
                 Some(t) if t.shape != *shape => {
-                    return Err(format!(
-                        "not a {} checkpoint: {name} has shape {:?}, expected {:?}",
-                        self.name(),
-                        t.shape,
-                        shape
-                    ))
+                    return Err(ArchMismatch {
+                        arch: self.name(),
+                        problem: format!("{name} has shape {:?}, expected {shape:?}", t.shape),
+                    })
                 }
                 Some(_) => {}
             }

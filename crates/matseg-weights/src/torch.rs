@@ -25,16 +25,22 @@ const LEGACY_MAGIC: [u8; 10] = [0x6c, 0xfc, 0x9c, 0x46, 0xf9, 0x20, 0x6a, 0xa8, 
 pub fn read_checkpoint(bytes: &[u8], name: &str) -> Result<Vec<Tensor>, WeightsError> {
     let fail = |m: String| WeightsError::new(name, m);
     if bytes.starts_with(b"PK\x03\x04") {
-        let archive = ZipArchive::new(bytes).map_err(fail)?;
+        let archive = ZipArchive::new(bytes).map_err(|e| fail(e.to_string()))?;
         let pickle_name = archive
             .names()
             .find(|n| n.ends_with("/data.pkl") || *n == "data.pkl")
             .ok_or_else(|| fail("zip checkpoint without data.pkl".into()))?
             .to_string();
         let prefix = pickle_name.trim_end_matches("data.pkl").to_string();
-        let object = archive.read(&pickle_name).map_err(fail)?;
+        let object = archive
+            .read(&pickle_name)
+            .map_err(|e| fail(e.to_string()))?;
         let (object, _) = read_pickle(&object).map_err(|e| fail(format!("data.pkl: {e}")))?;
-        let storage = |key: &str| archive.read(&format!("{prefix}data/{key}"));
+        let storage = |key: &str| {
+            archive
+                .read(&format!("{prefix}data/{key}"))
+                .map_err(|e| e.to_string())
+        };
         tensors(&object, &|key| storage(key)).map_err(fail)
     } else {
         read_legacy(bytes).map_err(fail)

@@ -16,22 +16,64 @@ struct Entry {
     header: u64,
 }
 
+/// Why a zip archive or one of its entries cannot be read.
+#[derive(Debug, thiserror::Error)]
+pub enum ZipError {
+    /// The archive ends before a structure it needs.
+    #[error("zip: truncated")]
+    Truncated,
+    /// No end-of-central-directory record: not a zip.
+    #[error("zip: no end of central directory")]
+    NoDirectory,
+    /// A central directory entry that cannot be parsed.
+    #[error("zip: bad central directory entry")]
+    BadDirectory,
+    /// An entry's local header is not one.
+    #[error("zip: bad local header for {0}")]
+    BadLocalHeader(String),
+    /// An entry whose data ends early.
+    #[error("zip: {0} is truncated")]
+    TruncatedEntry(String),
+    /// An entry that does not inflate to its recorded size.
+    #[error("zip: {name}: {problem}")]
+    Corrupt {
+        /// The entry.
+        name: String,
+        /// What went wrong.
+        problem: String,
+    },
+    /// An entry compressed with a method other than stored or deflate.
+    #[error("zip: {name}: unsupported compression method {method}")]
+    Unsupported {
+        /// The entry.
+        name: String,
+        /// Its compression method.
+        method: u16,
+    },
+    /// No entry of that name.
+    #[error("zip: no entry {0}")]
+    Missing(String),
+    /// The source could not be read.
+    #[error("zip: {0}")]
+    Io(#[from] std::io::Error),
+}
+
 /// A zip archive held in memory.
 pub struct ZipArchive<'a> {
     bytes: &'a [u8],
     entries: Vec<Entry>,
 }
 
-fn u16_at(b: &[u8], at: usize) -> Result<u16, String> {
+fn u16_at(b: &[u8], at: usize) -> Result<u16, ZipError> {
     b.get(at..at + 2)
         .map(|s| u16::from_le_bytes(s.try_into().expect("2 bytes")))
-        .ok_or_else(|| "zip: truncated".to_string())
+        .ok_or(ZipError::Truncated)
 }
 
-fn u32_at(b: &[u8], at: usize) -> Result<u32, String> {
+fn u32_at(b: &[u8], at: usize) -> Result<u32, ZipError> {
     b.get(at..at + 4)
         .map(|s| u32::from_le_bytes(s.try_into().expect("4 bytes")))
-        .ok_or_else(|| "zip: truncated".to_string())
+        .ok_or(ZipError::Truncated)
 }
 
 /// The longest tail of a zip that can hold its end-of-central-directory
@@ -41,11 +83,11 @@ const MAX_END_RECORD: usize = 22 + 65_535;
 /// Where the central directory is, from the end-of-central-directory record
 /// found in `tail` (the last bytes of the archive): entry count, size and
 /// offset.
-fn directory_location(tail: &[u8]) -> Result<(usize, usize, u64), String> {
+fn directory_location(tail: &[u8]) -> Result<(usize, usize, u64), ZipError> {
     let end = (0..tail.len().saturating_sub(21))
         .rev()
         .find(|&i| tail[i..].starts_with(b"PK\x05\x06"))
-        .ok_or("zip: no end of central directory")?;
+        .ok_or(ZipError::NoDirectory)?;
     Ok((
         u16_at(tail, end + 10)? as usize,
         u32_at(tail, end + 12)? as usize,
@@ -54,7 +96,7 @@ fn directory_location(tail: &[u8]) -> Result<(usize, usize, u64), String> {
 }
 
 /// The `count` entries of the central directory `bytes`.
-fn parse_directory(bytes: &[u8], count: usize) -> Result<Vec<Entry>, String> {
+fn parse_directory(bytes: &[u8], count: usize) -> Result<Vec<Entry>, ZipError> {
     let mut at = 0;
     let mut entries = Vec::with_capacity(count);
     for _ in 0..count {
@@ -62,12 +104,12 @@ fn parse_directory(bytes: &[u8], count: usize) -> Result<Vec<Entry>, String> {
             .get(at..)
             .is_some_and(|b| b.starts_with(b"PK\x01\x02"))
         {
-            return Err("zip: bad central directory entry".into());
+            return Err(ZipError::BadDirectory);
         }
         let name_len = u16_at(bytes, at + 28)? as usize;
         let name = bytes
             .get(at + 46..at + 46 + name_len)
-            .ok_or("zip: truncated name")?;
+            .ok_or(ZipError::Truncated)?;
         entries.push(Entry {
             name: String::from_utf8_lossy(name).into_owned(),
             method: u16_at(bytes, at + 10)?,
@@ -82,47 +124,53 @@ fn parse_directory(bytes: &[u8], count: usize) -> Result<Vec<Entry>, String> {
 
 /// The offset of an entry's data from its local header (the header's
 /// first 30 bytes).
-fn data_offset(local_header: &[u8], name: &str) -> Result<u64, String> {
+fn data_offset(local_header: &[u8], name: &str) -> Result<u64, ZipError> {
     if !local_header.starts_with(b"PK\x03\x04") {
-        return Err(format!("zip: bad local header for {name}"));
+        return Err(ZipError::BadLocalHeader(name.to_string()));
     }
     Ok(30 + u64::from(u16_at(local_header, 26)?) + u64::from(u16_at(local_header, 28)?))
 }
 
 /// The uncompressed bytes of entry `e` from its stored data.
-fn decode(e: &Entry, data: &[u8]) -> Result<Vec<u8>, String> {
-    let name = &e.name;
+fn decode(e: &Entry, data: &[u8]) -> Result<Vec<u8>, ZipError> {
+    let corrupt = |problem: String| ZipError::Corrupt {
+        name: e.name.clone(),
+        problem,
+    };
     match e.method {
         0 => Ok(data.to_vec()),
         8 => {
             let mut out = Vec::with_capacity(e.size);
             DeflateDecoder::new(data)
                 .read_to_end(&mut out)
-                .map_err(|err| format!("zip: {name}: {err}"))?;
+                .map_err(|err| corrupt(err.to_string()))?;
             if out.len() != e.size {
-                return Err(format!("zip: {name}: size mismatch"));
+                return Err(corrupt("size mismatch".into()));
             }
             Ok(out)
         }
-        m => Err(format!("zip: {name}: unsupported compression method {m}")),
+        method => Err(ZipError::Unsupported {
+            name: e.name.clone(),
+            method,
+        }),
     }
 }
 
-fn find<'e>(entries: &'e [Entry], name: &str) -> Result<&'e Entry, String> {
+fn find<'e>(entries: &'e [Entry], name: &str) -> Result<&'e Entry, ZipError> {
     entries
         .iter()
         .find(|e| e.name == name)
-        .ok_or_else(|| format!("zip: no entry {name}"))
+        .ok_or_else(|| ZipError::Missing(name.to_string()))
 }
 
 impl<'a> ZipArchive<'a> {
     /// Reads the central directory of `bytes`.
-    pub fn new(bytes: &'a [u8]) -> Result<Self, String> {
+    pub fn new(bytes: &'a [u8]) -> Result<Self, ZipError> {
         let (count, size, offset) = directory_location(bytes)?;
         let start = offset as usize;
         let directory = bytes
             .get(start..start.saturating_add(size).min(bytes.len()))
-            .ok_or("zip: bad central directory entry")?;
+            .ok_or(ZipError::BadDirectory)?;
         let entries = parse_directory(directory, count)?;
         Ok(Self { bytes, entries })
     }
@@ -133,7 +181,7 @@ impl<'a> ZipArchive<'a> {
     }
 
     /// The uncompressed bytes of entry `name`.
-    pub fn read(&self, name: &str) -> Result<Vec<u8>, String> {
+    pub fn read(&self, name: &str) -> Result<Vec<u8>, ZipError> {
         let e = find(&self.entries, name)?;
         let h = e.header as usize;
         let header = self.bytes.get(h..).unwrap_or_default();
@@ -141,7 +189,7 @@ impl<'a> ZipArchive<'a> {
         let data = self
             .bytes
             .get(start..start + e.compressed)
-            .ok_or_else(|| format!("zip: {name} is truncated"))?;
+            .ok_or_else(|| ZipError::TruncatedEntry(name.to_string()))?;
         decode(e, data)
     }
 }
@@ -155,20 +203,19 @@ pub struct ZipFile<R> {
 
 impl<R: Read + Seek> ZipFile<R> {
     /// Reads the central directory of `source`.
-    pub fn new(mut source: R) -> Result<Self, String> {
-        let io = |e: std::io::Error| format!("zip: {e}");
-        let len = source.seek(SeekFrom::End(0)).map_err(io)?;
+    pub fn new(mut source: R) -> Result<Self, ZipError> {
+        let len = source.seek(SeekFrom::End(0))?;
         let tail_len = len.min(MAX_END_RECORD as u64);
         let mut tail = vec![0; tail_len as usize];
-        source.seek(SeekFrom::Start(len - tail_len)).map_err(io)?;
-        source.read_exact(&mut tail).map_err(io)?;
+        source.seek(SeekFrom::Start(len - tail_len))?;
+        source.read_exact(&mut tail)?;
         let (count, size, offset) = directory_location(&tail)?;
         if offset + size as u64 > len {
-            return Err("zip: bad central directory entry".into());
+            return Err(ZipError::BadDirectory);
         }
         let mut directory = vec![0; size];
-        source.seek(SeekFrom::Start(offset)).map_err(io)?;
-        source.read_exact(&mut directory).map_err(io)?;
+        source.seek(SeekFrom::Start(offset))?;
+        source.read_exact(&mut directory)?;
         let entries = parse_directory(&directory, count)?;
         Ok(Self { source, entries })
     }
@@ -179,9 +226,9 @@ impl<R: Read + Seek> ZipFile<R> {
     }
 
     /// The uncompressed bytes of entry `name`.
-    pub fn read(&mut self, name: &str) -> Result<Vec<u8>, String> {
+    pub fn read(&mut self, name: &str) -> Result<Vec<u8>, ZipError> {
         let e = find(&self.entries, name)?;
-        let truncated = |_| format!("zip: {name} is truncated");
+        let truncated = |_| ZipError::TruncatedEntry(name.to_string());
         let mut header = [0u8; 30];
         self.source
             .seek(SeekFrom::Start(e.header))

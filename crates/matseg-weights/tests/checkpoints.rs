@@ -59,9 +59,10 @@ fn the_architecture_check_names_what_is_missing() {
         .check(&tensors)
         .unwrap_err();
     assert_eq!(
-        err,
+        err.to_string(),
         "not a mobilenet-v2 checkpoint: no parameter features.0.0.weight"
     );
+    assert_eq!(err.arch, "mobilenet-v2");
 }
 
 #[test]
