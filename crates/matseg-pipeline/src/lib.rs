@@ -6,6 +6,7 @@
 //! - [`sources`]: where photos, textures and the cache are, and the photo
 //!   and texture libraries a generator or a training run draws from,
 //!   resolved once per process.
+//! - [`textures`]: texture libraries extracted from photos, resumable.
 //! - [`materials`]: PBR material libraries made from textures, and the
 //!   default ones of the 3D generator.
 //! - [`files3d`]: the photos, materials, meshes and HDRIs of 3D scenes,
@@ -39,6 +40,7 @@ pub mod progress;
 #[cfg(feature = "net")]
 pub mod segment;
 pub mod sources;
+pub mod textures;
 #[cfg(feature = "net")]
 pub mod train;
 pub mod weights;

@@ -1,0 +1,198 @@
+//! A texture library (pipeline.md §4): uniform-texture crops extracted
+//! from photos in parallel, with one record per photo written last, so an
+//! interrupted job resumes where it stopped and the library works as a
+//! texture source (`licenses.json` rebuilt from all records).
+
+use crate::bench::clock::process_cpu_seconds;
+use crate::error::PipelineError;
+use crate::progress::Progress;
+use crate::sources::SourceError;
+use matseg_extract::textures::{extract_textures, TextureOptions, TextureSquare, CHANNEL_NAMES};
+use matseg_image::io::{encode_jpeg, read_rgb, write_atomic};
+use matseg_image::library::PhotoEntry;
+use matseg_image::PhotoLibrary;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// What one photo gave: written last, so a photo with a record is done.
+#[derive(Serialize, Deserialize)]
+struct PhotoRecord {
+    source: String,
+    licence: String,
+    width: u32,
+    height: u32,
+    options: TextureOptions,
+    channels: Vec<String>,
+    textures: Vec<TextureRecord>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct TextureRecord {
+    file: String,
+    #[serde(flatten)]
+    square: TextureSquare,
+}
+
+/// The record file of a photo: its path in the sources, flattened.
+fn record_path(out: &Path, entry: &PhotoEntry) -> PathBuf {
+    out.join("records")
+        .join(format!("{}.json", entry.flat_name()))
+}
+
+/// What a texture-library job did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TextureReport {
+    /// Textures written now.
+    pub textures: usize,
+    /// Photos processed now.
+    pub photos: usize,
+    /// Photos done by an earlier run.
+    pub already: usize,
+    /// Photos too small for the smallest square.
+    pub too_small: usize,
+    /// The smallest square's side, in pixels.
+    pub smallest: u32,
+    /// Photos that could not be read, each as `FILE: problem`.
+    pub unreadable: Vec<String>,
+    /// CPU seconds per megapixel of the photos processed now.
+    pub cpu_seconds_per_megapixel: f64,
+}
+
+/// Extracts the textures of `photos` (files or folders, walked
+/// recursively) into the library `out`, skipping photos an earlier run
+/// finished; files the scan cannot read are reported to `progress` as
+/// warnings, photos that fail to decode in the report.
+pub fn make_texture_library(
+    photos: &[PathBuf],
+    out: &Path,
+    options: &TextureOptions,
+    progress: &dyn Progress,
+) -> Result<TextureReport, PipelineError> {
+    if options.cell < 4 || options.min_cells < 1 {
+        return Err(PipelineError::Settings(
+            "--cell must be at least 4 and --min-cells at least 1".into(),
+        ));
+    }
+    let (library, report) = PhotoLibrary::scan(photos, 0).map_err(SourceError::from)?;
+    for s in &report.skipped {
+        progress.warn(&format!("{}: {}", s.path.display(), s.reason));
+    }
+    let records = out.join("records");
+    std::fs::create_dir_all(&records)
+        .map_err(|e| PipelineError::file(out.display(), format!("cannot create: {e}")))?;
+    let smallest = (options.cell * options.min_cells) as u32;
+    let todo: Vec<usize> = (0..library.len())
+        .filter(|&i| !record_path(out, &library.entries()[i]).is_file())
+        .collect();
+    // The headers tell which photos cannot hold the smallest square.
+    let (too_small, todo): (Vec<usize>, Vec<usize>) = todo.into_iter().partition(|&i| {
+        let entry = &library.entries()[i];
+        entry.width.min(entry.height) < smallest
+    });
+    progress.start(todo.len() as u64, "photos");
+    let (start, cpu) = (Instant::now(), process_cpu_seconds());
+    let results: Vec<Result<(usize, u64), String>> = todo
+        .par_iter()
+        .map(|&i| {
+            let outcome = extract_one(out, &library, i, options);
+            progress.advance();
+            outcome
+        })
+        .collect();
+    progress.finish();
+    let (mut textures, mut pixels) = (0usize, 0u64);
+    let mut unreadable = Vec::new();
+    for r in results {
+        match r {
+            Ok((n, px)) => {
+                textures += n;
+                pixels += px;
+            }
+            Err(e) => unreadable.push(e),
+        }
+    }
+    write_licences(out)?;
+    let seconds = match (cpu, process_cpu_seconds()) {
+        (Some(a), Some(b)) => b - a,
+        _ => start.elapsed().as_secs_f64(),
+    };
+    Ok(TextureReport {
+        textures,
+        photos: todo.len() - unreadable.len(),
+        already: library.len() - todo.len() - too_small.len(),
+        too_small: too_small.len(),
+        smallest,
+        unreadable,
+        cpu_seconds_per_megapixel: if pixels > 0 {
+            seconds / (pixels as f64 / 1e6)
+        } else {
+            0.0
+        },
+    })
+}
+
+/// Extracts the textures of photo `i`, writes the crops and then the
+/// record; returns the texture count and the photo's pixels.
+fn extract_one(
+    out: &Path,
+    library: &PhotoLibrary,
+    i: usize,
+    options: &TextureOptions,
+) -> Result<(usize, u64), String> {
+    let entry = &library.entries()[i];
+    let img = read_rgb(&entry.path).map_err(|e| e.to_string())?;
+    let stem = entry.flat_stem();
+    let mut textures = Vec::new();
+    for (k, (square, crop)) in extract_textures(&img, options).into_iter().enumerate() {
+        let file = format!("{stem}__{k}.jpg");
+        write_atomic(&out.join(&file), &encode_jpeg(&crop, 95))
+            .map_err(|e| format!("{}: cannot write: {e}", out.join(&file).display()))?;
+        textures.push(TextureRecord { file, square });
+    }
+    let record = PhotoRecord {
+        source: entry.name.clone(),
+        licence: entry.licence.clone(),
+        width: img.width(),
+        height: img.height(),
+        options: *options,
+        channels: CHANNEL_NAMES.iter().map(|c| c.to_string()).collect(),
+        textures,
+    };
+    let n = record.textures.len();
+    let json = serde_json::to_vec_pretty(&record).expect("JSON");
+    let path = record_path(out, entry);
+    write_atomic(&path, &json).map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
+    Ok((n, img.width() as u64 * img.height() as u64))
+}
+
+/// `licenses.json` for the library (each crop with its photo's licence),
+/// rebuilt from all records, so the library works as `--textures`.
+fn write_licences(out: &Path) -> Result<(), PipelineError> {
+    let records = out.join("records");
+    let unreadable = |path: &Path, e: String| PipelineError::file(path.display(), e);
+    let mut licences = BTreeMap::new();
+    let listing = std::fs::read_dir(&records)
+        .map_err(|e| unreadable(&records, format!("cannot list: {e}")))?;
+    for entry in listing {
+        let path = entry
+            .map_err(|e| unreadable(&records, format!("cannot list: {e}")))?
+            .path();
+        if path.extension().is_some_and(|e| e == "json") {
+            let bytes =
+                std::fs::read(&path).map_err(|e| unreadable(&path, format!("cannot read: {e}")))?;
+            let record: PhotoRecord = serde_json::from_slice(&bytes)
+                .map_err(|e| unreadable(&path, format!("bad record: {e}")))?;
+            for t in record.textures {
+                licences.insert(t.file, record.licence.clone());
+            }
+        }
+    }
+    write_atomic(
+        &out.join("licenses.json"),
+        &serde_json::to_vec_pretty(&licences).expect("JSON"),
+    )
+    .map_err(|e| unreadable(out, format!("cannot write: {e}")))
+}
