@@ -72,8 +72,8 @@ fn mix_dir(out: &Path, i: u64) -> PathBuf {
     out.join(format!("mix{i:05}"))
 }
 
-/// Makes mix `i` and writes its folder (through `NAME.partial/`, renamed),
-/// `material.json` last.
+/// Makes mix `i` and writes its folder (through a partial folder, renamed
+/// when complete).
 fn write_mix(
     out: &Path,
     i: u64,

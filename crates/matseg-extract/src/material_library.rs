@@ -186,7 +186,9 @@ pub fn find_materials(root: &Path) -> Result<Vec<PathBuf>, MaterialError> {
         for entry in entries.filter_map(|e| e.ok()) {
             let path = entry.path();
             if path.is_dir() {
-                stack.push(path);
+                if !is_partial(&path) {
+                    stack.push(path);
+                }
             } else if matseg_image::io::has_image_extension(&path)
                 && path.file_stem().and_then(|s| s.to_str()).and_then(role) == Some(Role::Colour)
             {
@@ -201,23 +203,26 @@ pub fn find_materials(root: &Path) -> Result<Vec<PathBuf>, MaterialError> {
     Ok(found)
 }
 
-/// Writes a material folder: `write_maps` fills `DIR.partial/`, with a
-/// `licenses.json` giving every file `licence`; the folder is renamed to
-/// `dir`, and `material.json` (the `record` object plus the licence, the
-/// colour spaces and the normal convention) is written last, so a folder
-/// with `material.json` is complete and anything else is redone.
+/// Writes a material folder: `write_maps` fills `DIR.partial.PID/`, then a
+/// `licenses.json` giving every file `licence` and `material.json` (the
+/// `record` object plus the licence, the colour spaces and the normal
+/// convention) go beside the maps, and the folder is renamed to `dir`: a
+/// folder with `material.json` is complete, anything else is redone.
+/// Processes writing the same library at once do not clash: each has its
+/// own partial folders, and the first complete folder stands.
 pub fn write_material_folder(
     dir: &Path,
     licence: &str,
     write_maps: impl FnOnce(&Path) -> std::io::Result<()>,
     mut record: serde_json::Value,
 ) -> Result<(), MaterialError> {
-    // `NAME.partial` beside `dir`, appended rather than swapped for an
+    // `NAME.partial.PID` beside `dir`, appended rather than swapped for an
     // extension: material names hold dots (`Terrain.winter__Town1`), and
     // two such names must not share one partial folder when written in
-    // parallel.
+    // parallel; nor must two processes making the same library (jobs of a
+    // cluster starting on one cache) share one.
     let mut partial_name = dir.file_name().unwrap_or_default().to_os_string();
-    partial_name.push(".partial");
+    partial_name.push(format!("{PARTIAL_SUFFIX}.{}", std::process::id()));
     let partial = dir.with_file_name(partial_name);
     let failed = |path: &Path| {
         let path = path.to_path_buf();
@@ -227,22 +232,47 @@ pub fn write_material_folder(
         std::fs::remove_dir_all(&partial).map_err(failed(&partial))?;
     }
     std::fs::create_dir_all(&partial).map_err(failed(&partial))?;
-    write_maps(&partial)
-        .and_then(|()| {
-            let licences = serde_json::json!({ "*": licence }).to_string();
-            std::fs::write(partial.join("licenses.json"), licences)
-        })
-        .map_err(failed(&partial))?;
     record["licence"] = licence.into();
     record["color_space"] = serde_json::json!({"Color": "sRGB", "other maps": "linear"});
     record["normal_convention"] = "OpenGL (+Y up)".into();
+    let json = serde_json::to_vec_pretty(&record).expect("a JSON value serialises");
+    write_maps(&partial)
+        .and_then(|()| {
+            let licences = serde_json::json!({ "*": licence }).to_string();
+            std::fs::write(partial.join("licenses.json"), licences)?;
+            std::fs::write(partial.join(MATERIAL_RECORD), json)
+        })
+        .map_err(failed(&partial))?;
+    // The rename completes the folder. A complete one already there was
+    // made by another process from the same inputs: it stands.
+    if dir.join(MATERIAL_RECORD).is_file() {
+        return std::fs::remove_dir_all(&partial).map_err(failed(&partial));
+    }
     if dir.exists() {
         std::fs::remove_dir_all(dir).map_err(failed(dir))?;
     }
-    std::fs::rename(&partial, dir).map_err(failed(dir))?;
-    let json = serde_json::to_vec_pretty(&record).expect("a JSON value serialises");
-    let file = dir.join("material.json");
-    std::fs::write(&file, json).map_err(failed(&file))
+    match std::fs::rename(&partial, dir) {
+        Err(_) if dir.join(MATERIAL_RECORD).is_file() => {
+            std::fs::remove_dir_all(&partial).map_err(failed(&partial))
+        }
+        renamed => renamed.map_err(failed(dir)),
+    }
+}
+
+/// The record a complete material folder holds (written inside the
+/// partial folder, so a folder with this name is complete).
+pub const MATERIAL_RECORD: &str = "material.json";
+
+/// What a folder being written is named after: `NAME.partial.PID`. Such
+/// folders are never materials.
+pub const PARTIAL_SUFFIX: &str = ".partial";
+
+/// Whether `dir` is a folder being written (or left by an interrupted
+/// writer), not a material.
+fn is_partial(dir: &Path) -> bool {
+    dir.file_name()
+        .and_then(|n| n.to_str())
+        .is_some_and(|n| n.contains(&format!("{PARTIAL_SUFFIX}.")) || n.ends_with(PARTIAL_SUFFIX))
 }
 
 #[cfg(test)]
@@ -261,7 +291,8 @@ mod tests {
                 &root.path().join(name),
                 "CC0",
                 |partial| {
-                    assert_eq!(partial, root.path().join(format!("{name}.partial")));
+                    let own = format!("{name}.partial.{}", std::process::id());
+                    assert_eq!(partial, root.path().join(own));
                     std::fs::write(partial.join("Color.png"), name)
                 },
                 serde_json::json!({ "name": name }),
@@ -278,8 +309,40 @@ mod tests {
                 serde_json::from_slice(&std::fs::read(dir.join("material.json")).unwrap()).unwrap();
             assert_eq!(record["name"], name);
             assert_eq!(record["licence"], "CC0");
-            assert!(!root.path().join(format!("{name}.partial")).exists());
+            let left: Vec<_> = std::fs::read_dir(root.path())
+                .unwrap()
+                .filter_map(|e| e.ok())
+                .filter(|e| is_partial(&e.path()))
+                .collect();
+            assert!(left.is_empty(), "partial folders left: {left:?}");
         }
+    }
+
+    #[test]
+    fn a_folder_another_writer_completed_stands_and_partials_are_no_materials() {
+        let root = tempfile::tempdir().unwrap();
+        let dir = root.path().join("brick");
+        let write = |text: &'static str| {
+            write_material_folder(
+                &dir,
+                "CC0",
+                move |p| std::fs::write(p.join("Color.png"), text),
+                serde_json::json!({"name": "brick"}),
+            )
+        };
+        write("first").unwrap();
+        // A second writer of the same material (another process, the same
+        // inputs) leaves the complete folder as it is.
+        write("second").unwrap();
+        assert_eq!(
+            std::fs::read_to_string(dir.join("Color.png")).unwrap(),
+            "first"
+        );
+        // An interrupted writer's folder is not taken for a material.
+        let stale = root.path().join("tile.partial.12345");
+        std::fs::create_dir_all(&stale).unwrap();
+        std::fs::write(stale.join("Color.png"), "x").unwrap();
+        assert_eq!(find_materials(root.path()).unwrap(), vec![dir]);
     }
 
     #[test]
