@@ -6,11 +6,13 @@
 //! - [`sources`]: where photos, textures and the cache are, and the photo
 //!   and texture libraries a generator or a training run draws from,
 //!   resolved once per process.
+//! - [`soft_maps`]: one photo's soft maps, drawn and written.
 //! - [`textures`]: texture libraries extracted from photos, resumable.
 //! - [`materials`]: PBR material libraries made from textures, and the
 //!   default ones of the 3D generator.
 //! - [`files3d`]: the photos, materials, meshes and HDRIs of 3D scenes,
 //!   checked once into the asset cache, and the 3D recipe.
+//! - [`material_mixes`]: new PBR materials mixed from existing ones.
 //! - [`models`]: the descriptor models to score or segment with, baselines
 //!   by name and trained nets by folder.
 //! - [`weights`]: checkpoints converted to safetensors, and the registry's
@@ -22,6 +24,9 @@
 //! - [`bench`]: the benchmark harnesses behind `matseg bench*` and
 //!   `cargo bench`.
 //! - [`demo`]: the pipeline on the bundled assets as an HTML report.
+//! - [`point_bench`]: point benchmarks made from generated scenes, and
+//!   drawn to check them.
+//! - [`render`]: one scene description rendered with its annotation.
 //! - [`progress`]: how a long job reports progress and warnings to its
 //!   front end.
 //! - [`error`]: the one error type of these jobs.
@@ -34,11 +39,15 @@ pub mod bench;
 pub mod demo;
 pub mod error;
 pub mod files3d;
+pub mod material_mixes;
 pub mod materials;
 pub mod models;
+pub mod point_bench;
 pub mod progress;
+pub mod render;
 #[cfg(feature = "net")]
 pub mod segment;
+pub mod soft_maps;
 pub mod sources;
 pub mod textures;
 #[cfg(feature = "net")]

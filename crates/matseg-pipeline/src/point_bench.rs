@@ -1,0 +1,80 @@
+//! Point benchmarks (docs/eval.md): one made from generated 2D scenes, so
+//! the evaluation runs end to end without external data, and any
+//! benchmark's annotations drawn on its photos to check them by eye.
+
+use crate::error::PipelineError;
+use crate::sources::Libraries;
+use matseg_data::sample_rng;
+use matseg_eval::load_point_benchmark;
+use matseg_eval::overlay::draw_points;
+use matseg_eval::synthetic::{annotate_points, write_point_image, SyntheticOptions};
+use matseg_image::io::{encode_png_rgb, read_rgb, write_atomic};
+use matseg_scene::{generate_2d, Recipe2d};
+use std::path::Path;
+
+/// Writes a point benchmark (MatSeg layout) of `scenes` generated 2D scenes
+/// (scene i from (seed, i)) with `points` points per material into `out`;
+/// scenes with fewer than two pointed materials are left out. Returns the
+/// scenes written and left out.
+pub fn make_point_benchmark(
+    out: &Path,
+    scenes: u64,
+    seed: u64,
+    points: usize,
+    libraries: &Libraries,
+) -> Result<(u64, u64), PipelineError> {
+    if points < 1 {
+        return Err(PipelineError::Settings(
+            "--points must be at least 1".into(),
+        ));
+    }
+    let recipe = Recipe2d::default();
+    let options = SyntheticOptions {
+        points_per_material: points,
+        ..SyntheticOptions::default()
+    };
+    let (mut written, mut left_out) = (0u64, 0u64);
+    for i in 0..scenes {
+        let mut rng = sample_rng(seed, i);
+        let scene = generate_2d(&mut rng, &recipe, libraries.sources())?;
+        let weights: Vec<_> = scene.weights.iter().map(|w| w.to_plane()).collect();
+        let annotation = annotate_points(&mut rng, &weights, &options);
+        if annotation.materials.len() < 2 {
+            left_out += 1;
+            continue;
+        }
+        let name = format!("scene{i:05}");
+        write_point_image(out, &name, &scene.image, &annotation)
+            .map_err(|e| PipelineError::file(out.display(), format!("cannot write {name}: {e}")))?;
+        written += 1;
+    }
+    Ok((written, left_out))
+}
+
+/// Draws each image's points of the benchmark `bench` on it into
+/// `out/NAME.png` (rings in one colour per material, labelled with its id;
+/// photos whose longer side is below `magnify_below` pixels magnified
+/// twofold). Returns the overlays and points drawn.
+pub fn draw_point_benchmark(
+    bench: &Path,
+    out: &Path,
+    magnify_below: u32,
+) -> Result<(usize, usize), PipelineError> {
+    let bench = load_point_benchmark(bench, false)?;
+    std::fs::create_dir_all(out)
+        .map_err(|e| PipelineError::file(out.display(), format!("cannot create: {e}")))?;
+    let mut points = 0;
+    for image in &bench.images {
+        let photo = read_rgb(&image.image_path)?;
+        let scale = if photo.width().max(photo.height()) < magnify_below {
+            2
+        } else {
+            1
+        };
+        let path = out.join(format!("{}.png", image.name));
+        write_atomic(&path, &encode_png_rgb(&draw_points(&photo, image, scale)))
+            .map_err(|e| PipelineError::file(path.display(), format!("cannot write: {e}")))?;
+        points += image.points.iter().map(Vec::len).sum::<usize>();
+    }
+    Ok((bench.images.len(), points))
+}
