@@ -107,3 +107,36 @@ fn nets(choice: &ModelChoice) -> Result<Vec<Box<dyn DescriptorModel>>, PipelineE
     }
     Ok(nets)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn choice(baselines: &[&str]) -> ModelChoice {
+        ModelChoice {
+            baselines: baselines.iter().map(|b| b.to_string()).collect(),
+            #[cfg(feature = "net")]
+            nets: vec!["none".into()],
+            #[cfg(feature = "net")]
+            net_sides: Vec::new(),
+            #[cfg(feature = "net")]
+            device: tch::Device::Cpu,
+        }
+    }
+
+    #[test]
+    fn baselines_come_in_table_order_whatever_order_they_are_asked_in() {
+        let models = models(&choice(&["texture", "rgb"])).unwrap();
+        let names: Vec<String> = models.iter().map(|m| m.name().to_string()).collect();
+        assert_eq!(names, vec!["rgb", "texture"]);
+    }
+
+    #[test]
+    fn unknown_baselines_and_no_models_are_refused() {
+        let unknown = models(&choice(&["sift"])).err().expect("refused");
+        assert!(unknown
+            .to_string()
+            .starts_with("unknown baseline \"sift\"; known: rgb, lab"));
+        assert!(models(&choice(&[])).is_err());
+    }
+}

@@ -78,3 +78,35 @@ pub fn draw_point_benchmark(
     }
     Ok((bench.images.len(), points))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sources::Defaults;
+    use matseg_image::LicenceFilter;
+
+    #[test]
+    fn a_generated_benchmark_reads_back_and_draws() {
+        let dir = tempfile::tempdir().unwrap();
+        let libraries =
+            Libraries::load(&[], &[], 256, Defaults::Bundled, &LicenceFilter::default()).unwrap();
+        let bench = dir.path().join("bench");
+        let (written, left_out) = make_point_benchmark(&bench, 4, 1, 3, &libraries).unwrap();
+        assert_eq!(written + left_out, 4);
+        assert!(written >= 1, "most scenes have two materials or more");
+        let read = load_point_benchmark(&bench, false).unwrap();
+        assert_eq!(read.images.len() as u64, written);
+        assert!(read.images[0].points.iter().all(|p| p.len() == 3));
+        let drawn = dir.path().join("drawn");
+        let (overlays, points) = draw_point_benchmark(&bench, &drawn, 450).unwrap();
+        assert_eq!(overlays as u64, written);
+        let want: usize = read
+            .images
+            .iter()
+            .map(|i| i.points.iter().map(Vec::len).sum::<usize>())
+            .sum();
+        assert_eq!(points, want);
+        assert!(drawn.join(format!("{}.png", read.images[0].name)).is_file());
+        assert!(make_point_benchmark(&bench, 1, 1, 0, &libraries).is_err());
+    }
+}
