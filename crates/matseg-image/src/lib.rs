@@ -9,6 +9,7 @@
 
 pub mod bilinear;
 pub mod blur;
+pub mod budget;
 pub mod channel;
 pub mod channel_rows;
 pub mod coarse;
@@ -27,6 +28,7 @@ pub mod rgb;
 pub mod sparse;
 
 pub use blur::{gaussian_blur, gaussian_blur_covered, CoveredBlur};
+pub use budget::MemoryBudget;
 pub use channel::Channel;
 pub use channel_rows::{ChannelRows, WindowRows};
 pub use coverage::Coverage;

@@ -1,6 +1,7 @@
 //! A library of source photos: listed once, decoded on first use, kept in a
 //! memory-bounded cache shared by all worker threads.
 
+use crate::budget::MemoryBudget;
 use crate::io::{has_image_extension, read_dimensions, read_rgb};
 use crate::licence::LicenceFilter;
 use crate::resample::Pyramid;
@@ -144,13 +145,21 @@ struct Cache {
     clock: u64,
 }
 
-/// Source photos with a decode-once, least-recently-used cache bounded in bytes.
+/// Source photos with a decode-once, least-recently-used cache whose bytes
+/// count against a [`MemoryBudget`] (its own, or one the process shares).
 pub struct PhotoLibrary {
     label: String,
     entries: Vec<PhotoEntry>,
-    budget_bytes: usize,
+    budget: Arc<MemoryBudget>,
     cache: Mutex<Cache>,
     failed: Mutex<BTreeMap<usize, String>>,
+}
+
+impl Drop for PhotoLibrary {
+    fn drop(&mut self) {
+        let held = self.cache.get_mut().map_or(0, |c| c.bytes);
+        self.budget.release(held);
+    }
 }
 
 impl std::fmt::Debug for PhotoLibrary {
@@ -158,7 +167,7 @@ impl std::fmt::Debug for PhotoLibrary {
         f.debug_struct("PhotoLibrary")
             .field("label", &self.label)
             .field("photos", &self.entries.len())
-            .field("budget_bytes", &self.budget_bytes)
+            .field("budget_bytes", &self.budget.limit())
             .finish()
     }
 }
@@ -196,11 +205,21 @@ impl PhotoLibrary {
         let lib = Self {
             label,
             entries,
-            budget_bytes,
+            budget: MemoryBudget::new(budget_bytes),
             cache: Mutex::new(Cache::default()),
             failed: Mutex::new(BTreeMap::new()),
         };
         Ok((lib, report))
+    }
+
+    /// Counts the library's decoded photos against `budget` (shared with
+    /// the process's other caches) instead of its own.
+    pub fn sharing(mut self, budget: Arc<MemoryBudget>) -> Self {
+        let held = self.cache.get_mut().expect("lock").bytes;
+        self.budget.release(held);
+        budget.add(held);
+        self.budget = budget;
+        self
     }
 
     /// Keeps only the photos whose licence `filter` accepts; an error when
@@ -209,7 +228,7 @@ impl PhotoLibrary {
         self.entries.retain(|e| filter.accepts(&e.licence));
         if self.entries.is_empty() {
             return Err(LibraryError::NoneLicensed {
-                label: self.label,
+                label: self.label.clone(),
                 filter: filter.to_string(),
             });
         }
@@ -272,8 +291,9 @@ impl PhotoLibrary {
         let now = cache.clock;
         if cache.photos.insert(index, (photo.clone(), now)).is_none() {
             cache.bytes += photo.pyramid.bytes();
+            self.budget.add(photo.pyramid.bytes());
         }
-        while cache.bytes > self.budget_bytes && cache.photos.len() > 1 {
+        while self.budget.exceeded() && cache.photos.len() > 1 {
             let oldest = cache
                 .photos
                 .iter()
@@ -282,6 +302,7 @@ impl PhotoLibrary {
                 .expect("non-empty cache");
             if let Some((old, _)) = cache.photos.remove(&oldest) {
                 cache.bytes -= old.pyramid.bytes();
+                self.budget.release(old.pyramid.bytes());
             }
         }
         Ok(photo)
@@ -485,5 +506,35 @@ mod tests {
         let failures = lib.failures();
         assert_eq!(failures.len(), 1);
         assert!(failures[0].path.ends_with("0.png"));
+    }
+
+    #[test]
+    fn libraries_sharing_a_budget_stay_within_it_together() {
+        let dir = tempfile::tempdir().unwrap();
+        for i in 0..4 {
+            write_png(&dir.path().join(format!("{i}.png")), 64, 64);
+        }
+        // A decoded 64 x 64 photo's pyramid: the photo and its half size.
+        let one = 64 * 64 * 3 + 32 * 32 * 3;
+        let budget = MemoryBudget::new(2 * one + 10);
+        let scan = || {
+            let (lib, _) = PhotoLibrary::scan(&[dir.path().to_path_buf()], 0).unwrap();
+            lib.sharing(budget.clone())
+        };
+        let (a, b) = (scan(), scan());
+        a.get(0).unwrap();
+        assert_eq!(budget.held(), one);
+        a.get(1).unwrap();
+        assert_eq!(budget.held(), 2 * one);
+        // Each library keeps one photo whatever the budget says...
+        b.get(0).unwrap();
+        assert_eq!(budget.held(), 3 * one);
+        // ...and gives back its least recently used ones while the shared
+        // budget is passed.
+        a.get(2).unwrap();
+        assert_eq!(a.cached_bytes(), one);
+        assert_eq!(budget.held(), 2 * one);
+        drop(a);
+        assert_eq!(budget.held(), one);
     }
 }

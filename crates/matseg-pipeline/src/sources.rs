@@ -3,8 +3,9 @@
 //! user names; and the photo and texture libraries scanned from them.
 
 use matseg_extract::material_library::{colour_map, find_materials, MaterialError};
-use matseg_image::{LibraryError, LicenceFilter, PhotoLibrary, SkippedFile};
+use matseg_image::{LibraryError, LicenceFilter, MemoryBudget, PhotoLibrary, SkippedFile};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// Why the sources could not be resolved or scanned; the message names the
 /// file or folder.
@@ -126,6 +127,7 @@ pub struct Libraries {
     /// Textures (and the colour maps of PBR materials).
     pub textures: PhotoLibrary,
     scan_skipped: Vec<SkippedFile>,
+    budget: Arc<MemoryBudget>,
 }
 
 impl Libraries {
@@ -141,18 +143,37 @@ impl Libraries {
         defaults: Defaults,
         licences: &LicenceFilter,
     ) -> Result<Self, SourceError> {
-        let budget = cache_mb.saturating_mul(1 << 20);
-        let (photos, r1) = PhotoLibrary::scan(&defaults.or(photos, "photos"), budget / 2)?;
-        let photos = photos.retain_licences(licences)?;
+        let budget = MemoryBudget::new(cache_mb.saturating_mul(1 << 20));
+        Self::load_within(photos, textures, budget, defaults, licences)
+    }
+
+    /// [`Libraries::load`] with the decoded images counted against
+    /// `budget`, the process's budget that other caches share.
+    pub fn load_within(
+        photos: &[PathBuf],
+        textures: &[PathBuf],
+        budget: Arc<MemoryBudget>,
+        defaults: Defaults,
+        licences: &LicenceFilter,
+    ) -> Result<Self, SourceError> {
+        let (photos, r1) = PhotoLibrary::scan(&defaults.or(photos, "photos"), 0)?;
+        let photos = photos.retain_licences(licences)?.sharing(budget.clone());
         let textures = texture_sources(&defaults.or(textures, "textures"))?;
-        let (textures, r2) = PhotoLibrary::scan(&textures, budget / 2)?;
-        let textures = textures.retain_licences(licences)?;
+        let (textures, r2) = PhotoLibrary::scan(&textures, 0)?;
+        let textures = textures.retain_licences(licences)?.sharing(budget.clone());
         let scan_skipped = r1.skipped.into_iter().chain(r2.skipped).collect();
         Ok(Self {
             photos,
             textures,
             scan_skipped,
+            budget,
         })
+    }
+
+    /// The memory budget of the decoded images, to share with the
+    /// process's other caches (the 3D renderer's `AssetCache::sharing`).
+    pub fn budget(&self) -> Arc<MemoryBudget> {
+        self.budget.clone()
     }
 
     /// The scene sources.

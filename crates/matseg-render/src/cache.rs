@@ -1,13 +1,14 @@
 //! Decoded scene assets shared between the scenes of a process: PBR maps,
 //! photo channels, HDRIs with their sampling tables, and meshes, each
-//! decoded once. The cache is bounded: when what it holds passes its byte
-//! budget it starts afresh (entries in use by scenes stay alive through
+//! decoded once. The cache is bounded by a [`MemoryBudget`], its own or the
+//! one the process's other caches share: when a new asset would pass it,
+//! the cache starts afresh (entries in use by scenes stay alive through
 //! their `Arc`s).
 
 use crate::environment::EnvironmentMap;
 use crate::mesh::Mesh;
 use crate::scene::{LoadedMap, MaterialTextures, SceneError};
-use matseg_image::Channel;
+use matseg_image::{Channel, MemoryBudget};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
@@ -21,12 +22,19 @@ type Shelf<K, V> = Mutex<HashMap<K, Arc<V>>>;
 /// Assets decoded once per process.
 #[derive(Debug)]
 pub struct AssetCache {
-    budget: usize,
+    budget: Arc<MemoryBudget>,
+    /// This cache's part of the budget.
     held: Mutex<usize>,
     materials: Shelf<PathBuf, MaterialTextures>,
     maps: Shelf<(PathBuf, Channel), LoadedMap>,
     hdris: Shelf<PathBuf, EnvironmentMap>,
     meshes: Shelf<PathBuf, Mesh>,
+}
+
+impl Drop for AssetCache {
+    fn drop(&mut self) {
+        self.budget.release(self.held.get_mut().map_or(0, |h| *h));
+    }
 }
 
 impl Default for AssetCache {
@@ -38,6 +46,12 @@ impl Default for AssetCache {
 impl AssetCache {
     /// An empty cache holding at most about `budget` bytes.
     pub fn new(budget: usize) -> Self {
+        Self::sharing(MemoryBudget::new(budget))
+    }
+
+    /// An empty cache counting its bytes against `budget`, shared with the
+    /// process's other caches.
+    pub fn sharing(budget: Arc<MemoryBudget>) -> Self {
         AssetCache {
             budget,
             held: Mutex::new(0),
@@ -48,7 +62,7 @@ impl AssetCache {
         }
     }
 
-    /// Bytes held now (approximate).
+    /// Bytes this cache holds now (approximate).
     pub fn bytes(&self) -> usize {
         *self.held.lock().expect("cache lock")
     }
@@ -71,15 +85,17 @@ impl AssetCache {
         let value = Arc::new(load()?);
         let bytes = size(&value);
         let mut held = self.held.lock().expect("cache lock");
-        if *held + bytes > self.budget {
+        if !self.budget.fits(bytes) {
             self.materials.lock().expect("cache lock").clear();
             self.maps.lock().expect("cache lock").clear();
             self.hdris.lock().expect("cache lock").clear();
             self.meshes.lock().expect("cache lock").clear();
+            self.budget.release(*held);
             *held = 0;
         }
-        if bytes <= self.budget {
+        if bytes <= self.budget.limit() {
             *held += bytes;
+            self.budget.add(bytes);
             shelf.lock().expect("cache lock").insert(key, value.clone());
         }
         Ok(value)
@@ -152,5 +168,26 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("missing.jpg"), "{err}");
+    }
+
+    #[test]
+    fn a_shared_budget_counts_what_other_caches_hold() {
+        let photo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/photos/coffee.jpg");
+        let one = AssetCache::default()
+            .map(&photo, Channel::R)
+            .unwrap()
+            .levels
+            .bytes();
+        let budget = MemoryBudget::new(2 * one + 10);
+        // Another cache of the process holds one map's worth.
+        budget.add(one);
+        let cache = AssetCache::sharing(budget.clone());
+        cache.map(&photo, Channel::R).unwrap();
+        assert_eq!(budget.held(), 2 * one);
+        // A second map would pass the shared budget: the cache starts afresh.
+        cache.map(&photo, Channel::G).unwrap();
+        assert_eq!((cache.bytes(), budget.held()), (one, 2 * one));
+        drop(cache);
+        assert_eq!(budget.held(), one);
     }
 }

@@ -129,14 +129,19 @@ Samples are in MatSeg folder layout under <code>samples-2d/</code>.</p>
     if options.samples_3d > 0 {
         scenes_3d::scenes_page(
             &options.out,
-            options.samples_3d,
-            options.size_3d,
-            options.seed,
+            (options.samples_3d, options.size_3d, options.seed),
+            libs.budget(),
             progress,
         )?;
     }
     #[cfg(feature = "net")]
-    let training = net::net_page(&options.out, options.train_steps, options.seed, progress)?;
+    let training = net::net_page(
+        &options.out,
+        options.train_steps,
+        options.seed,
+        libs.budget(),
+        progress,
+    )?;
     Ok(DemoReport {
         index,
         samples: dataset.len(),

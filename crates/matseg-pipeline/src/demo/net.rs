@@ -13,12 +13,13 @@ use crate::sources::{assets_dir, Defaults, Libraries};
 use crate::train::{resume, start, Session, TrainConfig, TrainData, TrainSummary};
 use matseg_eval::ClusterOptions;
 use matseg_image::io::read_rgb;
-use matseg_image::LicenceFilter;
+use matseg_image::{LicenceFilter, MemoryBudget};
 use matseg_net::data::BatchPlan;
 use matseg_net::infer::{default_model_dir, DEFAULT_MODEL};
 use matseg_net::train::{read_run_config, RUN_FILE};
 use std::fmt::Write as _;
 use std::path::Path;
+use std::sync::Arc;
 use tch::Device;
 
 /// Bundled photos on the page, and the points clicked on each (pixels),
@@ -74,6 +75,7 @@ pub fn net_page(
     out: &Path,
     steps: u64,
     seed: u64,
+    budget: Arc<MemoryBudget>,
     progress: &dyn Progress,
 ) -> Result<Option<DemoTraining>, PipelineError> {
     let mut commands = Vec::new();
@@ -95,7 +97,7 @@ at all.</p>
     };
     let (demonstration, training) = if steps > 0 {
         let (section, training) =
-            training_demonstration(out, steps, seed, &mut commands, progress)?;
+            training_demonstration(out, (steps, seed), budget, &mut commands, progress)?;
         (section, Some(training))
     } else {
         (String::new(), None)
@@ -127,8 +129,8 @@ pre {{ font-size: .75em; white-space: pre-wrap; }}
 /// the page's section on it: the loss curve and the trained net's maps.
 fn training_demonstration(
     out: &Path,
-    steps: u64,
-    seed: u64,
+    (steps, seed): (u64, u64),
+    budget: Arc<MemoryBudget>,
     commands: &mut Vec<String>,
     progress: &dyn Progress,
 ) -> Result<(String, DemoTraining), PipelineError> {
@@ -168,10 +170,10 @@ fn training_demonstration(
         );
         (start(&config, Device::Cpu)?, arguments)
     };
-    let libraries = Libraries::load(
+    let libraries = Libraries::load_within(
         &[],
         &[],
-        1024,
+        budget,
         Defaults::CorpusOrBundled,
         &LicenceFilter::default(),
     )?;

@@ -8,21 +8,22 @@ use crate::files3d::{recipe_3d, Files3d, Folders3d};
 use crate::progress::Progress;
 use crate::sources::Defaults;
 use matseg_data::{generate_with, Dataset, Format, GenerateOptions, Generator3d, JobSlice};
-use matseg_image::LicenceFilter;
-use matseg_render::cache::{AssetCache, DEFAULT_CACHE_BYTES};
+use matseg_image::{LicenceFilter, MemoryBudget};
+use matseg_render::cache::AssetCache;
 use std::path::Path;
+use std::sync::Arc;
 
-/// Renders `n` 3D samples of side `size` into `out/samples-3d` and writes
-/// `out/scenes-3d.html`.
+/// Renders `n` 3D samples of side `size` (seed `seed`) into
+/// `out/samples-3d`, their assets counted against the process's `budget`,
+/// and writes `out/scenes-3d.html`.
 pub fn scenes_page(
     out: &Path,
-    n: u64,
-    size: u32,
-    seed: u64,
+    (n, size, seed): (u64, u32, u64),
+    budget: Arc<MemoryBudget>,
     progress: &dyn Progress,
 ) -> Result<(), PipelineError> {
     let recipe = recipe_3d(None, Some(size), None)?;
-    let cache = AssetCache::new(DEFAULT_CACHE_BYTES);
+    let cache = AssetCache::sharing(budget);
     let files = Files3d::load(
         &Folders3d::default(),
         &cache,
