@@ -23,6 +23,8 @@ mod recipe;
 mod render;
 #[cfg(feature = "net")]
 mod segment;
+#[cfg(feature = "net")]
+mod serve;
 mod textures;
 #[cfg(feature = "net")]
 mod train;
@@ -82,6 +84,9 @@ enum Command {
     /// Similarity maps and segmentation of a photo, from points or by clustering (pipeline.md §8).
     #[cfg(feature = "net")]
     Segment(segment::Args),
+    /// The local web app: click a point on a photo, see where else its material is.
+    #[cfg(feature = "net")]
+    Serve(serve::Args),
     /// Measure the net's forward and training-step time on one batch size.
     #[cfg(feature = "net")]
     BenchNet(bench_net::Args),
@@ -110,6 +115,8 @@ fn main() -> ExitCode {
         Command::Train(args) => train::run(args),
         #[cfg(feature = "net")]
         Command::Segment(args) => segment::run(args),
+        #[cfg(feature = "net")]
+        Command::Serve(args) => serve::run(args),
         #[cfg(feature = "net")]
         Command::BenchNet(args) => bench_net::run(args),
         Command::Recipe(args) => recipe::run(args),

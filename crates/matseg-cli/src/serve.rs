@@ -1,0 +1,53 @@
+//! `matseg serve`: the local web app (`matseg_serve`; docs/serve.md).
+
+use crate::net_args::parse_device;
+use anyhow::Result;
+use matseg_serve::{serve, ServeOptions};
+use std::path::PathBuf;
+
+/// Arguments of `matseg serve`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// The model: `default` (the shipped one), a run folder of `matseg
+    /// train`, or its weights file.
+    #[arg(long, default_value = "default")]
+    model: PathBuf,
+    /// Folders of photos to offer besides the bundled ones; repeatable.
+    #[arg(long, num_args = 1..)]
+    data: Vec<PathBuf>,
+    /// Address to bind; any other than the loopback needs --token.
+    #[arg(long, default_value = "127.0.0.1")]
+    host: String,
+    /// Port (0: any free one).
+    #[arg(long, default_value_t = 8080)]
+    port: u16,
+    /// A token every API call must carry (header `x-matseg-token` or
+    /// query `token`).
+    #[arg(long)]
+    token: Option<String>,
+    /// Bound on the described photos kept in memory, in MiB.
+    #[arg(long, default_value_t = 1024)]
+    cache_mb: usize,
+    /// cpu or cuda.
+    #[arg(long, default_value = "cpu")]
+    device: String,
+}
+
+/// Runs `matseg serve` until interrupted.
+pub fn run(args: Args) -> Result<()> {
+    let options = ServeOptions {
+        model: args.model,
+        data: args.data,
+        host: args.host,
+        port: args.port,
+        token: args.token,
+        cache_mb: args.cache_mb,
+        device: parse_device(&args.device)?,
+    };
+    let token = options.token.clone();
+    serve(&options, |address| {
+        let query = token.map(|t| format!("?token={t}")).unwrap_or_default();
+        println!("matseg serve: http://{address}/{query}");
+    })?;
+    Ok(())
+}

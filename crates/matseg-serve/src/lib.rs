@@ -1,0 +1,134 @@
+//! `matseg serve`: the local web app. A page opens a photo (bundled, or
+//! from the folders the server was given), a click shows where else in it
+//! the material under the point is, and shift-clicks add points whose
+//! nearest-point segmentation is drawn live. Each photo is described once
+//! by the model; clicks are answered from the cached descriptors.
+//!
+//! Safety: the server binds 127.0.0.1 unless told otherwise, and any other
+//! address needs a token that every API call must carry; it serves only
+//! its own files and the folders it was given (docs/serve.md).
+
+#![warn(missing_docs)]
+
+pub mod app;
+pub mod described;
+pub mod roots;
+
+use app::AppState;
+use described::DescribedCache;
+use matseg_pipeline::segment::Model;
+use roots::Roots;
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+
+/// Why the server could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum ServeError {
+    /// Another host than the loopback without a token.
+    #[error("--host {0}: serving beyond this machine needs --token")]
+    NoToken(String),
+    /// A folder that cannot be served.
+    #[error("{}: {message}", path.display())]
+    Folder {
+        /// The folder.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// The model could not be loaded.
+    #[error(transparent)]
+    Model(#[from] matseg_net::NetError),
+    /// The address could not be bound or served.
+    #[error("{address}: {message}")]
+    Bind {
+        /// The address.
+        address: String,
+        /// What went wrong.
+        message: String,
+    },
+}
+
+/// What `matseg serve` was asked for.
+#[derive(Clone, Debug)]
+pub struct ServeOptions {
+    /// The model: `default`, a run folder or a weights file.
+    pub model: PathBuf,
+    /// Folders of photos besides the bundled ones.
+    pub data: Vec<PathBuf>,
+    /// The address to bind.
+    pub host: String,
+    /// The port (0: any free one).
+    pub port: u16,
+    /// The token API calls must carry.
+    pub token: Option<String>,
+    /// Bound on the described photos kept, in MiB.
+    pub cache_mb: usize,
+    /// The device the model runs on.
+    pub device: tch::Device,
+}
+
+/// Whether `host` is this machine only.
+fn is_loopback(host: &str) -> bool {
+    matches!(host, "127.0.0.1" | "localhost" | "::1" | "[::1]")
+}
+
+/// The app's state: the model loaded, the folders checked.
+pub fn state(options: &ServeOptions) -> Result<Arc<AppState>, ServeError> {
+    if !is_loopback(&options.host) && options.token.is_none() {
+        return Err(ServeError::NoToken(options.host.clone()));
+    }
+    let mut roots = Roots::default();
+    let folder = |path: &PathBuf| {
+        let path = path.clone();
+        move |e: std::io::Error| ServeError::Folder {
+            path,
+            message: e.to_string(),
+        }
+    };
+    let bundled = matseg_pipeline::sources::assets_dir().join("photos");
+    roots.add("photos", &bundled).map_err(folder(&bundled))?;
+    for (i, dir) in options.data.iter().enumerate() {
+        if !dir.is_dir() {
+            return Err(ServeError::Folder {
+                path: dir.clone(),
+                message: "no such folder".into(),
+            });
+        }
+        roots.add(&format!("data{i}"), dir).map_err(folder(dir))?;
+    }
+    let model = Model::load(&options.model, options.device)?;
+    Ok(Arc::new(AppState {
+        model: Mutex::new(model),
+        roots,
+        described: DescribedCache::new(options.cache_mb.saturating_mul(1 << 20)),
+        token: options.token.clone(),
+    }))
+}
+
+/// Serves the app until the process ends; `on_ready` gets the address
+/// bound (the port chosen when `port` was 0).
+pub fn serve(options: &ServeOptions, on_ready: impl FnOnce(SocketAddr)) -> Result<(), ServeError> {
+    let state = state(options)?;
+    let address = format!("{}:{}", options.host, options.port);
+    let bind_error = |message: String| ServeError::Bind {
+        address: address.clone(),
+        message,
+    };
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .enable_io()
+        .build()
+        .map_err(|e| bind_error(e.to_string()))?;
+    runtime.block_on(async {
+        let listener = tokio::net::TcpListener::bind(&address)
+            .await
+            .map_err(|e| bind_error(e.to_string()))?;
+        let local = listener
+            .local_addr()
+            .map_err(|e| bind_error(e.to_string()))?;
+        on_ready(local);
+        axum::serve(listener, app::router(state))
+            .await
+            .map_err(|e| bind_error(e.to_string()))
+    })
+}

@@ -1,0 +1,150 @@
+//! The folders the server may read from, and the one way a request's path
+//! becomes a file: relative to a named root, with no `..`, no absolute
+//! part, no percent-encoded escape and no symlink that leaves the root.
+
+use std::path::{Component, Path, PathBuf};
+
+/// Why a requested path is refused.
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+pub enum PathError {
+    /// No root of that name.
+    #[error("no folder named {0:?}")]
+    UnknownRoot(String),
+    /// The path steps out of its root, or is absolute.
+    #[error("{0:?}: outside the served folders")]
+    Outside(String),
+    /// Nothing there.
+    #[error("{0:?}: no such file")]
+    Missing(String),
+}
+
+/// Named folders (`photos`: the bundled photos, `data0`, `data1`...: the
+/// folders given to `matseg serve --data`).
+#[derive(Clone, Debug, Default)]
+pub struct Roots {
+    roots: Vec<(String, PathBuf)>,
+}
+
+impl Roots {
+    /// Adds `dir` under `name` (canonicalised, so symlinks inside it are
+    /// judged against where it really is).
+    pub fn add(&mut self, name: &str, dir: &Path) -> std::io::Result<()> {
+        self.roots.push((name.to_string(), dir.canonicalize()?));
+        Ok(())
+    }
+
+    /// The roots, by name.
+    pub fn iter(&self) -> impl Iterator<Item = (&str, &Path)> {
+        self.roots.iter().map(|(n, p)| (n.as_str(), p.as_path()))
+    }
+
+    /// The file `path` (as the request gave it, percent-encoded or not)
+    /// names under the root `root`.
+    pub fn resolve(&self, root: &str, path: &str) -> Result<PathBuf, PathError> {
+        let (_, base) = self
+            .roots
+            .iter()
+            .find(|(n, _)| n == root)
+            .ok_or_else(|| PathError::UnknownRoot(root.to_string()))?;
+        let outside = || PathError::Outside(path.to_string());
+        let decoded = percent_decode(path).ok_or_else(outside)?;
+        let relative = Path::new(&decoded);
+        if decoded.contains('\0')
+            || relative
+                .components()
+                .any(|c| !matches!(c, Component::Normal(_)))
+        {
+            return Err(outside());
+        }
+        let file = base
+            .join(relative)
+            .canonicalize()
+            .map_err(|_| PathError::Missing(path.to_string()))?;
+        if !file.starts_with(base) {
+            return Err(outside());
+        }
+        if !file.is_file() {
+            return Err(PathError::Missing(path.to_string()));
+        }
+        Ok(file)
+    }
+}
+
+/// `text` with `%XX` escapes decoded; `None` when an escape is malformed or
+/// the result is not UTF-8.
+fn percent_decode(text: &str) -> Option<String> {
+    let bytes = text.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        if bytes[i] == b'%' {
+            let hex = std::str::from_utf8(bytes.get(i + 1..i + 3)?).ok()?;
+            out.push(u8::from_str_radix(hex, 16).ok()?);
+            i += 3;
+        } else {
+            out.push(bytes[i]);
+            i += 1;
+        }
+    }
+    String::from_utf8(out).ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn roots() -> (tempfile::TempDir, Roots) {
+        let dir = tempfile::tempdir().unwrap();
+        let served = dir.path().join("served");
+        std::fs::create_dir_all(served.join("sub")).unwrap();
+        std::fs::write(served.join("sub/a.jpg"), b"a").unwrap();
+        std::fs::write(dir.path().join("secret.txt"), b"s").unwrap();
+        #[cfg(unix)]
+        std::os::unix::fs::symlink(dir.path().join("secret.txt"), served.join("link.txt")).unwrap();
+        let mut roots = Roots::default();
+        roots.add("photos", &served).unwrap();
+        (dir, roots)
+    }
+
+    #[test]
+    fn files_inside_a_root_resolve() {
+        let (_dir, roots) = roots();
+        let file = roots.resolve("photos", "sub/a.jpg").unwrap();
+        assert!(file.ends_with("served/sub/a.jpg"));
+        assert_eq!(roots.resolve("photos", "sub%2Fa.jpg").unwrap(), file);
+    }
+
+    #[test]
+    fn escapes_are_refused() {
+        let (dir, roots) = roots();
+        let outside = |p: &str| PathError::Outside(p.to_string());
+        for path in [
+            "../secret.txt",
+            "sub/../../secret.txt",
+            "%2e%2e/secret.txt",
+            "%2E%2E%2Fsecret.txt",
+            "%zz",
+        ] {
+            assert_eq!(roots.resolve("photos", path), Err(outside(path)), "{path}");
+        }
+        let absolute = dir.path().join("secret.txt").display().to_string();
+        assert_eq!(roots.resolve("photos", &absolute), Err(outside(&absolute)));
+        #[cfg(unix)]
+        assert_eq!(
+            roots.resolve("photos", "link.txt"),
+            Err(outside("link.txt"))
+        );
+        assert_eq!(
+            roots.resolve("data0", "a.jpg"),
+            Err(PathError::UnknownRoot("data0".into()))
+        );
+        assert_eq!(
+            roots.resolve("photos", "sub/none.jpg"),
+            Err(PathError::Missing("sub/none.jpg".into()))
+        );
+        assert_eq!(
+            roots.resolve("photos", "sub"),
+            Err(PathError::Missing("sub".into()))
+        );
+    }
+}
