@@ -9,7 +9,7 @@ use anyhow::{bail, Result};
 use matseg_net::data::BatchPlan;
 use matseg_net::train::{self, LrScale};
 use matseg_pipeline::sources::Defaults;
-use matseg_pipeline::train::{resume, start, MixIn, Session, TrainConfig, TrainData};
+use matseg_pipeline::train::{resume, start, MixIn, TrainConfig, TrainData, TrainInputs};
 use std::path::PathBuf;
 
 /// Arguments of `matseg train`.
@@ -158,13 +158,13 @@ pub fn run(args: Args) -> Result<()> {
         Defaults::CorpusOrBundled,
         &args.licences.filter()?,
     )?;
-    let session = Session {
+    let inputs = TrainInputs {
         libraries: &libraries,
         val_points: args.val_points.as_deref(),
         val_max_side: args.val_max_side,
         loader_threads: args.loader_threads,
     };
-    train_with_bar(&mut run, &session, &args.device)
+    train_with_bar(&mut run, &inputs, &args.device)
 }
 
 /// The new run's configuration the arguments describe.

@@ -1,23 +1,23 @@
-//! A training session shown as the CLI shows it (`matseg train` and the
+//! Training shown as the CLI shows it (`matseg train` and the
 //! demo's training run): a step bar with the recent loss and validation
 //! scores, then the run's model file and its speed.
 
 use anyhow::Result;
 use indicatif::{ProgressBar, ProgressStyle};
-use matseg_pipeline::train::{Session, TrainSummary, TrainingRun};
+use matseg_pipeline::train::{TrainInputs, TrainSummary, TrainingRun};
 use std::path::Path;
 
 /// Trains `run` to its planned steps with a progress bar on stderr, then
 /// prints where the model is and how fast it trained on `device` (its
 /// name as given).
-pub fn train_with_bar(run: &mut TrainingRun, session: &Session, device: &str) -> Result<()> {
+pub fn train_with_bar(run: &mut TrainingRun, inputs: &TrainInputs, device: &str) -> Result<()> {
     let bar = ProgressBar::new(run.config().options.steps).with_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} steps {per_sec} ETA {eta} {msg}")
             .expect("template"),
     );
     bar.set_position(run.step());
     let mut recent: Vec<f64> = Vec::new();
-    let summary = run.train(session, |m| {
+    let summary = run.train(inputs, |m| {
         if let Some(l) = m.loss {
             recent.push(l);
         }
@@ -39,7 +39,7 @@ pub fn train_with_bar(run: &mut TrainingRun, session: &Session, device: &str) ->
     Ok(())
 }
 
-/// Prints where a run's model is and how fast this session trained on
+/// Prints where a run's model is and how fast this call trained on
 /// `device` (its name as given).
 pub fn print_trained(dir: &Path, step: u64, model: &Path, summary: &TrainSummary, device: &str) {
     println!("{}: {step} steps; model {}", dir.display(), model.display());

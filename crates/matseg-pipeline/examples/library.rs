@@ -6,7 +6,7 @@ use matseg_data::{generate_dataset, GenerateOptions};
 use matseg_image::{io::read_rgb, LicenceFilter};
 use matseg_pipeline::segment::{describe, write_point_maps, Model, DEFAULT_RADIUS};
 use matseg_pipeline::sources::{assets_dir, Defaults, Libraries};
-use matseg_pipeline::train::{start, Session, TrainConfig, TrainData};
+use matseg_pipeline::train::{start, TrainConfig, TrainData, TrainInputs};
 use matseg_scene::Recipe2d;
 use tch::Device;
 
@@ -25,7 +25,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ..config
     };
     let mut run = start(&config, Device::Cpu)?;
-    run.train(&Session::new(&libraries), |m| {
+    run.train(&TrainInputs::new(&libraries), |m| {
         println!("step {}: loss {:?}", m.step, m.loss)
     })?;
     // Where else in the photo is the material under this point?

@@ -250,8 +250,8 @@ pub fn resume(dir: &Path, device: Device) -> Result<TrainingRun, PipelineError> 
     })
 }
 
-/// What a training session reads besides the run itself.
-pub struct Session<'a> {
+/// What a call of [`TrainingRun::train`] reads besides the run itself.
+pub struct TrainInputs<'a> {
     /// The photo and texture libraries of the online generator and of the
     /// held-out validation scenes.
     pub libraries: &'a Libraries,
@@ -265,8 +265,8 @@ pub struct Session<'a> {
     pub loader_threads: Option<usize>,
 }
 
-impl<'a> Session<'a> {
-    /// A session drawing online and validation scenes from `libraries`,
+impl<'a> TrainInputs<'a> {
+    /// Inputs drawing online and validation scenes from `libraries`,
     /// with no point benchmark and the default loader threads.
     pub fn new(libraries: &'a Libraries) -> Self {
         Self {
@@ -278,10 +278,10 @@ impl<'a> Session<'a> {
     }
 }
 
-/// What a training session did.
+/// What one call of [`TrainingRun::train`] did.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TrainSummary {
-    /// Steps trained in this session.
+    /// Steps trained in this call.
     pub steps: u64,
     /// Images in those steps.
     pub images: usize,
@@ -328,13 +328,13 @@ impl TrainingRun {
     /// batch size, validation scores at checkpoints).
     pub fn train(
         &mut self,
-        session: &Session,
+        inputs: &TrainInputs,
         mut on_step: impl FnMut(&StepMetrics),
     ) -> Result<TrainSummary, PipelineError> {
         let config = self.trainer.config.clone();
         let device = self.trainer.vs.device();
         let generator = |seed| GeneratorSource {
-            sources: session.libraries.sources(),
+            sources: inputs.libraries.sources(),
             recipe: Recipe2d::default(),
             seed,
         };
@@ -357,7 +357,7 @@ impl TrainingRun {
             None => main.as_ref(),
         };
         let held_out = generator(config.options.seed ^ VALIDATION_GENERATOR_SEED);
-        let bench = match session.val_points {
+        let bench = match inputs.val_points {
             Some(dir) => Some(load_point_benchmark(dir, false)?),
             None => None,
         };
@@ -365,7 +365,7 @@ impl TrainingRun {
             let bench = bench.as_ref().expect("only called with a benchmark");
             let net = TrainedNet::snapshot(trainer)?;
             let invalid = |message: String| NetError::Validation { message };
-            let report = evaluate_points(&NetModel::new("net", net), bench, session.val_max_side)
+            let report = evaluate_points(&NetModel::new("net", net), bench, inputs.val_max_side)
                 .map_err(|e| invalid(e.to_string()))?;
             report
                 .all_by_material
@@ -375,7 +375,7 @@ impl TrainingRun {
             samples: Some(&held_out),
             points: bench.is_some().then_some(&score_points as NetScore),
         };
-        let loader_threads = session
+        let loader_threads = inputs
             .loader_threads
             .unwrap_or_else(|| default_workers(device.is_cuda()));
         if device.is_cuda() {

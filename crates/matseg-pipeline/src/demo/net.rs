@@ -10,7 +10,7 @@ use crate::error::PipelineError;
 use crate::progress::Progress;
 use crate::segment::{describe, write_clusters, write_point_maps, Model, DEFAULT_RADIUS};
 use crate::sources::{assets_dir, Defaults, Libraries};
-use crate::train::{resume, start, Session, TrainConfig, TrainData, TrainSummary};
+use crate::train::{resume, start, TrainConfig, TrainData, TrainInputs, TrainSummary};
 use matseg_eval::ClusterOptions;
 use matseg_image::io::read_rgb;
 use matseg_image::{LicenceFilter, MemoryBudget};
@@ -62,7 +62,7 @@ pub struct DemoTraining {
     pub model_file: std::path::PathBuf,
     /// Where its initial weights came from (a new run).
     pub initial_weights: Option<String>,
-    /// What this session did.
+    /// What this call of the training did.
     pub summary: TrainSummary,
 }
 
@@ -181,7 +181,7 @@ fn training_demonstration(
         progress.warn(&format!("{}: {}", s.path.display(), s.reason));
     }
     progress.start(steps - training.step().min(steps), "steps");
-    let summary = training.train(&Session::new(&libraries), |_| progress.advance())?;
+    let summary = training.train(&TrainInputs::new(&libraries), |_| progress.advance())?;
     progress.finish();
     commands.push(format!("matseg train {arguments} {run_arg}"));
     let net = Model::load(&run, Device::Cpu)?;
