@@ -54,7 +54,14 @@ impl CoarseDescriptors {
     /// centres': a hard segmentation of `width * height` labels.
     pub fn nearest_query(&self, queries: &[Vec<f32>]) -> Vec<u32> {
         let maps: Vec<Vec<f32>> = queries.iter().map(|q| self.similarity_map(q)).collect();
-        (0..self.width * self.height)
+        Self::nearest_of(&maps)
+    }
+
+    /// Each pixel's label among similarity `maps` already computed (of
+    /// equal length): the index of the highest.
+    pub fn nearest_of(maps: &[Vec<f32>]) -> Vec<u32> {
+        let pixels = maps.first().map_or(0, Vec::len);
+        (0..pixels)
             .into_par_iter()
             .map(|j| {
                 (0..maps.len())

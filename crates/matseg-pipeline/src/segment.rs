@@ -75,17 +75,13 @@ pub struct PointMaps {
 /// The similarity maps of `points` (pixels, inside the photo; discs of
 /// `radius`) and, for several points, the nearest-point segmentation.
 pub fn query_points(map: &CoarseDescriptors, points: &[(f32, f32)], radius: f32) -> PointMaps {
-    let mut queries = Vec::new();
-    let mut similarity = Vec::new();
-    let mut seconds = 0.0;
-    for &(x, y) in points {
-        let started = Instant::now();
-        let query = map.point_descriptor(x, y, radius);
-        similarity.push(map.similarity_map(&query));
-        seconds += started.elapsed().as_secs_f64();
-        queries.push(query);
-    }
-    let labels = (queries.len() > 1).then(|| map.nearest_query(&queries));
+    let started = Instant::now();
+    let similarity: Vec<Vec<f32>> = points
+        .iter()
+        .map(|&(x, y)| map.similarity_map(&map.point_descriptor(x, y, radius)))
+        .collect();
+    let seconds = started.elapsed().as_secs_f64();
+    let labels = (points.len() > 1).then(|| CoarseDescriptors::nearest_of(&similarity));
     PointMaps {
         similarity,
         labels,
