@@ -28,7 +28,7 @@ pub mod rgb;
 pub mod sparse;
 
 pub use blur::{gaussian_blur, gaussian_blur_covered, CoveredBlur};
-pub use budget::MemoryBudget;
+pub use budget::{ByteLru, MemoryBudget};
 pub use channel::Channel;
 pub use channel_rows::{ChannelRows, WindowRows};
 pub use coverage::Coverage;

@@ -1,11 +1,11 @@
 //! A library of source photos: listed once, decoded on first use, kept in a
 //! memory-bounded cache shared by all worker threads.
 
-use crate::budget::MemoryBudget;
+use crate::budget::{ByteLru, MemoryBudget};
 use crate::io::{has_image_extension, read_dimensions, read_rgb};
 use crate::licence::LicenceFilter;
 use crate::resample::Pyramid;
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, OnceLock};
 
@@ -138,28 +138,13 @@ pub struct ScanReport {
     pub skipped: Vec<SkippedFile>,
 }
 
-#[derive(Default)]
-struct Cache {
-    photos: HashMap<usize, (Arc<Photo>, u64)>,
-    bytes: usize,
-    clock: u64,
-}
-
 /// Source photos with a decode-once, least-recently-used cache whose bytes
 /// count against a [`MemoryBudget`] (its own, or one the process shares).
 pub struct PhotoLibrary {
     label: String,
     entries: Vec<PhotoEntry>,
-    budget: Arc<MemoryBudget>,
-    cache: Mutex<Cache>,
+    cache: ByteLru<usize, Photo>,
     failed: Mutex<BTreeMap<usize, String>>,
-}
-
-impl Drop for PhotoLibrary {
-    fn drop(&mut self) {
-        let held = self.cache.get_mut().map_or(0, |c| c.bytes);
-        self.budget.release(held);
-    }
 }
 
 impl std::fmt::Debug for PhotoLibrary {
@@ -167,7 +152,7 @@ impl std::fmt::Debug for PhotoLibrary {
         f.debug_struct("PhotoLibrary")
             .field("label", &self.label)
             .field("photos", &self.entries.len())
-            .field("budget_bytes", &self.budget.limit())
+            .field("cached_bytes", &self.cache.bytes())
             .finish()
     }
 }
@@ -205,8 +190,7 @@ impl PhotoLibrary {
         let lib = Self {
             label,
             entries,
-            budget: MemoryBudget::new(budget_bytes),
-            cache: Mutex::new(Cache::default()),
+            cache: ByteLru::new(MemoryBudget::new(budget_bytes)),
             failed: Mutex::new(BTreeMap::new()),
         };
         Ok((lib, report))
@@ -215,10 +199,7 @@ impl PhotoLibrary {
     /// Counts the library's decoded photos against `budget` (shared with
     /// the process's other caches) instead of its own.
     pub fn sharing(mut self, budget: Arc<MemoryBudget>) -> Self {
-        let held = self.cache.get_mut().expect("lock").bytes;
-        self.budget.release(held);
-        budget.add(held);
-        self.budget = budget;
+        self.cache.share(budget);
         self
     }
 
@@ -264,14 +245,8 @@ impl PhotoLibrary {
         if let Some(reason) = self.failed.lock().expect("lock").get(&index) {
             return Err(undecodable(reason));
         }
-        {
-            let mut cache = self.cache.lock().expect("lock");
-            cache.clock += 1;
-            let now = cache.clock;
-            if let Some((photo, used)) = cache.photos.get_mut(&index) {
-                *used = now;
-                return Ok(photo.clone());
-            }
+        if let Some(photo) = self.cache.get(&index) {
+            return Ok(photo);
         }
         // Decode outside the lock; two threads may rarely decode the same photo.
         let entry = &self.entries[index];
@@ -286,25 +261,8 @@ impl PhotoLibrary {
             }
         };
         let photo = Arc::new(Photo::new(index, img));
-        let mut cache = self.cache.lock().expect("lock");
-        cache.clock += 1;
-        let now = cache.clock;
-        if cache.photos.insert(index, (photo.clone(), now)).is_none() {
-            cache.bytes += photo.pyramid.bytes();
-            self.budget.add(photo.pyramid.bytes());
-        }
-        while self.budget.exceeded() && cache.photos.len() > 1 {
-            let oldest = cache
-                .photos
-                .iter()
-                .min_by_key(|(_, (_, used))| *used)
-                .map(|(&k, _)| k)
-                .expect("non-empty cache");
-            if let Some((old, _)) = cache.photos.remove(&oldest) {
-                cache.bytes -= old.pyramid.bytes();
-                self.budget.release(old.pyramid.bytes());
-            }
-        }
+        self.cache
+            .insert(index, photo.clone(), photo.pyramid.bytes());
         Ok(photo)
     }
 
@@ -337,7 +295,7 @@ impl PhotoLibrary {
 
     /// Bytes of decoded photos held now.
     pub fn cached_bytes(&self) -> usize {
-        self.cache.lock().expect("lock").bytes
+        self.cache.bytes()
     }
 }
 

@@ -196,7 +196,9 @@ async fn described(state: &Arc<AppState>, photo: &PhotoRef) -> Result<Arc<Descri
             describe(&model, &image)
         };
         let described = Arc::new(Described { photo: image, map });
-        state.described.insert(&key, described.clone());
+        state
+            .described
+            .insert(key, described.clone(), described.bytes());
         Ok(described)
     })
     .await

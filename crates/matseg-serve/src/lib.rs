@@ -16,6 +16,7 @@ pub mod roots;
 
 use app::AppState;
 use described::DescribedCache;
+use matseg_image::MemoryBudget;
 use matseg_pipeline::segment::Model;
 use roots::Roots;
 use std::net::SocketAddr;
@@ -101,7 +102,7 @@ pub fn state(options: &ServeOptions) -> Result<Arc<AppState>, ServeError> {
     Ok(Arc::new(AppState {
         model: Mutex::new(model),
         roots,
-        described: DescribedCache::new(options.cache_mb.saturating_mul(1 << 20)),
+        described: DescribedCache::new(MemoryBudget::new(options.cache_mb.saturating_mul(1 << 20))),
         token: options.token.clone(),
     }))
 }
