@@ -10,8 +10,10 @@ use axum::response::{IntoResponse, Response};
 use axum::routing::get;
 use axum::{Json, Router};
 use matseg_image::io::{encode_png_gray, find_files, read_rgb};
+use matseg_image::LibraryError;
 use matseg_pipeline::segment::{check_points, describe, query_points, Model, DEFAULT_RADIUS};
 use serde::Deserialize;
+use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
 /// What the handlers share.
@@ -22,6 +24,8 @@ pub struct AppState {
     pub roots: Roots,
     /// Photos described so far.
     pub described: DescribedCache,
+    /// The photos under the roots, as root name and path inside.
+    pub photos: Vec<(String, PathBuf)>,
     /// The token every API call must carry, when set.
     pub token: Option<String>,
 }
@@ -137,22 +141,31 @@ async fn photos(
     Query(listing): Query<Listing>,
 ) -> Result<Json<serde_json::Value>, ApiError> {
     let limit = listing.limit.unwrap_or(200).min(MAX_LISTING);
-    let mut items = Vec::new();
-    let mut total = 0;
-    for (name, dir) in state.roots.iter() {
-        let files = find_files(&[dir.to_path_buf()], &PHOTO_EXTENSIONS)
-            .map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?;
-        for file in files {
-            if total >= listing.offset && items.len() < limit {
-                let path = file.strip_prefix(dir).unwrap_or(&file);
-                items.push(serde_json::json!({ "root": name, "path": path }));
-            }
-            total += 1;
+    let items: Vec<_> = state
+        .photos
+        .iter()
+        .skip(listing.offset)
+        .take(limit)
+        .map(|(root, path)| serde_json::json!({ "root": root, "path": path }))
+        .collect();
+    Ok(Json(serde_json::json!({
+        "total": state.photos.len(),
+        "offset": listing.offset,
+        "photos": items
+    })))
+}
+
+/// The photos under `roots`, each as its root's name and its path inside,
+/// listed once when the server starts.
+pub fn list_photos(roots: &Roots) -> Result<Vec<(String, PathBuf)>, LibraryError> {
+    let mut photos = Vec::new();
+    for (name, dir) in roots.iter() {
+        for file in find_files(&[dir.to_path_buf()], &PHOTO_EXTENSIONS)? {
+            let path = file.strip_prefix(dir).unwrap_or(&file).to_path_buf();
+            photos.push((name.to_string(), path));
         }
     }
-    Ok(Json(
-        serde_json::json!({ "total": total, "offset": listing.offset, "photos": items }),
-    ))
+    Ok(photos)
 }
 
 /// A photo named by root and path.

@@ -37,6 +37,9 @@ pub enum ServeError {
         /// What is wrong.
         message: String,
     },
+    /// A served folder could not be listed.
+    #[error(transparent)]
+    Listing(#[from] matseg_image::LibraryError),
     /// The model could not be loaded.
     #[error(transparent)]
     Model(#[from] matseg_net::NetError),
@@ -98,10 +101,12 @@ pub fn state(options: &ServeOptions) -> Result<Arc<AppState>, ServeError> {
         }
         roots.add(&format!("data{i}"), dir).map_err(folder(dir))?;
     }
+    let photos = app::list_photos(&roots)?;
     let model = Model::load(&options.model, options.device)?;
     Ok(Arc::new(AppState {
         model: Mutex::new(model),
         roots,
+        photos,
         described: DescribedCache::new(MemoryBudget::new(options.cache_mb.saturating_mul(1 << 20))),
         token: options.token.clone(),
     }))
