@@ -84,9 +84,7 @@ pub fn imagenet_baseline(
     use matseg_net::imagenet::{ImagenetBaseline, ImagenetFeatures};
     let path = crate::weights::imagenet_weights(matseg_weights::Arch::MobilenetV2, None)?.path;
     let label = path.display().to_string();
-    let bytes = std::fs::read(&path)
-        .map_err(|e| PipelineError::file(&label, format!("cannot read: {e}")))?;
-    let tensors = matseg_weights::read_safetensors(&bytes, &label)?;
+    let (tensors, _) = crate::weights::read_weights(&path)?;
     Ok(ImagenetBaseline::imagenet(ImagenetFeatures::new(
         &tensors, &label, device,
     )?))

