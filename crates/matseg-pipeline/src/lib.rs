@@ -38,6 +38,7 @@
 pub mod bench;
 pub mod demo;
 pub mod error;
+mod files;
 pub mod files3d;
 pub mod material_mixes;
 pub mod materials;

@@ -2,6 +2,7 @@
 //! max or flexible weights, each mix carrying every source's licence.
 
 use crate::error::PipelineError;
+use crate::files::create_folder;
 use crate::progress::Progress;
 use matseg_data::sample_rng;
 use matseg_extract::material_library::{
@@ -45,8 +46,7 @@ pub fn make_mixes(
         .par_iter()
         .map(|d| read_material(d))
         .collect::<Result<_, _>>()?;
-    std::fs::create_dir_all(out)
-        .map_err(|e| PipelineError::file(out.display(), format!("cannot create: {e}")))?;
+    create_folder(out)?;
     let todo: Vec<u64> = (0..count)
         .filter(|&i| !mix_dir(out, i).join("material.json").is_file())
         .collect();

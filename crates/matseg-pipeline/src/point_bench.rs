@@ -3,12 +3,13 @@
 //! benchmark's annotations drawn on its photos to check them by eye.
 
 use crate::error::PipelineError;
+use crate::files::{create_folder, write_file};
 use crate::sources::Libraries;
 use matseg_data::sample_rng;
 use matseg_eval::load_point_benchmark;
 use matseg_eval::overlay::draw_points;
 use matseg_eval::synthetic::{annotate_points, write_point_image, SyntheticOptions};
-use matseg_image::io::{encode_png_rgb, read_rgb, write_atomic};
+use matseg_image::io::{encode_png_rgb, read_rgb};
 use matseg_scene::{generate_2d, Recipe2d};
 use std::path::Path;
 
@@ -61,8 +62,7 @@ pub fn draw_point_benchmark(
     magnify_below: u32,
 ) -> Result<(usize, usize), PipelineError> {
     let bench = load_point_benchmark(bench, false)?;
-    std::fs::create_dir_all(out)
-        .map_err(|e| PipelineError::file(out.display(), format!("cannot create: {e}")))?;
+    create_folder(out)?;
     let mut points = 0;
     for image in &bench.images {
         let photo = read_rgb(&image.image_path)?;
@@ -72,8 +72,7 @@ pub fn draw_point_benchmark(
             1
         };
         let path = out.join(format!("{}.png", image.name));
-        write_atomic(&path, &encode_png_rgb(&draw_points(&photo, image, scale)))
-            .map_err(|e| PipelineError::file(path.display(), format!("cannot write: {e}")))?;
+        write_file(&path, &encode_png_rgb(&draw_points(&photo, image, scale)))?;
         points += image.points.iter().map(Vec::len).sum::<usize>();
     }
     Ok((bench.images.len(), points))

@@ -3,7 +3,8 @@
 
 use crate::bench::clock::process_cpu_seconds;
 use crate::error::PipelineError;
-use matseg_image::io::{encode_png_gray, encode_png_rgb, write_atomic};
+use crate::files::{create_folder, write_file};
+use matseg_image::io::{encode_png_gray, encode_png_rgb};
 use matseg_render::hdr_io::{encode_radiance, HdrImage};
 use matseg_render::{render, tone_map, SceneDescription};
 use matseg_scene::{colourise, quantise_fractions};
@@ -90,13 +91,8 @@ pub fn render_scene_file(
         .zip(cpu_before)
         .map(|(after, before)| after - before);
 
-    std::fs::create_dir_all(out)
-        .map_err(|e| PipelineError::file(out.display(), format!("cannot create: {e}")))?;
-    let write = |name: &str, bytes: Vec<u8>| {
-        let path = out.join(name);
-        write_atomic(&path, &bytes)
-            .map_err(|e| PipelineError::file(path.display(), format!("cannot write: {e}")))
-    };
+    create_folder(out)?;
+    let write = |name: &str, bytes: Vec<u8>| write_file(&out.join(name), &bytes);
     let (w, h) = (rendered.width, rendered.height);
     write(
         "image.png",

@@ -5,10 +5,11 @@
 //! answered from that description, and drawn as images over the photo.
 
 use crate::error::PipelineError;
+use crate::files::{create_folder, write_file};
 use image::RgbImage;
 use matseg_eval::{cluster_descriptors, ClusterOptions};
 use matseg_image::coarse::CoarseDescriptors;
-use matseg_image::io::{encode_png_gray, encode_png_rgb, write_atomic};
+use matseg_image::io::{encode_png_gray, encode_png_rgb};
 use matseg_net::TEMPERATURE;
 use matseg_scene::PALETTE;
 use std::path::Path;
@@ -163,12 +164,14 @@ pub fn write_point_maps(
     for (i, (similarity, &point)) in maps.similarity.iter().zip(points).enumerate() {
         let grey = similarity_grey(similarity);
         write_file(
-            out,
-            &format!("similarity_{i}.png"),
-            encode_png_gray(w, h, &grey),
+            &out.join(format!("similarity_{i}.png")),
+            &encode_png_gray(w, h, &grey),
         )?;
         let overlay = similarity_overlay(photo, similarity, point, radius);
-        write_file(out, &format!("overlay_{i}.png"), encode_png_rgb(&overlay))?;
+        write_file(
+            &out.join(format!("overlay_{i}.png")),
+            &encode_png_rgb(&overlay),
+        )?;
     }
     if let Some(labels) = &maps.labels {
         write_segmentation(photo, labels, out)?;
@@ -195,25 +198,15 @@ pub fn write_clusters(
 /// (8-bit grey, pixel value = label).
 fn write_segmentation(photo: &RgbImage, labels: &[u32], out: &Path) -> Result<(), PipelineError> {
     let segmentation = segmentation_overlay(photo, labels);
-    write_file(out, "segmentation.png", encode_png_rgb(&segmentation))?;
+    write_file(
+        &out.join("segmentation.png"),
+        &encode_png_rgb(&segmentation),
+    )?;
     let grey: Vec<u8> = labels.iter().map(|&l| l as u8).collect();
     write_file(
-        out,
-        "labels.png",
-        encode_png_gray(photo.width(), photo.height(), &grey),
+        &out.join("labels.png"),
+        &encode_png_gray(photo.width(), photo.height(), &grey),
     )
-}
-
-fn create_folder(out: &Path) -> Result<(), PipelineError> {
-    std::fs::create_dir_all(out)
-        .map_err(|e| PipelineError::file(out.display(), format!("cannot create: {e}")))
-}
-
-/// Writes `out/name` atomically.
-fn write_file(out: &Path, name: &str, bytes: Vec<u8>) -> Result<(), PipelineError> {
-    let path = out.join(name);
-    write_atomic(&path, &bytes)
-        .map_err(|e| PipelineError::file(path.display(), format!("cannot write: {e}")))
 }
 
 /// Draws the outline of the disc of `radius` (at least 3) around `point`

@@ -2,9 +2,10 @@
 //! written as images with their records, for inspection or reuse.
 
 use crate::error::PipelineError;
+use crate::files::{create_folder, write_file};
 use matseg_data::sample_rng;
 use matseg_extract::{combine_maps, draw_channel_map, CombinedMaps, MapRecord, MAX_MAPS};
-use matseg_image::io::{encode_png_gray, encode_png_rgb, read_rgb, write_atomic};
+use matseg_image::io::{encode_png_gray, encode_png_rgb, read_rgb};
 use matseg_image::{PhotoLibrary, Plane};
 use matseg_scene::{colourise, Recipe2d};
 use rand::Rng;
@@ -94,13 +95,8 @@ impl PhotoMaps {
             ..
         } = combine_maps(&mut rng, raw, hard, &recipe.maps);
         let weights: Vec<Plane> = weights.iter().map(|w| w.to_plane()).collect();
-        std::fs::create_dir_all(out)
-            .map_err(|e| PipelineError::file(out.display(), format!("cannot create: {e}")))?;
-        let write = |name: String, bytes: Vec<u8>| {
-            let path = out.join(&name);
-            write_atomic(&path, &bytes)
-                .map_err(|e| PipelineError::file(path.display(), format!("cannot write: {e}")))
-        };
+        create_folder(out)?;
+        let write = |name: String, bytes: Vec<u8>| write_file(&out.join(name), &bytes);
         let grey = |plane: &Plane| encode_png_gray(w as u32, h as u32, &plane.to_u8());
         for (k, (r, wgt)) in raw_planes.iter().zip(&weights).enumerate() {
             write(format!("raw_{k:02}.png"), grey(r))?;

@@ -5,10 +5,11 @@
 
 use crate::bench::clock::process_cpu_seconds;
 use crate::error::PipelineError;
+use crate::files::{create_folder, write_file};
 use crate::progress::Progress;
 use crate::sources::SourceError;
 use matseg_extract::textures::{extract_textures, TextureOptions, TextureSquare, CHANNEL_NAMES};
-use matseg_image::io::{encode_jpeg, read_rgb, write_atomic};
+use matseg_image::io::{encode_jpeg, read_rgb};
 use matseg_image::library::PhotoEntry;
 use matseg_image::PhotoLibrary;
 use rayon::prelude::*;
@@ -81,8 +82,7 @@ pub fn make_texture_library(
         progress.warn(&format!("{}: {}", s.path.display(), s.reason));
     }
     let records = out.join("records");
-    std::fs::create_dir_all(&records)
-        .map_err(|e| PipelineError::file(out.display(), format!("cannot create: {e}")))?;
+    create_folder(&records)?;
     let smallest = (options.cell * options.min_cells) as u32;
     let todo: Vec<usize> = (0..library.len())
         .filter(|&i| !record_path(out, &library.entries()[i]).is_file())
@@ -148,8 +148,7 @@ fn extract_one(
     let mut textures = Vec::new();
     for (k, (square, crop)) in extract_textures(&img, options).into_iter().enumerate() {
         let file = format!("{stem}__{k}.jpg");
-        write_atomic(&out.join(&file), &encode_jpeg(&crop, 95))
-            .map_err(|e| format!("{}: cannot write: {e}", out.join(&file).display()))?;
+        write_file(&out.join(&file), &encode_jpeg(&crop, 95)).map_err(|e| e.to_string())?;
         textures.push(TextureRecord { file, square });
     }
     let record = PhotoRecord {
@@ -164,7 +163,7 @@ fn extract_one(
     let n = record.textures.len();
     let json = serde_json::to_vec_pretty(&record).expect("JSON");
     let path = record_path(out, entry);
-    write_atomic(&path, &json).map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
+    write_file(&path, &json).map_err(|e| e.to_string())?;
     Ok((n, img.width() as u64 * img.height() as u64))
 }
 
@@ -190,9 +189,8 @@ fn write_licences(out: &Path) -> Result<(), PipelineError> {
             }
         }
     }
-    write_atomic(
+    write_file(
         &out.join("licenses.json"),
         &serde_json::to_vec_pretty(&licences).expect("JSON"),
     )
-    .map_err(|e| unreadable(out, format!("cannot write: {e}")))
 }

@@ -5,6 +5,7 @@
 //! metrics log) makes a resumed run continue exactly where it stopped.
 
 use crate::error::PipelineError;
+use crate::files::create_folder;
 use crate::sources::Libraries;
 use crate::weights::{imagenet_weights, read_weights};
 use matseg_data::Dataset;
@@ -231,8 +232,7 @@ pub fn start(config: &TrainConfig, device: Device) -> Result<TrainingRun, Pipeli
         }
     }
     let initial_weights = load_initial_weights(&trainer, &config.init)?;
-    std::fs::create_dir_all(&dir)
-        .map_err(|e| PipelineError::file(dir.display(), format!("cannot create: {e}")))?;
+    create_folder(&dir)?;
     train::write_run_config(&dir, &trainer.config)?;
     Ok(TrainingRun {
         trainer,

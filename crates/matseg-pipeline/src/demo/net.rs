@@ -5,8 +5,8 @@
 //! the same maps from it. The page lists the `matseg` commands that redo
 //! each step by hand.
 
-use super::page::write_file;
 use crate::error::PipelineError;
+use crate::files::write_file;
 use crate::progress::Progress;
 use crate::segment::{describe, write_clusters, write_point_maps, Model, DEFAULT_RADIUS};
 use crate::sources::{assets_dir, Defaults, Libraries};

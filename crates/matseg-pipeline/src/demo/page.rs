@@ -2,8 +2,9 @@
 //! show a dataset's samples beside their annotations.
 
 use crate::error::PipelineError;
+use crate::files::{create_folder, write_file};
 use matseg_data::Dataset;
-use matseg_image::io::{encode_png_rgb, write_atomic};
+use matseg_image::io::encode_png_rgb;
 use matseg_scene::colourise;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -68,16 +69,4 @@ pub fn sample_cards(
         );
     }
     Ok(cards)
-}
-
-/// Creates `dir` and its parents.
-pub fn create_folder(dir: &Path) -> Result<(), PipelineError> {
-    std::fs::create_dir_all(dir)
-        .map_err(|e| PipelineError::file(dir.display(), format!("cannot create: {e}")))
-}
-
-/// Writes `bytes` to `path` atomically.
-pub fn write_file(path: &Path, bytes: &[u8]) -> Result<(), PipelineError> {
-    write_atomic(path, bytes)
-        .map_err(|e| PipelineError::file(path.display(), format!("cannot write: {e}")))
 }

@@ -2,8 +2,9 @@
 //! photos, materials and HDRIs, path traced, and shown beside their exact
 //! annotations (`scenes-3d.html`).
 
-use super::page::{sample_cards, write_file, STYLE};
+use super::page::{sample_cards, STYLE};
 use crate::error::PipelineError;
+use crate::files::write_file;
 use crate::files3d::{recipe_3d, Files3d, Folders3d};
 use crate::progress::Progress;
 use crate::sources::Defaults;
