@@ -2,7 +2,7 @@
 
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
-use matseg_image::{LicenceFilter, SkippedFile};
+use matseg_image::LicenceFilter;
 use matseg_pipeline::error::PipelineError;
 use matseg_pipeline::files3d::{Files3d, Folders3d};
 use matseg_pipeline::progress::Progress;
@@ -78,12 +78,7 @@ pub fn load_files_3d(
 /// Prints the source files that failed to decode during the run and the
 /// count of all unreadable ones.
 pub fn report_skipped(libraries: &Libraries) {
-    let late: Vec<SkippedFile> = libraries
-        .photos
-        .failures()
-        .into_iter()
-        .chain(libraries.textures.failures())
-        .collect();
+    let late = libraries.failed_since_scan();
     for s in &late {
         eprintln!("warning: skipped {}: {}", s.path.display(), s.reason);
     }

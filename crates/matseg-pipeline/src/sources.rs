@@ -188,6 +188,13 @@ impl Libraries {
     pub fn skipped_at_scan(&self) -> &[SkippedFile] {
         &self.scan_skipped
     }
+
+    /// Files that failed to decode since the scan, photos then textures.
+    pub fn failed_since_scan(&self) -> Vec<SkippedFile> {
+        let mut failed = self.photos.failures();
+        failed.extend(self.textures.failures());
+        failed
+    }
 }
 
 #[cfg(test)]

@@ -85,8 +85,7 @@ pub fn run(options: &DemoOptions, progress: &dyn Progress) -> Result<DemoReport,
     for s in libs
         .skipped_at_scan()
         .iter()
-        .chain(&libs.photos.failures())
-        .chain(&libs.textures.failures())
+        .chain(&libs.failed_since_scan())
     {
         progress.warn(&format!("{}: {}", s.path.display(), s.reason));
     }
