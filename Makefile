@@ -1,5 +1,7 @@
 # The two entry points a newcomer needs (see README.md). Set-up steps (the
-# project-local torch venv for the net: scripts/torch-env.sh) run behind them.
+# project-local torch venv for the net: scripts/torch-env.sh; the headless
+# Chromium of the web app's browser tests: scripts/chromium-env.sh) run
+# behind them.
 
 CARGO ?= cargo
 DEMO_OUT ?= demo-out

@@ -12,9 +12,14 @@ pub struct Args {
     /// train`, or its weights file.
     #[arg(long, default_value = "default")]
     model: PathBuf,
-    /// Folders of photos to offer besides the bundled ones; repeatable.
+    /// Folders of photos to offer besides the bundled ones, or of datasets
+    /// (MatSeg sample folders or WebDataset shards) to browse; repeatable.
     #[arg(long, num_args = 1..)]
     data: Vec<PathBuf>,
+    /// Point benchmark folders (images/, data/NAME/data.json) to annotate
+    /// and evaluate; repeatable.
+    #[arg(long, num_args = 1..)]
+    bench: Vec<PathBuf>,
     /// Address to bind; any other than the loopback needs --token.
     #[arg(long, default_value = "127.0.0.1")]
     host: String,
@@ -38,6 +43,7 @@ pub fn run(args: Args) -> Result<()> {
     let options = ServeOptions {
         model: args.model,
         data: args.data,
+        bench: args.bench,
         host: args.host,
         port: args.port,
         token: args.token,

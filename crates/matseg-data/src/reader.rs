@@ -187,6 +187,18 @@ impl Dataset {
         }
     }
 
+    /// The key of sample `i` (its folder's name or its shard key), without
+    /// reading it.
+    pub fn key(&self, i: usize) -> String {
+        match &self.samples[i] {
+            Location::Folder(dir) => dir
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default(),
+            Location::Shard { key, .. } => key.clone(),
+        }
+    }
+
     /// Reads every sample in order.
     pub fn iter(&self) -> impl Iterator<Item = Result<Sample, ReadError>> + '_ {
         (0..self.len()).map(|i| self.get(i))

@@ -121,6 +121,7 @@ fn folders_and_shards_read_back_to_the_generated_scenes() {
             let scene = generate_2d(&mut sample_rng(42, i), &recipe, sources).unwrap();
             let q = quantise_weights(&scene.weights, &scene.background);
             assert_eq!(sample.key, format!("{i:08}"));
+            assert_eq!(ds.key(i as usize), sample.key, "the key without reading");
             assert_eq!(sample.image.dimensions(), scene.image.dimensions());
             assert_eq!(sample.masks.len(), q.masks.len());
             for (got, want) in sample.masks.iter().zip(&q.masks) {

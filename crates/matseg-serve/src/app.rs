@@ -1,18 +1,20 @@
-//! The HTTP side: the page's static files (built into the binary) and the
-//! JSON and image API under `/api/` (docs/serve.md).
+//! The HTTP side: the pages' static files (built into the binary), the
+//! token check, the error type every handler answers with, and the router
+//! that puts the API of each page under `/api/` (docs/serve.md).
 
-use crate::described::{Described, DescribedCache};
+use crate::annotate::BenchFolder;
+use crate::browse::DatasetFolder;
+use crate::described::{DescribedCache, Uploads};
+use crate::evaluate::Evaluations;
 use crate::roots::{PathError, Roots};
-use axum::extract::{Query, Request, State};
+use crate::{annotate, browse, evaluate, photos};
+use axum::extract::{DefaultBodyLimit, Path, Request, State};
 use axum::http::{header, HeaderMap, StatusCode};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
-use axum::routing::get;
+use axum::routing::{get, post};
 use axum::{Json, Router};
-use matseg_image::io::{encode_png_gray, find_files, read_rgb};
-use matseg_image::LibraryError;
-use matseg_pipeline::segment::{check_points, describe, query_points, Model, DEFAULT_RADIUS};
-use serde::Deserialize;
+use matseg_pipeline::segment::Model;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
@@ -20,54 +22,89 @@ use std::sync::{Arc, Mutex};
 pub struct AppState {
     /// The model photos are described with.
     pub model: Mutex<Model>,
+    /// The model as the server was given it (`default`, a run or a file),
+    /// for evaluations, which load their own copy.
+    pub model_path: PathBuf,
+    /// The device the model runs on.
+    pub device: tch::Device,
     /// The folders photos come from.
     pub roots: Roots,
     /// Photos described so far.
     pub described: DescribedCache,
-    /// The photos under the roots, as root name and path inside.
+    /// Photos uploaded by the page, kept in memory.
+    pub uploads: Uploads,
+    /// The photos under the photo roots, as root name and path inside.
     pub photos: Vec<(String, PathBuf)>,
+    /// The `--data` folders that are datasets.
+    pub datasets: Vec<DatasetFolder>,
+    /// The `--bench` folders.
+    pub benches: Vec<BenchFolder>,
+    /// Evaluations run or running, by bench root.
+    pub evaluations: Evaluations,
     /// The token every API call must carry, when set.
     pub token: Option<String>,
 }
 
-/// The page, its script and its style sheet.
-const INDEX: &str = include_str!("static/index.html");
-const APP_JS: &str = include_str!("static/app.js");
-const STYLE: &str = include_str!("static/style.css");
+/// The pages and the files they load: name, content type, body.
+const STATIC_FILES: [(&str, &str, &str); 10] = [
+    ("index.html", HTML, include_str!("static/index.html")),
+    ("browse.html", HTML, include_str!("static/browse.html")),
+    ("annotate.html", HTML, include_str!("static/annotate.html")),
+    ("evaluate.html", HTML, include_str!("static/evaluate.html")),
+    ("common.js", JS, include_str!("static/common.js")),
+    ("segment.js", JS, include_str!("static/segment.js")),
+    ("browse.js", JS, include_str!("static/browse.js")),
+    ("annotate.js", JS, include_str!("static/annotate.js")),
+    ("evaluate.js", JS, include_str!("static/evaluate.js")),
+    ("style.css", CSS, include_str!("static/style.css")),
+];
+const HTML: &str = "text/html; charset=utf-8";
+const JS: &str = "text/javascript; charset=utf-8";
+const CSS: &str = "text/css; charset=utf-8";
 
-/// Image extensions the photo list shows.
-const PHOTO_EXTENSIONS: [&str; 3] = ["jpg", "jpeg", "png"];
-
-/// Most photos one listing request returns.
-const MAX_LISTING: usize = 1000;
+/// The static file `name` (`/browse` stands for `browse.html`).
+fn static_file(name: &str) -> Response {
+    let name = if name.is_empty() { "index.html" } else { name };
+    let page = format!("{name}.html");
+    match STATIC_FILES
+        .iter()
+        .find(|(file, _, _)| *file == name || *file == page)
+    {
+        Some((_, kind, body)) => ([(header::CONTENT_TYPE, *kind)], *body).into_response(),
+        None => {
+            ApiError::new(StatusCode::NOT_FOUND, format!("{name:?}: no such page")).into_response()
+        }
+    }
+}
 
 /// The router of the app over `state`.
 pub fn router(state: Arc<AppState>) -> Router {
     let api = Router::new()
-        .route("/api/photos", get(photos))
-        .route("/api/photo", get(photo))
-        .route("/api/similarity", get(similarity))
-        .route("/api/segment", get(segment))
+        .route("/api/photos", get(photos::list))
+        .route("/api/photo", get(photos::photo))
+        .route(
+            "/api/upload",
+            post(photos::upload).layer(DefaultBodyLimit::disable()),
+        )
+        .route("/api/similarity", get(photos::similarity))
+        .route("/api/segment", get(photos::segment))
+        .route("/api/auto", get(photos::auto))
+        .route("/api/datasets", get(browse::datasets))
+        .route("/api/samples", get(browse::samples))
+        .route("/api/sample", get(browse::sample))
+        .route("/api/sample/image", get(browse::sample_image))
+        .route("/api/benches", get(annotate::benches))
+        .route("/api/annotation", get(annotate::load).post(annotate::save))
+        .route("/api/evaluate", get(evaluate::status).post(evaluate::start))
         .route_layer(middleware::from_fn_with_state(state.clone(), check_token));
     Router::new()
+        .route("/", get(|| async { static_file("") }))
         .route(
-            "/",
-            get(|| async { page(INDEX, "text/html; charset=utf-8") }),
-        )
-        .route(
-            "/app.js",
-            get(|| async { page(APP_JS, "text/javascript; charset=utf-8") }),
-        )
-        .route(
-            "/style.css",
-            get(|| async { page(STYLE, "text/css; charset=utf-8") }),
+            "/{file}",
+            get(|Path(file): Path<String>| async move { static_file(&file) }),
         )
         .merge(api)
         .with_state(state)
-}
-
-fn page(body: &'static str, content_type: &'static str) -> Response {
-    ([(header::CONTENT_TYPE, content_type)], body).into_response()
 }
 
 /// An API error: a status and a one-line message, sent as `{"error": ...}`.
@@ -78,11 +115,28 @@ pub struct ApiError {
 }
 
 impl ApiError {
-    fn new(status: StatusCode, message: impl Into<String>) -> Self {
+    /// An error with `status` and a one-line `message`.
+    pub fn new(status: StatusCode, message: impl Into<String>) -> Self {
         Self {
             status,
             message: message.into(),
         }
+    }
+
+    /// A 400: the request is wrong.
+    pub fn bad(message: impl Into<String>) -> Self {
+        Self::new(StatusCode::BAD_REQUEST, message)
+    }
+
+    /// A 404: nothing by that name.
+    pub fn not_found(message: impl Into<String>) -> Self {
+        Self::new(StatusCode::NOT_FOUND, message)
+    }
+
+    /// A 500: the server failed (a worker stopped, a file could not be
+    /// written).
+    pub fn internal(message: impl Into<String>) -> Self {
+        Self::new(StatusCode::INTERNAL_SERVER_ERROR, message)
     }
 }
 
@@ -104,6 +158,16 @@ impl From<PathError> for ApiError {
         };
         Self::new(status, e.to_string())
     }
+}
+
+/// Runs `work` on a blocking thread (decoding, describing, reading
+/// samples), off the async workers.
+pub async fn blocking<T: Send + 'static>(
+    work: impl FnOnce() -> Result<T, ApiError> + Send + 'static,
+) -> Result<T, ApiError> {
+    tokio::task::spawn_blocking(work)
+        .await
+        .map_err(|e| ApiError::internal(e.to_string()))?
 }
 
 /// Refuses API calls without the server's token (header `x-matseg-token`
@@ -128,194 +192,35 @@ async fn check_token(
     next.run(request).await
 }
 
-/// A page of the photos under the roots.
-#[derive(Deserialize)]
-struct Listing {
-    #[serde(default)]
-    offset: usize,
-    limit: Option<usize>,
-}
+#[cfg(test)]
+mod tests {
+    use super::*;
 
-async fn photos(
-    State(state): State<Arc<AppState>>,
-    Query(listing): Query<Listing>,
-) -> Result<Json<serde_json::Value>, ApiError> {
-    let limit = listing.limit.unwrap_or(200).min(MAX_LISTING);
-    let items: Vec<_> = state
-        .photos
-        .iter()
-        .skip(listing.offset)
-        .take(limit)
-        .map(|(root, path)| serde_json::json!({ "root": root, "path": path }))
-        .collect();
-    Ok(Json(serde_json::json!({
-        "total": state.photos.len(),
-        "offset": listing.offset,
-        "photos": items
-    })))
-}
+    #[test]
+    fn the_pages_draw_labels_in_the_command_lines_palette() {
+        let common = STATIC_FILES[4].2;
+        let start = common.find("PALETTE = [").unwrap();
+        let end = start + common[start..].find("];").unwrap();
+        let numbers: Vec<u8> = common[start + 11..end]
+            .split(|c: char| !c.is_ascii_digit())
+            .filter(|n| !n.is_empty())
+            .map(|n| n.parse().unwrap())
+            .collect();
+        assert_eq!(numbers, matseg_scene::PALETTE.concat());
+    }
 
-/// The photos under `roots`, each as its root's name and its path inside,
-/// listed once when the server starts.
-pub fn list_photos(roots: &Roots) -> Result<Vec<(String, PathBuf)>, LibraryError> {
-    let mut photos = Vec::new();
-    for (name, dir) in roots.iter() {
-        for file in find_files(&[dir.to_path_buf()], &PHOTO_EXTENSIONS)? {
-            let path = file.strip_prefix(dir).unwrap_or(&file).to_path_buf();
-            photos.push((name.to_string(), path));
+    #[test]
+    fn pages_are_found_with_or_without_their_extension() {
+        for (name, kind) in [
+            ("", HTML),
+            ("browse", HTML),
+            ("annotate.html", HTML),
+            ("common.js", JS),
+        ] {
+            let response = static_file(name);
+            assert_eq!(response.status(), StatusCode::OK, "{name}");
+            assert_eq!(response.headers()[header::CONTENT_TYPE], kind, "{name}");
         }
+        assert_eq!(static_file("secret").status(), StatusCode::NOT_FOUND);
     }
-    Ok(photos)
-}
-
-/// A photo named by root and path.
-#[derive(Deserialize)]
-struct PhotoRef {
-    root: String,
-    path: String,
-}
-
-async fn photo(
-    State(state): State<Arc<AppState>>,
-    Query(photo): Query<PhotoRef>,
-) -> Result<Response, ApiError> {
-    let file = state.roots.resolve(&photo.root, &photo.path)?;
-    let bytes = std::fs::read(&file)
-        .map_err(|e| ApiError::new(StatusCode::NOT_FOUND, format!("{}: {e}", photo.path)))?;
-    let content_type = if file
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
-    {
-        "image/png"
-    } else {
-        "image/jpeg"
-    };
-    Ok(([(header::CONTENT_TYPE, content_type)], bytes).into_response())
-}
-
-/// The photo described, from the cache or now (off the async threads).
-async fn described(state: &Arc<AppState>, photo: &PhotoRef) -> Result<Arc<Described>, ApiError> {
-    let file = state.roots.resolve(&photo.root, &photo.path)?;
-    let key = format!("{}/{}", photo.root, file.display());
-    if let Some(d) = state.described.get(&key) {
-        return Ok(d);
-    }
-    let state = state.clone();
-    tokio::task::spawn_blocking(move || {
-        let image =
-            read_rgb(&file).map_err(|e| ApiError::new(StatusCode::BAD_REQUEST, e.to_string()))?;
-        let map = {
-            let model = state.model.lock().unwrap_or_else(|e| e.into_inner());
-            describe(&model, &image)
-        };
-        let described = Arc::new(Described { photo: image, map });
-        state
-            .described
-            .insert(key, described.clone(), described.bytes());
-        Ok(described)
-    })
-    .await
-    .map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?
-}
-
-/// Points `x,y;x,y...` in photo pixels.
-fn parse_points(text: &str) -> Result<Vec<(f32, f32)>, ApiError> {
-    text.split(';')
-        .filter(|p| !p.trim().is_empty())
-        .map(|p| {
-            let (x, y) = p.split_once(',')?;
-            Some((x.trim().parse().ok()?, y.trim().parse().ok()?))
-        })
-        .collect::<Option<Vec<_>>>()
-        .ok_or_else(|| {
-            ApiError::new(
-                StatusCode::BAD_REQUEST,
-                format!("points {text:?}: expected X,Y;X,Y..."),
-            )
-        })
-}
-
-/// A photo and points on it.
-#[derive(Deserialize)]
-struct PointsQuery {
-    root: String,
-    path: String,
-    points: String,
-    radius: Option<f32>,
-}
-
-impl PointsQuery {
-    fn photo(&self) -> PhotoRef {
-        PhotoRef {
-            root: self.root.clone(),
-            path: self.path.clone(),
-        }
-    }
-}
-
-/// The photo described and the points checked against it.
-async fn described_with_points(
-    state: &Arc<AppState>,
-    query: &PointsQuery,
-) -> Result<(Arc<Described>, Vec<(f32, f32)>), ApiError> {
-    let points = parse_points(&query.points)?;
-    let described = described(state, &query.photo()).await?;
-    check_points(&described.photo, &points, &query.path)
-        .map_err(|e| ApiError::new(StatusCode::BAD_REQUEST, e.to_string()))?;
-    Ok((described, points))
-}
-
-fn png(width: u32, height: u32, grey: &[u8]) -> Response {
-    (
-        [(header::CONTENT_TYPE, "image/png")],
-        encode_png_gray(width, height, grey),
-    )
-        .into_response()
-}
-
-/// The similarity map of the first point: cosine in [0, 1] as grey.
-async fn similarity(
-    State(state): State<Arc<AppState>>,
-    Query(query): Query<PointsQuery>,
-) -> Result<Response, ApiError> {
-    let (described, points) = described_with_points(&state, &query).await?;
-    let first = points
-        .first()
-        .ok_or_else(|| ApiError::new(StatusCode::BAD_REQUEST, "points: give one point"))?;
-    let maps = query_points(
-        &described.map,
-        &[*first],
-        query.radius.unwrap_or(DEFAULT_RADIUS),
-    );
-    let grey = matseg_pipeline::segment::similarity_grey(&maps.similarity[0]);
-    let (w, h) = described.photo.dimensions();
-    Ok(png(w, h, &grey))
-}
-
-/// The nearest-point segmentation of two points or more: each pixel's
-/// label (the index of its point) as grey.
-async fn segment(
-    State(state): State<Arc<AppState>>,
-    Query(query): Query<PointsQuery>,
-) -> Result<Response, ApiError> {
-    let (described, points) = described_with_points(&state, &query).await?;
-    if points.len() < 2 {
-        return Err(ApiError::new(
-            StatusCode::BAD_REQUEST,
-            "points: give two points or more",
-        ));
-    }
-    let maps = query_points(
-        &described.map,
-        &points,
-        query.radius.unwrap_or(DEFAULT_RADIUS),
-    );
-    let labels: Vec<u8> = maps
-        .labels
-        .expect("two points or more")
-        .iter()
-        .map(|&l| l as u8)
-        .collect();
-    let (w, h) = described.photo.dimensions();
-    Ok(png(w, h, &labels))
 }

@@ -1,6 +1,7 @@
-//! Photos described once: the model's coarse descriptors of each photo a
-//! page opened, kept in a byte-bounded cache (least recently used first
-//! out), so every click on a described photo is answered from memory.
+//! What the server keeps in memory, within one byte budget: photos the
+//! model described (their pixels and coarse descriptors, so every click on
+//! a described photo is answered from memory) and photos the page
+//! uploaded (their encoded bytes). Least recently used first out.
 
 use image::RgbImage;
 use matseg_image::coarse::CoarseDescriptors;
@@ -23,3 +24,6 @@ impl Described {
 
 /// Described photos by key (root and file).
 pub type DescribedCache = ByteLru<String, Described>;
+
+/// Uploaded photos (PNG or JPEG bytes as sent) by name.
+pub type Uploads = ByteLru<String, Vec<u8>>;

@@ -1,8 +1,11 @@
-//! `matseg serve`: the local web app. A page opens a photo (bundled, or
-//! from the folders the server was given), a click shows where else in it
-//! the material under the point is, and shift-clicks add points whose
-//! nearest-point segmentation is drawn live. Each photo is described once
-//! by the model; clicks are answered from the cached descriptors.
+//! `matseg serve`: the local web app. Four pages: *segment* opens a photo
+//! (bundled, uploaded, or from the folders the server was given) and a
+//! click shows where else in it the material under the point is
+//! (shift-clicks add points, whose segmentation is drawn live); *browse*
+//! pages through a generated dataset; *annotate* builds a point benchmark;
+//! *evaluate* scores the model and baselines on one. Each photo is
+//! described once by the model; clicks are answered from the cached
+//! descriptors.
 //!
 //! Safety: the server binds 127.0.0.1 unless told otherwise, and any other
 //! address needs a token that every API call must carry; it serves only
@@ -10,12 +13,18 @@
 
 #![warn(missing_docs)]
 
+pub mod annotate;
 pub mod app;
+pub mod browse;
 pub mod described;
+pub mod evaluate;
+pub mod photos;
 pub mod roots;
 
+use annotate::BenchFolder;
 use app::AppState;
-use described::DescribedCache;
+use browse::DatasetFolder;
+use described::{DescribedCache, Uploads};
 use matseg_image::MemoryBudget;
 use matseg_pipeline::segment::Model;
 use roots::Roots;
@@ -58,8 +67,11 @@ pub enum ServeError {
 pub struct ServeOptions {
     /// The model: `default`, a run folder or a weights file.
     pub model: PathBuf,
-    /// Folders of photos besides the bundled ones.
+    /// Folders of photos besides the bundled ones, or of datasets to
+    /// browse.
     pub data: Vec<PathBuf>,
+    /// Point benchmark folders to annotate and evaluate.
+    pub bench: Vec<PathBuf>,
     /// The address to bind.
     pub host: String,
     /// The port (0: any free one).
@@ -83,31 +95,61 @@ pub fn state(options: &ServeOptions) -> Result<Arc<AppState>, ServeError> {
         return Err(ServeError::NoToken(options.host.clone()));
     }
     let mut roots = Roots::default();
-    let folder = |path: &PathBuf| {
-        let path = path.clone();
-        move |e: std::io::Error| ServeError::Folder {
-            path,
-            message: e.to_string(),
-        }
-    };
-    let bundled = matseg_pipeline::sources::assets_dir().join("photos");
-    roots.add("photos", &bundled).map_err(folder(&bundled))?;
-    for (i, dir) in options.data.iter().enumerate() {
+    let add = |roots: &mut Roots, name: &str, dir: &PathBuf| {
         if !dir.is_dir() {
             return Err(ServeError::Folder {
                 path: dir.clone(),
                 message: "no such folder".into(),
             });
         }
-        roots.add(&format!("data{i}"), dir).map_err(folder(dir))?;
+        roots.add(name, dir).map_err(|e| ServeError::Folder {
+            path: dir.clone(),
+            message: e.to_string(),
+        })
+    };
+    let bundled = matseg_pipeline::sources::assets_dir().join("photos");
+    add(&mut roots, "photos", &bundled)?;
+    let mut photo_roots = vec!["photos".to_string()];
+    let mut datasets = Vec::new();
+    for (i, dir) in options.data.iter().enumerate() {
+        let name = format!("data{i}");
+        add(&mut roots, &name, dir)?;
+        match DatasetFolder::open(&name, dir.clone()) {
+            Some(dataset) => datasets.push(dataset),
+            None => photo_roots.push(name),
+        }
     }
-    let photos = app::list_photos(&roots)?;
+    let mut benches = Vec::new();
+    for (i, dir) in options.bench.iter().enumerate() {
+        let name = format!("bench{i}");
+        add(&mut roots, &name, dir)?;
+        if !dir.join("images").is_dir() {
+            return Err(ServeError::Folder {
+                path: dir.clone(),
+                message: "a benchmark folder needs an images/ folder of photos".into(),
+            });
+        }
+        photo_roots.push(name.clone());
+        benches.push(BenchFolder::new(&name, dir.clone()));
+    }
+    let photos = photos::list_photos(
+        roots
+            .iter()
+            .filter(|(name, _)| photo_roots.iter().any(|p| p == name)),
+    )?;
     let model = Model::load(&options.model, options.device)?;
+    let budget = MemoryBudget::new(options.cache_mb.saturating_mul(1 << 20));
     Ok(Arc::new(AppState {
         model: Mutex::new(model),
+        model_path: options.model.clone(),
+        device: options.device,
         roots,
         photos,
-        described: DescribedCache::new(MemoryBudget::new(options.cache_mb.saturating_mul(1 << 20))),
+        described: DescribedCache::new(budget.clone()),
+        uploads: Uploads::new(budget),
+        datasets,
+        benches,
+        evaluations: Default::default(),
         token: options.token.clone(),
     }))
 }

@@ -1,6 +1,7 @@
-//! The API on the shipped model, through the router (no socket): the page
-//! and its files, the photo list, photos, similarity maps and segmentations
-//! of bundled photos, refused paths, bad points and the token.
+//! The API on the shipped model, through the router (no socket): the pages
+//! and their files, the photo list, photos, similarity maps, segmentations
+//! by points and automatic ones, uploads (and the refused ones), refused
+//! paths, bad points and the token.
 
 use axum::body::Body;
 use axum::http::{Request, StatusCode};
@@ -11,6 +12,7 @@ fn options() -> ServeOptions {
     ServeOptions {
         model: "default".into(),
         data: Vec::new(),
+        bench: Vec::new(),
         host: "127.0.0.1".into(),
         port: 0,
         token: None,
@@ -21,11 +23,16 @@ fn options() -> ServeOptions {
 
 /// Status, content type and body of `GET uri`.
 async fn get(app: &axum::Router, uri: &str) -> (StatusCode, String, Vec<u8>) {
-    let response = app
-        .clone()
-        .oneshot(Request::get(uri).body(Body::empty()).unwrap())
-        .await
-        .unwrap();
+    send(app, Request::get(uri).body(Body::empty()).unwrap()).await
+}
+
+/// Status, content type and body of `POST uri` with `body`.
+async fn post(app: &axum::Router, uri: &str, body: Vec<u8>) -> (StatusCode, String, Vec<u8>) {
+    send(app, Request::post(uri).body(Body::from(body)).unwrap()).await
+}
+
+async fn send(app: &axum::Router, request: Request<Body>) -> (StatusCode, String, Vec<u8>) {
+    let response = app.clone().oneshot(request).await.unwrap();
     let status = response.status();
     let kind = response
         .headers()
@@ -52,8 +59,18 @@ async fn a_click_is_answered_with_the_material_under_it() {
         (status, kind.as_str()),
         (StatusCode::OK, "text/html; charset=utf-8")
     );
-    assert!(String::from_utf8(page).unwrap().contains("/app.js"));
-    assert_eq!(get(&app, "/app.js").await.0, StatusCode::OK);
+    assert!(String::from_utf8(page).unwrap().contains("/segment.js"));
+    for file in [
+        "/segment.js",
+        "/common.js",
+        "/style.css",
+        "/browse",
+        "/annotate",
+        "/evaluate",
+    ] {
+        assert_eq!(get(&app, file).await.0, StatusCode::OK, "{file}");
+    }
+    assert_eq!(get(&app, "/nothing.js").await.0, StatusCode::NOT_FOUND);
 
     let (status, _, listing) = get(&app, "/api/photos").await;
     assert_eq!(status, StatusCode::OK);
@@ -83,16 +100,110 @@ async fn a_click_is_answered_with_the_material_under_it() {
     assert!(map.get_pixel(290, 130).0[0] > 200);
     assert!(map.get_pixel(290, 130).0[0] > map.get_pixel(540, 80).0[0]);
 
-    // Two points: each pixel takes its nearest point's label.
+    // Two points: each pixel takes its most similar point's label (red),
+    // with its similarity to it (green).
     let (status, _, png) = get(
         &app,
         "/api/segment?root=photos&path=coffee.jpg&points=290,130;540,80",
     )
     .await;
     assert_eq!(status, StatusCode::OK);
-    let labels = image::load_from_memory(&png).unwrap().to_luma8();
+    let labels = image::load_from_memory(&png).unwrap().to_rgb8();
+    assert_eq!(labels.dimensions(), photo.dimensions());
     assert_eq!(labels.get_pixel(290, 130).0[0], 0);
     assert_eq!(labels.get_pixel(540, 80).0[0], 1);
+    assert_eq!(
+        labels.get_pixel(290, 130).0[1],
+        map.get_pixel(290, 130).0[0],
+        "the strength is the similarity to the pixel's point"
+    );
+    assert!(labels.pixels().all(|p| p.0[0] <= 1 && p.0[2] == 0));
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn the_automatic_segmentation_splits_the_photo_into_k_materials() {
+    let app = router(state(&options()).unwrap());
+    let (status, _, png) = get(&app, "/api/auto?root=photos&path=coffee.jpg&k=3").await;
+    assert_eq!(status, StatusCode::OK);
+    let labels = image::load_from_memory(&png).unwrap().to_rgb8();
+    assert_eq!(labels.dimensions(), (600, 400));
+    let mut seen = [false; 3];
+    for p in labels.pixels() {
+        assert!(p.0[0] < 3 && p.0[1] == 255, "{:?}", p.0);
+        seen[p.0[0] as usize] = true;
+    }
+    assert_eq!(seen, [true; 3], "three materials on the coffee photo");
+    for k in [0, 21] {
+        let (status, _, body) = get(
+            &app,
+            &format!("/api/auto?root=photos&path=coffee.jpg&k={k}"),
+        )
+        .await;
+        assert_eq!(status, StatusCode::BAD_REQUEST);
+        assert!(error_of(&body).contains("give 1 to 20 clusters"));
+    }
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn uploads_are_described_and_bad_ones_refused_with_a_reason() {
+    let app = router(state(&options()).unwrap());
+    let coffee =
+        std::fs::read(matseg_pipeline::sources::assets_dir().join("photos/coffee.jpg")).unwrap();
+    let (status, _, body) = post(&app, "/api/upload?name=mine.jpg", coffee.clone()).await;
+    assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
+    let upload: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    assert_eq!(
+        (upload["width"].as_u64(), upload["height"].as_u64()),
+        (Some(600), Some(400))
+    );
+    let path = upload["path"].as_str().unwrap();
+    let (status, kind, bytes) = get(&app, &format!("/api/photo?root=upload&path={path}")).await;
+    assert_eq!(
+        (status, kind.as_str(), bytes),
+        (StatusCode::OK, "image/jpeg", coffee.clone())
+    );
+    // The upload's map is the bundled photo's: same pixels, same answer.
+    let (_, _, uploaded) = get(
+        &app,
+        &format!("/api/similarity?root=upload&path={path}&points=290,130"),
+    )
+    .await;
+    let (_, _, bundled) = get(
+        &app,
+        "/api/similarity?root=photos&path=coffee.jpg&points=290,130",
+    )
+    .await;
+    assert_eq!(uploaded, bundled);
+
+    let (status, _, body) =
+        post(&app, "/api/upload?name=notes.txt", b"not an image".to_vec()).await;
+    assert_eq!(status, StatusCode::BAD_REQUEST);
+    assert_eq!(error_of(&body), "notes.txt: not a PNG or JPEG image");
+    let (status, _, body) = post(
+        &app,
+        "/api/upload?name=cut.jpg",
+        coffee[..coffee.len() / 2].to_vec(),
+    )
+    .await;
+    assert_eq!(status, StatusCode::BAD_REQUEST);
+    assert!(
+        error_of(&body).starts_with("cut.jpg: truncated or corrupt image"),
+        "{}",
+        error_of(&body)
+    );
+    let (status, _, body) = post(&app, "/api/upload?name=big.png", vec![0; (32 << 20) + 1]).await;
+    assert_eq!(status, StatusCode::PAYLOAD_TOO_LARGE);
+    assert_eq!(error_of(&body), "upload larger than 32 MiB");
+    let huge = matseg_image::io::encode_png_gray(8000, 6000, &vec![0; 8000 * 6000]);
+    let (status, _, body) = post(&app, "/api/upload?name=huge.png", huge).await;
+    assert_eq!(status, StatusCode::PAYLOAD_TOO_LARGE);
+    assert_eq!(
+        error_of(&body),
+        "huge.png: 8000 x 6000 is 48.0 megapixels; the limit is 40"
+    );
+    let (status, _, body) = get(&app, "/api/photo?root=upload&path=0000000000000000.png").await;
+    assert_eq!(status, StatusCode::NOT_FOUND);
+    assert!(error_of(&body).contains("upload it again"));
 }
 
 #[tokio::test(flavor = "multi_thread")]

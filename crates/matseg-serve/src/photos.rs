@@ -1,0 +1,448 @@
+//! The segment page's API: the photo list, a photo's bytes, uploads, and
+//! the answers to clicks (a similarity map, a segmentation by points, an
+//! automatic segmentation), each from the photo's cached descriptors.
+//!
+//! A photo is named by a root and a path: a file under a photo or bench
+//! folder, `upload` and the name an upload was given, or a dataset root
+//! and `sample/INDEX`.
+
+use crate::app::{blocking, ApiError, AppState};
+use crate::described::Described;
+use axum::body::{Body, Bytes};
+use axum::extract::{Query, State};
+use axum::http::{header, HeaderMap, StatusCode};
+use axum::response::{IntoResponse, Response};
+use axum::Json;
+use image::RgbImage;
+use matseg_eval::cluster::ClusterOptions;
+use matseg_image::io::{decode_rgb, encode_png_gray, encode_png_rgb, find_files, read_rgb};
+use matseg_image::LibraryError;
+use matseg_pipeline::segment::{
+    check_points, cluster, describe, query_points, similarity_grey, DEFAULT_RADIUS,
+};
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// Image extensions the photo list shows.
+const PHOTO_EXTENSIONS: [&str; 3] = ["jpg", "jpeg", "png"];
+
+/// Most photos one listing request returns.
+const MAX_LISTING: usize = 1000;
+
+/// The largest upload accepted, in bytes.
+pub const MAX_UPLOAD_BYTES: usize = 32 << 20;
+
+/// The largest uploaded photo accepted, in pixels.
+pub const MAX_UPLOAD_PIXELS: u64 = 40_000_000;
+
+/// The root name of uploaded photos.
+pub const UPLOAD_ROOT: &str = "upload";
+
+/// The most clusters an automatic segmentation makes (the palette's size).
+pub const MAX_CLUSTERS: usize = matseg_scene::PALETTE.len();
+
+/// The photos under `roots` (name and folder), each as its root's name and
+/// its path inside, listed once when the server starts.
+pub fn list_photos<'a>(
+    roots: impl Iterator<Item = (&'a str, &'a Path)>,
+) -> Result<Vec<(String, PathBuf)>, LibraryError> {
+    let mut photos = Vec::new();
+    for (name, dir) in roots {
+        for file in find_files(&[dir.to_path_buf()], &PHOTO_EXTENSIONS)? {
+            let path = file.strip_prefix(dir).unwrap_or(&file).to_path_buf();
+            photos.push((name.to_string(), path));
+        }
+    }
+    Ok(photos)
+}
+
+/// A page of a listing.
+#[derive(Deserialize)]
+pub struct Page {
+    /// The first item's index.
+    #[serde(default)]
+    pub offset: usize,
+    /// How many items at most (a default when absent).
+    pub limit: Option<usize>,
+}
+
+impl Page {
+    /// The range of `total` items the page asks for, with `default` items
+    /// when it names no limit and `most` at most.
+    pub fn range(&self, total: usize, default: usize, most: usize) -> std::ops::Range<usize> {
+        let start = self.offset.min(total);
+        start..(start + self.limit.unwrap_or(default).min(most)).min(total)
+    }
+}
+
+/// `GET /api/photos`: a page of the photos listed at start.
+pub async fn list(
+    State(state): State<Arc<AppState>>,
+    Query(page): Query<Page>,
+) -> Json<serde_json::Value> {
+    let range = page.range(state.photos.len(), 200, MAX_LISTING);
+    let items: Vec<_> = state.photos[range.clone()]
+        .iter()
+        .map(|(root, path)| serde_json::json!({ "root": root, "path": path }))
+        .collect();
+    Json(serde_json::json!({
+        "total": state.photos.len(),
+        "offset": range.start,
+        "photos": items
+    }))
+}
+
+/// A photo named by root and path.
+#[derive(Clone, Deserialize)]
+pub struct PhotoRef {
+    /// The root.
+    pub root: String,
+    /// The path inside it.
+    pub path: String,
+}
+
+/// Where a photo's pixels come from.
+enum Source {
+    File(PathBuf),
+    Upload(Arc<Vec<u8>>),
+    Sample(RgbImage),
+}
+
+impl Source {
+    /// The photo a reference names, read from disk only for samples.
+    fn find(state: &AppState, photo: &PhotoRef) -> Result<(String, Self), ApiError> {
+        if photo.root == UPLOAD_ROOT {
+            let bytes = state.uploads.get(&photo.path).ok_or_else(|| {
+                ApiError::not_found(format!(
+                    "upload {:?}: not kept any more; upload it again",
+                    photo.path
+                ))
+            })?;
+            return Ok((
+                format!("{UPLOAD_ROOT}/{}", photo.path),
+                Source::Upload(bytes),
+            ));
+        }
+        if let Some(dataset) = state.datasets.iter().find(|d| d.root == photo.root) {
+            let index = photo
+                .path
+                .strip_prefix("sample/")
+                .and_then(|i| i.parse().ok())
+                .ok_or_else(|| ApiError::bad(format!("{:?}: expected sample/INDEX", photo.path)))?;
+            let sample = dataset.read(index)?;
+            return Ok((
+                format!("{}/{index}", photo.root),
+                Source::Sample(sample.image),
+            ));
+        }
+        let file = state.roots.resolve(&photo.root, &photo.path)?;
+        Ok((
+            format!("{}/{}", photo.root, file.display()),
+            Source::File(file),
+        ))
+    }
+
+    fn pixels(self, name: &str) -> Result<RgbImage, ApiError> {
+        match self {
+            Source::File(file) => read_rgb(&file),
+            Source::Upload(bytes) => decode_rgb(&bytes, Path::new(name)),
+            Source::Sample(image) => Ok(image),
+        }
+        .map_err(|e| ApiError::bad(e.to_string()))
+    }
+}
+
+/// The content type of PNG or JPEG bytes.
+fn image_type(bytes: &[u8]) -> &'static str {
+    if bytes.starts_with(b"\x89PNG") {
+        "image/png"
+    } else {
+        "image/jpeg"
+    }
+}
+
+/// `GET /api/photo`: the photo's bytes (a sample's image as PNG).
+pub async fn photo(
+    State(state): State<Arc<AppState>>,
+    Query(photo): Query<PhotoRef>,
+) -> Result<Response, ApiError> {
+    let bytes = blocking(move || {
+        let (_, source) = Source::find(&state, &photo)?;
+        match source {
+            Source::File(file) => std::fs::read(&file)
+                .map_err(|e| ApiError::not_found(format!("{}: {e}", photo.path))),
+            Source::Upload(bytes) => Ok(bytes.as_ref().clone()),
+            Source::Sample(image) => Ok(encode_png_rgb(&image)),
+        }
+    })
+    .await?;
+    Ok(([(header::CONTENT_TYPE, image_type(&bytes))], bytes).into_response())
+}
+
+/// The name an upload asks for.
+#[derive(Deserialize)]
+pub struct UploadName {
+    #[serde(default)]
+    name: String,
+}
+
+/// `POST /api/upload[?name=FILE]`: a PNG or JPEG photo as the body, kept
+/// in memory; answers its reference and size. Too large: 413; not an
+/// image or a truncated one: 400.
+pub async fn upload(
+    State(state): State<Arc<AppState>>,
+    Query(name): Query<UploadName>,
+    headers: HeaderMap,
+    body: Body,
+) -> Result<Json<serde_json::Value>, ApiError> {
+    let too_large = || {
+        ApiError::new(
+            StatusCode::PAYLOAD_TOO_LARGE,
+            format!("upload larger than {} MiB", MAX_UPLOAD_BYTES >> 20),
+        )
+    };
+    let declared = headers
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok()?.parse::<usize>().ok());
+    if declared.is_some_and(|n| n > MAX_UPLOAD_BYTES) {
+        return Err(too_large());
+    }
+    let bytes: Bytes = axum::body::to_bytes(body, MAX_UPLOAD_BYTES)
+        .await
+        .map_err(|_| too_large())?;
+    let shown = if name.name.is_empty() {
+        "upload".to_string()
+    } else {
+        name.name.clone()
+    };
+    let (width, height) = blocking({
+        let bytes = bytes.clone();
+        let shown = shown.clone();
+        move || check_upload(&bytes, &shown)
+    })
+    .await?;
+    let key = format!("{:016x}.{}", fnv1a(&bytes), &image_type(&bytes)[6..]);
+    let size = bytes.len();
+    state
+        .uploads
+        .insert(key.clone(), Arc::new(bytes.to_vec()), size);
+    Ok(Json(serde_json::json!({
+        "root": UPLOAD_ROOT,
+        "path": key,
+        "name": shown,
+        "width": width,
+        "height": height,
+    })))
+}
+
+/// The size of an uploaded photo, checked: PNG or JPEG, within the pixel
+/// cap, decodable to the end.
+fn check_upload(bytes: &[u8], name: &str) -> Result<(u32, u32), ApiError> {
+    let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| ApiError::bad(format!("{name}: {e}")))?;
+    if !matches!(
+        reader.format(),
+        Some(image::ImageFormat::Png | image::ImageFormat::Jpeg)
+    ) {
+        return Err(ApiError::bad(format!("{name}: not a PNG or JPEG image")));
+    }
+    let (width, height) = reader
+        .into_dimensions()
+        .map_err(|e| ApiError::bad(format!("{name}: unreadable image header: {e}")))?;
+    let pixels = width as u64 * height as u64;
+    if pixels > MAX_UPLOAD_PIXELS {
+        return Err(ApiError::new(
+            StatusCode::PAYLOAD_TOO_LARGE,
+            format!(
+                "{name}: {width} x {height} is {:.1} megapixels; the limit is {}",
+                pixels as f64 / 1e6,
+                MAX_UPLOAD_PIXELS / 1_000_000
+            ),
+        ));
+    }
+    let truncated =
+        |reason: &str| ApiError::bad(format!("{name}: truncated or corrupt image: {reason}"));
+    // JPEG decoders fill a cut-off scan with grey; the end marker tells.
+    if is_jpeg(bytes) && !ends_with_jpeg_eoi(bytes) {
+        return Err(truncated("no end-of-image marker"));
+    }
+    decode_rgb(bytes, Path::new(name)).map_err(|e| truncated(&e.message))?;
+    Ok((width, height))
+}
+
+fn is_jpeg(bytes: &[u8]) -> bool {
+    bytes.starts_with(&[0xFF, 0xD8])
+}
+
+/// Whether the JPEG end-of-image marker is in the last KiB (after it,
+/// some writers pad).
+fn ends_with_jpeg_eoi(bytes: &[u8]) -> bool {
+    let tail = &bytes[bytes.len().saturating_sub(1024)..];
+    tail.windows(2).any(|w| w == [0xFF, 0xD9])
+}
+
+/// FNV-1a of `bytes`: the name an upload is kept under, the same for the
+/// same bytes.
+fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
+        (h ^ b as u64).wrapping_mul(0x0100_0000_01b3)
+    })
+}
+
+/// The photo described, from the cache or now (off the async threads).
+pub async fn described(
+    state: &Arc<AppState>,
+    photo: &PhotoRef,
+) -> Result<Arc<Described>, ApiError> {
+    let state = state.clone();
+    let photo = photo.clone();
+    blocking(move || {
+        let (key, source) = Source::find(&state, &photo)?;
+        if let Some(d) = state.described.get(&key) {
+            return Ok(d);
+        }
+        let image = source.pixels(&photo.path)?;
+        let map = {
+            let model = state.model.lock().unwrap_or_else(|e| e.into_inner());
+            describe(&model, &image)
+        };
+        let described = Arc::new(Described { photo: image, map });
+        state
+            .described
+            .insert(key, described.clone(), described.bytes());
+        Ok(described)
+    })
+    .await
+}
+
+/// Points `x,y;x,y...` in photo pixels.
+fn parse_points(text: &str) -> Result<Vec<(f32, f32)>, ApiError> {
+    text.split(';')
+        .filter(|p| !p.trim().is_empty())
+        .map(|p| {
+            let (x, y) = p.split_once(',')?;
+            Some((x.trim().parse().ok()?, y.trim().parse().ok()?))
+        })
+        .collect::<Option<Vec<_>>>()
+        .ok_or_else(|| ApiError::bad(format!("points {text:?}: expected X,Y;X,Y...")))
+}
+
+/// A photo and points on it.
+#[derive(Deserialize)]
+pub struct PointsQuery {
+    root: String,
+    path: String,
+    points: String,
+    radius: Option<f32>,
+}
+
+/// The photo described and the points checked against it.
+async fn described_with_points(
+    state: &Arc<AppState>,
+    query: &PointsQuery,
+) -> Result<(Arc<Described>, Vec<(f32, f32)>), ApiError> {
+    let points = parse_points(&query.points)?;
+    let photo = PhotoRef {
+        root: query.root.clone(),
+        path: query.path.clone(),
+    };
+    let described = described(state, &photo).await?;
+    check_points(&described.photo, &points, &query.path)
+        .map_err(|e| ApiError::bad(e.to_string()))?;
+    Ok((described, points))
+}
+
+fn png(bytes: Vec<u8>) -> Response {
+    ([(header::CONTENT_TYPE, "image/png")], bytes).into_response()
+}
+
+/// A label map as an RGB PNG: red = label, green = how strongly the pixel
+/// belongs to it (0..255), blue = 0.
+fn label_png(photo: &RgbImage, labels: &[u32], strength: impl Fn(usize) -> u8) -> Response {
+    let (w, h) = photo.dimensions();
+    let raw = labels
+        .iter()
+        .enumerate()
+        .flat_map(|(i, &l)| [l as u8, strength(i), 0])
+        .collect();
+    png(encode_png_rgb(
+        &RgbImage::from_raw(w, h, raw).expect("one label per pixel"),
+    ))
+}
+
+/// `GET /api/similarity`: the similarity map of the first point, cosine in
+/// [0, 1] as a grey PNG.
+pub async fn similarity(
+    State(state): State<Arc<AppState>>,
+    Query(query): Query<PointsQuery>,
+) -> Result<Response, ApiError> {
+    let (described, points) = described_with_points(&state, &query).await?;
+    let first = points
+        .first()
+        .ok_or_else(|| ApiError::bad("points: give one point"))?;
+    let maps = query_points(
+        &described.map,
+        &[*first],
+        query.radius.unwrap_or(DEFAULT_RADIUS),
+    );
+    let grey = similarity_grey(&maps.similarity[0]);
+    let (w, h) = described.photo.dimensions();
+    Ok(png(encode_png_gray(w, h, &grey)))
+}
+
+/// `GET /api/segment`: the segmentation by two points or more, each pixel
+/// labelled with its most similar point (see [`label_png`]; green is the
+/// cosine to that point, so the page can cut weak matches).
+pub async fn segment(
+    State(state): State<Arc<AppState>>,
+    Query(query): Query<PointsQuery>,
+) -> Result<Response, ApiError> {
+    let (described, points) = described_with_points(&state, &query).await?;
+    if points.len() < 2 {
+        return Err(ApiError::bad("points: give two points or more"));
+    }
+    let maps = query_points(
+        &described.map,
+        &points,
+        query.radius.unwrap_or(DEFAULT_RADIUS),
+    );
+    let labels = maps.labels.expect("two points or more");
+    let grey =
+        |i: usize| (maps.similarity[labels[i] as usize][i].clamp(0.0, 1.0) * 255.0).round() as u8;
+    Ok(label_png(&described.photo, &labels, grey))
+}
+
+/// A photo and a number of clusters.
+#[derive(Deserialize)]
+pub struct AutoQuery {
+    root: String,
+    path: String,
+    k: usize,
+}
+
+/// `GET /api/auto`: the photo split into `k` clusters of its descriptors
+/// (as `matseg segment --auto K`), as [`label_png`] with full strength.
+pub async fn auto(
+    State(state): State<Arc<AppState>>,
+    Query(query): Query<AutoQuery>,
+) -> Result<Response, ApiError> {
+    if !(1..=MAX_CLUSTERS).contains(&query.k) {
+        return Err(ApiError::bad(format!(
+            "k {}: give 1 to {MAX_CLUSTERS} clusters",
+            query.k
+        )));
+    }
+    let photo = PhotoRef {
+        root: query.root,
+        path: query.path,
+    };
+    let described = described(&state, &photo).await?;
+    let k = query.k;
+    blocking(move || {
+        let (labels, _) = cluster(&described.map, &ClusterOptions::new(k));
+        Ok(label_png(&described.photo, &labels, |_| 255))
+    })
+    .await
+}

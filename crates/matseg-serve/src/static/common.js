@@ -1,0 +1,119 @@
+// What every page shares: the API helper (which carries the server's
+// token, taken from the page's address), reading a PNG's pixels, the
+// material palette (the same colours as the command line's overlays),
+// drawing a similarity map over a photo, and downloads.
+
+export const TEMPERATURE = 0.2;
+export const PALETTE = [
+  [230, 25, 75], [60, 180, 75], [0, 130, 200], [255, 225, 25], [245, 130, 48],
+  [145, 30, 180], [70, 240, 240], [240, 50, 230], [210, 245, 60], [250, 190, 212],
+  [0, 128, 128], [220, 190, 255], [170, 110, 40], [255, 250, 200], [128, 0, 0],
+  [170, 255, 195], [128, 128, 0], [255, 215, 180], [0, 0, 128], [128, 128, 128],
+];
+
+const token = new URLSearchParams(location.search).get("token");
+
+// The address of an API call, with the token when the server has one.
+export function apiUrl(path, params = {}) {
+  const query = new URLSearchParams(params);
+  if (token) query.set("token", token);
+  return `${path}?${query}`;
+}
+
+// Calls the API; a failed call throws the server's one-line error.
+export async function api(path, params = {}, init = {}) {
+  const response = await fetch(apiUrl(path, params), init);
+  if (!response.ok) {
+    const body = await response.json().catch(() => ({ error: response.statusText }));
+    throw new Error(body.error);
+  }
+  return response;
+}
+
+// The RGBA pixels of an image response.
+export async function pixels(response) {
+  const bitmap = await createImageBitmap(await response.blob(),
+    { colorSpaceConversion: "none", premultiplyAlpha: "none" });
+  const scratch = new OffscreenCanvas(bitmap.width, bitmap.height).getContext("2d");
+  scratch.drawImage(bitmap, 0, 0);
+  return scratch.getImageData(0, 0, bitmap.width, bitmap.height).data;
+}
+
+// An image response as a bitmap to draw.
+export async function bitmap(response) {
+  return createImageBitmap(await response.blob());
+}
+
+// The strength a similarity is drawn with: the training softmax's weight of
+// the point's material relative to a perfect match, exp((s - 1) / T).
+export function strength(similarity) {
+  return Math.min(1, Math.exp((similarity - 1) / TEMPERATURE));
+}
+
+// Colour maps of a similarity in [0, 1]: colour and strength.
+export const COLOUR_MAPS = {
+  red: (s) => [255, 0, 0, strength(s)],
+  heat: (s) => [Math.min(255, 3 * 255 * s), Math.max(0, Math.min(255, 3 * 255 * s - 255)),
+    Math.max(0, 3 * 255 * s - 510), 1],
+};
+
+// Blends `colour(i)` = [r, g, b, a] over the canvas's pixels, `opacity`
+// times; a = 0 leaves the photo.
+export function blend(context, colour, opacity) {
+  const { width, height } = context.canvas;
+  const frame = context.getImageData(0, 0, width, height);
+  for (let i = 0; i < width * height; i++) {
+    const [r, g, b, a] = colour(i);
+    const k = a * opacity;
+    if (k <= 0) continue;
+    frame.data[4 * i] = frame.data[4 * i] * (1 - k) + r * k;
+    frame.data[4 * i + 1] = frame.data[4 * i + 1] * (1 - k) + g * k;
+    frame.data[4 * i + 2] = frame.data[4 * i + 2] * (1 - k) + b * k;
+  }
+  context.putImageData(frame, 0, 0);
+}
+
+// A ring at (x, y) in `rgb`.
+export function ring(context, x, y, rgb, radius = 6) {
+  context.strokeStyle = `rgb(${rgb.join(",")})`;
+  context.lineWidth = 2;
+  context.beginPath();
+  context.arc(x, y, radius, 0, 2 * Math.PI);
+  context.stroke();
+}
+
+// The image pixel under a mouse event on a canvas drawn at any size.
+export function pointOf(canvas, event) {
+  const box = canvas.getBoundingClientRect();
+  return [
+    Math.min(canvas.width - 1, Math.max(0, Math.round((event.clientX - box.left) * canvas.width / box.width))),
+    Math.min(canvas.height - 1, Math.max(0, Math.round((event.clientY - box.top) * canvas.height / box.height))),
+  ];
+}
+
+// Saves a blob as a file.
+export function download(blob, name) {
+  const link = document.createElement("a");
+  link.href = URL.createObjectURL(blob);
+  link.download = name;
+  link.click();
+  setTimeout(() => URL.revokeObjectURL(link.href), 1000);
+}
+
+// A PNG blob of grey values (one byte a pixel).
+export async function greyPng(values, width, height) {
+  const scratch = new OffscreenCanvas(width, height);
+  const context = scratch.getContext("2d");
+  const frame = context.createImageData(width, height);
+  values.forEach((v, i) => {
+    frame.data.set([v, v, v, 255], 4 * i);
+  });
+  context.putImageData(frame, 0, 0);
+  return scratch.convertToBlob({ type: "image/png" });
+}
+
+// Keeps the token in the links between pages.
+for (const link of document.querySelectorAll("nav a")) {
+  if (token) link.href = `${link.pathname}?token=${encodeURIComponent(token)}`;
+  link.classList.toggle("here", link.pathname === location.pathname);
+}

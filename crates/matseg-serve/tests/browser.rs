@@ -1,0 +1,261 @@
+//! Every page of `matseg serve` in a real (headless) Chromium, driven over
+//! the DevTools protocol: open a bundled photo, click, and the overlay
+//! appears where the material is; a second point splits the photo in two
+//! colours; the automatic split and an upload; browse a generated dataset
+//! and open a sample; annotate two groups, save, and the files parse with
+//! the evaluation reader; evaluate the benchmark and open an image's maps.
+//!
+//! With `MATSEG_SCREENSHOTS=DIR`, a screenshot of each page is written
+//! there (docs/images holds the ones the README shows).
+
+mod cdp;
+
+use cdp::{Browser, ALT, SHIFT};
+use matseg_data::{generate_dataset, GenerateOptions};
+use matseg_image::LicenceFilter;
+use matseg_pipeline::sources::{assets_dir, Defaults, Libraries};
+use matseg_scene::{Recipe2d, PALETTE};
+use matseg_serve::{serve, ServeOptions};
+use std::path::{Path, PathBuf};
+
+/// Starts the server on a free port; its address.
+fn start_server(data: PathBuf, bench: PathBuf) -> String {
+    let options = ServeOptions {
+        model: "default".into(),
+        data: vec![data],
+        bench: vec![bench],
+        host: "127.0.0.1".into(),
+        port: 0,
+        token: None,
+        cache_mb: 256,
+        device: tch::Device::Cpu,
+    };
+    let (ready, address) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        serve(&options, |a| ready.send(a).unwrap()).unwrap();
+    });
+    format!("http://{}", address.recv().unwrap())
+}
+
+/// Writes the page's screenshot as `serve-NAME.jpg` when asked to.
+fn screenshot(browser: &mut Browser, name: &str) {
+    let shot = browser.screenshot();
+    assert!(image::load_from_memory(&shot).is_ok(), "a JPEG screenshot");
+    if let Some(dir) = std::env::var_os("MATSEG_SCREENSHOTS") {
+        std::fs::write(Path::new(&dir).join(format!("serve-{name}.jpg")), shot).unwrap();
+    }
+}
+
+/// `base` blended 70% towards `colour`, as the pages draw a label.
+fn blended(base: [i32; 3], colour: [u8; 3]) -> [i32; 3] {
+    [0, 1, 2].map(|c| (base[c] as f64 * 0.3 + colour[c] as f64 * 0.7).round() as i32)
+}
+
+fn close(a: [i32; 3], b: [i32; 3], tolerance: i32) -> bool {
+    a.iter().zip(&b).all(|(x, y)| (x - y).abs() <= tolerance)
+}
+
+#[test]
+fn every_page_works_in_a_real_browser() {
+    let data = tempfile::tempdir().unwrap();
+    let libraries = Libraries::load(
+        &[],
+        &[],
+        256,
+        Defaults::Bundled,
+        &LicenceFilter::parse("").unwrap(),
+    )
+    .unwrap();
+    let scenes = GenerateOptions::folders(data.path(), 12, 0);
+    generate_dataset(&scenes, &Recipe2d::default(), libraries.sources(), &|_| {}).unwrap();
+    let bench = tempfile::tempdir().unwrap();
+    std::fs::create_dir(bench.path().join("images")).unwrap();
+    for name in ["coffee.jpg", "chelsea.jpg"] {
+        std::fs::copy(
+            assets_dir().join("photos").join(name),
+            bench.path().join("images").join(name),
+        )
+        .unwrap();
+    }
+    let server = start_server(data.path().into(), bench.path().into());
+    let mut browser = Browser::start(1280, 800);
+
+    segment_page(&mut browser, &server);
+    browse_page(&mut browser, &server);
+    annotate_page(&mut browser, &server, bench.path());
+    evaluate_page(&mut browser, &server);
+}
+
+fn segment_page(browser: &mut Browser, server: &str) {
+    const CANVAS: &str = "#canvas";
+    browser.open(
+        &format!("{server}/?root=photos&path=coffee.jpg"),
+        "document.getElementById('canvas').dataset.photo === 'photos/coffee.jpg'",
+    );
+    let coffee = browser.canvas_pixel(CANVAS, 260, 150);
+    let wood = browser.canvas_pixel(CANVAS, 560, 95);
+
+    // A click in the coffee: the coffee turns red, the table's wood stays.
+    browser.click_canvas(CANVAS, 290, 130, 0);
+    browser.wait_for("document.getElementById('canvas').dataset.answered === '1'");
+    let red_coffee = browser.canvas_pixel(CANVAS, 260, 150);
+    assert!(
+        red_coffee[1] <= coffee[1] - 20,
+        "{coffee:?} -> {red_coffee:?}"
+    );
+    assert!(
+        close(browser.canvas_pixel(CANVAS, 560, 95), wood, 12),
+        "the wood is another material"
+    );
+
+    // A second point on the wood: two colours, one per point.
+    browser.click_canvas(CANVAS, 540, 80, SHIFT);
+    browser.wait_for("document.getElementById('canvas').dataset.answered === '2'");
+    let first = browser.canvas_pixel(CANVAS, 260, 150);
+    let second = browser.canvas_pixel(CANVAS, 560, 95);
+    assert!(close(first, blended(coffee, PALETTE[0]), 3), "{first:?}");
+    assert!(close(second, blended(wood, PALETTE[1]), 3), "{second:?}");
+    screenshot(browser, "segment");
+
+    // The automatic split.
+    browser.click("#auto");
+    browser.wait_for("document.getElementById('canvas').dataset.answered === '3'");
+    let status = browser.eval("document.getElementById('status').textContent");
+    assert!(
+        status.as_str().unwrap().starts_with("4 materials:"),
+        "{status}"
+    );
+
+    // An upload through the file picker, then a click on it.
+    let chelsea = assets_dir().join("photos/chelsea.jpg");
+    browser.pick_files("#file", &[&chelsea]);
+    browser
+        .wait_for("(document.getElementById('canvas').dataset.photo || '').startsWith('upload/')");
+    let (w, h) = image::image_dimensions(&chelsea).unwrap();
+    assert_eq!(
+        browser.eval("[canvas.width, canvas.height]"),
+        serde_json::json!([w, h])
+    );
+    browser.click_canvas(CANVAS, w / 2, h / 2, 0);
+    browser.wait_for("document.getElementById('canvas').dataset.answered === '4'");
+
+    // A file that is not a photo: the page says why, and keeps working.
+    let notes = tempfile::NamedTempFile::new().unwrap();
+    std::fs::write(notes.path(), "not a photo").unwrap();
+    browser.pick_files("#file", &[notes.path()]);
+    browser.wait_for(
+        "document.getElementById('status').textContent.endsWith('not a PNG or JPEG image')",
+    );
+}
+
+fn browse_page(browser: &mut Browser, server: &str) {
+    let all_loaded = |selector: &str| {
+        format!("[...document.querySelectorAll('{selector}')].every((i) => i.complete && i.naturalWidth > 0)")
+    };
+    browser.open(
+        &format!("{server}/browse"),
+        &format!(
+            "document.querySelectorAll('#grid figure').length === 12 && {}",
+            all_loaded("#grid img")
+        ),
+    );
+    browser.click("#grid figure[data-index='3']");
+    browser.wait_for(&format!(
+        "document.getElementById('sample').dataset.index === '3' && {}",
+        all_loaded("#pictures img")
+    ));
+    // The image, the overlay, the annotation, one picture per mask, the ROI.
+    let masks = browser.eval(
+        "Number(document.getElementById('sample-title').textContent.match(/(\\d+) materials/)[1])",
+    );
+    let pictures = browser.eval("document.querySelectorAll('#pictures img').length");
+    assert_eq!(pictures.as_u64().unwrap(), masks.as_u64().unwrap() + 4);
+    let grid_shown = browser.eval("document.getElementById('grid').offsetParent !== null");
+    assert_eq!(grid_shown, false, "the sample replaces the grid");
+    let sidecar = browser.eval("document.getElementById('meta').textContent");
+    assert!(sidecar.as_str().unwrap().contains("\"seed\""), "{sidecar}");
+    screenshot(browser, "browse");
+}
+
+fn annotate_page(browser: &mut Browser, server: &str, bench: &Path) {
+    const CANVAS: &str = "#canvas";
+    let image_is =
+        |name: &str| format!("document.getElementById('canvas').dataset.image === '{name}'");
+    browser.open(&format!("{server}/annotate"), &image_is("chelsea"));
+    browser.click("#images li[data-name='coffee']");
+    browser.wait_for(&image_is("coffee"));
+    // Group 1: the coffee; group 2: the wood; a stray point undone, another
+    // removed with alt-click.
+    browser.click_canvas(CANVAS, 290, 130, 0);
+    browser.click_canvas(CANVAS, 300, 150, 0);
+    browser.click("#new-group");
+    browser.click_canvas(CANVAS, 540, 80, 0);
+    browser.click_canvas(CANVAS, 560, 350, 0);
+    browser.click_canvas(CANVAS, 100, 100, 0);
+    browser.click("#undo");
+    browser.click_canvas(CANVAS, 120, 300, 0);
+    browser.click_canvas(CANVAS, 122, 303, ALT);
+    browser.eval(
+        "const names = document.querySelectorAll('#groups .name');
+         names[0].value = 'coffee'; names[0].dispatchEvent(new Event('change'));
+         names[1].value = 'wood'; names[1].dispatchEvent(new Event('change'));
+         document.querySelectorAll('#groups .pick').forEach((box) => { box.checked = true; })",
+    );
+    browser.click("#relate-round");
+    browser.click("#save");
+    browser.wait_for("document.getElementById('canvas').dataset.saved === '1'");
+
+    let loaded = matseg_eval::load_point_benchmark(bench, false).unwrap();
+    assert_eq!(loaded.images.len(), 1);
+    let coffee = &loaded.images[0];
+    let points: Vec<Vec<(f32, f32)>> = coffee
+        .points
+        .iter()
+        .map(|g| g.iter().map(|p| (p.x, p.y)).collect())
+        .collect();
+    assert_eq!(
+        points,
+        [
+            vec![(290.0, 130.0), (300.0, 150.0)],
+            vec![(540.0, 80.0), (560.0, 350.0)]
+        ]
+    );
+    assert_eq!(coffee.weights[0][1], matseg_eval::points::ROUND_RELATION);
+    let data: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(bench.join("data/coffee/data.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(
+        (&data["1"]["name"], &data["2"]["name"]),
+        (&"coffee".into(), &"wood".into())
+    );
+
+    // Reopened, the page shows what it saved.
+    browser.open(&format!("{server}/annotate"), &image_is("chelsea"));
+    browser.click("#images li[data-name='coffee']");
+    browser.wait_for(&image_is("coffee"));
+    let status = browser.eval("document.getElementById('status').textContent");
+    assert_eq!(status, "coffee: 2 groups, 4 points (saved)");
+    screenshot(browser, "annotate");
+}
+
+fn evaluate_page(browser: &mut Browser, server: &str) {
+    browser.open(
+        &format!("{server}/evaluate"),
+        "document.querySelectorAll('#baselines input').length > 0",
+    );
+    browser.click("#run");
+    browser.wait_for("document.getElementById('scores').dataset.done === '1'");
+    let models = browser.eval(
+        "[...document.querySelectorAll('#scores tr td:first-child')].map((td) => td.textContent)",
+    );
+    assert_eq!(
+        models,
+        serde_json::json!(["rgb", "lab", "texture", "position", "default"])
+    );
+    browser.click("#images tr.pick");
+    browser.wait_for("document.getElementById('canvas').dataset.image === 'coffee'");
+    browser.click_canvas("#canvas", 292, 131, 0);
+    browser.wait_for("document.getElementById('canvas').dataset.answered === '1'");
+    screenshot(browser, "evaluate");
+}

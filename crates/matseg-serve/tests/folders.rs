@@ -1,0 +1,361 @@
+//! The pages that work on folders, through the router on the shipped
+//! model: browsing datasets (sample folders and shards), annotating a point
+//! benchmark (saved files read back by the evaluation reader) and
+//! evaluating it (the same scores as the evaluation library).
+
+use axum::body::Body;
+use axum::http::{Request, StatusCode};
+use image::{GrayImage, RgbImage};
+use matseg_data::encode::EncodedSample;
+use matseg_image::io::{encode_jpeg, encode_png_gray};
+use matseg_serve::{annotate::Annotation, app::router, state, ServeOptions};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+use tower::ServiceExt;
+
+fn options(data: Vec<PathBuf>, bench: Vec<PathBuf>) -> ServeOptions {
+    ServeOptions {
+        model: "default".into(),
+        data,
+        bench,
+        host: "127.0.0.1".into(),
+        port: 0,
+        token: None,
+        cache_mb: 64,
+        device: tch::Device::Cpu,
+    }
+}
+
+async fn send(app: &axum::Router, request: Request<Body>) -> (StatusCode, Vec<u8>) {
+    let response = app.clone().oneshot(request).await.unwrap();
+    let status = response.status();
+    let body = axum::body::to_bytes(response.into_body(), usize::MAX)
+        .await
+        .unwrap();
+    (status, body.to_vec())
+}
+
+async fn get(app: &axum::Router, uri: &str) -> (StatusCode, Vec<u8>) {
+    send(app, Request::get(uri).body(Body::empty()).unwrap()).await
+}
+
+async fn get_json(app: &axum::Router, uri: &str) -> serde_json::Value {
+    let (status, body) = get(app, uri).await;
+    assert_eq!(
+        status,
+        StatusCode::OK,
+        "{uri}: {}",
+        String::from_utf8_lossy(&body)
+    );
+    serde_json::from_slice(&body).unwrap()
+}
+
+async fn post(app: &axum::Router, uri: &str, body: &str) -> (StatusCode, serde_json::Value) {
+    let (status, body) = send(
+        app,
+        Request::post(uri)
+            .body(Body::from(body.to_string()))
+            .unwrap(),
+    )
+    .await;
+    (status, serde_json::from_slice(&body).unwrap())
+}
+
+/// Sample `index`: a 32 x 24 image, mask 0 a ramp left to right, mask 1
+/// its complement.
+fn sample(index: u64) -> EncodedSample {
+    let ramp = GrayImage::from_fn(32, 24, |x, _| image::Luma([(x * 8) as u8]));
+    let rest = GrayImage::from_fn(32, 24, |x, _| image::Luma([255 - (x * 8) as u8]));
+    let image = RgbImage::from_fn(32, 24, |x, y| {
+        image::Rgb([x as u8 * 8, y as u8 * 10, index as u8])
+    });
+    EncodedSample {
+        index,
+        jpg: encode_jpeg(&image, 90),
+        masks: vec![
+            encode_png_gray(32, 24, ramp.as_raw()),
+            encode_png_gray(32, 24, rest.as_raw()),
+        ],
+        roi: encode_png_gray(32, 24, &[255; 32 * 24]),
+        json: format!("{{\"seed\": 7, \"index\": {index}}}").into_bytes(),
+    }
+}
+
+fn png(bytes: &[u8]) -> image::DynamicImage {
+    image::load_from_memory(bytes).unwrap()
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn datasets_are_browsed_a_page_at_a_time_from_folders_and_shards() {
+    let folders = tempfile::tempdir().unwrap();
+    for i in 0..5 {
+        matseg_data::folders::write_sample(folders.path(), &sample(i)).unwrap();
+    }
+    let shards = tempfile::tempdir().unwrap();
+    let mut writer =
+        matseg_data::wds::ShardWriter::create(matseg_data::wds::shard_path(shards.path(), 0))
+            .unwrap();
+    for i in 0..3 {
+        writer.append(&sample(i)).unwrap();
+    }
+    writer.finish().unwrap();
+    let app = router(
+        state(&options(
+            vec![folders.path().into(), shards.path().into()],
+            vec![],
+        ))
+        .unwrap(),
+    );
+
+    let datasets = get_json(&app, "/api/datasets").await;
+    let sizes: Vec<u64> = datasets["datasets"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|d| d["samples"].as_u64().unwrap())
+        .collect();
+    assert_eq!(sizes, [5, 3]);
+    let photos = get_json(&app, "/api/photos").await;
+    assert!(
+        photos["photos"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|p| p["root"] == "photos"),
+        "datasets are browsed, not listed as photos"
+    );
+
+    let page = get_json(&app, "/api/samples?root=data0&offset=2&limit=2").await;
+    assert_eq!(page["total"], 5);
+    let keys: Vec<&str> = page["samples"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["key"].as_str().unwrap())
+        .collect();
+    assert_eq!(keys, ["00000002", "00000003"]);
+    let last = get_json(&app, "/api/samples?root=data0&offset=4&limit=100").await;
+    assert_eq!(last["samples"].as_array().unwrap().len(), 1);
+
+    for root in ["data0", "data1"] {
+        let one = get_json(&app, &format!("/api/sample?root={root}&index=2")).await;
+        assert_eq!(
+            (
+                one["width"].as_u64(),
+                one["height"].as_u64(),
+                one["masks"].as_u64()
+            ),
+            (Some(32), Some(24), Some(2))
+        );
+        assert_eq!(one["meta"]["index"], 2);
+        let (status, mask) = get(
+            &app,
+            &format!("/api/sample/image?root={root}&index=2&part=mask&mask=1"),
+        )
+        .await;
+        assert_eq!(status, StatusCode::OK);
+        let mask = png(&mask).to_luma8();
+        assert_eq!(mask.get_pixel(0, 0).0[0], 255);
+        assert_eq!(
+            mask.get_pixel(31, 23).0[0],
+            255 - 31 * 8,
+            "masks come back losslessly"
+        );
+        for part in ["image", "thumbnail", "roi", "annotation", "overlay"] {
+            let (status, bytes) = get(
+                &app,
+                &format!("/api/sample/image?root={root}&index=2&part={part}"),
+            )
+            .await;
+            assert_eq!(status, StatusCode::OK, "{part}");
+            assert_eq!(png(&bytes).width(), 32, "{part}");
+        }
+        // The annotation: material 0's colour where mask 0 is full, 1's
+        // where mask 1 is.
+        let (_, bytes) = get(
+            &app,
+            &format!("/api/sample/image?root={root}&index=2&part=annotation"),
+        )
+        .await;
+        let annotation = png(&bytes).to_rgb8();
+        assert_eq!(annotation.get_pixel(0, 5).0, matseg_scene::PALETTE[1]);
+        // A sample opens on the segment page by index.
+        let (status, _) = get(
+            &app,
+            &format!("/api/similarity?root={root}&path=sample/2&points=3,3"),
+        )
+        .await;
+        assert_eq!(status, StatusCode::OK);
+    }
+    let (status, _) = get(&app, "/api/sample?root=data0&index=5").await;
+    assert_eq!(status, StatusCode::NOT_FOUND);
+    let (status, _) = get(
+        &app,
+        "/api/sample/image?root=data0&index=0&part=mask&mask=2",
+    )
+    .await;
+    assert_eq!(status, StatusCode::NOT_FOUND);
+    let (status, _) = get(&app, "/api/sample/image?root=data0&index=0&part=nothing").await;
+    assert_eq!(status, StatusCode::BAD_REQUEST);
+    let (status, _) = get(&app, "/api/samples?root=photos").await;
+    assert_eq!(status, StatusCode::NOT_FOUND);
+}
+
+/// A benchmark folder with two bundled photos and no annotation.
+fn bench_folder() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir(dir.path().join("images")).unwrap();
+    for name in ["coffee.jpg", "chelsea.jpg"] {
+        std::fs::copy(
+            matseg_pipeline::sources::assets_dir()
+                .join("photos")
+                .join(name),
+            dir.path().join("images").join(name),
+        )
+        .unwrap();
+    }
+    dir
+}
+
+const COFFEE: &str = r#"{"groups": [
+    {"id": "1", "name": "coffee", "points": [[290, 130, 5], [300, 140, 5]]},
+    {"id": "2", "name": "table", "points": [[540, 80, 5], [560, 350, 5]]},
+    {"id": "3", "name": "", "points": [[150, 300, 5]]}],
+  "relations": [{"ids": ["1", "3"], "weight": 0.6}]}"#;
+const CHELSEA: &str = r#"{"groups": [
+    {"id": "1", "name": "fur", "points": [[200, 150, 5], [250, 200, 5]]},
+    {"id": "2", "name": "wall", "points": [[20, 20, 5]]}]}"#;
+
+#[tokio::test(flavor = "multi_thread")]
+async fn annotations_are_saved_in_the_benchmark_layout_and_evaluated() {
+    let bench = bench_folder();
+    let app = router(state(&options(vec![], vec![bench.path().into()])).unwrap());
+    let listing = get_json(&app, "/api/benches").await;
+    let images = &listing["benches"][0]["images"];
+    assert_eq!(images.as_array().unwrap().len(), 2);
+    assert_eq!(images[0]["groups"], 0);
+    assert!(listing["baselines"]
+        .as_array()
+        .unwrap()
+        .contains(&"rgb".into()));
+
+    let (status, saved) = post(&app, "/api/annotation?root=bench0&name=coffee", COFFEE).await;
+    assert_eq!(status, StatusCode::OK, "{saved}");
+    let (status, _) = post(&app, "/api/annotation?root=bench0&name=chelsea", CHELSEA).await;
+    assert_eq!(status, StatusCode::OK);
+    let data = bench.path().join("data");
+    assert_eq!(
+        std::fs::read_to_string(data.join("coffee/group_relations.txt")).unwrap(),
+        "[1, 3]\n"
+    );
+    assert!(!data.join("chelsea/group_relations.txt").exists());
+
+    // What the page reopens is what it saved.
+    let reopened = get_json(&app, "/api/annotation?root=bench0&name=coffee").await;
+    let sent: Annotation = serde_json::from_str(COFFEE).unwrap();
+    assert_eq!(
+        serde_json::from_value::<Annotation>(reopened.clone()).unwrap(),
+        sent
+    );
+    assert_eq!(
+        (reopened["width"].as_u64(), reopened["height"].as_u64()),
+        (Some(600), Some(400))
+    );
+
+    // The evaluation reader parses the files.
+    let loaded = matseg_eval::load_point_benchmark(bench.path(), false).unwrap();
+    assert_eq!(loaded.images.len(), 2);
+    let coffee = &loaded.images[1];
+    assert_eq!(coffee.name, "coffee");
+    assert_eq!(
+        coffee.points.iter().map(Vec::len).collect::<Vec<_>>(),
+        [2, 2, 1]
+    );
+    assert_eq!(coffee.weights[0][2], matseg_eval::points::SQUARE_RELATION);
+    assert!(coffee.has_relations && !loaded.images[0].has_relations);
+
+    // Refused edits leave the saved files as they were.
+    let before = std::fs::read(data.join("coffee/data.json")).unwrap();
+    for (body, problem) in [
+        ("{\"groups\": [", "malformed JSON"),
+        (
+            r#"{"groups": [{"id": "1", "points": [[600, 10, 5]]}]}"#,
+            "outside the 600x400 image",
+        ),
+        (
+            r#"{"groups": [{"id": "1", "points": [[6, 10, 5]]}], "relations": [{"ids": ["1", "4"], "weight": 0.3}]}"#,
+            "group 4 unknown",
+        ),
+    ] {
+        let (status, error) = post(&app, "/api/annotation?root=bench0&name=coffee", body).await;
+        assert_eq!(status, StatusCode::BAD_REQUEST, "{body}");
+        assert!(
+            error["error"].as_str().unwrap().contains(problem),
+            "{error}"
+        );
+    }
+    assert_eq!(
+        std::fs::read(data.join("coffee/data.json")).unwrap(),
+        before
+    );
+    for name in ["../coffee", "nothing"] {
+        let (status, _) = post(
+            &app,
+            &format!("/api/annotation?root=bench0&name={name}"),
+            COFFEE,
+        )
+        .await;
+        assert_eq!(status, StatusCode::NOT_FOUND, "{name}");
+    }
+
+    // Evaluate: the model and the rgb baseline, scored as the library does.
+    let (status, error) = post(&app, "/api/evaluate?root=bench0&baselines=rgb,nope", "").await;
+    assert_eq!(status, StatusCode::BAD_REQUEST);
+    assert!(error["error"]
+        .as_str()
+        .unwrap()
+        .starts_with("baseline \"nope\""));
+    let (status, _) = post(&app, "/api/evaluate?root=bench0&baselines=rgb", "").await;
+    assert_eq!(status, StatusCode::OK);
+    let report = loop {
+        let answer = get_json(&app, "/api/evaluate?root=bench0").await;
+        match answer["state"].as_str().unwrap() {
+            "running" => tokio::time::sleep(Duration::from_millis(200)).await,
+            "done" => break answer["report"].clone(),
+            other => panic!("{other}: {answer}"),
+        }
+    };
+    let models = report["models"].as_array().unwrap();
+    assert_eq!(models.len(), 2);
+    assert_eq!(models[0]["model"], "rgb");
+    assert_eq!(models[0]["counts"]["images"], 2);
+    assert_eq!(models[0]["counts"]["soft_images"], 1);
+    assert_eq!(models[0]["counts"]["points"], 8);
+    let rgb = matseg_eval::baselines::baseline("rgb").unwrap();
+    let direct = matseg_eval::evaluate_points(rgb.as_ref(), &loaded, 700).unwrap();
+    assert_eq!(
+        models[0]["all_by_material"].as_f64(),
+        direct.all_by_material
+    );
+    assert_eq!(
+        models[0]["soft_by_material"].as_f64(),
+        direct.soft_by_material
+    );
+    for model in models {
+        let all = model["all_by_material"].as_f64().unwrap();
+        assert!((0.0..=1.0).contains(&all), "{model}");
+    }
+    assert_eq!(empty_annotation_removes_it(&app, bench.path()).await, ());
+}
+
+/// Saving no groups removes an image's annotation.
+async fn empty_annotation_removes_it(app: &axum::Router, bench: &Path) {
+    let (status, _) = post(
+        app,
+        "/api/annotation?root=bench0&name=chelsea",
+        r#"{"groups": []}"#,
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK);
+    assert!(!bench.join("data/chelsea").exists());
+}
