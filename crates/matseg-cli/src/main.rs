@@ -9,6 +9,8 @@ mod bench;
 #[cfg(feature = "net")]
 mod bench_net;
 mod bench_render;
+#[cfg(feature = "net")]
+mod bench_serve;
 mod bench_set;
 mod common;
 mod demo;
@@ -90,13 +92,24 @@ enum Command {
     /// Measure the net's forward and training-step time on one batch size.
     #[cfg(feature = "net")]
     BenchNet(bench_net::Args),
+    /// Measure the web app under load: descriptor pass, click latency with concurrent clients, memory.
+    #[cfg(feature = "net")]
+    BenchServe(bench_serve::Args),
     /// Print a default recipe (--kind 2d or 3d) as TOML (edit it and pass it as --config).
     Recipe(recipe::Args),
 }
 
 fn main() -> ExitCode {
-    allocator::keep_freed_blocks();
     let cli = Cli::parse();
+    // The server is long-running and bounds its memory by its cache; it
+    // gives freed memory back itself (matseg_serve::described).
+    #[cfg(feature = "net")]
+    let batch_job = !matches!(cli.command, Command::Serve(_));
+    #[cfg(not(feature = "net"))]
+    let batch_job = true;
+    if batch_job {
+        allocator::keep_freed_blocks();
+    }
     let result = match cli.command {
         Command::Generate(args) => generate::run(args),
         Command::Maps(args) => maps::run(args),
@@ -119,6 +132,8 @@ fn main() -> ExitCode {
         Command::Serve(args) => serve::run(args),
         #[cfg(feature = "net")]
         Command::BenchNet(args) => bench_net::run(args),
+        #[cfg(feature = "net")]
+        Command::BenchServe(args) => bench_serve::run(args),
         Command::Recipe(args) => recipe::run(args),
     };
     match result {

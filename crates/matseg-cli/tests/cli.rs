@@ -1141,3 +1141,56 @@ fn generators_default_to_the_fetched_corpus_and_filter_its_licences() {
     let files: Vec<&str> = free.iter().map(|(f, _)| f.as_str()).collect();
     assert_eq!(files, ["pkg/free.jpg"]);
 }
+
+#[test]
+fn bench_serve_clicks_a_served_photo_without_errors() {
+    let out = matseg_ok(&[
+        "bench-serve",
+        "--photos",
+        "2",
+        "--megapixels",
+        "0.05",
+        "--clients",
+        "1,2",
+        "--seconds",
+        "0.5",
+        "--warm",
+        "1",
+        "--json",
+    ]);
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["photos"], 2);
+    assert!((report["megapixels"].as_f64().unwrap() - 0.05).abs() < 0.01);
+    assert!(report["describe_p50_ms"].as_f64().unwrap() > 0.0);
+    assert!(report["described_mib"].as_f64().unwrap() > 0.0);
+    let rounds = report["clicks"].as_array().unwrap();
+    assert_eq!(rounds.len(), 2);
+    for (round, clients) in rounds.iter().zip([1, 2]) {
+        assert_eq!(round["clients"], clients);
+        assert_eq!(round["errors"], 0);
+        assert!(round["requests"].as_u64().unwrap() > 0);
+        assert!(
+            round["server_p99_ms"].as_f64().unwrap() >= round["server_p50_ms"].as_f64().unwrap()
+        );
+    }
+    let zero = matseg(&["bench-serve", "--clients", "0"]);
+    assert_one_line_error(&zero, "must be positive");
+}
+
+#[test]
+fn serve_refuses_an_open_address_without_a_token_and_a_bench_without_images() {
+    let open = matseg(&["serve", "--host", "0.0.0.0", "--port", "0"]);
+    assert_one_line_error(
+        &open,
+        "--host 0.0.0.0: serving beyond this machine needs --token",
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let bench = matseg(&[
+        "serve",
+        "--port",
+        "0",
+        "--bench",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert_one_line_error(&bench, "a benchmark folder needs an images/ folder");
+}

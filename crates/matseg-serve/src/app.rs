@@ -14,6 +14,7 @@ use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::{Json, Router};
+use matseg_image::MemoryBudget;
 use matseg_pipeline::segment::Model;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
@@ -33,6 +34,8 @@ pub struct AppState {
     pub described: DescribedCache,
     /// Photos uploaded by the page, kept in memory.
     pub uploads: Uploads,
+    /// The bound the described and uploaded photos share.
+    pub budget: Arc<MemoryBudget>,
     /// The photos under the photo roots, as root name and path inside.
     pub photos: Vec<(String, PathBuf)>,
     /// The `--data` folders that are datasets.
@@ -80,6 +83,7 @@ fn static_file(name: &str) -> Response {
 /// The router of the app over `state`.
 pub fn router(state: Arc<AppState>) -> Router {
     let api = Router::new()
+        .route("/api/status", get(status))
         .route("/api/photos", get(photos::list))
         .route("/api/photo", get(photos::photo))
         .route(
@@ -96,7 +100,8 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/api/benches", get(annotate::benches))
         .route("/api/annotation", get(annotate::load).post(annotate::save))
         .route("/api/evaluate", get(evaluate::status).post(evaluate::start))
-        .route_layer(middleware::from_fn_with_state(state.clone(), check_token));
+        .route_layer(middleware::from_fn_with_state(state.clone(), check_token))
+        .route_layer(middleware::from_fn(server_timing));
     Router::new()
         .route("/", get(|| async { static_file("") }))
         .route(
@@ -105,6 +110,17 @@ pub fn router(state: Arc<AppState>) -> Router {
         )
         .merge(api)
         .with_state(state)
+}
+
+/// `GET /api/status`: what the server holds in memory against its bound,
+/// in MiB.
+async fn status(State(state): State<Arc<AppState>>) -> Json<serde_json::Value> {
+    let mib = |bytes: usize| bytes as f64 / (1 << 20) as f64;
+    Json(serde_json::json!({
+        "described_mib": mib(state.described.bytes()),
+        "uploads_mib": mib(state.uploads.bytes()),
+        "bound_mib": mib(state.budget.limit()),
+    }))
 }
 
 /// An API error: a status and a one-line message, sent as `{"error": ...}`.
@@ -168,6 +184,19 @@ pub async fn blocking<T: Send + 'static>(
     tokio::task::spawn_blocking(work)
         .await
         .map_err(|e| ApiError::internal(e.to_string()))?
+}
+
+/// Adds the time the server spent on an API call to its answer, as the
+/// standard `Server-Timing: app;dur=MILLISECONDS` header (browsers' network
+/// panels and `matseg bench-serve` read it).
+async fn server_timing(request: Request, next: Next) -> Response {
+    let started = std::time::Instant::now();
+    let mut response = next.run(request).await;
+    let timing = format!("app;dur={:.3}", started.elapsed().as_secs_f64() * 1e3);
+    if let Ok(value) = header::HeaderValue::from_str(&timing) {
+        response.headers_mut().insert("server-timing", value);
+    }
+    response
 }
 
 /// Refuses API calls without the server's token (header `x-matseg-token`

@@ -27,3 +27,16 @@ pub type DescribedCache = ByteLru<String, Described>;
 
 /// Uploaded photos (PNG or JPEG bytes as sent) by name.
 pub type Uploads = ByteLru<String, Vec<u8>>;
+
+/// Gives the memory freed since the last call back to the system (glibc:
+/// `malloc_trim`; elsewhere nothing). Describing a photo allocates and
+/// frees hundreds of MiB of tensors between the described photos kept in
+/// the heap; without this, the holes they leave are kept and the server's
+/// memory grows far past its cache bound.
+pub fn release_freed_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: malloc_trim only returns free pages of the heap to the system.
+    unsafe {
+        libc::malloc_trim(0);
+    }
+}

@@ -18,6 +18,7 @@ pub mod app;
 pub mod browse;
 pub mod described;
 pub mod evaluate;
+pub mod load;
 pub mod photos;
 pub mod roots;
 
@@ -146,7 +147,8 @@ pub fn state(options: &ServeOptions) -> Result<Arc<AppState>, ServeError> {
         roots,
         photos,
         described: DescribedCache::new(budget.clone()),
-        uploads: Uploads::new(budget),
+        uploads: Uploads::new(budget.clone()),
+        budget,
         datasets,
         benches,
         evaluations: Default::default(),

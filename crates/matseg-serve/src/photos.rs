@@ -7,7 +7,7 @@
 //! and `sample/INDEX`.
 
 use crate::app::{blocking, ApiError, AppState};
-use crate::described::Described;
+use crate::described::{release_freed_memory, Described};
 use axum::body::{Body, Bytes};
 use axum::extract::{Query, State};
 use axum::http::{header, HeaderMap, StatusCode};
@@ -102,15 +102,15 @@ pub struct PhotoRef {
     pub path: String,
 }
 
-/// Where a photo's pixels come from.
+/// Where a photo's pixels come from: found without reading the photo.
 enum Source {
     File(PathBuf),
     Upload(Arc<Vec<u8>>),
-    Sample(RgbImage),
+    Sample(usize),
 }
 
 impl Source {
-    /// The photo a reference names, read from disk only for samples.
+    /// The photo a reference names, and the key it is cached under.
     fn find(state: &AppState, photo: &PhotoRef) -> Result<(String, Self), ApiError> {
         if photo.root == UPLOAD_ROOT {
             let bytes = state.uploads.get(&photo.path).ok_or_else(|| {
@@ -124,17 +124,13 @@ impl Source {
                 Source::Upload(bytes),
             ));
         }
-        if let Some(dataset) = state.datasets.iter().find(|d| d.root == photo.root) {
+        if state.datasets.iter().any(|d| d.root == photo.root) {
             let index = photo
                 .path
                 .strip_prefix("sample/")
                 .and_then(|i| i.parse().ok())
                 .ok_or_else(|| ApiError::bad(format!("{:?}: expected sample/INDEX", photo.path)))?;
-            let sample = dataset.read(index)?;
-            return Ok((
-                format!("{}/{index}", photo.root),
-                Source::Sample(sample.image),
-            ));
+            return Ok((format!("{}/{index}", photo.root), Source::Sample(index)));
         }
         let file = state.roots.resolve(&photo.root, &photo.path)?;
         Ok((
@@ -143,14 +139,40 @@ impl Source {
         ))
     }
 
-    fn pixels(self, name: &str) -> Result<RgbImage, ApiError> {
+    /// The photo's pixels.
+    fn pixels(self, state: &AppState, photo: &PhotoRef) -> Result<RgbImage, ApiError> {
         match self {
             Source::File(file) => read_rgb(&file),
-            Source::Upload(bytes) => decode_rgb(&bytes, Path::new(name)),
-            Source::Sample(image) => Ok(image),
+            Source::Upload(bytes) => decode_rgb(&bytes, Path::new(&photo.path)),
+            Source::Sample(index) => return Ok(sample(state, photo, index)?.image),
         }
         .map_err(|e| ApiError::bad(e.to_string()))
     }
+
+    /// The photo's bytes: the file's or the upload's, a sample's image as
+    /// PNG.
+    fn bytes(self, state: &AppState, photo: &PhotoRef) -> Result<Vec<u8>, ApiError> {
+        match self {
+            Source::File(file) => std::fs::read(&file)
+                .map_err(|e| ApiError::not_found(format!("{}: {e}", photo.path))),
+            Source::Upload(bytes) => Ok(bytes.as_ref().clone()),
+            Source::Sample(index) => Ok(encode_png_rgb(&sample(state, photo, index)?.image)),
+        }
+    }
+}
+
+/// Sample `index` of the dataset root `photo` names.
+fn sample(
+    state: &AppState,
+    photo: &PhotoRef,
+    index: usize,
+) -> Result<matseg_data::reader::Sample, ApiError> {
+    let dataset = state
+        .datasets
+        .iter()
+        .find(|d| d.root == photo.root)
+        .expect("found as a dataset root");
+    dataset.read(index)
 }
 
 /// The content type of PNG or JPEG bytes.
@@ -169,12 +191,7 @@ pub async fn photo(
 ) -> Result<Response, ApiError> {
     let bytes = blocking(move || {
         let (_, source) = Source::find(&state, &photo)?;
-        match source {
-            Source::File(file) => std::fs::read(&file)
-                .map_err(|e| ApiError::not_found(format!("{}: {e}", photo.path))),
-            Source::Upload(bytes) => Ok(bytes.as_ref().clone()),
-            Source::Sample(image) => Ok(encode_png_rgb(&image)),
-        }
+        source.bytes(&state, &photo)
     })
     .await?;
     Ok(([(header::CONTENT_TYPE, image_type(&bytes))], bytes).into_response())
@@ -291,19 +308,20 @@ fn fnv1a(bytes: &[u8]) -> u64 {
     })
 }
 
-/// The photo described, from the cache or now (off the async threads).
+/// The photo described, from the cache or now (off the async threads;
+/// the memory the description freed is given back after it).
 pub async fn described(
     state: &Arc<AppState>,
     photo: &PhotoRef,
 ) -> Result<Arc<Described>, ApiError> {
+    let (key, source) = Source::find(state, photo)?;
+    if let Some(d) = state.described.get(&key) {
+        return Ok(d);
+    }
     let state = state.clone();
     let photo = photo.clone();
-    blocking(move || {
-        let (key, source) = Source::find(&state, &photo)?;
-        if let Some(d) = state.described.get(&key) {
-            return Ok(d);
-        }
-        let image = source.pixels(&photo.path)?;
+    let described = blocking(move || {
+        let image = source.pixels(&state, &photo)?;
         let map = {
             let model = state.model.lock().unwrap_or_else(|e| e.into_inner());
             describe(&model, &image)
@@ -314,7 +332,9 @@ pub async fn described(
             .insert(key, described.clone(), described.bytes());
         Ok(described)
     })
-    .await
+    .await?;
+    tokio::task::spawn_blocking(release_freed_memory);
+    Ok(described)
 }
 
 /// Points `x,y;x,y...` in photo pixels.

@@ -6,7 +6,8 @@
 //! the evaluation reader; evaluate the benchmark and open an image's maps.
 //!
 //! With `MATSEG_SCREENSHOTS=DIR`, a screenshot of each page is written
-//! there (docs/images holds the ones the README shows).
+//! there (a relative DIR from the workspace's root; docs/images holds the
+//! ones the README shows).
 
 mod cdp;
 
@@ -42,7 +43,9 @@ fn screenshot(browser: &mut Browser, name: &str) {
     let shot = browser.screenshot();
     assert!(image::load_from_memory(&shot).is_ok(), "a JPEG screenshot");
     if let Some(dir) = std::env::var_os("MATSEG_SCREENSHOTS") {
-        std::fs::write(Path::new(&dir).join(format!("serve-{name}.jpg")), shot).unwrap();
+        // A relative folder is taken from the workspace's root.
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+        std::fs::write(root.join(dir).join(format!("serve-{name}.jpg")), shot).unwrap();
     }
 }
 

@@ -1,0 +1,168 @@
+//! `matseg bench-serve`: the web app under load on loopback. Writes photos
+//! of a chosen size, starts `matseg serve` on them as a child process,
+//! describes each photo with a first click (the descriptor pass), then has
+//! 1, 16... concurrent clients click random points on photos already
+//! described for a bounded time, and reads the server's memory
+//! (`matseg_serve::load`).
+
+use anyhow::{bail, Context, Result};
+use matseg_serve::load::{clicks, memory_mib, percentile, write_photos, ClickStats, Connection};
+use std::io::{BufRead, BufReader};
+use std::process::{Child, Command, Stdio};
+use std::time::Duration;
+
+/// Arguments of `matseg bench-serve`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Photos to describe (each once, by its first click).
+    #[arg(long, default_value_t = 100)]
+    photos: usize,
+    /// Size of each photo, in megapixels.
+    #[arg(long, default_value_t = 1.0)]
+    megapixels: f64,
+    /// Concurrent clients of each click round.
+    #[arg(long, value_delimiter = ',', default_value = "1,16")]
+    clients: Vec<usize>,
+    /// Seconds each click round lasts.
+    #[arg(long, default_value_t = 10.0)]
+    seconds: f64,
+    /// Clicks go to this many of the photos described last (still cached).
+    #[arg(long, default_value_t = 8)]
+    warm: usize,
+    /// The server's bound on described photos, in MiB.
+    #[arg(long, default_value_t = 1024)]
+    cache_mb: usize,
+    /// The model the server runs.
+    #[arg(long, default_value = "default")]
+    model: String,
+    /// Print JSON instead of tables.
+    #[arg(long)]
+    json: bool,
+}
+
+/// The server as a child process; killed when dropped.
+struct Server {
+    child: Child,
+    host: String,
+}
+
+impl Server {
+    fn start(data: &std::path::Path, args: &Args) -> Result<Self> {
+        let exe = std::env::current_exe().context("cannot find the matseg binary")?;
+        let mut child = Command::new(exe)
+            .args(["serve", "--port", "0", "--model", &args.model])
+            .arg("--cache-mb")
+            .arg(args.cache_mb.to_string())
+            .arg("--data")
+            .arg(data)
+            .stdout(Stdio::piped())
+            .spawn()
+            .context("cannot start matseg serve")?;
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().expect("piped"))
+            .read_line(&mut line)
+            .context("matseg serve printed no address")?;
+        let host = line
+            .trim()
+            .strip_prefix("matseg serve: http://")
+            .and_then(|rest| rest.split('/').next())
+            .map(str::to_string);
+        match host {
+            Some(host) => Ok(Self { child, host }),
+            None => {
+                let _ = child.kill();
+                bail!("matseg serve did not start: {line:?}")
+            }
+        }
+    }
+
+    fn memory(&self) -> (f64, f64) {
+        memory_mib(self.child.id()).unwrap_or((f64::NAN, f64::NAN))
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Runs `matseg bench-serve`.
+pub fn run(args: Args) -> Result<()> {
+    if args.photos == 0 || args.warm == 0 || args.clients.contains(&0) || args.megapixels <= 0.0 {
+        bail!("--photos, --warm, --clients and --megapixels must be positive");
+    }
+    let dir = tempfile::tempdir().context("cannot make a folder for the photos")?;
+    let photos = write_photos(dir.path(), args.photos, args.megapixels)?;
+    let server = Server::start(dir.path(), &args)?;
+    let (_, idle_peak) = server.memory();
+
+    // The descriptor pass: each photo's first click.
+    let mut connection = Connection::open(&server.host)?;
+    let mut describe_ms = Vec::new();
+    for (name, w, h) in &photos {
+        let answer = connection.get(&matseg_serve::load::click_path(name, w / 2, h / 2))?;
+        if answer.status != 200 {
+            bail!(
+                "{name}: the first click failed with status {}",
+                answer.status
+            );
+        }
+        describe_ms.push(answer.server_ms);
+    }
+    let (described_rss, described_peak) = server.memory();
+    let (_, status) = connection.get_body("/api/status")?;
+    let status: serde_json::Value = serde_json::from_slice(&status)?;
+    let cached_mib = status["described_mib"].as_f64().unwrap_or(f64::NAN);
+    let megapixels =
+        photos.iter().map(|(_, w, h)| (w * h) as f64).sum::<f64>() / photos.len() as f64 / 1e6;
+
+    let warm = &photos[photos.len().saturating_sub(args.warm)..];
+    let rounds: Vec<ClickStats> = args
+        .clients
+        .iter()
+        .map(|&c| clicks(&server.host, warm, c, Duration::from_secs_f64(args.seconds)))
+        .collect();
+    let (final_rss, final_peak) = server.memory();
+    let describe_p50 = percentile(&mut describe_ms, 50.0);
+    let describe_p99 = percentile(&mut describe_ms, 99.0);
+
+    if args.json {
+        let out = serde_json::json!({
+            "photos": args.photos, "megapixels": megapixels, "cache_mb": args.cache_mb,
+            "described_mib": cached_mib,
+            "describe_p50_ms": describe_p50, "describe_p99_ms": describe_p99,
+            "rss_idle_peak_mib": idle_peak,
+            "rss_after_photos_mib": described_rss, "rss_peak_after_photos_mib": described_peak,
+            "rss_final_mib": final_rss, "rss_peak_mib": final_peak,
+            "clicks": rounds,
+        });
+        println!("{}", serde_json::to_string_pretty(&out)?);
+        return Ok(());
+    }
+    println!(
+        "{} photos of {megapixels:.2} MP on average; descriptor pass (first click, server time): median {describe_p50:.0} ms, p99 {describe_p99:.0} ms",
+        args.photos
+    );
+    println!(
+        "server memory (RSS): {idle_peak:.0} MiB at start, {described_rss:.0} MiB after {} photos (peak {described_peak:.0}), {final_rss:.0} MiB at the end (peak {final_peak:.0}); described photos kept: {cached_mib:.0} MiB of the {} MiB bound",
+        args.photos, args.cache_mb
+    );
+    println!("| clients | clicks | errors | server p50 ms | server p99 ms | round trip p50 ms | round trip p99 ms | clicks/s |");
+    println!("|---|---|---|---|---|---|---|---|");
+    for r in &rounds {
+        println!(
+            "| {} | {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |",
+            r.clients,
+            r.requests,
+            r.errors,
+            r.server_p50_ms,
+            r.server_p99_ms,
+            r.round_trip_p50_ms,
+            r.round_trip_p99_ms,
+            r.per_second
+        );
+    }
+    Ok(())
+}

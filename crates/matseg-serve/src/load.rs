@@ -1,0 +1,270 @@
+//! Load measurement of a running server (`matseg bench-serve`): photos of
+//! a chosen size to serve, a keep-alive HTTP/1.1 client on loopback, the
+//! descriptor pass of each photo (its first click), clicks from concurrent
+//! clients on photos already described, and the server's memory.
+//!
+//! Latencies are the server's own (`Server-Timing`, the handler's time)
+//! and the client's round trip; percentiles are nearest-rank.
+
+use image::RgbImage;
+use matseg_image::io::{encode_jpeg, read_rgb};
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+/// A load-measurement failure: a message naming what failed.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct LoadError(pub String);
+
+/// Writes `count` JPEG photos of about `megapixels` each into `dir`
+/// (`photo000.jpg`...), made from the bundled photos (resized; every other
+/// round mirrored, so no two photos of a round are the same); their sizes.
+pub fn write_photos(
+    dir: &Path,
+    count: usize,
+    megapixels: f64,
+) -> Result<Vec<(String, u32, u32)>, LoadError> {
+    let bundled_dir = matseg_pipeline::sources::assets_dir().join("photos");
+    let bundled = matseg_image::io::find_files(&[bundled_dir], &["jpg", "png"])
+        .map_err(|e| LoadError(e.to_string()))?;
+    let sources: Vec<RgbImage> = bundled
+        .iter()
+        .map(|p| read_rgb(p).map_err(|e| LoadError(e.to_string())))
+        .collect::<Result<_, _>>()?;
+    if sources.is_empty() {
+        return Err(LoadError(
+            "no bundled photos to make load photos from".into(),
+        ));
+    }
+    let mut written = Vec::new();
+    for i in 0..count {
+        let source = &sources[i % sources.len()];
+        let scale = (megapixels * 1e6 / (source.width() as f64 * source.height() as f64)).sqrt();
+        let (w, h) = (
+            ((source.width() as f64 * scale).round() as u32).max(1),
+            ((source.height() as f64 * scale).round() as u32).max(1),
+        );
+        let mut photo =
+            image::imageops::resize(source, w, h, image::imageops::FilterType::Triangle);
+        if (i / sources.len()) % 2 == 1 {
+            image::imageops::flip_horizontal_in_place(&mut photo);
+        }
+        let name = format!("photo{i:03}.jpg");
+        std::fs::write(dir.join(&name), encode_jpeg(&photo, 90))
+            .map_err(|e| LoadError(format!("{}: {e}", dir.join(&name).display())))?;
+        written.push((name, w, h));
+    }
+    Ok(written)
+}
+
+/// One answer: status, the server's milliseconds, the round trip's.
+#[derive(Clone, Copy, Debug)]
+pub struct Answer {
+    /// HTTP status.
+    pub status: u16,
+    /// The server's time (its `Server-Timing`), ms.
+    pub server_ms: f64,
+    /// The client's round trip, ms.
+    pub round_trip_ms: f64,
+}
+
+/// A keep-alive HTTP/1.1 connection to the server.
+pub struct Connection {
+    reader: BufReader<TcpStream>,
+    host: String,
+}
+
+impl Connection {
+    /// Connects to `host` (`127.0.0.1:PORT`).
+    pub fn open(host: &str) -> Result<Self, LoadError> {
+        let stream = TcpStream::connect(host).map_err(|e| LoadError(format!("{host}: {e}")))?;
+        stream
+            .set_nodelay(true)
+            .map_err(|e| LoadError(e.to_string()))?;
+        Ok(Self {
+            reader: BufReader::new(stream),
+            host: host.to_string(),
+        })
+    }
+
+    /// `GET path`, the body read and dropped.
+    pub fn get(&mut self, path: &str) -> Result<Answer, LoadError> {
+        self.get_body(path).map(|(answer, _)| answer)
+    }
+
+    /// `GET path` and the body.
+    pub fn get_body(&mut self, path: &str) -> Result<(Answer, Vec<u8>), LoadError> {
+        let fail = |e: std::io::Error| LoadError(format!("GET {path}: {e}"));
+        let started = Instant::now();
+        write!(
+            self.reader.get_mut(),
+            "GET {path} HTTP/1.1\r\nHost: {}\r\n\r\n",
+            self.host
+        )
+        .map_err(fail)?;
+        let mut line = String::new();
+        self.reader.read_line(&mut line).map_err(fail)?;
+        let status: u16 = line
+            .split_whitespace()
+            .nth(1)
+            .and_then(|s| s.parse().ok())
+            .ok_or_else(|| LoadError(format!("GET {path}: bad status line {line:?}")))?;
+        let (mut length, mut server_ms) = (0usize, f64::NAN);
+        loop {
+            line.clear();
+            self.reader.read_line(&mut line).map_err(fail)?;
+            let header = line.trim_end();
+            if header.is_empty() {
+                break;
+            }
+            let (name, value) = header.split_once(':').unwrap_or((header, ""));
+            match name.to_ascii_lowercase().as_str() {
+                "content-length" => length = value.trim().parse().unwrap_or(0),
+                "server-timing" => {
+                    server_ms = value
+                        .split("dur=")
+                        .nth(1)
+                        .and_then(|d| d.trim().parse().ok())
+                        .unwrap_or(f64::NAN)
+                }
+                _ => {}
+            }
+        }
+        let mut body = vec![0; length];
+        self.reader.read_exact(&mut body).map_err(fail)?;
+        let answer = Answer {
+            status,
+            server_ms,
+            round_trip_ms: started.elapsed().as_secs_f64() * 1e3,
+        };
+        Ok((answer, body))
+    }
+}
+
+/// The similarity request of a point on a photo of the `data0` folder.
+pub fn click_path(photo: &str, x: u32, y: u32) -> String {
+    format!("/api/similarity?root=data0&path={photo}&points={x},{y}")
+}
+
+/// Latencies of many clicks.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct ClickStats {
+    /// Concurrent clients.
+    pub clients: usize,
+    /// Answers received.
+    pub requests: usize,
+    /// Answers that were not 200, or requests that failed.
+    pub errors: usize,
+    /// Server time, median, ms.
+    pub server_p50_ms: f64,
+    /// Server time, 99th percentile, ms.
+    pub server_p99_ms: f64,
+    /// Round trip, median, ms.
+    pub round_trip_p50_ms: f64,
+    /// Round trip, 99th percentile, ms.
+    pub round_trip_p99_ms: f64,
+    /// Answers per second, all clients together.
+    pub per_second: f64,
+}
+
+/// The nearest-rank `p`-th percentile of `values` (sorted here).
+pub fn percentile(values: &mut [f64], p: f64) -> f64 {
+    if values.is_empty() {
+        return f64::NAN;
+    }
+    values.sort_by(f64::total_cmp);
+    let rank = ((p / 100.0) * values.len() as f64).ceil() as usize;
+    values[rank.clamp(1, values.len()) - 1]
+}
+
+/// `clients` clients clicking random points of random `photos` (name,
+/// width, height) for `duration`, each on its own connection.
+pub fn clicks(
+    host: &str,
+    photos: &[(String, u32, u32)],
+    clients: usize,
+    duration: Duration,
+) -> ClickStats {
+    let started = Instant::now();
+    let results: Vec<(Vec<Answer>, usize)> = std::thread::scope(|scope| {
+        let workers: Vec<_> = (0..clients)
+            .map(|client| {
+                scope.spawn(move || {
+                    let mut answers = Vec::new();
+                    let mut errors = 0;
+                    let mut random = 0x9E37_79B9_7F4A_7C15u64
+                        ^ (client as u64 + 1).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+                    let mut next = |n: u32| {
+                        random ^= random << 13;
+                        random ^= random >> 7;
+                        random ^= random << 17;
+                        (random % n as u64) as u32
+                    };
+                    let mut connection = Connection::open(host).ok();
+                    while started.elapsed() < duration {
+                        let (name, w, h) = &photos[next(photos.len() as u32) as usize];
+                        let path = click_path(name, next(*w), next(*h));
+                        match connection.as_mut().map(|c| c.get(&path)) {
+                            Some(Ok(answer)) if answer.status == 200 => answers.push(answer),
+                            Some(Ok(_)) => errors += 1,
+                            _ => {
+                                errors += 1;
+                                connection = Connection::open(host).ok();
+                            }
+                        }
+                    }
+                    (answers, errors)
+                })
+            })
+            .collect();
+        workers
+            .into_iter()
+            .map(|w| w.join().unwrap_or_default())
+            .collect()
+    });
+    let seconds = started.elapsed().as_secs_f64();
+    let answers: Vec<Answer> = results
+        .iter()
+        .flat_map(|(a, _)| a.iter().copied())
+        .collect();
+    let mut server: Vec<f64> = answers.iter().map(|a| a.server_ms).collect();
+    let mut round_trip: Vec<f64> = answers.iter().map(|a| a.round_trip_ms).collect();
+    ClickStats {
+        clients,
+        requests: answers.len(),
+        errors: results.iter().map(|(_, e)| e).sum(),
+        server_p50_ms: percentile(&mut server, 50.0),
+        server_p99_ms: percentile(&mut server, 99.0),
+        round_trip_p50_ms: percentile(&mut round_trip, 50.0),
+        round_trip_p99_ms: percentile(&mut round_trip, 99.0),
+        per_second: answers.len() as f64 / seconds,
+    }
+}
+
+/// A process's resident memory now and at its peak, in MiB (Linux).
+pub fn memory_mib(pid: u32) -> Option<(f64, f64)> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    let field = |name: &str| -> Option<f64> {
+        let line = status.lines().find(|l| l.starts_with(name))?;
+        let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+        Some(kib / 1024.0)
+    };
+    Some((field("VmRSS:")?, field("VmHWM:")?))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn percentiles_are_nearest_rank() {
+        let mut values: Vec<f64> = (1..=100).rev().map(f64::from).collect();
+        assert_eq!(percentile(&mut values, 50.0), 50.0);
+        assert_eq!(percentile(&mut values, 99.0), 99.0);
+        assert_eq!(percentile(&mut values, 100.0), 100.0);
+        assert_eq!(percentile(&mut [7.0], 99.0), 7.0);
+        assert!(percentile(&mut [], 50.0).is_nan());
+    }
+}
