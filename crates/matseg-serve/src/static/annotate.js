@@ -5,7 +5,7 @@
 // Saving writes data/NAME/data.json and group_relations.txt, each file
 // whole, and reopening the image shows what was saved.
 
-import { api, bitmap, ring, pointOf, PALETTE } from "/common.js";
+import { api, bitmap, ring, pointOf, PALETTE, listFolders } from "/common.js";
 
 const canvas = document.getElementById("canvas");
 const context = canvas.getContext("2d");
@@ -169,12 +169,7 @@ const { benches } = await (await api("/api/benches")).json();
 if (!benches.length) {
   status.textContent = "No benchmark: start the server with --bench FOLDER (a folder with an images/ folder).";
 }
-for (const bench of benches) {
-  const option = document.createElement("option");
-  option.value = bench.root;
-  option.textContent = `${bench.root}: ${bench.folder}`;
-  select.append(option);
-}
+listFolders(select, benches);
 async function openBench(root) {
   state.root = root;
   state.name = null;

@@ -3,7 +3,7 @@
 // one sample shows its image, the annotation over it, each material's soft
 // mask, the ROI and the sidecar (sources, licences, recipe values).
 
-import { api, apiUrl, PALETTE } from "/common.js";
+import { api, apiUrl, PALETTE, listFolders } from "/common.js";
 
 const PAGE = 48;
 const select = document.getElementById("dataset");
@@ -94,11 +94,6 @@ const { datasets } = await (await api("/api/datasets")).json();
 if (!datasets.length) {
   status.textContent = "No dataset: start the server with --data FOLDER (MatSeg sample folders or .tar shards).";
 }
-for (const dataset of datasets) {
-  const option = document.createElement("option");
-  option.value = dataset.root;
-  option.textContent = `${dataset.root}: ${dataset.folder}`;
-  select.append(option);
-}
+listFolders(select, datasets);
 select.addEventListener("change", () => openDataset(datasets.find((d) => d.root === select.value)));
 if (datasets.length) openDataset(datasets[0]);

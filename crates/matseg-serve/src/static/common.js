@@ -112,6 +112,16 @@ export async function greyPng(values, width, height) {
   return scratch.convertToBlob({ type: "image/png" });
 }
 
+// Fills `select` with the server's folders of one kind (`root: folder`).
+export function listFolders(select, folders) {
+  for (const { root, folder } of folders) {
+    const option = document.createElement("option");
+    option.value = root;
+    option.textContent = `${root}: ${folder}`;
+    select.append(option);
+  }
+}
+
 // Keeps the token in the links between pages.
 for (const link of document.querySelectorAll("nav a")) {
   if (token) link.href = `${link.pathname}?token=${encodeURIComponent(token)}`;

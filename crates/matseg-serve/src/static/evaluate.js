@@ -3,7 +3,7 @@
 // baselines, and shows the All / Soft / top-1 table, each image's scores,
 // and an image's points with the model's similarity map to any of them.
 
-import { api, pixels, bitmap, blend, ring, pointOf, COLOUR_MAPS, PALETTE } from "/common.js";
+import { api, pixels, bitmap, blend, ring, pointOf, COLOUR_MAPS, PALETTE, listFolders } from "/common.js";
 
 const DEFAULT_BASELINES = ["rgb", "lab", "texture", "position"];
 const COLUMNS = [["all_by_material", "All by material"], ["all_by_point", "All by point"],
@@ -120,12 +120,7 @@ document.getElementById("baselines").replaceChildren(...baselines.map((name) => 
   return label;
 }));
 const select = document.getElementById("bench");
-for (const bench of benches) {
-  const option = document.createElement("option");
-  option.value = bench.root;
-  option.textContent = `${bench.root}: ${bench.folder}`;
-  select.append(option);
-}
+listFolders(select, benches);
 select.addEventListener("change", () => {
   state.root = select.value;
   poll();
