@@ -1,6 +1,7 @@
 //! Every page of `matseg serve` in a real (headless) Chromium, driven over
 //! the DevTools protocol: open a bundled photo, click, and the overlay
-//! appears where the material is; a second point splits the photo in two
+//! appears where the material is; the map and overlay downloaded as PNG
+//! files; a second point splits the photo in two
 //! colours; the automatic split and an upload; browse a generated dataset
 //! and open a sample; annotate two groups, save, and the files parse with
 //! the evaluation reader; evaluate the benchmark and open an image's maps.
@@ -47,6 +48,15 @@ fn screenshot(browser: &mut Browser, name: &str) {
         let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
         std::fs::write(root.join(dir).join(format!("serve-{name}.jpg")), shot).unwrap();
     }
+}
+
+/// The body of `GET path` from the server (a plain HTTP/1.1 request).
+fn http_get(server: &str, path: &str) -> Vec<u8> {
+    let host = server.trim_start_matches("http://");
+    let mut connection = matseg_serve::load::Connection::open(host).unwrap();
+    let (answer, body) = connection.get_body(path).unwrap();
+    assert_eq!(answer.status, 200, "{path}");
+    body
 }
 
 /// `base` blended 70% towards `colour`, as the pages draw a label.
@@ -110,6 +120,33 @@ fn segment_page(browser: &mut Browser, server: &str) {
         close(browser.canvas_pixel(CANVAS, 560, 95), wood, 12),
         "the wood is another material"
     );
+
+    // The map and the overlay downloaded: the map is the server's map,
+    // the overlay the canvas.
+    let downloads = tempfile::tempdir().unwrap();
+    browser.download_into(downloads.path());
+    browser.click("#save-map");
+    browser.click("#save-overlay");
+    let downloaded = |name: &str| {
+        let file = downloads.path().join(name);
+        let started = std::time::Instant::now();
+        while !file.is_file() {
+            assert!(started.elapsed().as_secs() < 30, "{name} not downloaded");
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(200));
+        image::open(&file).unwrap()
+    };
+    let map = downloaded("coffee-similarity.png").to_luma8();
+    let served = image::load_from_memory(&http_get(
+        server,
+        "/api/similarity?root=photos&path=coffee.jpg&points=290,130",
+    ))
+    .unwrap()
+    .to_luma8();
+    assert_eq!(map, served, "the downloaded map is the server's");
+    let overlay = downloaded("coffee-overlay.png").to_rgb8();
+    assert_eq!(overlay.get_pixel(260, 150).0.map(i32::from), red_coffee);
 
     // A second point on the wood: two colours, one per point.
     browser.click_canvas(CANVAS, 540, 80, SHIFT);

@@ -231,6 +231,14 @@ impl Browser {
         );
     }
 
+    /// Lets the page's downloads go into `dir`.
+    pub fn download_into(&mut self, dir: &Path) {
+        self.call_browser(
+            "Browser.setDownloadBehavior",
+            json!({ "behavior": "allow", "downloadPath": dir.canonicalize().unwrap() }),
+        );
+    }
+
     /// A JPEG screenshot of the page as shown.
     pub fn screenshot(&mut self) -> Vec<u8> {
         let shot = self.call(
