@@ -73,22 +73,26 @@ fn shards_of(job: u64, jobs: u64, shards: u64) -> Vec<String> {
 #[test]
 fn slurm_array_jobs_write_each_shard_once_and_match_one_process() {
     let (samples, shard_size, jobs) = (10, 2, 3);
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("array");
-    let mut seen: Vec<String> = Vec::new();
-    for job in 0..jobs {
-        let run = clean("bash")
+    // Job `job` of the array, writing into `out`.
+    let array_job = |job: u64, out: &Path| {
+        let mut command = clean("bash");
+        command
             .arg(deploy("slurm/generate.sbatch"))
             .env("SLURM_ARRAY_TASK_ID", job.to_string())
             .env("SLURM_CPUS_PER_TASK", "1")
             .env("MATSEG", MATSEG)
-            .env("OUT", &out)
+            .env("OUT", out)
             .env("SAMPLES", samples.to_string())
             .env("SHARD_SIZE", shard_size.to_string())
             .env("JOBS", jobs.to_string())
-            .env("MATSEG_ARGS", SIZE_RANGE.join(" "))
-            .output()
-            .unwrap();
+            .env("MATSEG_ARGS", SIZE_RANGE.join(" "));
+        command
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("array");
+    let mut seen: Vec<String> = Vec::new();
+    for job in 0..jobs {
+        let run = array_job(job, &out).output().unwrap();
         assert!(
             run.status.success(),
             "{}",
@@ -116,19 +120,7 @@ fn slurm_array_jobs_write_each_shard_once_and_match_one_process() {
     // The jobs at once, as an array runs them, into one folder.
     let together = dir.path().join("together");
     let running: Vec<_> = (0..jobs)
-        .map(|job| {
-            clean("bash")
-                .arg(deploy("slurm/generate.sbatch"))
-                .env("SLURM_ARRAY_TASK_ID", job.to_string())
-                .env("MATSEG", MATSEG)
-                .env("OUT", &together)
-                .env("SAMPLES", samples.to_string())
-                .env("SHARD_SIZE", shard_size.to_string())
-                .env("JOBS", jobs.to_string())
-                .env("MATSEG_ARGS", SIZE_RANGE.join(" "))
-                .spawn()
-                .unwrap()
-        })
+        .map(|job| array_job(job, &together).spawn().unwrap())
         .collect();
     for mut job in running {
         assert!(job.wait().unwrap().success());
