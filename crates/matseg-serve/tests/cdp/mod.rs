@@ -12,6 +12,9 @@ use std::time::{Duration, Instant};
 use tungstenite::stream::MaybeTlsStream;
 use tungstenite::{Message, WebSocket};
 
+/// The DevTools protocol's field naming an attached page's channel.
+const PAGE_CHANNEL: &str = "sessionId";
+
 /// Key modifier bits of `Input.dispatchMouseEvent`.
 pub const ALT: u32 = 1;
 /// Shift.
@@ -35,7 +38,9 @@ fn browser_path() -> PathBuf {
 pub struct Browser {
     process: Child,
     socket: WebSocket<MaybeTlsStream<TcpStream>>,
-    session: String,
+    /// The protocol's id of the channel to the page, which every page
+    /// command carries.
+    page: String,
     next_id: u64,
     _profile: tempfile::TempDir,
 }
@@ -83,7 +88,7 @@ impl Browser {
         let mut browser = Browser {
             process,
             socket,
-            session: String::new(),
+            page: String::new(),
             next_id: 0,
             _profile: profile,
         };
@@ -92,7 +97,7 @@ impl Browser {
             "Target.attachToTarget",
             json!({ "targetId": target["targetId"], "flatten": true }),
         );
-        browser.session = attached["sessionId"].as_str().unwrap().to_string();
+        browser.page = attached[PAGE_CHANNEL].as_str().unwrap().to_string();
         browser.call("Runtime.enable", json!({}));
         browser.call("Page.enable", json!({}));
         browser.call(
@@ -102,12 +107,12 @@ impl Browser {
         browser
     }
 
-    fn send(&mut self, method: &str, params: Value, session: bool) -> Value {
+    fn send(&mut self, method: &str, params: Value, to_page: bool) -> Value {
         self.next_id += 1;
         let id = self.next_id;
         let mut message = json!({ "id": id, "method": method, "params": params });
-        if session {
-            message["sessionId"] = json!(self.session);
+        if to_page {
+            message[PAGE_CHANNEL] = json!(self.page);
         }
         self.socket
             .send(Message::text(message.to_string()))
