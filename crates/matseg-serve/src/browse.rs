@@ -11,7 +11,7 @@ use axum::http::header;
 use axum::response::{IntoResponse, Response};
 use axum::Json;
 use image::RgbImage;
-use matseg_data::reader::{Dataset, Sample};
+use matseg_data::reader::{Dataset, Sample, TrainingTargets};
 use matseg_image::io::{encode_jpeg, encode_png_gray, encode_png_rgb};
 use matseg_scene::colourise;
 use serde::Deserialize;
@@ -211,8 +211,8 @@ fn draw_part(
             })?;
             png(encode_png_gray(w, h, roi.as_raw()))
         }
-        "annotation" => png(encode_png_rgb(&annotation(sample))),
-        "overlay" => png(encode_png_rgb(&overlay(sample))),
+        "annotation" => png(encode_png_rgb(&annotation(sample, &sample.targets()))),
+        "overlay" => png(encode_png_rgb(&overlay(sample, &sample.targets()))),
         other => Err(ApiError::bad(format!(
             "part {other:?}: expected image, thumbnail, mask, roi, annotation or overlay"
         ))),
@@ -221,20 +221,22 @@ fn draw_part(
 
 /// The soft masks as the training reads them, each material in its palette
 /// colour (mixtures mixed), outside the ROI black.
-fn annotation(sample: &Sample) -> RgbImage {
+fn annotation(sample: &Sample, targets: &TrainingTargets) -> RgbImage {
     let (w, h) = sample.image.dimensions();
-    let targets = sample.targets();
     let weights: Vec<&[f32]> = targets.weights.iter().map(|p| p.data.as_slice()).collect();
     colourise(w as usize, h as usize, &weights)
 }
 
 /// The annotation blended over the image inside the ROI (two parts colour
 /// to one part image).
-fn overlay(sample: &Sample) -> RgbImage {
-    let colours = annotation(sample);
-    let roi = sample.targets().roi;
+fn overlay(sample: &Sample, targets: &TrainingTargets) -> RgbImage {
+    let colours = annotation(sample, targets);
     let mut out = sample.image.clone();
-    for ((p, c), &inside) in out.pixels_mut().zip(colours.pixels()).zip(&roi.data) {
+    for ((p, c), &inside) in out
+        .pixels_mut()
+        .zip(colours.pixels())
+        .zip(&targets.roi.data)
+    {
         if inside > 0.0 {
             for (v, &colour) in p.0.iter_mut().zip(&c.0) {
                 *v = ((*v as u16 + 2 * colour as u16) / 3) as u8;
