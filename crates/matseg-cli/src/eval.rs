@@ -2,12 +2,10 @@
 
 use anyhow::Result;
 use clap::Subcommand;
-use matseg_eval::{
-    evaluate_masks, evaluate_points, load_point_benchmark, scan_mask_benchmark, MaskEvalOptions,
-    QueryOptions,
-};
+use matseg_eval::{evaluate_masks, scan_mask_benchmark, MaskEvalOptions, QueryOptions};
 use matseg_image::descriptor::DescriptorModel;
 use matseg_pipeline::models::ModelChoice;
+use matseg_pipeline::point_bench::score_point_benchmark;
 use std::path::PathBuf;
 
 /// `matseg eval` subcommands.
@@ -45,7 +43,7 @@ pub struct ModelArgs {
     #[arg(long, default_value = "cpu")]
     device: String,
     /// Longer side of the evaluated images, in pixels (0: as they are).
-    #[arg(long, default_value_t = 700)]
+    #[arg(long, default_value_t = matseg_eval::evaluate::DEFAULT_MAX_SIDE)]
     max_side: u32,
     /// Print JSON (stable field names) instead of a table.
     #[arg(long)]
@@ -121,24 +119,16 @@ fn score(v: Option<f64>) -> String {
 
 fn points(args: PointArgs) -> Result<()> {
     let models = models(&args.model)?;
-    let bench = load_point_benchmark(&args.bench, args.skip_bad)?;
-    for problem in &bench.skipped {
+    let evaluation =
+        score_point_benchmark(&args.bench, &models, args.skip_bad, args.model.max_side)?;
+    for problem in &evaluation.skipped {
         eprintln!("warning: skipped {problem}");
     }
-    let reports = models
-        .iter()
-        .map(|m| evaluate_points(m.as_ref(), &bench, args.model.max_side))
-        .collect::<Result<Vec<_>, _>>()?;
     if args.model.json {
-        let out = serde_json::json!({
-            "benchmark": args.bench,
-            "max_side": args.model.max_side,
-            "skipped": bench.skipped,
-            "models": reports,
-        });
-        println!("{}", serde_json::to_string_pretty(&out)?);
+        println!("{}", serde_json::to_string_pretty(&evaluation)?);
         return Ok(());
     }
+    let reports = &evaluation.models;
     let c = &reports[0].counts;
     println!(
         "{}: {} images ({} with relations), {} points; longer side {} px; {} skipped",
@@ -147,13 +137,13 @@ fn points(args: PointArgs) -> Result<()> {
         c.soft_images,
         c.points,
         args.model.max_side,
-        bench.skipped.len()
+        evaluation.skipped.len()
     );
     println!(
         "| model | All by material | All by point | Soft by material | Soft by point | Top-1 by material | Top-1 by point | triplets | soft triplets |"
     );
     println!("|---|---|---|---|---|---|---|---|---|");
-    for r in &reports {
+    for r in reports {
         println!(
             "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             r.model,

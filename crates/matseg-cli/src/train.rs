@@ -108,7 +108,7 @@ pub struct Args {
     #[arg(long, value_name = "BENCH_DIR")]
     val_points: Option<PathBuf>,
     /// Longer side of the --val-points images, in pixels (0: as they are).
-    #[arg(long, default_value_t = 700)]
+    #[arg(long, default_value_t = matseg_eval::evaluate::DEFAULT_MAX_SIDE)]
     val_max_side: u32,
     /// Threads preparing batches ahead (default: 1 on the CPU, all cores
     /// but two with --device cuda); the batches do not depend on it.

@@ -13,6 +13,10 @@ use rayon::prelude::*;
 use serde::Serialize;
 use std::path::Path;
 
+/// The longer side, in pixels, benchmark images are evaluated at unless
+/// told otherwise (pipeline.md §9.1).
+pub const DEFAULT_MAX_SIDE: u32 = 700;
+
 /// The image resized so that its longer side is `max_side` (unchanged for
 /// 0), and the scale applied.
 pub fn resize_longer_side(image: RgbImage, max_side: u32) -> (RgbImage, f32) {

@@ -1,17 +1,56 @@
 //! Point benchmarks (docs/eval.md): one made from generated 2D scenes, so
-//! the evaluation runs end to end without external data, and any
-//! benchmark's annotations drawn on its photos to check them by eye.
+//! the evaluation runs end to end without external data, any benchmark
+//! scored by several models, and any benchmark's annotations drawn on its
+//! photos to check them by eye.
 
 use crate::error::PipelineError;
 use crate::files::{create_folder, write_file};
 use crate::sources::Libraries;
 use matseg_data::sample_rng;
-use matseg_eval::load_point_benchmark;
 use matseg_eval::overlay::draw_points;
 use matseg_eval::synthetic::{annotate_points, write_point_image, SyntheticOptions};
+use matseg_eval::{evaluate_points, load_point_benchmark, PointReport};
+use matseg_image::descriptor::DescriptorModel;
 use matseg_image::io::{encode_png_rgb, read_rgb};
 use matseg_scene::{generate_2d, Recipe2d};
-use std::path::Path;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// A point benchmark scored by several models: what `matseg eval points
+/// --json` prints and the web app's evaluate page shows.
+#[derive(Clone, Debug, Serialize)]
+pub struct PointEvaluation {
+    /// The benchmark folder.
+    pub benchmark: PathBuf,
+    /// The longer side the images were evaluated at.
+    pub max_side: u32,
+    /// Images left out, with why (with `skip_bad`).
+    pub skipped: Vec<String>,
+    /// Each model's scores, in the order given.
+    pub models: Vec<PointReport>,
+}
+
+/// Scores each of `models` on the point benchmark in `dir`, its images
+/// resized to a longer side of `max_side`; with `skip_bad`, malformed
+/// images are left out (and listed) instead of failing.
+pub fn score_point_benchmark(
+    dir: &Path,
+    models: &[Box<dyn DescriptorModel>],
+    skip_bad: bool,
+    max_side: u32,
+) -> Result<PointEvaluation, PipelineError> {
+    let bench = load_point_benchmark(dir, skip_bad)?;
+    let reports = models
+        .iter()
+        .map(|m| evaluate_points(m.as_ref(), &bench, max_side))
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(PointEvaluation {
+        benchmark: dir.to_path_buf(),
+        max_side,
+        skipped: bench.skipped,
+        models: reports,
+    })
+}
 
 /// Writes a point benchmark (MatSeg layout) of `scenes` generated 2D scenes
 /// (scene i from (seed, i)) with `points` points per material into `out`;

@@ -8,15 +8,13 @@ use crate::app::{ApiError, AppState};
 use axum::extract::{Query, State};
 use axum::http::StatusCode;
 use axum::Json;
-use matseg_eval::{evaluate_points, load_point_benchmark};
+use matseg_eval::evaluate::DEFAULT_MAX_SIDE;
 use matseg_pipeline::models::{known_baselines, models, ModelChoice};
+use matseg_pipeline::point_bench::score_point_benchmark;
 use serde::Deserialize;
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
-
-/// Longer side of the evaluated images, as `matseg eval points` defaults.
-pub const EVAL_MAX_SIDE: u32 = 700;
 
 /// Where an evaluation of one benchmark stands.
 pub enum Evaluation {
@@ -97,25 +95,16 @@ pub async fn start(
 /// Scores the chosen models on the benchmark in `folder`: the report as
 /// `matseg eval points --json` prints it.
 fn run(folder: &std::path::Path, choice: &ModelChoice) -> Result<serde_json::Value, String> {
-    let bench = load_point_benchmark(folder, true).map_err(|e| e.to_string())?;
-    if bench.images.is_empty() {
+    let models = models(choice).map_err(|e| e.to_string())?;
+    let evaluation = score_point_benchmark(folder, &models, true, DEFAULT_MAX_SIDE)
+        .map_err(|e| e.to_string())?;
+    if evaluation.models[0].counts.images == 0 {
         return Err(format!(
             "{}: no annotated image to evaluate",
             folder.display()
         ));
     }
-    let models = models(choice).map_err(|e| e.to_string())?;
-    let reports = models
-        .iter()
-        .map(|m| evaluate_points(m.as_ref(), &bench, EVAL_MAX_SIDE))
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(|e| e.to_string())?;
-    Ok(serde_json::json!({
-        "benchmark": folder,
-        "max_side": EVAL_MAX_SIDE,
-        "skipped": bench.skipped,
-        "models": reports,
-    }))
+    Ok(serde_json::to_value(evaluation).expect("plain JSON values"))
 }
 
 /// A benchmark.
