@@ -220,8 +220,19 @@ fn parse_points(text: &str, width: u32, height: u32) -> Result<ParsedPoints, Str
     Ok((ids, points))
 }
 
+/// The `group_relations.txt` line of ids with `weight`: `[1, 2]` for
+/// [`SQUARE_RELATION`], `(1, 2)` otherwise.
+pub fn format_relation(ids: &[String], weight: f64) -> String {
+    let (open, close) = if weight == SQUARE_RELATION {
+        ('[', ']')
+    } else {
+        ('(', ')')
+    };
+    format!("{open}{}{close}", ids.join(", "))
+}
+
 /// One relation line: its ids and weight, `None` for a blank line.
-fn parse_relation(line: &str) -> Result<Option<(Vec<String>, f64)>, String> {
+pub fn parse_relation(line: &str) -> Result<Option<(Vec<String>, f64)>, String> {
     let line = line.trim();
     if line.is_empty() {
         return Ok(None);

@@ -8,7 +8,7 @@ use crate::app::{blocking, ApiError, AppState};
 use axum::body::Bytes;
 use axum::extract::{Query, State};
 use axum::Json;
-use matseg_eval::points::{ROUND_RELATION, SQUARE_RELATION};
+use matseg_eval::points::{format_relation, parse_relation, ROUND_RELATION, SQUARE_RELATION};
 use matseg_image::io::write_atomic;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -318,14 +318,7 @@ fn write_annotation(dir: &Path, annotation: &Annotation) -> std::io::Result<()> 
     let text: String = annotation
         .relations
         .iter()
-        .map(|r| {
-            let (open, close) = if r.weight == SQUARE_RELATION {
-                ('[', ']')
-            } else {
-                ('(', ')')
-            };
-            format!("{open}{}{close}\n", r.ids.join(", "))
-        })
+        .map(|r| format_relation(&r.ids, r.weight) + "\n")
         .collect();
     write_atomic(&relations_file, text.as_bytes())
 }
@@ -355,24 +348,11 @@ fn read_annotation(dir: &Path) -> Result<Annotation, ApiError> {
         let text = std::fs::read_to_string(&relations_file)
             .map_err(|e| problem(&relations_file, e.to_string()))?;
         for (number, line) in text.lines().enumerate() {
-            let line = line.trim();
-            if line.is_empty() {
-                continue;
+            let relation = parse_relation(line)
+                .map_err(|m| problem(&relations_file, format!("line {}: {m}", number + 1)))?;
+            if let Some((ids, weight)) = relation {
+                relations.push(Relation { ids, weight });
             }
-            let (weight, inner) = if let Some(inner) =
-                line.strip_prefix('[').and_then(|l| l.strip_suffix(']'))
-            {
-                (SQUARE_RELATION, inner)
-            } else if let Some(inner) = line.strip_prefix('(').and_then(|l| l.strip_suffix(')')) {
-                (ROUND_RELATION, inner)
-            } else {
-                return Err(problem(
-                    &relations_file,
-                    format!("line {}: expected [ids] or (ids)", number + 1),
-                ));
-            };
-            let ids = inner.split(',').map(|id| id.trim().to_string()).collect();
-            relations.push(Relation { ids, weight });
         }
     }
     Ok(Annotation { groups, relations })
