@@ -39,6 +39,12 @@ export async function pixels(response) {
   return scratch.getImageData(0, 0, bitmap.width, bitmap.height).data;
 }
 
+// The similarities of a grey similarity PNG (`/api/similarity`), 0..1.
+export async function similarities(response) {
+  const grey = await pixels(response);
+  return Float32Array.from({ length: grey.length / 4 }, (_, i) => grey[4 * i] / 255);
+}
+
 // An image response as a bitmap to draw.
 export async function bitmap(response) {
   return createImageBitmap(await response.blob());

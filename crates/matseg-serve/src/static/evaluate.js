@@ -3,7 +3,7 @@
 // baselines, and shows the All / Soft / top-1 table, each image's scores,
 // and an image's points with the model's similarity map to any of them.
 
-import { api, pixels, bitmap, blend, ring, pointOf, COLOUR_MAPS, PALETTE, listFolders } from "/common.js";
+import { api, similarities, bitmap, blend, ring, pointOf, COLOUR_MAPS, PALETTE, listFolders } from "/common.js";
 
 const DEFAULT_BASELINES = ["rgb", "lab", "texture", "position"];
 const COLUMNS = [["all_by_material", "All by material"], ["all_by_point", "All by point"],
@@ -102,9 +102,8 @@ canvas.addEventListener("click", async (event) => {
     .map(([px, py, r]) => ({ px, py, r, d: Math.hypot(px - x, py - y) }))
     .sort((a, b) => a.d - b.d)[0];
   if (!nearest) return;
-  const grey = await pixels(await api("/api/similarity",
+  view.values = await similarities(await api("/api/similarity",
     { root: state.root, path: view.path, points: `${nearest.px},${nearest.py}`, radius: nearest.r }));
-  view.values = Float32Array.from({ length: grey.length / 4 }, (_, i) => grey[4 * i] / 255);
   view.chosen = [nearest.px, nearest.py];
   drawView();
   canvas.dataset.answered = String(Number(canvas.dataset.answered || 0) + 1);

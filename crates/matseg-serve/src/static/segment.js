@@ -5,7 +5,7 @@
 // into K materials. The server describes a photo once and answers every
 // click from its descriptors.
 
-import { api, pixels, bitmap, blend, ring, pointOf, download, greyPng, COLOUR_MAPS, PALETTE }
+import { api, pixels, similarities, bitmap, blend, ring, pointOf, download, greyPng, COLOUR_MAPS, PALETTE }
   from "/common.js";
 
 const canvas = document.getElementById("canvas");
@@ -70,8 +70,7 @@ function update() {
   const params = { ...state.photo, points: state.points.map(([x, y]) => `${x},${y}`).join(";") };
   answer(performance.now(), async () => {
     if (state.points.length === 1) {
-      const grey = await pixels(await api("/api/similarity", params));
-      return { kind: "similarity", values: Float32Array.from({ length: grey.length / 4 }, (_, i) => grey[4 * i] / 255) };
+      return { kind: "similarity", values: await similarities(await api("/api/similarity", params)) };
     }
     if (state.points.length > 1) return labelLayer(await api("/api/segment", params));
     return null;
