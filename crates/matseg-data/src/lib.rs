@@ -17,5 +17,5 @@ pub use generate::{
     GenerateReport, JobError, JobSlice,
 };
 pub use maker::{Generator2d, Generator3d, SampleError, SampleMaker};
-pub use reader::{Dataset, ReadError, Sample, TrainingTargets};
+pub use reader::{decode_encoded, Dataset, ReadError, Sample, TrainingTargets};
 pub use seed::sample_rng;

@@ -1,6 +1,7 @@
 //! Reading datasets back: MatSeg folders (ours and the original's, including
 //! the 3D set's `mask001.png` naming) and WebDataset shards, with random access.
 
+use crate::encode::EncodedSample;
 use crate::folders::{FINISHED_FILE, IMAGE_FILE, META_FILE, PARTIAL_SUFFIX, ROI_FILE};
 use image::{GrayImage, RgbImage};
 use matseg_image::io::{decode_gray, decode_rgb};
@@ -270,6 +271,35 @@ pub fn read_folder_sample(dir: &Path) -> Result<Sample, ReadError> {
     })
 }
 
+/// Decodes a sample as made by a [`crate::SampleMaker`], before it is
+/// written: the same pixels and sidecar a reader gets back from the folder
+/// or shard it is written to (key: the folder name, `NNNNNNNN`).
+pub fn decode_encoded(sample: &EncodedSample) -> Result<Sample, ReadError> {
+    let key = crate::folders::sample_dir(Path::new(""), sample.index)
+        .display()
+        .to_string();
+    let name = |file: &str| PathBuf::from(format!("{key}/{file}"));
+    let image = decode_rgb(&sample.jpg, &name(IMAGE_FILE))?;
+    let masks = sample
+        .masks
+        .iter()
+        .enumerate()
+        .map(|(k, bytes)| decode_gray(bytes, &name(&format!("mask{k}.png"))))
+        .collect::<Result<Vec<_>, _>>()?;
+    let roi = decode_gray(&sample.roi, &name(ROI_FILE))?;
+    let meta = serde_json::from_slice(&sample.json).map_err(|e| ReadError::Format {
+        path: name(META_FILE),
+        reason: e.to_string(),
+    })?;
+    Ok(Sample {
+        key,
+        image,
+        masks,
+        roi: Some(roi),
+        meta: Some(meta),
+    })
+}
+
 fn check_size(path: &Path, got: (u32, u32), want: (u32, u32)) -> Result<(), ReadError> {
     if got != want {
         return Err(ReadError::Format {
@@ -399,5 +429,28 @@ mod tests {
         assert!((t.weights[1].data[0] - 0.2).abs() < 1e-6);
         assert!((t.weights[0].data[1] - 5.0 / 9.0).abs() < 1e-6);
         assert_eq!(t.weights[0].data[2], 0.0);
+    }
+
+    #[test]
+    fn an_encoded_sample_decodes_as_its_written_folder_reads() {
+        let image = RgbImage::from_fn(8, 6, |x, y| image::Rgb([x as u8 * 30, y as u8 * 40, 7]));
+        let annotation = matseg_scene::QuantisedAnnotation {
+            masks: vec![vec![255; 48], vec![0; 48]],
+            background: vec![0; 48],
+            roi: vec![255; 48],
+        };
+        let meta = crate::SampleMeta::new("2d", 3, 12, Vec::new(), serde_json::json!({"a": 1}));
+        let encoded = crate::encode_sample(12, &image, &annotation, &meta);
+        let decoded = decode_encoded(&encoded).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        crate::folders::write_sample(dir.path(), &encoded).unwrap();
+        let read = Dataset::open(dir.path()).unwrap().get(0).unwrap();
+        assert_eq!(decoded.key, "00000012");
+        assert_eq!(decoded.key, read.key);
+        assert_eq!(decoded.image, read.image);
+        assert_eq!(decoded.masks, read.masks);
+        assert_eq!(decoded.roi, read.roi);
+        assert_eq!(decoded.meta, read.meta);
+        assert_eq!(decoded.meta.unwrap()["index"], 12);
     }
 }
