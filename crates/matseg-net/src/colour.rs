@@ -21,7 +21,7 @@ pub const INITIAL_BANDWIDTH: f64 = 15.0;
 pub const COLOUR_PART: &str = "colour.";
 
 /// Seed of the fixed projection and phases.
-const SEED: u64 = 0xc010_0e5e;
+pub const SEED: u64 = 0xc010_0e5e;
 
 /// The colour part's variables (under the net's `colour` path).
 #[derive(Debug)]

@@ -178,6 +178,38 @@ impl TrainedNet {
     }
 }
 
+impl TrainedNet {
+    /// The net alone on an interleaved RGB image whose sides are multiples
+    /// of 32, at its own size and one scale (no shrinking to
+    /// [`TrainedNet::inference_side`], no extra sides): unit descriptors
+    /// `[D, height, width]` on the CPU, as training sees them. What an
+    /// exported copy of the net (PyTorch, ONNX) must reproduce.
+    pub fn describe_at_own_size(
+        &self,
+        rgb: &[u8],
+        width: usize,
+        height: usize,
+    ) -> Result<Tensor, NetError> {
+        if !width.is_multiple_of(32) || !height.is_multiple_of(32) || width == 0 || height == 0 {
+            return Err(NetError::File {
+                file: "image".into(),
+                message: format!(
+                    "is {width}x{height}; the net alone takes sides that are multiples of 32"
+                ),
+            });
+        }
+        let x = normalise_input(&rgb8_to_tensor(rgb, width, height).unsqueeze(0))
+            .to_device(self.vs.device());
+        let d = tch::no_grad(|| self.net.forward_t(&x, false).to_device(Device::Cpu));
+        Ok(d.squeeze_dim(0))
+    }
+
+    /// Channels of the descriptors.
+    pub fn output_dim(&self) -> i64 {
+        self.net.output_dim()
+    }
+}
+
 impl PixelDescriptors for TrainedNet {
     fn describe_rgb(&self, rgb: &[u8], width: usize, height: usize) -> Tensor {
         self.describe(rgb, width, height)
