@@ -1,0 +1,33 @@
+//! `matseg._core`: the native half of the `matseg` Python package. It hands
+//! Python plain values (bytes, sizes, strings); `python/matseg` turns them
+//! into numpy arrays and gives the classes their Python manners (pickling,
+//! argument checks, exceptions named after the problem).
+
+mod batches;
+mod dataset;
+mod errors;
+mod generator;
+mod model;
+mod samples;
+
+use pyo3::prelude::*;
+
+/// The module's classes and functions.
+#[pymodule]
+fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<generator::PyGenerator>()?;
+    m.add_class::<dataset::PyDataset>()?;
+    m.add_class::<model::PyModel>()?;
+    m.add_function(wrap_pyfunction!(batches::default_plan, m)?)?;
+    m.add_function(wrap_pyfunction!(model::resolve_model, m)?)?;
+    m.add_function(wrap_pyfunction!(samples::read_rgb, m)?)?;
+    m.add_function(wrap_pyfunction!(model::net_constants, m)?)?;
+    m.add_function(wrap_pyfunction!(model::net_preset, m)?)?;
+    m.add_function(wrap_pyfunction!(model::train_defaults, m)?)?;
+    m.add("MatsegError", m.py().get_type::<errors::MatsegError>())?;
+    m.add(
+        "DEFAULT_CACHE_MB",
+        matseg_pipeline::sources::DEFAULT_CACHE_MB,
+    )?;
+    Ok(())
+}

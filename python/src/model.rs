@@ -1,0 +1,224 @@
+//! `matseg.Model`: a trained net answering "where else is this material?"
+//! as `matseg segment` does.
+
+use crate::errors::matseg_error;
+use crate::samples::f32_bytes;
+use image::RgbImage;
+use matseg_eval::ClusterOptions;
+use matseg_net::infer::resolve_model as resolve;
+use matseg_pipeline::segment::{check_points, cluster, describe, query_points, Model};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyDict};
+use std::path::{Path, PathBuf};
+use std::sync::{Mutex, MutexGuard};
+use tch::{Device, Tensor};
+
+/// The folder or weights file a model name stands for (`default`: the
+/// shipped model).
+#[pyfunction]
+pub fn resolve_model(name: PathBuf) -> PyResult<PathBuf> {
+    resolve(&name).map_err(matseg_error)
+}
+
+/// The numbers the net's PyTorch copy (`matseg.net`) shares with this
+/// one, so the two cannot drift apart: input normalisation, loss
+/// temperature and region threshold, the colour part's L*a*b* conversion.
+#[pyfunction]
+pub fn net_constants(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    use matseg_image::lab::{D65_WHITE_XZ, LAB_EPSILON, LAB_KAPPA, LINEAR_SRGB_TO_XYZ};
+    let d = PyDict::new(py);
+    d.set_item("input_mean", matseg_net::net::INPUT_MEAN.to_vec())?;
+    d.set_item("input_scale", matseg_net::net::INPUT_SCALE)?;
+    d.set_item("temperature", matseg_net::TEMPERATURE)?;
+    d.set_item("region_threshold", matseg_net::REGION_THRESHOLD)?;
+    d.set_item("roi_min_mask_sum", matseg_data::reader::ROI_MIN_MASK_SUM)?;
+    d.set_item(
+        "linear_srgb_to_xyz",
+        LINEAR_SRGB_TO_XYZ.map(|r| r.to_vec()).to_vec(),
+    )?;
+    d.set_item("d65_white_xz", D65_WHITE_XZ.to_vec())?;
+    d.set_item("lab_epsilon", LAB_EPSILON)?;
+    d.set_item("lab_kappa", LAB_KAPPA)?;
+    d.set_item("colour_features", matseg_net::colour::COLOUR_FEATURES)?;
+    d.set_item(
+        "colour_initial_bandwidth",
+        matseg_net::colour::INITIAL_BANDWIDTH,
+    )?;
+    d.set_item("colour_seed", matseg_net::colour::SEED)?;
+    Ok(d)
+}
+
+/// The net configuration (run.json's "net", as JSON) of a named preset,
+/// with or without the encoder's and the colour features.
+#[pyfunction]
+pub fn net_preset(name: &str, encoder_features: bool, colour_features: bool) -> PyResult<String> {
+    use matseg_net::net::{NetConfig, PRESETS};
+    let config = NetConfig::preset(name).ok_or_else(|| {
+        PyValueError::new_err(format!(
+            "encoder: '{name}': expected one of {}",
+            PRESETS.join(", ")
+        ))
+    })?;
+    let config = NetConfig {
+        encoder_features,
+        colour_features,
+        ..config
+    };
+    Ok(serde_json::to_string(&config).expect("a net config serialises"))
+}
+
+/// `matseg train`'s defaults, for `python -m matseg.train`.
+#[pyfunction]
+pub fn train_defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    use matseg_net::train::{LR_PRETRAINED, LR_SCRATCH, WARMUP_STEPS};
+    use matseg_pipeline::train::TrainConfig;
+    let d = PyDict::new(py);
+    d.set_item("lr_pretrained", LR_PRETRAINED)?;
+    d.set_item("lr_scratch", LR_SCRATCH)?;
+    d.set_item("warmup", WARMUP_STEPS)?;
+    d.set_item("weight_decay", TrainConfig::WEIGHT_DECAY)?;
+    d.set_item("steps", TrainConfig::STEPS)?;
+    d.set_item("checkpoint_every", TrainConfig::CHECKPOINT_EVERY)?;
+    d.set_item("encoder", TrainConfig::ENCODER)?;
+    Ok(d)
+}
+
+/// A loaded net (on the CPU).
+#[pyclass(module = "matseg._core", name = "Model", frozen)]
+pub struct PyModel {
+    net: Mutex<Model>,
+}
+
+/// An RGB image from its bytes, checked against its size.
+fn photo(rgb: &[u8], width: u32, height: u32) -> PyResult<RgbImage> {
+    RgbImage::from_raw(width, height, rgb.to_vec()).ok_or_else(|| {
+        PyValueError::new_err(format!(
+            "image: {} bytes are not {width}x{height} RGB",
+            rgb.len()
+        ))
+    })
+}
+
+/// `values` as little-endian f32 bytes.
+fn tensor_bytes<'py>(py: Python<'py>, t: &Tensor) -> PyResult<Bound<'py, PyBytes>> {
+    let values = Vec::<f32>::try_from(t.contiguous().flatten(0, -1)).map_err(matseg_error)?;
+    Ok(PyBytes::new(py, &f32_bytes(&values)))
+}
+
+/// Labels as little-endian i32 bytes.
+fn label_bytes<'py>(py: Python<'py>, labels: &[u32]) -> Bound<'py, PyBytes> {
+    let bytes: Vec<u8> = labels
+        .iter()
+        .flat_map(|&l| (l as i32).to_le_bytes())
+        .collect();
+    PyBytes::new(py, &bytes)
+}
+
+impl PyModel {
+    fn net(&self) -> MutexGuard<'_, Model> {
+        self.net.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+#[pymethods]
+impl PyModel {
+    /// Loads `name`: `default`, a run folder or a weights file.
+    #[new]
+    fn new(py: Python<'_>, name: PathBuf) -> PyResult<Self> {
+        let net = py
+            .detach(|| Model::load(Path::new(&name), Device::Cpu))
+            .map_err(matseg_error)?;
+        Ok(Self {
+            net: Mutex::new(net),
+        })
+    }
+
+    /// Descriptor channels.
+    fn dim(&self) -> i64 {
+        self.net().output_dim()
+    }
+
+    /// Unit descriptors `[D, height, width]` (f32 bytes) as `matseg
+    /// segment` computes them: at the model's inference sizes, resized back.
+    fn describe<'py>(
+        &self,
+        py: Python<'py>,
+        rgb: &[u8],
+        width: u32,
+        height: u32,
+    ) -> PyResult<Bound<'py, PyBytes>> {
+        let photo = photo(rgb, width, height)?;
+        let d = py.detach(|| {
+            self.net()
+                .describe(photo.as_raw(), width as usize, height as usize)
+        });
+        tensor_bytes(py, &d)
+    }
+
+    /// Unit descriptors `[D, height, width]` of the net alone at the
+    /// image's own size (sides multiples of 32), one scale.
+    fn describe_at_own_size<'py>(
+        &self,
+        py: Python<'py>,
+        rgb: &[u8],
+        width: u32,
+        height: u32,
+    ) -> PyResult<Bound<'py, PyBytes>> {
+        let photo = photo(rgb, width, height)?;
+        let d = py
+            .detach(|| {
+                self.net()
+                    .describe_at_own_size(photo.as_raw(), width as usize, height as usize)
+            })
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        tensor_bytes(py, &d)
+    }
+
+    /// Each point's similarity map `[K, height, width]` (f32 bytes) and,
+    /// for two points or more, the nearest-point labels (i32 bytes).
+    fn similarity<'py>(
+        &self,
+        py: Python<'py>,
+        rgb: &[u8],
+        width: u32,
+        height: u32,
+        points: Vec<(f32, f32)>,
+        radius: f32,
+    ) -> PyResult<(Bound<'py, PyBytes>, Option<Bound<'py, PyBytes>>)> {
+        let photo = photo(rgb, width, height)?;
+        check_points(&photo, &points, "the image")
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let maps = py.detach(|| query_points(&describe(&self.net(), &photo), &points, radius));
+        let flat: Vec<f32> = maps.similarity.concat();
+        Ok((
+            PyBytes::new(py, &f32_bytes(&flat)),
+            maps.labels.map(|l| label_bytes(py, &l)),
+        ))
+    }
+
+    /// The photo split into `k` materials by clustering its descriptors:
+    /// labels (i32 bytes) and the number of clusters.
+    fn cluster<'py>(
+        &self,
+        py: Python<'py>,
+        rgb: &[u8],
+        width: u32,
+        height: u32,
+        k: usize,
+        seed: u64,
+    ) -> PyResult<(Bound<'py, PyBytes>, usize)> {
+        if !(2..=255).contains(&k) {
+            return Err(PyValueError::new_err(format!(
+                "k: {k} clusters; between 2 and 255"
+            )));
+        }
+        let photo = photo(rgb, width, height)?;
+        let options = ClusterOptions {
+            seed,
+            ..ClusterOptions::new(k)
+        };
+        let (labels, n) = py.detach(|| cluster(&describe(&self.net(), &photo), &options));
+        Ok((label_bytes(py, &labels), n))
+    }
+}

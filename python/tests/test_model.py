@@ -1,0 +1,71 @@
+"""matseg.Model against `matseg segment`, and its errors."""
+
+import numpy as np
+import pytest
+from PIL import Image
+
+import matseg
+
+from conftest import ROOT, run
+
+PHOTO = ROOT / "assets" / "photos" / "astronaut.jpg"
+
+
+@pytest.fixture(scope="module")
+def model():
+    return matseg.Model.load("default")
+
+
+@pytest.fixture(scope="module")
+def photo():
+    return matseg.read_image(PHOTO)
+
+
+def test_similarity_and_segmentation_match_matseg_segment(model, photo, matseg_bin, tmp_path):
+    points = [(100.0, 120.0), (400.0, 60.0)]
+    run([matseg_bin, "segment", PHOTO, "--point", "100,120", "--point", "400,60", "--out", tmp_path])
+    maps = model.similarity(photo, points)
+    assert maps.shape == (2, *photo.shape[:2]) and maps.dtype == np.float32
+    for k in range(2):
+        grey = np.asarray(Image.open(tmp_path / f"similarity_{k}.png"))
+        ours = np.round(np.clip(maps[k], 0, 1) * 255).astype(np.uint8)
+        assert np.abs(ours.astype(int) - grey.astype(int)).max() <= 1
+    labels = model.segment(photo, points=points)
+    cli = np.asarray(Image.open(tmp_path / "labels.png"))
+    assert labels.dtype == np.int32 and labels.shape == photo.shape[:2]
+    assert (labels == cli).mean() > 0.999
+    # The point's own pixel is most similar to itself.
+    assert maps[0][120, 100] > 0.9 and labels[120, 100] == 0 and labels[60, 400] == 1
+
+
+def test_descriptors_are_unit_vectors(model, photo):
+    small = photo[:96, :128]
+    d = model.describe(small)
+    assert d.shape == (model.dim, 96, 128)
+    assert np.allclose(np.linalg.norm(d, axis=0), 1, atol=1e-4)
+
+
+def test_clustering_splits_into_k_labels(model, photo):
+    labels = model.segment(photo, k=3, seed=1)
+    assert set(np.unique(labels)) == {0, 1, 2}
+
+
+def test_bad_images_and_points_raise(model, photo):
+    with pytest.raises(TypeError, match="dtype uint8"):
+        model.describe(photo.astype(np.float32))
+    with pytest.raises(ValueError, match="HxWx3"):
+        model.describe(photo[:, :, 0])
+    with pytest.raises(TypeError, match="numpy array"):
+        model.describe([[1, 2, 3]])
+    with pytest.raises(ValueError, match="outside the image"):
+        model.similarity(photo, [(10, 9999)])
+    with pytest.raises(ValueError, match="two points"):
+        model.segment(photo, points=[(1, 1)])
+    with pytest.raises(ValueError, match="either points or k"):
+        model.segment(photo)
+    with pytest.raises(ValueError, match="multiples of 32"):
+        model.describe_at_own_size(photo[:100, :100])
+    with pytest.raises(FileNotFoundError):
+        matseg.Model.load("/nonexistent/run")
+    with pytest.raises(FileNotFoundError, match="no such file"):
+        matseg.read_image("/nonexistent.jpg")
