@@ -1,0 +1,67 @@
+"""The PyTorch net against the Rust one: same weights files, same descriptors."""
+
+import numpy as np
+import torch
+
+import matseg
+import matseg.net as mn
+from matseg import safetensors
+
+
+def rgb_tensor(image):
+    return torch.from_numpy(image).permute(2, 0, 1)[None].float()
+
+
+def test_the_default_model_gives_the_rust_descriptors_in_pytorch():
+    model = matseg.Model.load("default")
+    net, run_json = mn.load("default")
+    assert net.config == run_json["net"]
+    image = matseg.Generator("2d", seed=3)[1]["image"]
+    for h, w in ((224, 256), (96, 160)):
+        crop = np.ascontiguousarray(image[:h, :w])
+        rust = model.describe_at_own_size(crop)
+        with torch.no_grad():
+            torch_d = net(mn.normalise(rgb_tensor(crop)))[0].numpy()
+        assert torch_d.shape == rust.shape == (model.dim, h, w)
+        assert np.abs(torch_d - rust).max() < 1e-4
+
+
+def test_a_pytorch_checkpoint_loads_in_rust_with_the_same_descriptors(tmp_path):
+    torch.manual_seed(0)
+    _, default_run = mn.load("default")
+    config = default_run["net"]
+    net = mn.MaterialNet(config)
+    # Perturbed BatchNorm statistics, so eval mode is not the identity.
+    for name, b in net.named_buffers():
+        if name.endswith("running_var"):
+            b.uniform_(0.5, 2.0)
+        elif name.endswith("running_mean"):
+            b.normal_(0, 0.1)
+    net.eval()
+    run_json = {"net": config, "options": default_run["options"], "init": "scratch", "data": "online"}
+    mn.save(net, run_json, tmp_path)
+    image = matseg.Generator("2d", seed=5)[0]["image"][:128, :160].copy()
+    rust = matseg.Model.load(tmp_path).describe_at_own_size(image)
+    with torch.no_grad():
+        torch_d = net(mn.normalise(rgb_tensor(image)))[0].numpy()
+    assert np.abs(torch_d - rust).max() < 1e-4
+
+
+def test_safetensors_round_trip(tmp_path):
+    tensors = {"a.weight": np.arange(12, dtype=np.float32).reshape(3, 4), "b": np.array([1.5], np.float16),
+               "c": np.array([7, -2], np.int64)}
+    safetensors.write(tmp_path / "t.safetensors", tensors, {"source": "test"})
+    back, meta = safetensors.read(tmp_path / "t.safetensors")
+    assert meta == {"source": "test"}
+    assert set(back) == set(tensors)
+    for k in tensors:
+        assert back[k].dtype == tensors[k].dtype and np.array_equal(back[k], tensors[k])
+
+
+def test_adaptive_pooling_matches_pytorch():
+    x = torch.randn(2, 3, 13, 10)
+    for h, w in ((7, 5), (1, 1), (4, 10), (13, 3)):
+        ours = mn.adaptive_avg_pool(x, h, w)
+        assert torch.allclose(ours, torch.nn.functional.adaptive_avg_pool2d(x, (h, w)), atol=1e-6)
+    assert [mn.pooled_side(n, 2) for n in (1, 2, 3, 5)] == [1, 1, 2, 3]
+    assert [mn.pooled_side(n, 8) for n in (1, 3, 4, 12)] == [1, 1, 1, 2]

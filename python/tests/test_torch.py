@@ -1,0 +1,65 @@
+"""matseg.torch: samples and batches split across workers and ranks."""
+
+import pytest
+import torch
+from torch.utils.data import DataLoader
+
+import matseg
+import matseg.torch as mt
+
+PLAN = matseg.BatchPlan(min_side=64, max_side=128, pixels=3 * 96 * 96, min_images=2, max_images=4, p_augment=0.5)
+
+
+@pytest.mark.parametrize("count", [1, 2, 3, 8])
+def test_every_index_goes_to_exactly_one_consumer(count):
+    taken = [i for n in range(count) for i in mt.my_indices(5, 40, n, count)]
+    assert sorted(taken) == list(range(5, 40))
+
+
+def test_consumers_span_ranks_and_workers(monkeypatch):
+    monkeypatch.setattr(torch.distributed, "is_initialized", lambda: True)
+    monkeypatch.setattr(torch.distributed, "get_rank", lambda: 1)
+    monkeypatch.setattr(torch.distributed, "get_world_size", lambda: 2)
+    info = type("Info", (), {"id": 2, "num_workers": 3})()
+    monkeypatch.setattr(mt, "get_worker_info", lambda: info)
+    assert mt.consumer() == (5, 6)
+
+
+def test_a_dataloader_with_workers_sees_each_sample_once():
+    gen = matseg.Generator("2d", seed=1, samples=6)
+    loader = DataLoader(mt.SampleStream(gen), batch_size=None, num_workers=2)
+    seen = [s["key"] for s in loader]
+    assert sorted(seen) == [f"{i:08}" for i in range(6)]
+    first = next(iter(mt.SampleStream(gen, start=4)))
+    assert first["image"].shape[0] == 3 and first["image"].dtype == torch.uint8
+    assert torch.equal(first["masks"], torch.from_numpy(gen[4]["masks"]))
+
+
+def test_batches_follow_the_plan_and_are_reproducible():
+    gen = matseg.Generator("2d", seed=1)
+    stream = mt.BatchStream(gen, PLAN, seed=3, steps=4)
+    loader = DataLoader(stream, batch_size=None, num_workers=2)
+    batches = {b["step"]: b for b in loader}
+    assert sorted(batches) == [0, 1, 2, 3]
+    for step, b in batches.items():
+        n, c, h, w = b["images"].shape
+        assert c == 3 and h % 32 == 0 and w % 32 == 0 and 64 <= min(h, w) and max(h, w) <= 128
+        assert PLAN.min_images <= n <= PLAN.max_images
+        assert b["weights"].shape[0] == n and b["weights"].shape[2:] == (h, w) and b["roi"].shape == (n, h, w)
+        # Weights are fractions summing to 1 wherever a material is, 0
+        # elsewhere; resampled with the image, they blend near edges. The
+        # ROI (mask sum >= 10) lies inside where materials are, and is kept
+        # where its resampled value is >= 0.5: there the weights sum to at
+        # least that.
+        sums = b["weights"].sum(1)
+        assert b["weights"].min() >= 0 and sums.max() <= 1 + 1e-4
+        inside = b["roi"] > 0
+        assert inside.any() and sums[inside].min() >= 0.5 - 1e-4
+        assert set(b["roi"].unique().tolist()) <= {0.0, 1.0}
+        again = stream.batch(step)
+        assert torch.equal(again["images"], b["images"]) and torch.equal(again["weights"], b["weights"])
+
+
+def test_stored_datasets_give_batches_too(folders_2d):
+    b = mt.BatchStream(matseg.Dataset(folders_2d), PLAN, seed=0).batch(0)
+    assert b["images"].dtype == torch.float32 and b["images"].shape[0] >= 2
