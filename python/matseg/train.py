@@ -1,0 +1,188 @@
+"""Training the matseg net with PyTorch, on one process or many under
+torchrun (DistributedDataParallel: gloo on CPUs, nccl on GPUs). It reads
+the same batches as `matseg train` (online 2D scenes or a stored dataset,
+the same batch plan) and writes the same run folder (run.json,
+model.safetensors, metrics.jsonl), which `matseg segment`, `matseg eval`
+and `matseg serve` load.
+
+    python -m matseg.train --out runs/a --steps 2000
+    torchrun --nproc_per_node 8 -m matseg.train --out runs/a --data DATA --device cuda
+"""
+
+import argparse
+import hashlib
+import json
+import os
+import sys
+import time
+
+import torch
+import torch.distributed as dist
+from torch.nn.parallel import DistributedDataParallel
+from torch.utils.data import DataLoader
+
+from . import _core
+from . import net as netlib
+from .data import BatchPlan, Dataset, Generator
+from .torch import BatchStream
+
+DEFAULTS = _core.train_defaults()
+
+
+def parse_args(argv):
+    p = argparse.ArgumentParser(prog="python -m matseg.train", description=__doc__.split("\n\n")[0])
+    p.add_argument("--out", required=True, help="run folder to write")
+    p.add_argument("--data", help="stored dataset (folders or shards); default: online 2D scenes")
+    p.add_argument("--sources", nargs="+", help="photo folders of the online scenes (default: corpus, else bundled)")
+    p.add_argument("--textures", nargs="+", help="texture folders of the online scenes")
+    p.add_argument("--init", default="default",
+                   help="initial weights: default (the shipped model), a run folder or weights file, or scratch")
+    p.add_argument("--encoder", default=DEFAULTS["encoder"], help="encoder preset (with --init scratch)")
+    p.add_argument("--steps", type=int, default=DEFAULTS["steps"], help="batches per process")
+    p.add_argument("--lr", type=float, help="peak learning rate (default: matseg train's for the init)")
+    p.add_argument("--warmup", type=int, default=DEFAULTS["warmup"], help="steps of linear warm-up")
+    p.add_argument("--decay", type=int, default=0, help="final steps of linear fall to 0")
+    p.add_argument("--seed", type=int, default=0, help="batch stream seed")
+    p.add_argument("--max-side", type=int, help="largest batch side (multiple of 32)")
+    p.add_argument("--min-side", type=int, help="smallest batch side (multiple of 32)")
+    p.add_argument("--pixels", type=int, help="pixels per batch to aim at")
+    p.add_argument("--checkpoint-every", type=int, default=DEFAULTS["checkpoint_every"])
+    p.add_argument("--workers", type=int, default=2, help="DataLoader workers per process")
+    p.add_argument("--device", default="cpu", help="cpu or cuda")
+    return p.parse_args(argv)
+
+
+def learning_rate(options, step):
+    """Linear warm-up, constant, then (with decay) a linear fall: as matseg train."""
+    warm = min(1.0, (step + 1) / max(options["warmup"], 1))
+    left = max(options["steps"] - step, 0)
+    cool = 1.0 if options["decay"] == 0 else min(1.0, left / options["decay"])
+    return options["lr"] * warm * cool
+
+
+def param_groups(net, lr_scales):
+    """One group per learning-rate factor (later prefixes win, as matseg train)."""
+    groups = {}
+    for name, p in net.named_parameters():
+        scale = 1.0
+        for rule in lr_scales:
+            if name.startswith(rule["prefix"]):
+                scale = rule["scale"]
+        groups.setdefault(scale, []).append(p)
+    return [{"params": ps, "scale": s} for s, ps in groups.items()]
+
+
+def state_digest(net):
+    """SHA-256 of every variable, in name order: equal on every rank."""
+    h = hashlib.sha256()
+    for name, t in sorted(net.state_dict().items()):
+        h.update(name.encode())
+        h.update(t.detach().to("cpu").contiguous().numpy().tobytes())
+    return h.hexdigest()
+
+
+def initial_net(args):
+    """The net to start from and the run.json fields it carries over."""
+    if args.init == "scratch":
+        config = json.loads(_core.net_preset(args.encoder, False, False))
+        return netlib.MaterialNet(config), {"lr_scales": []}
+    net, run = netlib.load(args.init)
+    carried = {"lr_scales": run["options"].get("lr_scales", [])}
+    for key in ("inference_side", "extra_inference_sides"):
+        if key in run:
+            carried[key] = run[key]
+    return net, carried
+
+
+def main(argv=None):
+    args = parse_args(sys.argv[1:] if argv is None else argv)
+    world = int(os.environ.get("WORLD_SIZE", "1"))
+    rank = int(os.environ.get("RANK", "0"))
+    local = int(os.environ.get("LOCAL_RANK", "0"))
+    if args.device == "cuda":
+        device = torch.device("cuda", local)
+        torch.cuda.set_device(device)
+    elif args.device == "cpu":
+        device = torch.device("cpu")
+    else:
+        raise SystemExit(f"--device: '{args.device}': expected cpu or cuda")
+    if world > 1:
+        dist.init_process_group("nccl" if device.type == "cuda" else "gloo")
+
+    plan = BatchPlan.default()
+    overrides = {k: getattr(args, k) for k in ("min_side", "max_side", "pixels") if getattr(args, k) is not None}
+    plan = BatchPlan(**{**plan.__dict__, **overrides})
+    source = Dataset(args.data) if args.data else Generator("2d", args.sources, textures=args.textures, seed=args.seed)
+
+    net, carried = initial_net(args)
+    pretrained = args.init != "scratch"
+    options = {
+        "steps": args.steps,
+        "lr": args.lr if args.lr is not None else DEFAULTS["lr_pretrained" if pretrained else "lr_scratch"],
+        "warmup": args.warmup, "decay": args.decay, "weight_decay": DEFAULTS["weight_decay"],
+        "plan": json.loads(plan.to_json()), "seed": args.seed,
+        "checkpoint_every": args.checkpoint_every, "validation_batches": 0,
+        "lr_scales": carried.pop("lr_scales"),
+    }
+    run = {"net": net.config, "options": options, "init": args.init,
+           "data": os.path.abspath(args.data) if args.data else "online", **carried}
+
+    net = net.to(device).train()
+    model = DistributedDataParallel(net, device_ids=[local] if device.type == "cuda" else None) if world > 1 else net
+    groups = param_groups(net, options["lr_scales"])
+    optimizer = torch.optim.AdamW(groups, lr=options["lr"], betas=(0.9, 0.999), eps=1e-8,
+                                  weight_decay=options["weight_decay"])
+    loader = DataLoader(BatchStream(source, plan, args.seed), batch_size=None, num_workers=args.workers,
+                        persistent_workers=args.workers > 0)
+
+    metrics = None
+    if rank == 0:
+        os.makedirs(args.out, exist_ok=True)
+        metrics = open(os.path.join(args.out, "metrics.jsonl"), "a")
+    started, images = time.perf_counter(), 0
+    for step, batch in zip(range(args.steps), loader):
+        lr = learning_rate(options, step)
+        for g in optimizer.param_groups:
+            g["lr"] = lr * g["scale"]
+        x = batch["images"].to(device, non_blocking=True)
+        desc = model(x)
+        loss = netlib.matseg_loss(desc, batch["weights"].to(device), batch["roi"].to(device))
+        # Every rank takes part in every gradient reduction, even on a
+        # batch with fewer than two materials (which teaches nothing).
+        skipped = loss is None
+        if skipped:
+            loss = desc.sum() * 0.0
+        optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        optimizer.step()
+        images += x.shape[0]
+        if metrics is not None:
+            record = {"step": step, "loss": None if skipped else float(loss.detach()), "lr": lr, "images": x.shape[0],
+                      "side": [x.shape[3], x.shape[2]], "batch": batch["step"]}
+            metrics.write(json.dumps(record) + "\n")
+            metrics.flush()
+        if rank == 0 and (step + 1) % options["checkpoint_every"] == 0 and step + 1 < args.steps:
+            netlib.save(net, run, args.out)
+    seconds = time.perf_counter() - started
+
+    if world > 1:
+        # Parameters agree after every step; BatchNorm's running statistics
+        # are rank 0's, as DDP broadcasts them before each forward pass.
+        for b in net.buffers():
+            dist.broadcast(b, 0)
+        totals = torch.tensor([images], dtype=torch.float64, device=device)
+        dist.all_reduce(totals)
+        images = int(totals.item())
+    print(f"rank {rank}: weights sha256 {state_digest(net)}", flush=True)
+    if rank == 0:
+        netlib.save(net.eval(), run, args.out)
+        metrics.close()
+        print(f"{args.out}: {args.steps} steps x {world} process(es), {images} images in {seconds:.1f} s "
+              f"({images / max(seconds, 1e-9):.2f} images/s)", flush=True)
+    if world > 1:
+        dist.barrier()
+        dist.destroy_process_group()
+
+
+if __name__ == "__main__":
+    main()
