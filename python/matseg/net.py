@@ -384,19 +384,22 @@ def matseg_loss(desc, weights, roi):
     None when the batch has fewer than two materials."""
     b, d, h, w = desc.shape
     n = h * w
-    flat = desc.reshape(b, d, n)
+    # One unbind: indexing the batch tensor per use would make the backward
+    # pass add a zero-filled batch-sized gradient for every use.
+    flat = desc.reshape(b, d, n).unbind(0)
     wts = weights.reshape(b, -1, n).to(desc.dtype)
     materials, owned = [], []
     for i in range(b):
         region = (wts[i] > CONSTANTS["region_threshold"]).to(desc.dtype)
         counts = region.sum(1)
         mine = [k for k in range(region.shape[0]) if counts[k] > 0]
-        for k in mine:
-            materials.append(l2_normalise(flat[i] @ region[k] / counts[k], dim=0))
+        if mine:
+            means = (flat[i] @ region[mine].T) / counts[mine]
+            materials.append(l2_normalise(means, dim=0).T)
         owned.append(mine)
-    if len(materials) < 2:
+    if sum(len(m) for m in owned) < 2:
         return None
-    materials = torch.stack(materials)
+    materials = torch.cat(materials)
     total, first = desc.new_zeros(()), 0
     for i in range(b):
         mine = owned[i]

@@ -47,3 +47,49 @@ pub fn batch_list<'py>(
     }
     Ok(list)
 }
+
+/// Little-endian f32 bytes as floats, checked to hold `count` of them.
+fn floats(bytes: &[u8], count: usize, what: &str) -> PyResult<Vec<f32>> {
+    if bytes.len() != count * 4 {
+        return Err(PyValueError::new_err(format!(
+            "{what}: {} bytes, expected {count} float32 values",
+            bytes.len()
+        )));
+    }
+    Ok(bytes
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect())
+}
+
+/// The MatSeg loss as `matseg train` computes it, of unit descriptors
+/// `[B, D, H, W]`, weights `[B, K, H, W]` and ROI `[B, H, W]` (f32 bytes):
+/// the reference other implementations (the PyTorch trainer) are tested
+/// against. `None` when the batch has fewer than two materials.
+#[pyfunction]
+#[pyo3(signature = (descriptors, weights, roi, shape, materials))]
+pub fn matseg_loss(
+    descriptors: &[u8],
+    weights: &[u8],
+    roi: &[u8],
+    shape: (usize, usize, usize, usize),
+    materials: usize,
+) -> PyResult<Option<f64>> {
+    use matseg_net::{matseg_loss, ImageTargets};
+    use tch::Tensor;
+    let (b, d, h, w) = shape;
+    let desc = floats(descriptors, b * d * h * w, "descriptors")?;
+    let weights = floats(weights, b * materials * h * w, "weights")?;
+    let roi = floats(roi, b * h * w, "roi")?;
+    let dims = |v: &[usize]| v.iter().map(|&x| x as i64).collect::<Vec<i64>>();
+    let desc = Tensor::from_slice(&desc).view(dims(&[b, d, h, w]).as_slice());
+    let weights = Tensor::from_slice(&weights).view(dims(&[b, materials, h, w]).as_slice());
+    let roi = Tensor::from_slice(&roi).view(dims(&[b, h, w]).as_slice());
+    let targets: Vec<ImageTargets> = (0..b as i64)
+        .map(|i| ImageTargets {
+            weights: weights.get(i),
+            roi: roi.get(i),
+        })
+        .collect();
+    Ok(matseg_loss(&desc, &targets).map(|l| l.double_value(&[])))
+}

@@ -19,6 +19,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<dataset::PyDataset>()?;
     m.add_class::<model::PyModel>()?;
     m.add_function(wrap_pyfunction!(batches::default_plan, m)?)?;
+    m.add_function(wrap_pyfunction!(batches::matseg_loss, m)?)?;
     m.add_function(wrap_pyfunction!(model::resolve_model, m)?)?;
     m.add_function(wrap_pyfunction!(samples::read_rgb, m)?)?;
     m.add_function(wrap_pyfunction!(model::net_constants, m)?)?;

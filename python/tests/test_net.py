@@ -65,3 +65,27 @@ def test_adaptive_pooling_matches_pytorch():
         assert torch.allclose(ours, torch.nn.functional.adaptive_avg_pool2d(x, (h, w)), atol=1e-6)
     assert [mn.pooled_side(n, 2) for n in (1, 2, 3, 5)] == [1, 1, 2, 3]
     assert [mn.pooled_side(n, 8) for n in (1, 3, 4, 12)] == [1, 1, 1, 2]
+
+
+def test_the_pytorch_loss_is_the_rust_loss():
+    import matseg.torch as mt
+    from matseg import _core
+
+    plan = matseg.BatchPlan(min_side=64, max_side=96, pixels=3 * 80 * 80, min_images=2, max_images=4, p_augment=0.5)
+    net, _ = mn.load("default")
+    for step in range(3):
+        b = mt.BatchStream(matseg.Generator("2d", seed=2), plan, seed=1).batch(step)
+        with torch.no_grad():
+            d = net(b["images"])
+        ours = float(mn.matseg_loss(d, b["weights"], b["roi"]))
+        k = b["weights"].shape[1]
+        rust = _core.matseg_loss(d.numpy().tobytes(), b["weights"].numpy().tobytes(), b["roi"].numpy().tobytes(),
+                                 tuple(d.shape), k)
+        assert rust is not None and abs(ours - rust) < 1e-5 * max(1.0, abs(rust))
+    # Fewer than two materials: no loss on either side.
+    one = torch.zeros(1, 1, 4, 4)
+    one[0, 0] = 1.0
+    d = mn.l2_normalise(torch.randn(1, 8, 4, 4))
+    assert mn.matseg_loss(d, one, torch.ones(1, 4, 4)) is None
+    assert _core.matseg_loss(d.numpy().tobytes(), one.numpy().tobytes(), torch.ones(1, 4, 4).numpy().tobytes(),
+                             (1, 8, 4, 4), 1) is None
