@@ -45,7 +45,7 @@ def parse_args(argv):
     p.add_argument("--seed", type=int, default=0, help="batch stream seed")
     p.add_argument("--max-side", type=int, help="largest batch side (multiple of 32)")
     p.add_argument("--min-side", type=int, help="smallest batch side (multiple of 32)")
-    p.add_argument("--pixels", type=int, help="pixels per batch to aim at")
+    p.add_argument("--batch-pixels", type=int, help="pixels per batch to aim at")
     p.add_argument("--checkpoint-every", type=int, default=DEFAULTS["checkpoint_every"])
     p.add_argument("--workers", type=int, default=2, help="DataLoader workers per process")
     p.add_argument("--device", default="cpu", help="cpu or cuda")
@@ -110,7 +110,7 @@ def main(argv=None):
         dist.init_process_group("nccl" if device.type == "cuda" else "gloo")
 
     plan = BatchPlan.default()
-    overrides = {k: getattr(args, k) for k in ("min_side", "max_side", "pixels") if getattr(args, k) is not None}
+    overrides = {k: getattr(args, a) for k, a in (("min_side", "min_side"), ("max_side", "max_side"), ("pixels", "batch_pixels")) if getattr(args, a) is not None}
     plan = BatchPlan(**{**plan.__dict__, **overrides})
     source = Dataset(args.data) if args.data else Generator("2d", args.sources, textures=args.textures, seed=args.seed)
 

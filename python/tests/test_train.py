@@ -15,7 +15,7 @@ def test_two_process_ddp_training_keeps_ranks_identical_and_matseg_segment_loads
     out = tmp_path / "run"
     torchrun = os.path.join(os.path.dirname(sys.executable), "torchrun")
     done = run([torchrun, "--nproc_per_node", 2, "-m", "matseg.train", "--out", out, "--steps", 2,
-                "--min-side", 64, "--max-side", 96, "--pixels", 2 * 96 * 96, "--workers", 0, "--seed", 4],
+                "--min-side", 64, "--max-side", 96, "--batch-pixels", 2 * 96 * 96, "--workers", 0, "--seed", 4],
                env={**os.environ, "OMP_NUM_THREADS": "1"})
     digests = dict(re.findall(r"rank (\d+): weights sha256 ([0-9a-f]{64})", done.stdout))
     assert set(digests) == {"0", "1"}
