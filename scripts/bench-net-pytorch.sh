@@ -1,17 +1,18 @@
 #!/usr/bin/env bash
 # The PyTorch side of the net's speed ratio (BENCHMARKS.md, "The net"):
-# installs torch 2.11.0 with its dependencies from PyPI into a throw-away
-# venv (target/pytorch-venv, git-ignored, ~4.5 GB) and times the same net as
-# `matseg bench-net` for each ARGS line given on standard input, e.g.
+# the matseg package's PyTorch net (matseg.net) in the project's .venv
+# (scripts/python-env.sh puts the whole torch 2.11.0 there; the package is
+# built and installed from ./python when it is not), timed as
+# `matseg bench-net` times the Rust net, for each ARGS line given on
+# standard input, e.g.
 #   printf '%s\n' '--encoder mobilenet-v2 --side 256' | scripts/bench-net-pytorch.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
-venv=target/pytorch-venv
-if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c 'import torch' 2>/dev/null; then
-    python3 -m venv "$venv"
-    "$venv/bin/pip" install --quiet torch==2.11.0 numpy
+scripts/python-env.sh
+if ! .venv/bin/python -c 'import matseg.net' 2>/dev/null; then
+    .venv/bin/pip install --quiet --disable-pip-version-check ./python
 fi
 while read -r line; do
     # shellcheck disable=SC2086
-    "$venv/bin/python" scripts/bench-net-pytorch.py $line
+    .venv/bin/python scripts/bench-net-pytorch.py $line
 done

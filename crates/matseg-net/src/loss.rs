@@ -35,33 +35,42 @@ pub fn matseg_loss(descriptors: &Tensor, targets: &[ImageTargets]) -> Option<Ten
     assert_eq!(b as usize, targets.len(), "one target per image");
     let kind = descriptors.kind();
     let n = h * w;
-    let flat: Vec<Tensor> = (0..b).map(|i| descriptors.get(i).view([d, n])).collect();
+    // One unbind: selecting each image from the batch tensor would make
+    // the backward pass fill a batch-sized zero gradient per image.
+    let flat: Vec<Tensor> = descriptors.reshape([b, d, n]).unbind(0);
     let weights: Vec<Tensor> = targets
         .iter()
         .map(|t| t.weights.to_kind(kind).reshape([-1, n]))
         .collect();
 
-    // Material descriptors, and which rows of the list each image owns.
+    // Material descriptors (each image's in one matrix product), and which
+    // rows of the list each image owns.
     let mut materials = Vec::new();
     let mut owned: Vec<Vec<i64>> = Vec::with_capacity(targets.len());
     for (desc, wts) in flat.iter().zip(&weights) {
         let region = wts.gt(REGION_THRESHOLD).to_kind(kind);
         let counts =
             Vec::<f64>::try_from(region.sum_dim_intlist(1, false, Kind::Double)).expect("counts");
-        let mut mine = Vec::new();
-        for (k, &count) in counts.iter().enumerate() {
-            if count > 0.0 {
-                let mean = desc.matmul(&region.get(k as i64)) / count;
-                materials.push(l2_normalise(&mean, 0));
-                mine.push(k as i64);
-            }
+        let (mine, sizes): (Vec<i64>, Vec<f64>) = counts
+            .iter()
+            .enumerate()
+            .filter(|(_, &count)| count > 0.0)
+            .map(|(k, &count)| (k as i64, count))
+            .unzip();
+        if !mine.is_empty() {
+            let rows = Tensor::from_slice(&mine).to_device(desc.device());
+            let sizes = Tensor::from_slice(&sizes)
+                .to_kind(kind)
+                .to_device(desc.device());
+            let means = desc.matmul(&region.index_select(0, &rows).tr()) / sizes;
+            materials.push(l2_normalise(&means, 0).tr());
         }
         owned.push(mine);
     }
-    if materials.len() < 2 {
+    if owned.iter().map(Vec::len).sum::<usize>() < 2 {
         return None;
     }
-    let materials = Tensor::stack(&materials, 0);
+    let materials = Tensor::cat(&materials, 0);
 
     let mut total = Tensor::zeros([], (kind, descriptors.device()));
     let mut first_row = 0i64;
