@@ -10,7 +10,7 @@ import pytest
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="package")
 def matseg_bin():
     """The matseg command: $MATSEG_BIN, else the workspace's debug or
     release build (`cargo test` and `cargo build` make them)."""
@@ -29,7 +29,7 @@ def run(cmd, **kw):
     return done
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="package")
 def folders_2d(matseg_bin, tmp_path_factory):
     """6 samples of `matseg generate --seed 7` as MatSeg folders."""
     out = tmp_path_factory.mktemp("gen") / "folders"
@@ -37,7 +37,7 @@ def folders_2d(matseg_bin, tmp_path_factory):
     return out
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="package")
 def shards_2d(matseg_bin, tmp_path_factory):
     """The same 6 samples as WebDataset shards of 4."""
     out = tmp_path_factory.mktemp("gen") / "shards"
