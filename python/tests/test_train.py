@@ -31,3 +31,14 @@ def test_two_process_ddp_training_keeps_ranks_identical_and_matseg_segment_loads
          "--point", "100,120", "--out", seg])
     grey = np.asarray(Image.open(seg / "similarity_0.png"))
     assert grey.shape == (512, 512) and grey[120, 100] > 200
+
+
+def test_training_reads_stored_shards(tmp_path, shards_2d):
+    out = tmp_path / "run"
+    done = run([sys.executable, "-m", "matseg.train", "--out", out, "--data", shards_2d, "--steps", 1,
+                "--min-side", 64, "--max-side", 64, "--batch-pixels", 2 * 64 * 64, "--workers", 0],
+               env={**os.environ, "OMP_NUM_THREADS": "2"})
+    assert "1 steps x 1 process(es), 2 images" in done.stdout
+    run_json = json.loads((out / "run.json").read_text())
+    assert run_json["data"] == str(shards_2d)
+    assert (out / "model.safetensors").stat().st_size > 1_000_000
