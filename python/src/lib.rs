@@ -9,6 +9,7 @@ mod errors;
 mod generator;
 mod model;
 mod samples;
+mod weights;
 
 use pyo3::prelude::*;
 
@@ -25,6 +26,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(model::net_constants, m)?)?;
     m.add_function(wrap_pyfunction!(model::net_preset, m)?)?;
     m.add_function(wrap_pyfunction!(model::train_defaults, m)?)?;
+    m.add_function(wrap_pyfunction!(weights::read_safetensors, m)?)?;
+    m.add_function(wrap_pyfunction!(weights::write_safetensors, m)?)?;
     m.add("MatsegError", m.py().get_type::<errors::MatsegError>())?;
     m.add(
         "DEFAULT_CACHE_MB",

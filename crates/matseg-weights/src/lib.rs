@@ -13,7 +13,7 @@ pub mod torch;
 pub mod zip;
 
 pub use arch::Arch;
-pub use safetensors::{read_safetensors, write_safetensors};
+pub use safetensors::{read_safetensors, read_safetensors_metadata, write_safetensors};
 pub use torch::read_checkpoint;
 
 /// Element types of tensors in checkpoints.

@@ -46,16 +46,7 @@ pub fn write_safetensors(tensors: &[Tensor], metadata: &[(&str, &str)]) -> Vec<u
 /// for messages.
 pub fn read_safetensors(bytes: &[u8], name: &str) -> Result<Vec<Tensor>, WeightsError> {
     let fail = |m: String| WeightsError::new(name, m);
-    let len = bytes
-        .get(..8)
-        .map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")) as usize)
-        .ok_or_else(|| fail("truncated safetensors header".into()))?;
-    let text = bytes
-        .get(8..8 + len)
-        .ok_or_else(|| fail("truncated safetensors header".into()))?;
-    let header: Map<String, Value> =
-        serde_json::from_slice(text).map_err(|e| fail(format!("bad safetensors header: {e}")))?;
-    let data = &bytes[8 + len..];
+    let (header, data) = header(bytes, name)?;
     let mut tensors = Vec::new();
     for (key, entry) in header.iter().filter(|(k, _)| *k != "__metadata__") {
         let bad = || fail(format!("bad safetensors entry {key}"));
@@ -98,4 +89,37 @@ pub fn read_safetensors(bytes: &[u8], name: &str) -> Result<Vec<Tensor>, Weights
     }
     tensors.sort_by_key(|(begin, _)| *begin);
     Ok(tensors.into_iter().map(|(_, t)| t).collect())
+}
+
+/// The string metadata (`__metadata__`) of a safetensors file, in header
+/// order; empty when it has none. `name` is the file, for messages.
+pub fn read_safetensors_metadata(
+    bytes: &[u8],
+    name: &str,
+) -> Result<Vec<(String, String)>, WeightsError> {
+    let (header, _) = header(bytes, name)?;
+    let Some(meta) = header.get("__metadata__") else {
+        return Ok(Vec::new());
+    };
+    let bad = || WeightsError::new(name, "bad safetensors metadata: not strings");
+    meta.as_object()
+        .ok_or_else(bad)?
+        .iter()
+        .map(|(k, v)| Ok((k.clone(), v.as_str().ok_or_else(bad)?.to_string())))
+        .collect()
+}
+
+/// The parsed JSON header of a safetensors file and the data after it.
+fn header<'a>(bytes: &'a [u8], name: &str) -> Result<(Map<String, Value>, &'a [u8]), WeightsError> {
+    let fail = |m: String| WeightsError::new(name, m);
+    let len = bytes
+        .get(..8)
+        .map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")) as usize)
+        .ok_or_else(|| fail("truncated safetensors header".into()))?;
+    let text = bytes
+        .get(8..8 + len)
+        .ok_or_else(|| fail("truncated safetensors header".into()))?;
+    let header =
+        serde_json::from_slice(text).map_err(|e| fail(format!("bad safetensors header: {e}")))?;
+    Ok((header, &bytes[8 + len..]))
 }

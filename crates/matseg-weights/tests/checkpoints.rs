@@ -5,7 +5,9 @@
 //! --ignored`), which downloads it with pip.
 
 use matseg_weights::fixtures::{floats, legacy, zipped, Storage, View};
-use matseg_weights::{read_checkpoint, read_safetensors, write_safetensors, DType, Tensor};
+use matseg_weights::{
+    read_checkpoint, read_safetensors, read_safetensors_metadata, write_safetensors, DType, Tensor,
+};
 
 /// Two storages; the second is shared by a matrix and its transposed view.
 fn fixture() -> (Vec<Storage>, Vec<View>, Vec<Tensor>) {
@@ -78,6 +80,10 @@ fn safetensors_round_trip() {
     let header = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
     assert_eq!((8 + header) % 8, 0, "data must start 8-byte aligned");
     assert_eq!(read_safetensors(&bytes, "t.safetensors").unwrap(), tensors);
+    assert_eq!(
+        read_safetensors_metadata(&bytes, "t.safetensors").unwrap(),
+        [("source".to_string(), "test".to_string())]
+    );
     assert_eq!(
         tensors[1].f32_values().unwrap(),
         [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]
