@@ -42,7 +42,7 @@ pub struct PyGenerator {
     warnings: Vec<String>,
 }
 
-/// Collects the warnings of a load, for Python's `warnings`.
+/// Collects the warnings of a load (`Generator.warnings` in Python).
 #[derive(Default)]
 struct Warnings(Mutex<Vec<String>>);
 
@@ -171,15 +171,11 @@ impl PyGenerator {
     /// The files of sample `index` as `matseg generate` writes them into
     /// its folder (name to bytes; `Finished.txt` aside).
     fn files<'py>(&self, py: Python<'py>, index: u64) -> PyResult<Bound<'py, PyDict>> {
-        use matseg_data::folders::{IMAGE_FILE, META_FILE, ROI_FILE};
         let encoded = self.make(py, index)?;
         let d = PyDict::new(py);
-        d.set_item(IMAGE_FILE, PyBytes::new(py, &encoded.jpg))?;
-        for (k, mask) in encoded.masks.iter().enumerate() {
-            d.set_item(format!("mask{k}.png"), PyBytes::new(py, mask))?;
+        for (name, bytes) in matseg_data::folders::sample_files(&encoded) {
+            d.set_item(name, PyBytes::new(py, bytes))?;
         }
-        d.set_item(ROI_FILE, PyBytes::new(py, &encoded.roi))?;
-        d.set_item(META_FILE, PyBytes::new(py, &encoded.json))?;
         Ok(d)
     }
 

@@ -25,6 +25,27 @@ pub fn is_complete(root: &Path, index: u64) -> bool {
     sample_dir(root, index).join(FINISHED_FILE).is_file()
 }
 
+/// The file of material mask `k`.
+pub fn mask_file(k: usize) -> String {
+    format!("mask{k}.png")
+}
+
+/// A sample's files in its folder, name and bytes, in the order they are
+/// written (`Finished.txt` aside).
+pub fn sample_files(sample: &EncodedSample) -> Vec<(String, &[u8])> {
+    let mut files = vec![(IMAGE_FILE.to_string(), sample.jpg.as_slice())];
+    files.extend(
+        sample
+            .masks
+            .iter()
+            .enumerate()
+            .map(|(k, mask)| (mask_file(k), mask.as_slice())),
+    );
+    files.push((ROI_FILE.to_string(), &sample.roi));
+    files.push((META_FILE.to_string(), &sample.json));
+    files
+}
+
 /// Suffix of the folder a sample is written into before it is renamed.
 pub const PARTIAL_SUFFIX: &str = ".partial";
 
@@ -39,12 +60,9 @@ pub fn write_sample(root: &Path, sample: &EncodedSample) -> io::Result<()> {
         std::fs::remove_dir_all(&tmp)?;
     }
     std::fs::create_dir_all(&tmp)?;
-    std::fs::write(tmp.join(IMAGE_FILE), &sample.jpg)?;
-    for (k, mask) in sample.masks.iter().enumerate() {
-        std::fs::write(tmp.join(format!("mask{k}.png")), mask)?;
+    for (name, bytes) in sample_files(sample) {
+        std::fs::write(tmp.join(name), bytes)?;
     }
-    std::fs::write(tmp.join(ROI_FILE), &sample.roi)?;
-    std::fs::write(tmp.join(META_FILE), &sample.json)?;
     if dir.exists() {
         std::fs::remove_dir_all(&dir)?;
     }

@@ -284,7 +284,7 @@ pub fn decode_encoded(sample: &EncodedSample) -> Result<Sample, ReadError> {
         .masks
         .iter()
         .enumerate()
-        .map(|(k, bytes)| decode_gray(bytes, &name(&format!("mask{k}.png"))))
+        .map(|(k, bytes)| decode_gray(bytes, &name(&crate::folders::mask_file(k))))
         .collect::<Result<Vec<_>, _>>()?;
     let roi = decode_gray(&sample.roi, &name(ROI_FILE))?;
     let meta = serde_json::from_slice(&sample.json).map_err(|e| ReadError::Format {
