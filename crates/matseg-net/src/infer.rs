@@ -169,16 +169,9 @@ impl TrainedNet {
     /// Unit descriptors `[D, height, width]` of an interleaved RGB image on
     /// the CPU: the net's grid resized to the image and normalised.
     pub fn describe(&self, rgb: &[u8], width: usize, height: usize) -> Tensor {
-        let d = crate::blocks::resize_bilinear(
-            &self.grid(rgb, width, height),
-            height as i64,
-            width as i64,
-        );
-        crate::blocks::l2_normalise(&d, 1).squeeze_dim(0)
+        unit_at(&self.grid(rgb, width, height), width, height)
     }
-}
 
-impl TrainedNet {
     /// The net alone on an interleaved RGB image whose sides are multiples
     /// of 32, at its own size and one scale (no shrinking to
     /// [`TrainedNet::inference_side`], no extra sides): unit descriptors
@@ -198,10 +191,9 @@ impl TrainedNet {
                 ),
             });
         }
-        let x = normalise_input(&rgb8_to_tensor(rgb, width, height).unsqueeze(0))
-            .to_device(self.vs.device());
-        let d = tch::no_grad(|| self.net.forward_t(&x, false).to_device(Device::Cpu));
-        Ok(d.squeeze_dim(0))
+        let photo = RgbImage::from_raw(width as u32, height as u32, rgb.to_vec())
+            .expect("width * height * 3 bytes");
+        Ok(unit_at(&self.grid_at(&photo, None), width, height))
     }
 
     /// Channels of the descriptors.
@@ -231,6 +223,13 @@ pub trait PixelDescriptors {
         );
         tensor_to_map(&d)
     }
+}
+
+/// A grid `[1, D, h, w]` resized to `width x height` and normalised:
+/// unit descriptors `[D, height, width]`.
+fn unit_at(grid: &Tensor, width: usize, height: usize) -> Tensor {
+    let d = crate::blocks::resize_bilinear(grid, height as i64, width as i64);
+    crate::blocks::l2_normalise(&d, 1).squeeze_dim(0)
 }
 
 /// A `[D, H, W]` float tensor on the CPU as a [`DescriptorMap`].
