@@ -8,7 +8,7 @@ import numpy as np
 from . import _core
 
 #: Radius of a query point's disc, in pixels (as `matseg segment`).
-DEFAULT_RADIUS = 5.0
+DEFAULT_RADIUS = _core.DEFAULT_RADIUS
 
 
 def check_image(image):

@@ -17,8 +17,8 @@ from torch import nn
 from . import _core, safetensors
 
 CONSTANTS = _core.net_constants()
-MODEL_FILE = "model.safetensors"
-RUN_FILE = "run.json"
+MODEL_FILE = CONSTANTS["model_file"]
+RUN_FILE = CONSTANTS["run_file"]
 
 
 def l2_normalise(x, dim=1):
@@ -330,11 +330,9 @@ def _state_names(net):
 
 def run_files(name):
     """(run folder, weights file) of a model name: `default`, a run folder
-    or a weights file with run.json beside it."""
-    path = os.fspath(_core.resolve_model(os.fspath(name)))
-    if os.path.isdir(path):
-        return path, os.path.join(path, MODEL_FILE)
-    return os.path.dirname(path) or ".", path
+    or a weights file with run.json beside it (as `matseg segment` finds them)."""
+    folder, weights = _core.run_files(os.fspath(name))
+    return os.fspath(folder), os.fspath(weights)
 
 
 def load_weights(net, path):

@@ -22,6 +22,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(batches::default_plan, m)?)?;
     m.add_function(wrap_pyfunction!(batches::matseg_loss, m)?)?;
     m.add_function(wrap_pyfunction!(model::resolve_model, m)?)?;
+    m.add_function(wrap_pyfunction!(model::run_files, m)?)?;
     m.add_function(wrap_pyfunction!(samples::read_rgb, m)?)?;
     m.add_function(wrap_pyfunction!(model::net_constants, m)?)?;
     m.add_function(wrap_pyfunction!(model::net_preset, m)?)?;
@@ -33,5 +34,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
         "DEFAULT_CACHE_MB",
         matseg_pipeline::sources::DEFAULT_CACHE_MB,
     )?;
+    m.add("DEFAULT_RADIUS", matseg_pipeline::segment::DEFAULT_RADIUS)?;
     Ok(())
 }

@@ -6,7 +6,7 @@ use crate::samples::f32_bytes;
 use image::RgbImage;
 use matseg_eval::ClusterOptions;
 use matseg_net::infer::resolve_model as resolve;
-use matseg_pipeline::segment::{check_points, cluster, describe, query_points, Model};
+use matseg_pipeline::segment::{check_points, cluster, describe, query_points, Model, MAX_POINTS};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
@@ -19,6 +19,15 @@ use tch::{Device, Tensor};
 #[pyfunction]
 pub fn resolve_model(name: PathBuf) -> PyResult<PathBuf> {
     resolve(&name).map_err(matseg_error)
+}
+
+/// The run folder and weights file of a model name, as `matseg segment`
+/// finds them.
+#[pyfunction]
+pub fn run_files(name: PathBuf) -> PyResult<(PathBuf, PathBuf)> {
+    let model = resolve(&name).map_err(matseg_error)?;
+    let (folder, weights) = matseg_net::infer::run_files(&model);
+    Ok((folder.to_path_buf(), weights))
 }
 
 /// The numbers the net's PyTorch copy (`matseg.net`) shares with this
@@ -46,6 +55,8 @@ pub fn net_constants(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
         matseg_net::colour::INITIAL_BANDWIDTH,
     )?;
     d.set_item("colour_seed", matseg_net::colour::SEED)?;
+    d.set_item("model_file", matseg_net::train::MODEL_FILE)?;
+    d.set_item("run_file", matseg_net::train::RUN_FILE)?;
     Ok(d)
 }
 
@@ -208,9 +219,9 @@ impl PyModel {
         k: usize,
         seed: u64,
     ) -> PyResult<(Bound<'py, PyBytes>, usize)> {
-        if !(2..=255).contains(&k) {
+        if !(2..=MAX_POINTS).contains(&k) {
             return Err(PyValueError::new_err(format!(
-                "k: {k} clusters; between 2 and 255"
+                "k: {k} clusters; between 2 and {MAX_POINTS}"
             )));
         }
         let photo = photo(rgb, width, height)?;

@@ -28,7 +28,7 @@ pub struct TrainedNet {
 
 /// The run folder and the weights file `model` names: a run folder and
 /// its `model.safetensors`, or a weights file and the folder it is in.
-fn run_files(model: &Path) -> (&Path, PathBuf) {
+pub fn run_files(model: &Path) -> (&Path, PathBuf) {
     if model.is_dir() {
         (model, model.join(MODEL_FILE))
     } else {
