@@ -52,14 +52,6 @@ def parse_args(argv):
     return p.parse_args(argv)
 
 
-def learning_rate(options, step):
-    """Linear warm-up, constant, then (with decay) a linear fall: as matseg train."""
-    warm = min(1.0, (step + 1) / max(options["warmup"], 1))
-    left = max(options["steps"] - step, 0)
-    cool = 1.0 if options["decay"] == 0 else min(1.0, left / options["decay"])
-    return options["lr"] * warm * cool
-
-
 def param_groups(net, lr_scales):
     """One group per learning-rate factor (later prefixes win, as matseg train)."""
     groups = {}
@@ -139,9 +131,10 @@ def main(argv=None):
     if rank == 0:
         os.makedirs(args.out, exist_ok=True)
         metrics = open(os.path.join(args.out, "metrics.jsonl"), "a")
+    schedule = _core.lr_schedule(json.dumps(options))
     started, images = time.perf_counter(), 0
     for step, batch in zip(range(args.steps), loader):
-        lr = learning_rate(options, step)
+        lr = schedule[step]
         for g in optimizer.param_groups:
             g["lr"] = lr * g["scale"]
         x = batch["images"].to(device, non_blocking=True)

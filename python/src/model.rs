@@ -95,6 +95,15 @@ pub fn train_defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     Ok(d)
 }
 
+/// The learning rate of each step of a run with `options` (run.json's
+/// "options", as JSON), as `matseg train` schedules it.
+#[pyfunction]
+pub fn lr_schedule(options: &str) -> PyResult<Vec<f64>> {
+    let options: matseg_net::train::TrainOptions = serde_json::from_str(options)
+        .map_err(|e| PyValueError::new_err(format!("training options: {e}")))?;
+    Ok((0..options.steps).map(|s| options.lr_at(s)).collect())
+}
+
 /// A loaded net (on the CPU).
 #[pyclass(module = "matseg._core", name = "Model", frozen)]
 pub struct PyModel {

@@ -56,6 +56,21 @@ pub struct TrainOptions {
     pub lr_scales: Vec<LrScale>,
 }
 
+impl TrainOptions {
+    /// Learning rate at `step`: linear warm-up, then constant, then (with
+    /// `decay`) a linear fall over the last `decay` steps.
+    pub fn lr_at(&self, step: u64) -> f64 {
+        let warm = ((step + 1) as f64 / self.warmup.max(1) as f64).min(1.0);
+        let left = self.steps.saturating_sub(step) as f64;
+        let cool = if self.decay == 0 {
+            1.0
+        } else {
+            (left / self.decay as f64).min(1.0)
+        };
+        self.lr * warm * cool
+    }
+}
+
 /// The learning rate of the variables whose names start with `prefix`
 /// (`encoder.`, `encoder.features.1.`...) multiplied by `scale` (0
 /// freezes them).
@@ -231,18 +246,9 @@ impl Trainer {
         Ok(trainer)
     }
 
-    /// Learning rate at `step`: linear warm-up, then constant, then (with
-    /// `decay`) a linear fall over the last `decay` steps.
+    /// Learning rate at `step` ([`TrainOptions::lr_at`]).
     pub fn lr(&self, step: u64) -> f64 {
-        let o = &self.config.options;
-        let warm = ((step + 1) as f64 / o.warmup.max(1) as f64).min(1.0);
-        let left = o.steps.saturating_sub(step) as f64;
-        let cool = if o.decay == 0 {
-            1.0
-        } else {
-            (left / o.decay as f64).min(1.0)
-        };
-        o.lr * warm * cool
+        self.config.options.lr_at(step)
     }
 
     /// One step on `samples`; the loss, or `None` for a skipped batch.
