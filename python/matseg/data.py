@@ -103,6 +103,13 @@ def batch_arrays(items):
     return {"images": images, "weights": weights, "roi": roi}
 
 
+def native_batch(native, step, plan, seed):
+    """Batch `step` of a native generator or dataset under `plan` (None:
+    the paper's) and `seed`, as `batch_arrays`."""
+    plan = plan or BatchPlan.default()
+    return batch_arrays(native.batch(plan.to_json(), int(seed), int(step)))
+
+
 class Generator:
     """Samples of a 2D or 3D synthetic dataset, made on demand: `gen[i]` is
     sample i of `matseg generate --kind KIND --seed SEED` with the same
@@ -176,8 +183,7 @@ class Generator:
 
     def batch(self, step, plan=None, seed=0):
         """Training batch `step` of online 2D scenes (see `batch_arrays`)."""
-        plan = plan or BatchPlan.default()
-        return batch_arrays(self._native.batch(plan.to_json(), int(seed), int(step)))
+        return native_batch(self._native, step, plan, seed)
 
     def __getstate__(self):
         return {"args": self._args, "samples": self.samples}
@@ -214,8 +220,7 @@ class Dataset:
 
     def batch(self, step, plan=None, seed=0):
         """Training batch `step` drawn from the dataset (see `batch_arrays`)."""
-        plan = plan or BatchPlan.default()
-        return batch_arrays(self._native.batch(plan.to_json(), int(seed), int(step)))
+        return native_batch(self._native, step, plan, seed)
 
     def __getstate__(self):
         return {"root": self.root}

@@ -81,11 +81,11 @@ pub fn matseg_loss(
     let desc = floats(descriptors, b * d * h * w, "descriptors")?;
     let weights = floats(weights, b * materials * h * w, "weights")?;
     let roi = floats(roi, b * h * w, "roi")?;
-    let dims = |v: &[usize]| v.iter().map(|&x| x as i64).collect::<Vec<i64>>();
-    let desc = Tensor::from_slice(&desc).view(dims(&[b, d, h, w]).as_slice());
-    let weights = Tensor::from_slice(&weights).view(dims(&[b, materials, h, w]).as_slice());
-    let roi = Tensor::from_slice(&roi).view(dims(&[b, h, w]).as_slice());
-    let targets: Vec<ImageTargets> = (0..b as i64)
+    let [b, d, h, w, k] = [b, d, h, w, materials].map(|n| n as i64);
+    let desc = Tensor::from_slice(&desc).view([b, d, h, w]);
+    let weights = Tensor::from_slice(&weights).view([b, k, h, w]);
+    let roi = Tensor::from_slice(&roi).view([b, h, w]);
+    let targets: Vec<ImageTargets> = (0..b)
         .map(|i| ImageTargets {
             weights: weights.get(i),
             roi: roi.get(i),
