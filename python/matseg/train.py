@@ -133,7 +133,11 @@ def main(argv=None):
         metrics = open(os.path.join(args.out, "metrics.jsonl"), "a")
     schedule = _core.lr_schedule(json.dumps(options))
     started, images = time.perf_counter(), 0
-    for step, batch in zip(range(args.steps), loader):
+    batches = iter(loader)
+    for step in range(args.steps):
+        step_started = time.perf_counter()
+        batch = next(batches)
+        data_seconds = time.perf_counter() - step_started
         lr = schedule[step]
         for g in optimizer.param_groups:
             g["lr"] = lr * g["scale"]
@@ -148,10 +152,16 @@ def main(argv=None):
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         optimizer.step()
+        loss_value = None if skipped else float(loss.detach())
+        if device.type == "cuda":
+            torch.cuda.synchronize(device)
         images += x.shape[0]
         if metrics is not None:
-            record = {"step": step, "loss": None if skipped else float(loss.detach()), "lr": lr, "images": x.shape[0],
-                      "side": [x.shape[3], x.shape[2]], "batch": batch["step"]}
+            # matseg train's fields (StepMetrics), and the batch's index in the stream.
+            record = {"step": step, "loss": loss_value, "lr": lr, "images": x.shape[0],
+                      "width": x.shape[3], "height": x.shape[2],
+                      "seconds": time.perf_counter() - step_started, "data_seconds": data_seconds,
+                      "batch": batch["step"]}
             metrics.write(json.dumps(record) + "\n")
             metrics.flush()
         if rank == 0 and (step + 1) % options["checkpoint_every"] == 0 and step + 1 < args.steps:

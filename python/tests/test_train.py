@@ -24,6 +24,10 @@ def test_two_process_ddp_training_keeps_ranks_identical_and_matseg_segment_loads
     assert [m["step"] for m in metrics] == [0, 1]
     # Rank 0 trained on batches 0 and 2 of the stream (rank 1 on 1 and 3).
     assert [m["batch"] for m in metrics] == [0, 2]
+    # matseg train's per-step fields: the batch's size and the step's time.
+    for m in metrics:
+        assert m["images"] >= 1 and m["width"] in (64, 96) and m["height"] in (64, 96)
+        assert 0.0 <= m["data_seconds"] <= m["seconds"]
     run_json = json.loads((out / "run.json").read_text())
     assert run_json["options"]["steps"] == 2 and run_json["init"] == "default"
     seg = tmp_path / "seg"
