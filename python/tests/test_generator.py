@@ -90,3 +90,10 @@ def test_bad_input_raises_clear_python_errors(tmp_path):
         matseg.Generator("2d", licences="not-a-licence")
     with pytest.raises(ValueError, match="3d scenes"):
         matseg.Generator("3d", size=32, spp=1).batch(0)
+
+
+def test_missing_bundled_assets_are_named(tmp_path, monkeypatch):
+    monkeypatch.setenv("MATSEG_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setenv("MATSEG_ASSETS", str(tmp_path / "assets"))
+    with pytest.raises(matseg.MatsegError, match=r"assets/photos: no such folder, .* MATSEG_ASSETS"):
+        matseg.Generator("2d")

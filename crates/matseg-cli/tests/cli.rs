@@ -138,6 +138,30 @@ fn bad_inputs_are_one_line_errors() {
 }
 
 #[test]
+fn missing_bundled_assets_are_named_in_a_one_line_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("out");
+    let moved = dir.path().join("assets");
+    for kind in ["2d", "3d"] {
+        let out = Command::new(env!("CARGO_BIN_EXE_matseg"))
+            .args(["generate", "--kind", kind, "-n", "1", "--out"])
+            .arg(&out_dir)
+            .env("MATSEG_CACHE", dir.path().join("cache"))
+            .env("MATSEG_ASSETS", &moved)
+            .output()
+            .unwrap();
+        assert_one_line_error(
+            &out,
+            &format!(
+                "{}: no such folder, and no photos were named nor fetched (set MATSEG_ASSETS",
+                moved.join("photos").display()
+            ),
+        );
+        assert!(!out_dir.exists(), "nothing is written on error");
+    }
+}
+
+#[test]
 fn maps_writes_raw_and_combined_maps() {
     let dir = tempfile::tempdir().unwrap();
     let photo = Path::new(&assets("photos")).join("coffee.jpg");

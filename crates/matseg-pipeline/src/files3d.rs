@@ -52,8 +52,9 @@ impl Files3d {
         licences: &LicenceFilter,
         progress: &dyn Progress,
     ) -> Result<Self, PipelineError> {
-        let (library, report) = PhotoLibrary::scan(&defaults.or(&folders.photos, "photos"), 0)
-            .map_err(crate::sources::SourceError::from)?;
+        let (library, report) =
+            PhotoLibrary::scan(&defaults.required(&folders.photos, "photos")?, 0)
+                .map_err(crate::sources::SourceError::from)?;
         let library = library
             .retain_licences(licences)
             .map_err(crate::sources::SourceError::from)?;

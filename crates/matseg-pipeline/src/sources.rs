@@ -20,6 +20,19 @@ pub enum SourceError {
     /// Neither `MATSEG_CACHE`, `XDG_CACHE_HOME` nor `HOME` is set.
     #[error("no cache folder: set MATSEG_CACHE")]
     NoCache,
+    /// No folders of a kind were named, the corpus holds none, and the
+    /// bundled assets are not where they were looked for.
+    #[error(
+        "{}: no such folder, and no {kind} were named nor fetched \
+         (set MATSEG_ASSETS to the bundled assets, or run `matseg assets fetch`)",
+        looked.display()
+    )]
+    NoDefault {
+        /// The kind of source: photos, textures.
+        kind: String,
+        /// The bundled folder of that kind.
+        looked: PathBuf,
+    },
 }
 
 /// The user's matseg cache: `$MATSEG_CACHE`, else `$XDG_CACHE_HOME/matseg`,
@@ -97,6 +110,19 @@ impl Defaults {
             given.to_vec()
         }
     }
+
+    /// [`Defaults::or`] for a kind a job cannot do without: an error naming
+    /// the bundled folder when there is no folder of `kind` at all.
+    pub fn required(self, given: &[PathBuf], kind: &str) -> Result<Vec<PathBuf>, SourceError> {
+        let folders = self.or(given, kind);
+        if folders.is_empty() {
+            return Err(SourceError::NoDefault {
+                kind: kind.to_string(),
+                looked: assets_dir().join(kind),
+            });
+        }
+        Ok(folders)
+    }
 }
 
 /// Texture sources: a folder of PBR material folders (from `matseg pbr`,
@@ -156,9 +182,9 @@ impl Libraries {
         defaults: Defaults,
         licences: &LicenceFilter,
     ) -> Result<Self, SourceError> {
-        let (photos, r1) = PhotoLibrary::scan(&defaults.or(photos, "photos"), 0)?;
+        let (photos, r1) = PhotoLibrary::scan(&defaults.required(photos, "photos")?, 0)?;
         let photos = photos.retain_licences(licences)?.sharing(budget.clone());
-        let textures = texture_sources(&defaults.or(textures, "textures"))?;
+        let textures = texture_sources(&defaults.required(textures, "textures")?)?;
         let (textures, r2) = PhotoLibrary::scan(&textures, 0)?;
         let textures = textures.retain_licences(licences)?.sharing(budget.clone());
         let scan_skipped = r1.skipped.into_iter().chain(r2.skipped).collect();
