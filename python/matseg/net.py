@@ -324,8 +324,16 @@ class MaterialNet(nn.Module):
         return l2_normalise(resize(self.coarse(x), h, w))
 
 
-def _state_names(net):
+def state_names(net):
+    """The names of the net's stored variables (parameters and BatchNorm
+    statistics, as matseg's safetensors files hold them)."""
     return [k for k in net.state_dict() if not k.endswith("num_batches_tracked")]
+
+
+def state_arrays(net):
+    """The net's stored variables as float32 numpy arrays, by name."""
+    state = net.state_dict()
+    return {k: state[k].detach().to("cpu", torch.float32).contiguous().numpy() for k in state_names(net)}
 
 
 def run_files(name):
@@ -338,7 +346,13 @@ def run_files(name):
 def load_weights(net, path):
     """Loads a safetensors file into `net` (every variable, no others)."""
     tensors, _ = safetensors.read(path)
-    names = set(_state_names(net))
+    load_arrays(net, tensors, path)
+
+
+def load_arrays(net, tensors, path):
+    """Copies name -> numpy array into `net` (every variable, no others);
+    errors name `path`, where the arrays came from."""
+    names = set(state_names(net))
     missing, extra = sorted(names - tensors.keys()), sorted(tensors.keys() - names)
     if missing or extra:
         raise ValueError(f"{path}: does not fit the net (missing {missing[:5]}, unexpected {extra[:5]})")
@@ -367,9 +381,7 @@ def load(name="default"):
 def save(net, run, folder):
     """Writes `folder/model.safetensors` (32-bit floats) and `run.json`."""
     os.makedirs(folder, exist_ok=True)
-    state = net.state_dict()
-    tensors = {k: state[k].detach().to("cpu", torch.float32).contiguous().numpy() for k in _state_names(net)}
-    safetensors.write(os.path.join(folder, MODEL_FILE), tensors)
+    safetensors.write(os.path.join(folder, MODEL_FILE), state_arrays(net))
     tmp = os.path.join(folder, f"{RUN_FILE}.{os.getpid()}.tmp")
     with open(tmp, "w") as f:
         json.dump(run, f, indent=2)

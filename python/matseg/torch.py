@@ -8,8 +8,11 @@ DataLoader workers and DDP ranks, each index to exactly one of them.
     for batch in loader:            # images Bx3xHxW (the net's input), weights BxKxHxW, roi BxHxW
         ...
 
-The split: the consumer with global number g = rank * workers + worker
-of G = world_size * workers takes indices start + g, start + g + G, ...
+The split: the consumer with global number g = worker * world_size + rank
+of G = world_size * workers takes indices start + g, start + g + G, ...;
+as a DataLoader takes its workers' items in turn, rank r sees indices
+start + r, start + r + world_size, ... in order, whatever its number of
+workers (so a run's first n steps on W ranks used indices start..start+nW-1).
 """
 
 import torch
@@ -27,7 +30,7 @@ def consumer():
         rank, world = torch.distributed.get_rank(), torch.distributed.get_world_size()
     info = get_worker_info()
     worker, workers = (info.id, info.num_workers) if info is not None else (0, 1)
-    return rank * workers + worker, world * workers
+    return worker * world + rank, world * workers
 
 
 def my_indices(start, stop, number, count):

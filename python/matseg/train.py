@@ -2,11 +2,15 @@
 torchrun (DistributedDataParallel: gloo on CPUs, nccl on GPUs). It reads
 the same batches as `matseg train` (online 2D scenes or a stored dataset,
 the same batch plan) and writes the same run folder (run.json,
-model.safetensors, metrics.jsonl), which `matseg segment`, `matseg eval`
-and `matseg serve` load.
+model.safetensors, metrics.jsonl, checkpoint.safetensors), which `matseg
+segment`, `matseg eval` and `matseg serve` load. `--resume RUN` continues
+a run from its last checkpoint, its own or `matseg train`'s, with the next
+batch of the stream; `matseg train --resume` continues this trainer's runs
+of one process.
 
     python -m matseg.train --out runs/a --steps 2000
     torchrun --nproc_per_node 8 -m matseg.train --out runs/a --data DATA --device cuda
+    torchrun --nproc_per_node 8 -m matseg.train --resume runs/a --device cuda
 """
 
 import argparse
@@ -21,17 +25,21 @@ import torch.distributed as dist
 from torch.nn.parallel import DistributedDataParallel
 from torch.utils.data import DataLoader
 
-from . import _core
+from . import _core, checkpoint
 from . import net as netlib
 from .data import BatchPlan, Dataset, Generator
 from .torch import BatchStream
 
 DEFAULTS = _core.train_defaults()
+METRICS_FILE = netlib.CONSTANTS["metrics_file"]
 
 
 def parse_args(argv):
     p = argparse.ArgumentParser(prog="python -m matseg.train", description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", required=True, help="run folder to write")
+    p.add_argument("--out", help="run folder to write (a new one)")
+    p.add_argument("--resume", metavar="RUN",
+                   help="continue RUN from its last checkpoint, with its own settings (a run of "
+                        "python -m matseg.train or matseg train)")
     p.add_argument("--data", help="stored dataset (folders or shards); default: online 2D scenes")
     p.add_argument("--sources", nargs="+", help="photo folders of the online scenes (default: corpus, else bundled)")
     p.add_argument("--textures", nargs="+", help="texture folders of the online scenes")
@@ -49,7 +57,10 @@ def parse_args(argv):
     p.add_argument("--checkpoint-every", type=int, default=DEFAULTS["checkpoint_every"])
     p.add_argument("--workers", type=int, default=2, help="DataLoader workers per process")
     p.add_argument("--device", default="cpu", help="cpu or cuda")
-    return p.parse_args(argv)
+    args = p.parse_args(argv)
+    if (args.out is None) == (args.resume is None):
+        p.error("give --out RUN for a new run or --resume RUN")
+    return args
 
 
 def param_groups(net, lr_scales):
@@ -65,11 +76,12 @@ def param_groups(net, lr_scales):
 
 
 def state_digest(net):
-    """SHA-256 of every variable, in name order: equal on every rank."""
+    """SHA-256 of the stored variables (model.safetensors'), in name order:
+    equal on every rank."""
     h = hashlib.sha256()
-    for name, t in sorted(net.state_dict().items()):
+    for name, a in sorted(netlib.state_arrays(net).items()):
         h.update(name.encode())
-        h.update(t.detach().to("cpu").contiguous().numpy().tobytes())
+        h.update(a.tobytes())
     return h.hexdigest()
 
 
@@ -86,26 +98,13 @@ def initial_net(args):
     return net, carried
 
 
-def main(argv=None):
-    args = parse_args(sys.argv[1:] if argv is None else argv)
-    world = int(os.environ.get("WORLD_SIZE", "1"))
-    rank = int(os.environ.get("RANK", "0"))
-    local = int(os.environ.get("LOCAL_RANK", "0"))
-    if args.device == "cuda":
-        device = torch.device("cuda", local)
-        torch.cuda.set_device(device)
-    elif args.device == "cpu":
-        device = torch.device("cpu")
-    else:
-        raise SystemExit(f"--device: '{args.device}': expected cpu or cuda")
-    if world > 1:
-        dist.init_process_group("nccl" if device.type == "cuda" else "gloo")
-
+def new_run(args):
+    """The net and run.json of a new run from the arguments."""
+    if os.path.isfile(os.path.join(args.out, netlib.RUN_FILE)):
+        raise SystemExit(f"{args.out}: already holds a run; resume it (--resume), or choose another folder")
     plan = BatchPlan.default()
     overrides = {k: getattr(args, a) for k, a in (("min_side", "min_side"), ("max_side", "max_side"), ("pixels", "batch_pixels")) if getattr(args, a) is not None}
     plan = BatchPlan(**{**plan.__dict__, **overrides})
-    source = Dataset(args.data) if args.data else Generator("2d", args.sources, textures=args.textures, seed=args.seed)
-
     net, carried = initial_net(args)
     pretrained = args.init != "scratch"
     options = {
@@ -118,23 +117,96 @@ def main(argv=None):
     }
     run = {"net": net.config, "options": options, "init": args.init,
            "data": os.path.abspath(args.data) if args.data else "online", **carried}
+    return net, run
 
-    net = net.to(device).train()
-    model = DistributedDataParallel(net, device_ids=[local] if device.type == "cuda" else None) if world > 1 else net
-    groups = param_groups(net, options["lr_scales"])
-    optimizer = torch.optim.AdamW(groups, lr=options["lr"], betas=(0.9, 0.999), eps=1e-8,
+
+def resumed_run(folder):
+    """The net (weights still to load) and run.json of the run in `folder`."""
+    path = os.path.join(folder, netlib.RUN_FILE)
+    if not os.path.isfile(path):
+        raise SystemExit(f"{path}: no such file: not a run folder")
+    with open(path) as f:
+        run = json.load(f)
+    if "mix" in run:
+        raise SystemExit(f"{path}: a run with a mixed-in dataset (mix) resumes with matseg train --resume")
+    return netlib.MaterialNet(run["net"]), run
+
+
+def batch_source(run, args):
+    """Where the run's batches come from: its stored dataset, or online 2D
+    scenes from the run's seed (and --sources/--textures)."""
+    if run["data"] != "online":
+        return Dataset(run["data"])
+    return Generator("2d", args.sources, textures=args.textures, seed=run["options"]["seed"])
+
+
+def open_metrics(folder, next_step):
+    """metrics.jsonl of `folder` holding the lines of the steps before
+    `next_step` (those a resumed run keeps), open for appending."""
+    path = os.path.join(folder, METRICS_FILE)
+    kept = []
+    if next_step > 0 and os.path.isfile(path):
+        with open(path) as f:
+            kept = [line for line in f if line.strip() and json.loads(line)["step"] < next_step]
+    tmp = f"{path}.{os.getpid()}.tmp"
+    with open(tmp, "w") as f:
+        f.writelines(kept)
+    os.replace(tmp, path)
+    return open(path, "a")
+
+
+def save_run(folder, net, run, optimizer, updates, next_step, next_batch):
+    """model.safetensors, run.json and checkpoint.safetensors of `folder`."""
+    netlib.save(net, run, folder)
+    checkpoint.write(folder, net, optimizer, updates, next_step, next_batch)
+
+
+def main(argv=None):
+    args = parse_args(sys.argv[1:] if argv is None else argv)
+    world = int(os.environ.get("WORLD_SIZE", "1"))
+    rank = int(os.environ.get("RANK", "0"))
+    local = int(os.environ.get("LOCAL_RANK", "0"))
+    if args.device == "cuda":
+        device = torch.device("cuda", local)
+        torch.cuda.set_device(device)
+    elif args.device == "cpu":
+        device = torch.device("cpu")
+    else:
+        raise SystemExit(f"--device: '{args.device}': expected cpu or cuda")
+    # Every rank checks the folder before any of them can start training.
+    net, run = resumed_run(args.resume) if args.resume else new_run(args)
+    folder = args.resume or args.out
+    if world > 1:
+        dist.init_process_group("nccl" if device.type == "cuda" else "gloo")
+
+    options = run["options"]
+    net = net.to(device)
+    groups = param_groups(net, options.get("lr_scales", []))
+    betas = tuple(DEFAULTS["betas"])
+    optimizer = torch.optim.AdamW(groups, lr=options["lr"], betas=betas, eps=DEFAULTS["eps"],
                                   weight_decay=options["weight_decay"])
-    loader = DataLoader(BatchStream(source, plan, args.seed), batch_size=None, num_workers=args.workers,
-                        persistent_workers=args.workers > 0)
+    updates, first_step, first_batch = checkpoint.read(folder, net, optimizer) if args.resume else (0, 0, 0)
+    if first_step >= options["steps"]:
+        if rank == 0:
+            print(f"{folder}: all {options['steps']} steps are trained", flush=True)
+        if world > 1:
+            dist.destroy_process_group()
+        return
+    net.train()
+    model = DistributedDataParallel(net, device_ids=[local] if device.type == "cuda" else None) if world > 1 else net
+    plan = BatchPlan(**options["plan"])
+    loader = DataLoader(BatchStream(batch_source(run, args), plan, options["seed"], first_step=first_batch),
+                        batch_size=None, num_workers=args.workers, persistent_workers=args.workers > 0)
 
     metrics = None
     if rank == 0:
-        os.makedirs(args.out, exist_ok=True)
-        metrics = open(os.path.join(args.out, "metrics.jsonl"), "a")
+        os.makedirs(folder, exist_ok=True)
+        metrics = open_metrics(folder, first_step)
     schedule = _core.lr_schedule(json.dumps(options))
+    steps = options["steps"]
     started, images = time.perf_counter(), 0
     batches = iter(loader)
-    for step in range(args.steps):
+    for step in range(first_step, steps):
         step_started = time.perf_counter()
         batch = next(batches)
         data_seconds = time.perf_counter() - step_started
@@ -144,14 +216,17 @@ def main(argv=None):
         x = batch["images"].to(device, non_blocking=True)
         desc = model(x)
         loss = netlib.matseg_loss(desc, batch["weights"].to(device), batch["roi"].to(device))
-        # Every rank takes part in every gradient reduction, even on a
-        # batch with fewer than two materials (which teaches nothing).
+        # A batch with fewer than two materials teaches nothing: one process
+        # skips it, as matseg train does; under DDP every rank still takes
+        # part in the gradient reduction, with a zero loss.
         skipped = loss is None
-        if skipped:
+        if skipped and world > 1:
             loss = desc.sum() * 0.0
-        optimizer.zero_grad(set_to_none=True)
-        loss.backward()
-        optimizer.step()
+        if loss is not None:
+            optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            optimizer.step()
+            updates += 1
         loss_value = None if skipped else float(loss.detach())
         if device.type == "cuda":
             torch.cuda.synchronize(device)
@@ -164,8 +239,9 @@ def main(argv=None):
                       "batch": batch["step"]}
             metrics.write(json.dumps(record) + "\n")
             metrics.flush()
-        if rank == 0 and (step + 1) % options["checkpoint_every"] == 0 and step + 1 < args.steps:
-            netlib.save(net, run, args.out)
+        done = step + 1
+        if rank == 0 and done % options["checkpoint_every"] == 0 and done < steps:
+            save_run(folder, net, run, optimizer, updates, done, first_batch + world * (done - first_step))
     seconds = time.perf_counter() - started
 
     if world > 1:
@@ -178,9 +254,10 @@ def main(argv=None):
         images = int(totals.item())
     print(f"rank {rank}: weights sha256 {state_digest(net)}", flush=True)
     if rank == 0:
-        netlib.save(net.eval(), run, args.out)
+        trained = steps - first_step
+        save_run(folder, net.eval(), run, optimizer, updates, steps, first_batch + world * trained)
         metrics.close()
-        print(f"{args.out}: {args.steps} steps x {world} process(es), {images} images in {seconds:.1f} s "
+        print(f"{folder}: {trained} steps x {world} process(es), {images} images in {seconds:.1f} s "
               f"({images / max(seconds, 1e-9):.2f} images/s)", flush=True)
     if world > 1:
         dist.barrier()

@@ -57,6 +57,8 @@ pub fn net_constants(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("colour_seed", matseg_net::colour::SEED)?;
     d.set_item("model_file", matseg_net::train::MODEL_FILE)?;
     d.set_item("run_file", matseg_net::train::RUN_FILE)?;
+    d.set_item("checkpoint_file", matseg_net::train::CHECKPOINT_FILE)?;
+    d.set_item("metrics_file", matseg_net::train::METRICS_FILE)?;
     Ok(d)
 }
 
@@ -82,9 +84,13 @@ pub fn net_preset(name: &str, encoder_features: bool, colour_features: bool) -> 
 /// `matseg train`'s defaults, for `python -m matseg.train`.
 #[pyfunction]
 pub fn train_defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    use matseg_net::optim::AdamWConfig;
     use matseg_net::train::{LR_PRETRAINED, LR_SCRATCH, WARMUP_STEPS};
     use matseg_pipeline::train::TrainConfig;
+    let adamw = AdamWConfig::default();
     let d = PyDict::new(py);
+    d.set_item("betas", (adamw.beta1, adamw.beta2))?;
+    d.set_item("eps", adamw.eps)?;
     d.set_item("lr_pretrained", LR_PRETRAINED)?;
     d.set_item("lr_scratch", LR_SCRATCH)?;
     d.set_item("warmup", WARMUP_STEPS)?;

@@ -20,9 +20,21 @@ def test_consumers_span_ranks_and_workers(monkeypatch):
     monkeypatch.setattr(torch.distributed, "is_initialized", lambda: True)
     monkeypatch.setattr(torch.distributed, "get_rank", lambda: 1)
     monkeypatch.setattr(torch.distributed, "get_world_size", lambda: 2)
-    info = type("Info", (), {"id": 2, "num_workers": 3})()
+    info = type("Info", (), {"id": 1, "num_workers": 3})()
     monkeypatch.setattr(mt, "get_worker_info", lambda: info)
-    assert mt.consumer() == (5, 6)
+    assert mt.consumer() == (3, 6)
+
+
+@pytest.mark.parametrize("world,workers", [(1, 1), (1, 3), (2, 1), (2, 3), (4, 2)])
+def test_each_rank_sees_every_world_th_index_in_order(world, workers):
+    # A DataLoader yields its workers' items in turn: worker j's i-th item
+    # is the rank's (i * workers + j)-th.
+    for rank in range(world):
+        per_worker = [list(mt.my_indices(7, 7 + 24 * world, j * world + rank, world * workers))
+                      for j in range(workers)]
+        in_turn = [per_worker[j][i] for i in range(len(per_worker[0])) for j in range(workers)
+                   if i < len(per_worker[j])]
+        assert in_turn == [7 + rank + world * k for k in range(24)]
 
 
 def test_a_dataloader_with_workers_sees_each_sample_once():
@@ -40,7 +52,7 @@ def test_batches_follow_the_plan_and_are_reproducible():
     stream = mt.BatchStream(gen, PLAN, seed=3, steps=4)
     loader = DataLoader(stream, batch_size=None, num_workers=2)
     batches = {b["step"]: b for b in loader}
-    assert sorted(batches) == [0, 1, 2, 3]
+    assert list(batches) == [0, 1, 2, 3]
     for step, b in batches.items():
         n, c, h, w = b["images"].shape
         assert c == 3 and h % 32 == 0 and w % 32 == 0 and 64 <= min(h, w) and max(h, w) <= 128

@@ -1,31 +1,57 @@
-"""python -m matseg.train under torchrun: DDP over two CPU processes."""
+"""python -m matseg.train: DDP over two CPU processes under torchrun, and
+runs resumed from their checkpoints, by this trainer and by matseg train."""
 
 import json
 import os
 import re
+import subprocess
 import sys
 
 import numpy as np
+import pytest
 from PIL import Image
 
 from conftest import ROOT, run
+from matseg import train
+
+# Small online batches; a checkpoint every 2 steps.
+SMALL = ["--min-side", 64, "--max-side", 96, "--batch-pixels", 2 * 96 * 96, "--seed", 4, "--checkpoint-every", 2]
+TORCHRUN = os.path.join(os.path.dirname(sys.executable), "torchrun")
+
+
+def python_train(*args, procs=1):
+    """Runs python -m matseg.train (under torchrun when procs > 1); returns
+    the weights' SHA-256 every rank printed."""
+    launcher = [sys.executable] if procs == 1 else [TORCHRUN, "--nproc_per_node", procs]
+    done = run(launcher + ["-m", "matseg.train", *args], env={**os.environ, "OMP_NUM_THREADS": str(2 // procs)})
+    digests = set(re.findall(r"rank \d+: weights sha256 ([0-9a-f]{64})", done.stdout))
+    assert len(digests) == 1, done.stdout
+    return digests.pop()
+
+
+def metrics(folder):
+    return [json.loads(line) for line in (folder / "metrics.jsonl").read_text().splitlines()]
+
+
+def extend(folder, steps):
+    """Plans `steps` steps for the run in `folder`: as a run stopped after
+    its last checkpoint, it then has steps left to resume (the learning
+    rate has no decay, so the earlier steps' schedule is unchanged)."""
+    path = folder / "run.json"
+    config = json.loads(path.read_text())
+    config["options"]["steps"] = steps
+    path.write_text(json.dumps(config))
 
 
 def test_two_process_ddp_training_keeps_ranks_identical_and_matseg_segment_loads_it(tmp_path, matseg_bin):
     out = tmp_path / "run"
-    torchrun = os.path.join(os.path.dirname(sys.executable), "torchrun")
-    done = run([torchrun, "--nproc_per_node", 2, "-m", "matseg.train", "--out", out, "--steps", 2,
-                "--min-side", 64, "--max-side", 96, "--batch-pixels", 2 * 96 * 96, "--workers", 0, "--seed", 4],
-               env={**os.environ, "OMP_NUM_THREADS": "1"})
-    digests = dict(re.findall(r"rank (\d+): weights sha256 ([0-9a-f]{64})", done.stdout))
-    assert set(digests) == {"0", "1"}
-    assert digests["0"] == digests["1"]
-    metrics = [json.loads(line) for line in (out / "metrics.jsonl").read_text().splitlines()]
-    assert [m["step"] for m in metrics] == [0, 1]
+    python_train("--out", out, "--steps", 2, "--workers", 0, *SMALL, procs=2)
+    steps = metrics(out)
+    assert [m["step"] for m in steps] == [0, 1]
     # Rank 0 trained on batches 0 and 2 of the stream (rank 1 on 1 and 3).
-    assert [m["batch"] for m in metrics] == [0, 2]
+    assert [m["batch"] for m in steps] == [0, 2]
     # matseg train's per-step fields: the batch's size and the step's time.
-    for m in metrics:
+    for m in steps:
         assert m["images"] >= 1 and m["width"] in (64, 96) and m["height"] in (64, 96)
         assert 0.0 <= m["data_seconds"] <= m["seconds"]
     run_json = json.loads((out / "run.json").read_text())
@@ -35,6 +61,58 @@ def test_two_process_ddp_training_keeps_ranks_identical_and_matseg_segment_loads
          "--point", "100,120", "--out", seg])
     grey = np.asarray(Image.open(seg / "similarity_0.png"))
     assert grey.shape == (512, 512) and grey[120, 100] > 200
+
+    # Resumed on two processes with one DataLoader worker each, the run
+    # continues with the next batches of the stream; matseg train, which
+    # takes one batch a step, declines it.
+    extend(out, 3)
+    python_train("--resume", out, "--workers", 1, procs=2)
+    assert [m["batch"] for m in metrics(out)] == [0, 2, 4]
+    refused = subprocess.run([matseg_bin, "train", "--resume", out], capture_output=True, text=True)
+    assert refused.returncode != 0
+    assert "the next batch is 6, not the next step 3" in refused.stderr and len(refused.stderr.splitlines()) == 1
+
+
+def test_a_run_resumed_from_its_checkpoint_ends_with_the_same_weights(tmp_path):
+    straight, resumed = tmp_path / "straight", tmp_path / "resumed"
+    expected = python_train("--out", straight, "--steps", 4, "--workers", 0, *SMALL)
+    python_train("--out", resumed, "--steps", 2, "--workers", 0, *SMALL)
+    extend(resumed, 4)
+    assert python_train("--resume", resumed, "--workers", 1) == expected
+    assert metrics(resumed) == [dict(m, seconds=r["seconds"], data_seconds=r["data_seconds"])
+                                for m, r in zip(metrics(straight), metrics(resumed))]
+    assert (resumed / "model.safetensors").read_bytes() == (straight / "model.safetensors").read_bytes()
+
+
+def test_each_trainer_resumes_the_others_runs(tmp_path, matseg_bin):
+    # The same net, batches, optimizer state and learning rate: the step
+    # after the checkpoint has the loss the other trainer's own run had.
+    rust = ["train", "--online", "--validation-batches", 0, "--encoder-features", "--colour-features",
+            "--init", ROOT / "models" / "default" / "model.safetensors", *SMALL]
+    py_straight, py_then_rust = tmp_path / "py3", tmp_path / "py2"
+    python_train("--out", py_straight, "--steps", 3, "--workers", 0, *SMALL)
+    python_train("--out", py_then_rust, "--steps", 2, "--workers", 0, *SMALL)
+    extend(py_then_rust, 3)
+    run([matseg_bin, "train", "--resume", py_then_rust])
+    assert metrics(py_then_rust)[2]["loss"] == pytest.approx(metrics(py_straight)[2]["loss"], rel=1e-5)
+
+    rust_straight, rust_then_py = tmp_path / "rust3", tmp_path / "rust2"
+    run([matseg_bin, *rust, "--out", rust_straight, "--steps", 3])
+    run([matseg_bin, *rust, "--out", rust_then_py, "--steps", 2])
+    extend(rust_then_py, 3)
+    python_train("--resume", rust_then_py, "--workers", 0)
+    assert [m["step"] for m in metrics(rust_then_py)] == [0, 1, 2]
+    assert metrics(rust_then_py)[2]["loss"] == pytest.approx(metrics(rust_straight)[2]["loss"], rel=1e-5)
+
+
+def test_run_folders_are_checked_before_training(tmp_path):
+    (tmp_path / "run.json").write_text("{}")
+    with pytest.raises(SystemExit, match="already holds a run; resume it"):
+        train.main(["--out", str(tmp_path)])
+    with pytest.raises(SystemExit, match="nowhere/run.json: no such file: not a run folder"):
+        train.main(["--resume", str(tmp_path / "nowhere")])
+    with pytest.raises(SystemExit):
+        train.main(["--out", str(tmp_path / "a"), "--resume", str(tmp_path)])
 
 
 def test_training_reads_stored_shards(tmp_path, shards_2d):

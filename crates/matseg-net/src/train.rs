@@ -232,6 +232,7 @@ impl Trainer {
         };
         let mut model = Vec::new();
         let mut optim = Vec::new();
+        let mut next_batch = None;
         for (name, t) in saved {
             if let Some(n) = name.strip_prefix("model.") {
                 model.push((n.to_string(), t));
@@ -239,7 +240,18 @@ impl Trainer {
                 optim.push((n.to_string(), t));
             } else if name == "next_step" {
                 trainer.step = t.int64_value(&[0]) as u64;
+            } else if name == "next_batch" {
+                next_batch = Some(t.int64_value(&[0]) as u64);
             }
+        }
+        // `python -m matseg.train` under torchrun trains several batches a
+        // step; its runs say where the batch stream stopped.
+        if let Some(batch) = next_batch.filter(|&b| b != trainer.step) {
+            return Err(bad(format!(
+                "the next batch is {batch}, not the next step {}: a run trained by several \
+                 processes resumes with python -m matseg.train --resume",
+                trainer.step
+            )));
         }
         load_tensors(&trainer.vs, &model).map_err(&bad)?;
         trainer.optimizer.load_state(&optim).map_err(&bad)?;

@@ -1,0 +1,63 @@
+"""A run's resume checkpoint, `checkpoint.safetensors`, in `matseg train`'s
+layout, so that each trainer resumes the other's runs: `model.NAME` (every
+variable of the net), `optim.m.NAME` and `optim.v.NAME` (AdamW's first and
+second moments of each parameter), `optim.steps` (updates taken),
+`next_step` (the next step to train) and `next_batch` (the next batch of
+the stream: next_step times the processes that trained; absent in
+`matseg train`'s, which trains one batch a step)."""
+
+import os
+
+import numpy as np
+import torch
+
+from . import net as netlib
+from . import safetensors
+
+CHECKPOINT_FILE = netlib.CONSTANTS["checkpoint_file"]
+
+
+def write(folder, net, optimizer, updates, next_step, next_batch):
+    """Writes `folder/checkpoint.safetensors` (through a temporary file)."""
+    tensors = {f"model.{k}": v for k, v in netlib.state_arrays(net).items()}
+    for name, p in net.named_parameters():
+        state = optimizer.state.get(p, {})
+        for key, moment in (("m", "exp_avg"), ("v", "exp_avg_sq")):
+            t = state.get(moment)
+            value = np.zeros(tuple(p.shape), np.float32) if t is None else t.detach().to("cpu", torch.float32).numpy()
+            tensors[f"optim.{key}.{name}"] = value
+    tensors["optim.steps"] = np.array([updates], np.int64)
+    tensors["next_step"] = np.array([next_step], np.int64)
+    tensors["next_batch"] = np.array([next_batch], np.int64)
+    safetensors.write(os.path.join(folder, CHECKPOINT_FILE), tensors)
+
+
+def read(folder, net, optimizer):
+    """Loads `folder/checkpoint.safetensors` into `net` and the AdamW
+    `optimizer` over its parameters; returns (updates, next_step,
+    next_batch). Errors name the file and what is missing or misshapen."""
+    path = os.path.join(folder, CHECKPOINT_FILE)
+    if not os.path.isfile(path):
+        raise FileNotFoundError(f"{path}: no such file: the run has no checkpoint to resume from")
+    tensors, _ = safetensors.read(path)
+
+    def scalar(key):
+        if key not in tensors or tensors[key].size != 1:
+            raise ValueError(f"{path}: no {key}")
+        return int(tensors[key].reshape(-1)[0])
+
+    updates, next_step = scalar("optim.steps"), scalar("next_step")
+    next_batch = scalar("next_batch") if "next_batch" in tensors else next_step
+    netlib.load_arrays(net, {k[len("model."):]: v for k, v in tensors.items() if k.startswith("model.")}, path)
+    for name, p in net.named_parameters():
+        moments = {}
+        for key, moment in (("m", "exp_avg"), ("v", "exp_avg_sq")):
+            value = tensors.get(f"optim.{key}.{name}")
+            if value is None:
+                raise ValueError(f"{path}: optimizer state has no {key}.{name}")
+            if tuple(value.shape) != tuple(p.shape):
+                raise ValueError(f"{path}: optimizer state {key}.{name} is {tuple(value.shape)}, "
+                                 f"the net's {tuple(p.shape)}")
+            moments[moment] = torch.from_numpy(value).to(p.device, torch.float32)
+        optimizer.state[p] = {"step": torch.tensor(float(updates), dtype=torch.float32), **moments}
+    return updates, next_step, next_batch
