@@ -32,6 +32,7 @@ from .torch import BatchStream
 
 DEFAULTS = _core.train_defaults()
 METRICS_FILE = netlib.CONSTANTS["metrics_file"]
+PLOT_FILE = netlib.CONSTANTS["plot_file"]
 
 
 def parse_args(argv):
@@ -54,7 +55,10 @@ def parse_args(argv):
     p.add_argument("--max-side", type=int, help="largest batch side (multiple of 32)")
     p.add_argument("--min-side", type=int, help="smallest batch side (multiple of 32)")
     p.add_argument("--batch-pixels", type=int, help="pixels per batch to aim at")
-    p.add_argument("--checkpoint-every", type=int, default=DEFAULTS["checkpoint_every"])
+    p.add_argument("--checkpoint-every", type=int, default=DEFAULTS["checkpoint_every"],
+                   help="steps between checkpoints and validations")
+    p.add_argument("--validation-batches", type=int, default=DEFAULTS["validation_batches"],
+                   help="held-out generated batches per validation (0: none)")
     p.add_argument("--workers", type=int, default=2, help="DataLoader workers per process")
     p.add_argument("--device", default="cpu", help="cpu or cuda")
     args = p.parse_args(argv)
@@ -112,7 +116,7 @@ def new_run(args):
         "lr": args.lr if args.lr is not None else DEFAULTS["lr_pretrained" if pretrained else "lr_scratch"],
         "warmup": args.warmup, "decay": args.decay, "weight_decay": DEFAULTS["weight_decay"],
         "plan": json.loads(plan.to_json()), "seed": args.seed,
-        "checkpoint_every": args.checkpoint_every, "validation_batches": 0,
+        "checkpoint_every": args.checkpoint_every, "validation_batches": args.validation_batches,
         "lr_scales": carried.pop("lr_scales"),
     }
     run = {"net": net.config, "options": options, "init": args.init,
@@ -140,6 +144,31 @@ def batch_source(run, args):
     return Generator("2d", args.sources, textures=args.textures, seed=run["options"]["seed"])
 
 
+def held_out_batches(run, args):
+    """matseg train's validation batches: `validation_batches` batches of
+    2D scenes from a generator and a batch stream of their own seeds."""
+    options = run["options"]
+    count = options.get("validation_batches", 0)
+    if count == 0:
+        return []
+    seed = options["seed"]
+    scenes = Generator("2d", args.sources, textures=args.textures, seed=seed ^ DEFAULTS["validation_generator_seed"])
+    stream = BatchStream(scenes, BatchPlan(**options["plan"]), seed ^ DEFAULTS["validation_seed"])
+    return [stream.batch(i) for i in range(count)]
+
+
+def validation_loss(net, batches, device):
+    """The mean loss of `net` in inference mode over the batches that have
+    two materials or more (None when none has)."""
+    net.eval()
+    with torch.no_grad():
+        losses = [netlib.matseg_loss(net(b["images"].to(device)), b["weights"].to(device), b["roi"].to(device))
+                  for b in batches]
+    net.train()
+    losses = [float(l) for l in losses if l is not None]
+    return sum(losses) / len(losses) if losses else None
+
+
 def open_metrics(folder, next_step):
     """metrics.jsonl of `folder` holding the lines of the steps before
     `next_step` (those a resumed run keeps), open for appending."""
@@ -156,9 +185,11 @@ def open_metrics(folder, next_step):
 
 
 def save_run(folder, net, run, optimizer, updates, next_step, next_batch):
-    """model.safetensors, run.json and checkpoint.safetensors of `folder`."""
+    """model.safetensors, run.json, checkpoint.safetensors and the loss
+    curve of `folder`."""
     netlib.save(net, run, folder)
     checkpoint.write(folder, net, optimizer, updates, next_step, next_batch)
+    _core.plot_losses(os.path.join(folder, METRICS_FILE), os.path.join(folder, PLOT_FILE))
 
 
 def main(argv=None):
@@ -198,10 +229,11 @@ def main(argv=None):
     loader = DataLoader(BatchStream(batch_source(run, args), plan, options["seed"], first_step=first_batch),
                         batch_size=None, num_workers=args.workers, persistent_workers=args.workers > 0)
 
-    metrics = None
+    metrics, held_out = None, []
     if rank == 0:
         os.makedirs(folder, exist_ok=True)
         metrics = open_metrics(folder, first_step)
+        held_out = held_out_batches(run, args)
     schedule = _core.lr_schedule(json.dumps(options))
     steps = options["steps"]
     started, images = time.perf_counter(), 0
@@ -230,17 +262,20 @@ def main(argv=None):
         loss_value = None if skipped else float(loss.detach())
         if device.type == "cuda":
             torch.cuda.synchronize(device)
+        step_seconds = time.perf_counter() - step_started
         images += x.shape[0]
+        done = step + 1
+        at_checkpoint = done % options["checkpoint_every"] == 0 or done == steps
         if metrics is not None:
             # matseg train's fields (StepMetrics), and the batch's index in the stream.
             record = {"step": step, "loss": loss_value, "lr": lr, "images": x.shape[0],
-                      "width": x.shape[3], "height": x.shape[2],
-                      "seconds": time.perf_counter() - step_started, "data_seconds": data_seconds,
-                      "batch": batch["step"]}
+                      "width": x.shape[3], "height": x.shape[2], "seconds": step_seconds,
+                      "data_seconds": data_seconds, "batch": batch["step"]}
+            if at_checkpoint and held_out:
+                record["validation"] = validation_loss(net, held_out, device)
             metrics.write(json.dumps(record) + "\n")
             metrics.flush()
-        done = step + 1
-        if rank == 0 and done % options["checkpoint_every"] == 0 and done < steps:
+        if rank == 0 and at_checkpoint and done < steps:
             save_run(folder, net, run, optimizer, updates, done, first_batch + world * (done - first_step))
     seconds = time.perf_counter() - started
 

@@ -59,6 +59,7 @@ pub fn net_constants(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("run_file", matseg_net::train::RUN_FILE)?;
     d.set_item("checkpoint_file", matseg_net::train::CHECKPOINT_FILE)?;
     d.set_item("metrics_file", matseg_net::train::METRICS_FILE)?;
+    d.set_item("plot_file", matseg_net::train::PLOT_FILE)?;
     Ok(d)
 }
 
@@ -85,10 +86,13 @@ pub fn net_preset(name: &str, encoder_features: bool, colour_features: bool) -> 
 #[pyfunction]
 pub fn train_defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     use matseg_net::optim::AdamWConfig;
-    use matseg_net::train::{LR_PRETRAINED, LR_SCRATCH, WARMUP_STEPS};
-    use matseg_pipeline::train::TrainConfig;
+    use matseg_net::train::{LR_PRETRAINED, LR_SCRATCH, VALIDATION_SEED, WARMUP_STEPS};
+    use matseg_pipeline::train::{TrainConfig, VALIDATION_GENERATOR_SEED};
     let adamw = AdamWConfig::default();
     let d = PyDict::new(py);
+    d.set_item("validation_batches", TrainConfig::VALIDATION_BATCHES)?;
+    d.set_item("validation_seed", VALIDATION_SEED)?;
+    d.set_item("validation_generator_seed", VALIDATION_GENERATOR_SEED)?;
     d.set_item("betas", (adamw.beta1, adamw.beta2))?;
     d.set_item("eps", adamw.eps)?;
     d.set_item("lr_pretrained", LR_PRETRAINED)?;
@@ -108,6 +112,14 @@ pub fn lr_schedule(options: &str) -> PyResult<Vec<f64>> {
     let options: matseg_net::train::TrainOptions = serde_json::from_str(options)
         .map_err(|e| PyValueError::new_err(format!("training options: {e}")))?;
     Ok((0..options.steps).map(|s| options.lr_at(s)).collect())
+}
+
+/// Draws a run's loss curve (`matseg train`'s `loss.png`) from its
+/// `metrics.jsonl` into `png` (atomically).
+#[pyfunction]
+pub fn plot_losses(metrics: PathBuf, png: PathBuf) -> PyResult<()> {
+    let history = matseg_net::train::read_metrics(&metrics, u64::MAX);
+    matseg_net::plot::plot_losses(&history, &png).map_err(matseg_error)
 }
 
 /// A loaded net (on the CPU).

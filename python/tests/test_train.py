@@ -14,8 +14,10 @@ from PIL import Image
 from conftest import ROOT, run
 from matseg import train
 
-# Small online batches; a checkpoint every 2 steps.
-SMALL = ["--min-side", 64, "--max-side", 96, "--batch-pixels", 2 * 96 * 96, "--seed", 4, "--checkpoint-every", 2]
+# Small online batches; a checkpoint and a validation on one held-out
+# batch every 2 steps.
+SMALL = ["--min-side", 64, "--max-side", 96, "--batch-pixels", 2 * 96 * 96, "--seed", 4, "--checkpoint-every", 2,
+         "--validation-batches", 1]
 TORCHRUN = os.path.join(os.path.dirname(sys.executable), "torchrun")
 
 
@@ -54,6 +56,9 @@ def test_two_process_ddp_training_keeps_ranks_identical_and_matseg_segment_loads
     for m in steps:
         assert m["images"] >= 1 and m["width"] in (64, 96) and m["height"] in (64, 96)
         assert 0.0 <= m["data_seconds"] <= m["seconds"]
+    # A validation at the checkpoint (the last step), and the loss curve.
+    assert "validation" not in steps[0] and 0.0 < steps[1]["validation"] < 10.0
+    assert Image.open(out / "loss.png").size == (640, 360)
     run_json = json.loads((out / "run.json").read_text())
     assert run_json["options"]["steps"] == 2 and run_json["init"] == "default"
     seg = tmp_path / "seg"
@@ -87,7 +92,7 @@ def test_a_run_resumed_from_its_checkpoint_ends_with_the_same_weights(tmp_path):
 def test_each_trainer_resumes_the_others_runs(tmp_path, matseg_bin):
     # The same net, batches, optimizer state and learning rate: the step
     # after the checkpoint has the loss the other trainer's own run had.
-    rust = ["train", "--online", "--validation-batches", 0, "--encoder-features", "--colour-features",
+    rust = ["train", "--online", "--encoder-features", "--colour-features",
             "--init", ROOT / "models" / "default" / "model.safetensors", *SMALL]
     py_straight, py_then_rust = tmp_path / "py3", tmp_path / "py2"
     python_train("--out", py_straight, "--steps", 3, "--workers", 0, *SMALL)
@@ -103,6 +108,9 @@ def test_each_trainer_resumes_the_others_runs(tmp_path, matseg_bin):
     python_train("--resume", rust_then_py, "--workers", 0)
     assert [m["step"] for m in metrics(rust_then_py)] == [0, 1, 2]
     assert metrics(rust_then_py)[2]["loss"] == pytest.approx(metrics(rust_straight)[2]["loss"], rel=1e-5)
+    # The held-out batch is matseg train's: the same loss on it after the
+    # last step (weights one PyTorch step apart from the Rust run's).
+    assert metrics(rust_then_py)[2]["validation"] == pytest.approx(metrics(rust_straight)[2]["validation"], rel=1e-4)
 
 
 def test_run_folders_are_checked_before_training(tmp_path):

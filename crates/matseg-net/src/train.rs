@@ -90,7 +90,7 @@ pub const LR_SCRATCH: f64 = 1e-4;
 /// Default warm-up steps.
 pub const WARMUP_STEPS: u64 = 100;
 /// Validation batches are drawn from this seed offset, disjoint from training.
-const VALIDATION_SEED: u64 = 0x7661_6c69_6461_7465;
+pub const VALIDATION_SEED: u64 = 0x7661_6c69_6461_7465;
 
 /// What `run.json` holds.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -469,8 +469,9 @@ pub fn run(
     })
 }
 
-/// The metrics of steps before `next_step` from an earlier run's log.
-fn read_metrics(path: &Path, next_step: u64) -> Vec<StepMetrics> {
+/// The metrics of steps before `next_step` from a run's log (lines that
+/// do not parse are left out).
+pub fn read_metrics(path: &Path, next_step: u64) -> Vec<StepMetrics> {
     std::fs::read_to_string(path)
         .unwrap_or_default()
         .lines()

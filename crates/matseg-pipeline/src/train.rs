@@ -193,7 +193,7 @@ const ONLINE: &str = "online";
 
 /// Validation scenes come from the generator under this seed offset, apart
 /// from the online training scenes.
-const VALIDATION_GENERATOR_SEED: u64 = 0x5eed;
+pub const VALIDATION_GENERATOR_SEED: u64 = 0x5eed;
 
 /// A run being trained: its folder and its net, optimiser and step.
 pub struct TrainingRun {
