@@ -98,7 +98,8 @@ train_part() {
         read -r name steps sizes <<<"$setting"
         # shellcheck disable=SC2206
         local size_args=($sizes)
-        local common=(--steps "$steps" --device "$DEVICE" --checkpoint-every "$steps" "${size_args[@]}")
+        local common=(--steps "$steps" --device "$DEVICE" --checkpoint-every "$steps" --validation-batches 0
+            "${size_args[@]}")
         echo "== $name, $steps steps"
         train_run "python -m matseg.train, 1 process, $LOADERS workers" "$work/py" \
             "$PY" -m matseg.train --out "$work/py" --workers "$LOADERS" "${common[@]}"
@@ -113,7 +114,7 @@ train_part() {
         train_run "matseg train --online, $LOADERS loader threads" "$work/rs" \
             "$MATSEG" train --online --out "$work/rs" --init models/default/model.safetensors \
             --encoder-features --colour-features --lr-scale encoder.=0.1 --lr-scale colour.=100 \
-            --validation-batches 0 --loader-threads "$LOADERS" "${common[@]}"
+            --loader-threads "$LOADERS" "${common[@]}"
     done
 }
 

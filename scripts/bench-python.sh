@@ -35,7 +35,8 @@ ray_rate() {
 train_rate() {
     local procs=$1 out="$work/run"
     rm -rf "$out"
-    local args=(--out "$out" --steps "$STEPS" --min-side 224 --max-side 224 --batch-pixels $((2 * 224 * 224)) --workers 1)
+    local args=(--out "$out" --steps "$STEPS" --min-side 224 --max-side 224 --batch-pixels $((2 * 224 * 224)) --workers 1
+        --validation-batches 0)
     if [ "$procs" = 1 ]; then
         OMP_NUM_THREADS=2 "$PY" -m matseg.train "${args[@]}" 2>/dev/null
     else
