@@ -103,11 +103,20 @@ def batch_arrays(items):
     return {"images": images, "weights": weights, "roi": roi}
 
 
-def native_batch(native, step, plan, seed):
+def native_batch(native, step, plan, seed, mix):
     """Batch `step` of a native generator or dataset under `plan` (None:
-    the paper's) and `seed`, as `batch_arrays`."""
+    the paper's) and `seed`, with `mix` (None, or (Dataset, fraction): that
+    share of the samples taken from the dataset, as `matseg train
+    --mix-data`), as `batch_arrays`."""
     plan = plan or BatchPlan.default()
-    return batch_arrays(native.batch(plan.to_json(), int(seed), int(step)))
+    if mix is not None:
+        other, fraction = mix
+        if not isinstance(other, Dataset):
+            raise TypeError(f"mix: expected (matseg.Dataset, fraction), got {type(other).__name__}")
+        if not 0.0 <= fraction <= 1.0:
+            raise ValueError(f"mix fraction {fraction} is not in 0..1")
+        mix = (other._native, float(fraction))
+    return batch_arrays(native.batch(plan.to_json(), int(seed), int(step), mix))
 
 
 class Generator:
@@ -181,9 +190,10 @@ class Generator:
             os.fspath(out), self.samples, format, int(shard_size), int(num_shards), int(shard_index))
         return {"generated": generated, "skipped": skipped, "bytes": size}
 
-    def batch(self, step, plan=None, seed=0):
-        """Training batch `step` of online 2D scenes (see `batch_arrays`)."""
-        return native_batch(self._native, step, plan, seed)
+    def batch(self, step, plan=None, seed=0, mix=None):
+        """Training batch `step` of online 2D scenes (see `batch_arrays`;
+        `mix`: `native_batch`)."""
+        return native_batch(self._native, step, plan, seed, mix)
 
     def __getstate__(self):
         return {"args": self._args, "samples": self.samples}
@@ -218,9 +228,10 @@ class Dataset:
         """Sample i's folder name or shard key."""
         return self._native.key(_index(i, len(self), self.root))
 
-    def batch(self, step, plan=None, seed=0):
-        """Training batch `step` drawn from the dataset (see `batch_arrays`)."""
-        return native_batch(self._native, step, plan, seed)
+    def batch(self, step, plan=None, seed=0, mix=None):
+        """Training batch `step` drawn from the dataset (see `batch_arrays`;
+        `mix`: `native_batch`)."""
+        return native_batch(self._native, step, plan, seed, mix)
 
     def __getstate__(self):
         return {"root": self.root}

@@ -76,17 +76,18 @@ class BatchStream(IterableDataset):
     """Training batches as `matseg train` draws them (`BatchPlan`: one
     random size per batch, samples fitted and augmented; batch `s` depends
     only on (seed, s)), steps first_step..first_step+steps split across
-    workers and ranks. A batch: images Bx3xHxW float32 (normalised, the
-    net's input), weights BxKxHxW, roi BxHxW, step."""
+    workers and ranks; `mix`: (Dataset, fraction) mixed into the source's
+    samples, as `matseg train --mix-data`. A batch: images Bx3xHxW float32
+    (normalised, the net's input), weights BxKxHxW, roi BxHxW, step."""
 
-    def __init__(self, source, plan=None, seed=0, steps=None, first_step=0):
-        self.source, self.plan, self.seed = source, plan or BatchPlan.default(), seed
+    def __init__(self, source, plan=None, seed=0, steps=None, first_step=0, mix=None):
+        self.source, self.plan, self.seed, self.mix = source, plan or BatchPlan.default(), seed, mix
         self.first_step = first_step
         self.stop = None if steps is None else first_step + steps
 
     def batch(self, step):
         """Batch `step` as tensors."""
-        b = self.source.batch(step, self.plan, self.seed)
+        b = self.source.batch(step, self.plan, self.seed, self.mix)
         return {
             "images": normalise(torch.from_numpy(b["images"]).float()),
             "weights": torch.from_numpy(b["weights"]),

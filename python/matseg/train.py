@@ -42,6 +42,10 @@ def parse_args(argv):
                    help="continue RUN from its last checkpoint, with its own settings (a run of "
                         "python -m matseg.train or matseg train)")
     p.add_argument("--data", help="stored dataset (folders or shards); default: online 2D scenes")
+    p.add_argument("--mix-data", metavar="DIR",
+                   help="a stored dataset (e.g. matseg generate --kind 3d renders) mixed into the training data")
+    p.add_argument("--mix-fraction", type=float, default=DEFAULTS["mix_fraction"],
+                   help="the share of samples taken from --mix-data")
     p.add_argument("--sources", nargs="+", help="photo folders of the online scenes (default: corpus, else bundled)")
     p.add_argument("--textures", nargs="+", help="texture folders of the online scenes")
     p.add_argument("--init", default="default",
@@ -121,6 +125,10 @@ def new_run(args):
     }
     run = {"net": net.config, "options": options, "init": args.init,
            "data": os.path.abspath(args.data) if args.data else "online", **carried}
+    if args.mix_data:
+        if not 0.0 <= args.mix_fraction <= 1.0:
+            raise SystemExit(f"--mix-fraction {args.mix_fraction}: not in 0..1")
+        run["mix"] = {"data": os.path.abspath(args.mix_data), "fraction": args.mix_fraction}
     return net, run
 
 
@@ -131,17 +139,20 @@ def resumed_run(folder):
         raise SystemExit(f"{path}: no such file: not a run folder")
     with open(path) as f:
         run = json.load(f)
-    if "mix" in run:
-        raise SystemExit(f"{path}: a run with a mixed-in dataset (mix) resumes with matseg train --resume")
     return netlib.MaterialNet(run["net"]), run
 
 
-def batch_source(run, args):
-    """Where the run's batches come from: its stored dataset, or online 2D
-    scenes from the run's seed (and --sources/--textures)."""
+def batch_stream(run, args, first_batch):
+    """The run's batches from `first_batch` on: from its stored dataset or
+    online 2D scenes of the run's seed (and --sources/--textures), with its
+    mixed-in dataset."""
+    options = run["options"]
     if run["data"] != "online":
-        return Dataset(run["data"])
-    return Generator("2d", args.sources, textures=args.textures, seed=run["options"]["seed"])
+        source = Dataset(run["data"])
+    else:
+        source = Generator("2d", args.sources, textures=args.textures, seed=options["seed"])
+    mix = (Dataset(run["mix"]["data"]), run["mix"]["fraction"]) if "mix" in run else None
+    return BatchStream(source, BatchPlan(**options["plan"]), options["seed"], first_step=first_batch, mix=mix)
 
 
 def held_out_batches(run, args):
@@ -225,9 +236,8 @@ def main(argv=None):
         return
     net.train()
     model = DistributedDataParallel(net, device_ids=[local] if device.type == "cuda" else None) if world > 1 else net
-    plan = BatchPlan(**options["plan"])
-    loader = DataLoader(BatchStream(batch_source(run, args), plan, options["seed"], first_step=first_batch),
-                        batch_size=None, num_workers=args.workers, persistent_workers=args.workers > 0)
+    loader = DataLoader(batch_stream(run, args, first_batch), batch_size=None, num_workers=args.workers,
+                        persistent_workers=args.workers > 0)
 
     metrics, held_out = None, []
     if rank == 0:

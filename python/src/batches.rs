@@ -1,9 +1,10 @@
 //! Training batches as `matseg train` draws them (the batch plan: one
 //! random size per batch, samples fitted and augmented), for PyTorch.
 
+use crate::dataset::PyDataset;
 use crate::errors::matseg_error;
 use crate::samples::f32_bytes;
-use matseg_net::data::{batch_samples, BatchPlan, SampleSource};
+use matseg_net::data::{batch_samples, BatchPlan, MixedSource, SampleSource};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
@@ -14,12 +15,17 @@ pub fn default_plan() -> String {
     serde_json::to_string(&BatchPlan::SPEC).expect("a plan serialises")
 }
 
-/// Batch `step` of `source` under `plan` (JSON) and `seed`: a list of
-/// `{"width", "height", "image": RGB bytes, "weights": [f32 bytes],
-/// "roi": f32 bytes}`, all images of one size.
+/// A stored dataset mixed into a batch source and the share of samples
+/// taken from it (`matseg train --mix-data`, `--mix-fraction`).
+pub type Mix<'py> = Option<(PyRef<'py, PyDataset>, f64)>;
+
+/// Batch `step` of `source` (with `mix`) under `plan` (JSON) and `seed`: a
+/// list of `{"width", "height", "image": RGB bytes, "weights": [f32
+/// bytes], "roi": f32 bytes}`, all images of one size.
 pub fn batch_list<'py>(
     py: Python<'py>,
     source: &dyn SampleSource,
+    mix: Mix<'_>,
     plan: &str,
     seed: u64,
     step: u64,
@@ -28,6 +34,23 @@ pub fn batch_list<'py>(
         .map_err(|e| PyValueError::new_err(format!("batch plan: {e}")))?;
     plan.validate()
         .map_err(|e| PyValueError::new_err(format!("batch plan: {e}")))?;
+    let mixed = match &mix {
+        Some((_, fraction)) if !(0.0..=1.0).contains(fraction) => {
+            return Err(PyValueError::new_err(format!(
+                "mix fraction {fraction} is not in 0..1"
+            )))
+        }
+        Some((other, fraction)) => Some(MixedSource {
+            main: source,
+            other: other.source(),
+            fraction: *fraction,
+        }),
+        None => None,
+    };
+    let source: &dyn SampleSource = match &mixed {
+        Some(mixed) => mixed,
+        None => source,
+    };
     let samples = py
         .detach(|| batch_samples(source, &plan, seed, step))
         .map_err(matseg_error)?;

@@ -1,7 +1,7 @@
 //! `matseg.Dataset`: random access to stored samples (MatSeg folders or
 //! WebDataset shards).
 
-use crate::batches::batch_list;
+use crate::batches::{batch_list, Mix};
 use crate::errors::matseg_error;
 use crate::samples::sample_dict;
 use matseg_data::Dataset;
@@ -19,6 +19,11 @@ pub struct PyDataset {
 }
 
 impl PyDataset {
+    /// The dataset as training samples.
+    pub fn source(&self) -> &DatasetSource {
+        &self.source
+    }
+
     fn check(&self, index: usize) -> PyResult<()> {
         let n = self.source.0.len();
         if index >= n {
@@ -62,14 +67,17 @@ impl PyDataset {
         sample_dict(py, &sample)
     }
 
-    /// Training batch `step` drawn from the dataset under `plan` (JSON).
+    /// Training batch `step` drawn from the dataset (with `mix`, another
+    /// dataset mixed in) under `plan` (JSON).
+    #[pyo3(signature = (plan, seed, step, mix=None))]
     fn batch<'py>(
         &self,
         py: Python<'py>,
         plan: &str,
         seed: u64,
         step: u64,
+        mix: Mix<'_>,
     ) -> PyResult<Bound<'py, PyList>> {
-        batch_list(py, &self.source, plan, seed, step)
+        batch_list(py, &self.source, mix, plan, seed, step)
     }
 }

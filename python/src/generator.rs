@@ -1,7 +1,7 @@
 //! `matseg.Generator`: sample `i` of a 2D or 3D dataset made in memory,
 //! exactly as `matseg generate` with the same seed and sources writes it.
 
-use crate::batches::batch_list;
+use crate::batches::{batch_list, Mix};
 use crate::errors::matseg_error;
 use crate::samples::sample_dict;
 use matseg_data::{
@@ -179,14 +179,17 @@ impl PyGenerator {
         Ok(d)
     }
 
-    /// Training batch `step` of online 2D scenes under `plan` (JSON), as
-    /// `matseg train` draws them from this generator.
+    /// Training batch `step` of online 2D scenes (with `mix`, a dataset
+    /// mixed in) under `plan` (JSON), as `matseg train` draws them from
+    /// this generator.
+    #[pyo3(signature = (plan, seed, step, mix=None))]
     fn batch<'py>(
         &self,
         py: Python<'py>,
         plan: &str,
         seed: u64,
         step: u64,
+        mix: Mix<'_>,
     ) -> PyResult<Bound<'py, PyList>> {
         let Scenes::TwoD { libraries, recipe } = &self.scenes else {
             return Err(PyValueError::new_err(
@@ -198,7 +201,7 @@ impl PyGenerator {
             recipe: recipe.clone(),
             seed: self.seed,
         };
-        batch_list(py, &source, plan, seed, step)
+        batch_list(py, &source, mix, plan, seed, step)
     }
 
     /// Writes job `shard_index` of `num_shards` of the `n`-sample dataset

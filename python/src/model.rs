@@ -91,6 +91,7 @@ pub fn train_defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     let adamw = AdamWConfig::default();
     let d = PyDict::new(py);
     d.set_item("validation_batches", TrainConfig::VALIDATION_BATCHES)?;
+    d.set_item("mix_fraction", TrainConfig::MIX_FRACTION)?;
     d.set_item("validation_seed", VALIDATION_SEED)?;
     d.set_item("validation_generator_seed", VALIDATION_GENERATOR_SEED)?;
     d.set_item("betas", (adamw.beta1, adamw.beta2))?;

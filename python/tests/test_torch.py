@@ -1,5 +1,6 @@
 """matseg.torch: samples and batches split across workers and ranks."""
 
+import numpy as np
 import pytest
 import torch
 from torch.utils.data import DataLoader
@@ -70,6 +71,23 @@ def test_batches_follow_the_plan_and_are_reproducible():
         assert set(b["roi"].unique().tolist()) <= {0.0, 1.0}
         again = stream.batch(step)
         assert torch.equal(again["images"], b["images"]) and torch.equal(again["weights"], b["weights"])
+
+
+def test_a_mixed_in_dataset_takes_its_share_of_the_samples(folders_2d):
+    gen, ds = matseg.Generator("2d", seed=1), matseg.Dataset(folders_2d)
+    for step in range(3):
+        # None of the samples from the dataset: the generator's own batch;
+        # all of them, into the dataset itself: the dataset's own batch.
+        alone, none_mixed = gen.batch(step, PLAN, 3), gen.batch(step, PLAN, 3, mix=(ds, 0.0))
+        assert all(np.array_equal(alone[k], none_mixed[k]) for k in alone)
+        own, all_mixed = ds.batch(step, PLAN, 3), ds.batch(step, PLAN, 3, mix=(ds, 1.0))
+        assert all(np.array_equal(own[k], all_mixed[k]) for k in own)
+    streamed = mt.BatchStream(gen, PLAN, seed=3, mix=(ds, 0.0)).batch(1)
+    assert torch.equal(streamed["images"], mt.BatchStream(gen, PLAN, seed=3).batch(1)["images"])
+    with pytest.raises(ValueError, match="mix fraction 1.5 is not in 0..1"):
+        gen.batch(0, PLAN, 3, mix=(ds, 1.5))
+    with pytest.raises(TypeError, match="matseg.Dataset"):
+        gen.batch(0, PLAN, 3, mix=(gen, 0.5))
 
 
 def test_stored_datasets_give_batches_too(folders_2d):

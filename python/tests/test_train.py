@@ -89,9 +89,10 @@ def test_a_run_resumed_from_its_checkpoint_ends_with_the_same_weights(tmp_path):
     assert (resumed / "model.safetensors").read_bytes() == (straight / "model.safetensors").read_bytes()
 
 
-def test_each_trainer_resumes_the_others_runs(tmp_path, matseg_bin):
+def test_each_trainer_resumes_the_others_runs(tmp_path, matseg_bin, folders_2d):
     # The same net, batches, optimizer state and learning rate: the step
     # after the checkpoint has the loss the other trainer's own run had.
+    # The Rust runs mix stored samples into the online ones.
     rust = ["train", "--online", "--encoder-features", "--colour-features",
             "--init", ROOT / "models" / "default" / "model.safetensors", *SMALL]
     py_straight, py_then_rust = tmp_path / "py3", tmp_path / "py2"
@@ -102,8 +103,9 @@ def test_each_trainer_resumes_the_others_runs(tmp_path, matseg_bin):
     assert metrics(py_then_rust)[2]["loss"] == pytest.approx(metrics(py_straight)[2]["loss"], rel=1e-5)
 
     rust_straight, rust_then_py = tmp_path / "rust3", tmp_path / "rust2"
-    run([matseg_bin, *rust, "--out", rust_straight, "--steps", 3])
-    run([matseg_bin, *rust, "--out", rust_then_py, "--steps", 2])
+    mixed = ["--mix-data", folders_2d, "--mix-fraction", 0.5]
+    run([matseg_bin, *rust, *mixed, "--out", rust_straight, "--steps", 3])
+    run([matseg_bin, *rust, *mixed, "--out", rust_then_py, "--steps", 2])
     extend(rust_then_py, 3)
     python_train("--resume", rust_then_py, "--workers", 0)
     assert [m["step"] for m in metrics(rust_then_py)] == [0, 1, 2]
