@@ -17,6 +17,7 @@ import argparse
 import hashlib
 import json
 import os
+import shutil
 import sys
 import time
 
@@ -33,6 +34,7 @@ from .torch import BatchStream
 DEFAULTS = _core.train_defaults()
 METRICS_FILE = netlib.CONSTANTS["metrics_file"]
 PLOT_FILE = netlib.CONSTANTS["plot_file"]
+BEST_MODEL_FILE = netlib.CONSTANTS["best_model_file"]
 
 
 def parse_args(argv):
@@ -63,6 +65,11 @@ def parse_args(argv):
                    help="steps between checkpoints and validations")
     p.add_argument("--validation-batches", type=int, default=DEFAULTS["validation_batches"],
                    help="held-out generated batches per validation (0: none)")
+    p.add_argument("--val-points", metavar="BENCH",
+                   help="a point benchmark (MatSeg layout) to score each checkpoint on (val_points in the "
+                        "metrics; the best checkpoint's weights in best.safetensors); also with --resume")
+    p.add_argument("--val-max-side", type=int, default=DEFAULTS["val_max_side"],
+                   help="longer side of the --val-points photos, in pixels (0: as they are)")
     p.add_argument("--workers", type=int, default=2, help="DataLoader workers per process")
     p.add_argument("--device", default="cpu", help="cpu or cuda")
     args = p.parse_args(argv)
@@ -195,12 +202,11 @@ def open_metrics(folder, next_step):
     return open(path, "a")
 
 
-def save_run(folder, net, run, optimizer, updates, next_step, next_batch):
-    """model.safetensors, run.json, checkpoint.safetensors and the loss
-    curve of `folder`."""
-    netlib.save(net, run, folder)
-    checkpoint.write(folder, net, optimizer, updates, next_step, next_batch)
-    _core.plot_losses(os.path.join(folder, METRICS_FILE), os.path.join(folder, PLOT_FILE))
+def best_score(folder):
+    """The best val_points in the metrics of `folder` so far (-inf: none)."""
+    with open(os.path.join(folder, METRICS_FILE)) as f:
+        scores = [json.loads(line).get("val_points") for line in f if line.strip()]
+    return max((v for v in scores if v is not None), default=float("-inf"))
 
 
 def main(argv=None):
@@ -239,10 +245,11 @@ def main(argv=None):
     loader = DataLoader(batch_stream(run, args, first_batch), batch_size=None, num_workers=args.workers,
                         persistent_workers=args.workers > 0)
 
-    metrics, held_out = None, []
+    metrics, held_out, best = None, [], float("-inf")
     if rank == 0:
         os.makedirs(folder, exist_ok=True)
         metrics = open_metrics(folder, first_step)
+        best = best_score(folder)
         held_out = held_out_batches(run, args)
     schedule = _core.lr_schedule(json.dumps(options))
     steps = options["steps"]
@@ -276,17 +283,28 @@ def main(argv=None):
         images += x.shape[0]
         done = step + 1
         at_checkpoint = done % options["checkpoint_every"] == 0 or done == steps
-        if metrics is not None:
+        if rank == 0:
             # matseg train's fields (StepMetrics), and the batch's index in the stream.
             record = {"step": step, "loss": loss_value, "lr": lr, "images": x.shape[0],
                       "width": x.shape[3], "height": x.shape[2], "seconds": step_seconds,
                       "data_seconds": data_seconds, "batch": batch["step"]}
-            if at_checkpoint and held_out:
-                record["validation"] = validation_loss(net, held_out, device)
+            if at_checkpoint:
+                # The weights first: the point benchmark scores the saved run.
+                netlib.save(net, run, folder)
+                if held_out:
+                    record["validation"] = validation_loss(net, held_out, device)
+                if args.val_points:
+                    record["val_points"] = _core.score_points(folder, args.val_points, args.val_max_side)
             metrics.write(json.dumps(record) + "\n")
             metrics.flush()
-        if rank == 0 and at_checkpoint and done < steps:
-            save_run(folder, net, run, optimizer, updates, done, first_batch + world * (done - first_step))
+            if at_checkpoint:
+                checkpoint.write(folder, net, optimizer, updates, done, first_batch + world * (done - first_step))
+                if record.get("val_points", float("-inf")) > best:
+                    best = record["val_points"]
+                    best_path = os.path.join(folder, BEST_MODEL_FILE)
+                    shutil.copyfile(os.path.join(folder, netlib.MODEL_FILE), f"{best_path}.{os.getpid()}.tmp")
+                    os.replace(f"{best_path}.{os.getpid()}.tmp", best_path)
+                _core.plot_losses(os.path.join(folder, METRICS_FILE), os.path.join(folder, PLOT_FILE))
     seconds = time.perf_counter() - started
 
     if world > 1:
@@ -300,7 +318,6 @@ def main(argv=None):
     print(f"rank {rank}: weights sha256 {state_digest(net)}", flush=True)
     if rank == 0:
         trained = steps - first_step
-        save_run(folder, net.eval(), run, optimizer, updates, steps, first_batch + world * trained)
         metrics.close()
         print(f"{folder}: {trained} steps x {world} process(es), {images} images in {seconds:.1f} s "
               f"({images / max(seconds, 1e-9):.2f} images/s)", flush=True)

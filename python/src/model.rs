@@ -60,6 +60,7 @@ pub fn net_constants(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("checkpoint_file", matseg_net::train::CHECKPOINT_FILE)?;
     d.set_item("metrics_file", matseg_net::train::METRICS_FILE)?;
     d.set_item("plot_file", matseg_net::train::PLOT_FILE)?;
+    d.set_item("best_model_file", matseg_net::train::BEST_MODEL_FILE)?;
     Ok(d)
 }
 
@@ -92,6 +93,7 @@ pub fn train_defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     let d = PyDict::new(py);
     d.set_item("validation_batches", TrainConfig::VALIDATION_BATCHES)?;
     d.set_item("mix_fraction", TrainConfig::MIX_FRACTION)?;
+    d.set_item("val_max_side", matseg_eval::evaluate::DEFAULT_MAX_SIDE)?;
     d.set_item("validation_seed", VALIDATION_SEED)?;
     d.set_item("validation_generator_seed", VALIDATION_GENERATOR_SEED)?;
     d.set_item("betas", (adamw.beta1, adamw.beta2))?;
@@ -113,6 +115,31 @@ pub fn lr_schedule(options: &str) -> PyResult<Vec<f64>> {
     let options: matseg_net::train::TrainOptions = serde_json::from_str(options)
         .map_err(|e| PyValueError::new_err(format!("training options: {e}")))?;
     Ok((0..options.steps).map(|s| options.lr_at(s)).collect())
+}
+
+/// The triplet accuracy (All, by material) of `model` (a run folder or
+/// weights file, on the CPU) on the point benchmark `bench` (MatSeg layout)
+/// with photos at `max_side` (0: as they are): what `matseg train
+/// --val-points` scores each checkpoint with.
+#[pyfunction]
+pub fn score_points(
+    py: Python<'_>,
+    model: PathBuf,
+    bench: PathBuf,
+    max_side: u32,
+) -> PyResult<f64> {
+    use matseg_eval::{evaluate_points, load_point_benchmark};
+    use matseg_net::infer::{NetModel, TrainedNet};
+    py.detach(|| {
+        let points = load_point_benchmark(&bench, false).map_err(|e| e.to_string())?;
+        let net = TrainedNet::load(&model, Device::Cpu).map_err(|e| e.to_string())?;
+        let report = evaluate_points(&NetModel::new("net", net), &points, max_side)
+            .map_err(|e| e.to_string())?;
+        report
+            .all_by_material
+            .ok_or_else(|| format!("{}: the benchmark has no triplets", bench.display()))
+    })
+    .map_err(matseg_error)
 }
 
 /// Draws a run's loss curve (`matseg train`'s `loss.png`) from its

@@ -115,6 +115,19 @@ def test_each_trainer_resumes_the_others_runs(tmp_path, matseg_bin, folders_2d):
     assert metrics(rust_then_py)[2]["validation"] == pytest.approx(metrics(rust_straight)[2]["validation"], rel=1e-4)
 
 
+def test_checkpoints_scored_on_a_point_benchmark_keep_the_best(tmp_path, matseg_bin):
+    bench, out = tmp_path / "bench", tmp_path / "run"
+    run([matseg_bin, "bench-set", "make", "--out", bench, "-n", 3, "--seed", 2])
+    python_train("--out", out, "--steps", 3, "--workers", 0, *SMALL, "--checkpoint-every", 1,
+                 "--validation-batches", 0, "--val-points", bench, "--val-max-side", 128, "--lr", 1e-3)
+    scores = [m["val_points"] for m in metrics(out)]
+    assert len(scores) == 3 and all(0.0 <= v <= 1.0 for v in scores)
+    # best.safetensors holds the best-scoring checkpoint: matseg eval gives
+    # it that score.
+    done = run([matseg_bin, "eval", "points", bench, "--model", out / "best.safetensors", "--max-side", 128, "--json"])
+    assert json.loads(done.stdout)["models"][0]["all_by_material"] == pytest.approx(max(scores), abs=1e-12)
+
+
 def test_run_folders_are_checked_before_training(tmp_path):
     (tmp_path / "run.json").write_text("{}")
     with pytest.raises(SystemExit, match="already holds a run; resume it"):
