@@ -63,19 +63,23 @@ EOF
 echo "$(nproc) cores; $("$MATSEG" --version)"
 gpus=$("$PY" -c 'import torch; print(torch.cuda.device_count())')
 
-# "steady images/s, waiting share" of a run folder's metrics.jsonl after SKIP steps.
-steady() {
-    "$PY" - "$1/metrics.jsonl" "$SKIP" <<'EOF'
+# The rates of a run folder whose run took WALL seconds: its whole run's
+# (all images of metrics.jsonl over WALL) and the steady one (steps after
+# the first SKIP, from their own times), with the share spent waiting for
+# batches.
+rates() {
+    "$PY" - "$1/metrics.jsonl" "$2" "$SKIP" <<'EOF'
 import json, sys
-rows = [json.loads(l) for l in open(sys.argv[1])][int(sys.argv[2]):]
-seconds = sum(r["seconds"] for r in rows)
-print(f"{sum(r['images'] for r in rows) / seconds:.1f} images/s steady over {len(rows)} steps, "
-      f"{100 * sum(r['data_seconds'] for r in rows) / seconds:.1f}% waiting for batches")
+rows = [json.loads(l) for l in open(sys.argv[1])]
+wall, steady = float(sys.argv[2]), rows[int(sys.argv[3]):]
+seconds = sum(r["seconds"] for r in steady)
+print(f"{sum(r['images'] for r in rows) / wall:.1f} images/s whole run ({wall:.1f} s); "
+      f"{sum(r['images'] for r in steady) / seconds:.1f} images/s steady over {len(steady)} steps, "
+      f"{100 * sum(r['data_seconds'] for r in steady) / seconds:.1f}% waiting for batches")
 EOF
 }
 
-# Runs a trainer command writing RUN; prints LABEL, the whole run's wall
-# rate (images from metrics.jsonl) and the steady rate.
+# Runs a trainer command writing RUN; prints LABEL and its rates.
 train_run() {
     local label=$1 out=$2
     shift 2
@@ -84,11 +88,7 @@ train_run() {
     start=$(date +%s.%N)
     "$@" >"$work/log" 2>&1 || { cat "$work/log" >&2; exit 1; }
     end=$(date +%s.%N)
-    local images
-    images=$("$PY" -c 'import json, sys; print(sum(json.loads(l)["images"] for l in open(sys.argv[1])))' "$out/metrics.jsonl")
-    printf '%s: %s images/s whole run (%.1f s); %s\n' "$label" \
-        "$(echo "$images / ($end - $start)" | bc -l | xargs printf '%.1f')" "$(echo "$end - $start" | bc -l)" \
-        "$(steady "$out")"
+    echo "$label: $(rates "$out" "$(echo "$end - $start" | bc -l)")"
 }
 
 train_part() {

@@ -17,9 +17,11 @@ from . import safetensors
 CHECKPOINT_FILE = netlib.CONSTANTS["checkpoint_file"]
 
 
-def write(folder, net, optimizer, updates, next_step, next_batch):
-    """Writes `folder/checkpoint.safetensors` (through a temporary file)."""
-    tensors = {f"model.{k}": v for k, v in netlib.state_arrays(net).items()}
+def write(folder, arrays, net, optimizer, updates, next_step, next_batch):
+    """Writes `folder/checkpoint.safetensors` (through a temporary file):
+    `arrays`, the net's `state_arrays`, and the optimizer's state of the
+    net's parameters."""
+    tensors = {f"model.{k}": v for k, v in arrays.items()}
     for name, p in net.named_parameters():
         state = optimizer.state.get(p, {})
         for key, moment in (("m", "exp_avg"), ("v", "exp_avg_sq")):

@@ -113,8 +113,6 @@ def native_batch(native, step, plan, seed, mix):
         other, fraction = mix
         if not isinstance(other, Dataset):
             raise TypeError(f"mix: expected (matseg.Dataset, fraction), got {type(other).__name__}")
-        if not 0.0 <= fraction <= 1.0:
-            raise ValueError(f"mix fraction {fraction} is not in 0..1")
         mix = (other._native, float(fraction))
     return batch_arrays(native.batch(plan.to_json(), int(seed), int(step), mix))
 

@@ -378,10 +378,11 @@ def load(name="default"):
     return net.eval(), run
 
 
-def save(net, run, folder):
-    """Writes `folder/model.safetensors` (32-bit floats) and `run.json`."""
+def save(net, run, folder, arrays=None):
+    """Writes `folder/model.safetensors` (32-bit floats) and `run.json`;
+    `arrays`: the net's `state_arrays` when the caller has them already."""
     os.makedirs(folder, exist_ok=True)
-    safetensors.write(os.path.join(folder, MODEL_FILE), state_arrays(net))
+    safetensors.write(os.path.join(folder, MODEL_FILE), state_arrays(net) if arrays is None else arrays)
     tmp = os.path.join(folder, f"{RUN_FILE}.{os.getpid()}.tmp")
     with open(tmp, "w") as f:
         json.dump(run, f, indent=2)

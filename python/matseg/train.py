@@ -117,9 +117,8 @@ def new_run(args):
     """The net and run.json of a new run from the arguments."""
     if os.path.isfile(os.path.join(args.out, netlib.RUN_FILE)):
         raise SystemExit(f"{args.out}: already holds a run; resume it (--resume), or choose another folder")
-    plan = BatchPlan.default()
-    overrides = {k: getattr(args, a) for k, a in (("min_side", "min_side"), ("max_side", "max_side"), ("pixels", "batch_pixels")) if getattr(args, a) is not None}
-    plan = BatchPlan(**{**plan.__dict__, **overrides})
+    sizes = {"min_side": args.min_side, "max_side": args.max_side, "pixels": args.batch_pixels}
+    plan = BatchPlan(**{**BatchPlan.default().__dict__, **{k: v for k, v in sizes.items() if v is not None}})
     net, carried = initial_net(args)
     pretrained = args.init != "scratch"
     options = {
@@ -188,25 +187,20 @@ def validation_loss(net, batches, device):
 
 
 def open_metrics(folder, next_step):
-    """metrics.jsonl of `folder` holding the lines of the steps before
-    `next_step` (those a resumed run keeps), open for appending."""
+    """metrics.jsonl of `folder` holding the records of the steps before
+    `next_step` (those a resumed run keeps), open for appending, and the
+    best val_points among them (-inf: none)."""
     path = os.path.join(folder, METRICS_FILE)
     kept = []
     if next_step > 0 and os.path.isfile(path):
         with open(path) as f:
-            kept = [line for line in f if line.strip() and json.loads(line)["step"] < next_step]
+            kept = [(line, r) for line in f if line.strip() for r in [json.loads(line)] if r["step"] < next_step]
     tmp = f"{path}.{os.getpid()}.tmp"
     with open(tmp, "w") as f:
-        f.writelines(kept)
+        f.writelines(line for line, _ in kept)
     os.replace(tmp, path)
-    return open(path, "a")
-
-
-def best_score(folder):
-    """The best val_points in the metrics of `folder` so far (-inf: none)."""
-    with open(os.path.join(folder, METRICS_FILE)) as f:
-        scores = [json.loads(line).get("val_points") for line in f if line.strip()]
-    return max((v for v in scores if v is not None), default=float("-inf"))
+    best = max((r["val_points"] for _, r in kept if r.get("val_points") is not None), default=float("-inf"))
+    return open(path, "a"), best
 
 
 def main(argv=None):
@@ -248,8 +242,7 @@ def main(argv=None):
     metrics, held_out, best = None, [], float("-inf")
     if rank == 0:
         os.makedirs(folder, exist_ok=True)
-        metrics = open_metrics(folder, first_step)
-        best = best_score(folder)
+        metrics, best = open_metrics(folder, first_step)
         held_out = held_out_batches(run, args)
     schedule = _core.lr_schedule(json.dumps(options))
     steps = options["steps"]
@@ -290,7 +283,8 @@ def main(argv=None):
                       "data_seconds": data_seconds, "batch": batch["step"]}
             if at_checkpoint:
                 # The weights first: the point benchmark scores the saved run.
-                netlib.save(net, run, folder)
+                arrays = netlib.state_arrays(net)
+                netlib.save(net, run, folder, arrays)
                 if held_out:
                     record["validation"] = validation_loss(net, held_out, device)
                 if args.val_points:
@@ -298,7 +292,7 @@ def main(argv=None):
             metrics.write(json.dumps(record) + "\n")
             metrics.flush()
             if at_checkpoint:
-                checkpoint.write(folder, net, optimizer, updates, done, first_batch + world * (done - first_step))
+                checkpoint.write(folder, arrays, net, optimizer, updates, done, first_batch + world * (done - first_step))
                 if record.get("val_points", float("-inf")) > best:
                     best = record["val_points"]
                     best_path = os.path.join(folder, BEST_MODEL_FILE)
