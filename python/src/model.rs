@@ -128,16 +128,13 @@ pub fn score_points(
     bench: PathBuf,
     max_side: u32,
 ) -> PyResult<f64> {
-    use matseg_eval::{evaluate_points, load_point_benchmark};
-    use matseg_net::infer::{NetModel, TrainedNet};
+    use matseg_eval::load_point_benchmark;
+    use matseg_net::infer::TrainedNet;
+    use matseg_pipeline::train::point_score;
     py.detach(|| {
         let points = load_point_benchmark(&bench, false).map_err(|e| e.to_string())?;
         let net = TrainedNet::load(&model, Device::Cpu).map_err(|e| e.to_string())?;
-        let report = evaluate_points(&NetModel::new("net", net), &points, max_side)
-            .map_err(|e| e.to_string())?;
-        report
-            .all_by_material
-            .ok_or_else(|| format!("{}: the benchmark has no triplets", bench.display()))
+        point_score(net, &points, max_side).map_err(|e| format!("{}: {e}", bench.display()))
     })
     .map_err(matseg_error)
 }

@@ -9,7 +9,7 @@ use crate::files::create_folder;
 use crate::sources::Libraries;
 use crate::weights::{imagenet_weights, read_weights};
 use matseg_data::Dataset;
-use matseg_eval::{evaluate_points, load_point_benchmark};
+use matseg_eval::{evaluate_points, load_point_benchmark, PointBenchmark};
 use matseg_net::colour::COLOUR_PART;
 use matseg_net::data::{BatchPlan, DatasetSource, GeneratorSource, MixedSource, SampleSource};
 use matseg_net::infer::{NetModel, TrainedNet};
@@ -195,6 +195,21 @@ const ONLINE: &str = "online";
 /// from the online training scenes.
 pub const VALIDATION_GENERATOR_SEED: u64 = 0x5eed;
 
+/// The score `--val-points` records for a checkpoint: the net's triplet
+/// accuracy (All, by material) on `bench` with photos at `max_side`.
+pub fn point_score(
+    net: TrainedNet,
+    bench: &PointBenchmark,
+    max_side: u32,
+) -> Result<f64, NetError> {
+    let invalid = |message: String| NetError::Validation { message };
+    let report = evaluate_points(&NetModel::new("net", net), bench, max_side)
+        .map_err(|e| invalid(e.to_string()))?;
+    report
+        .all_by_material
+        .ok_or_else(|| invalid("the benchmark has no triplets".into()))
+}
+
 /// A run being trained: its folder and its net, optimiser and step.
 pub struct TrainingRun {
     trainer: Trainer,
@@ -363,13 +378,7 @@ impl TrainingRun {
         };
         let score_points = |trainer: &Trainer| -> Result<f64, NetError> {
             let bench = bench.as_ref().expect("only called with a benchmark");
-            let net = TrainedNet::snapshot(trainer)?;
-            let invalid = |message: String| NetError::Validation { message };
-            let report = evaluate_points(&NetModel::new("net", net), bench, inputs.val_max_side)
-                .map_err(|e| invalid(e.to_string()))?;
-            report
-                .all_by_material
-                .ok_or_else(|| invalid("the benchmark has no triplets".into()))
+            point_score(TrainedNet::snapshot(trainer)?, bench, inputs.val_max_side)
         };
         let validation = Validation {
             samples: Some(&held_out),
