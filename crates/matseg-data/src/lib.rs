@@ -17,5 +17,8 @@ pub use generate::{
     GenerateReport, JobError, JobSlice,
 };
 pub use maker::{Generator2d, Generator3d, SampleError, SampleMaker};
-pub use reader::{decode_encoded, Dataset, ReadError, Sample, TrainingTargets};
+pub use reader::{
+    decode_encoded, index_tar, read_tar_member, Dataset, ReadError, Sample, TarMember,
+    TrainingTargets,
+};
 pub use seed::sample_rng;

@@ -310,11 +310,24 @@ fn check_size(path: &Path, got: (u32, u32), want: (u32, u32)) -> Result<(), Read
     Ok(())
 }
 
-fn index_shard(path: &Path) -> Result<Vec<Location>, ReadError> {
+/// A file inside a tar archive: its name, and where its bytes are.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TarMember {
+    /// Its path in the archive.
+    pub name: String,
+    /// Offset of its first byte in the archive file.
+    pub offset: u64,
+    /// Its size in bytes.
+    pub size: u64,
+}
+
+/// The members of the tar archive `path`, in archive order. A truncated
+/// archive (a member's data past the end of the file) is an error.
+pub fn index_tar(path: &Path) -> Result<Vec<TarMember>, ReadError> {
     let file = std::fs::File::open(path).map_err(io_err(path))?;
+    let length = file.metadata().map_err(io_err(path))?.len();
     let mut archive = tar::Archive::new(file);
-    let shared = Arc::new(path.to_path_buf());
-    let mut out: Vec<Location> = Vec::new();
+    let mut members = Vec::new();
     for entry in archive.entries().map_err(io_err(path))? {
         let entry = entry.map_err(io_err(path))?;
         let name = entry
@@ -322,13 +335,39 @@ fn index_shard(path: &Path) -> Result<Vec<Location>, ReadError> {
             .map_err(io_err(path))?
             .to_string_lossy()
             .into_owned();
+        let (offset, size) = (entry.raw_file_position(), entry.size());
+        if offset + size > length {
+            return Err(ReadError::Format {
+                path: path.to_path_buf(),
+                reason: format!("truncated: {name} ends past the end of the file"),
+            });
+        }
+        members.push(TarMember { name, offset, size });
+    }
+    Ok(members)
+}
+
+/// The bytes of `member` of the tar archive `path`.
+pub fn read_tar_member(path: &Path, member: &TarMember) -> Result<Vec<u8>, ReadError> {
+    let mut file = std::fs::File::open(path).map_err(io_err(path))?;
+    let mut bytes = vec![0u8; member.size as usize];
+    file.seek(SeekFrom::Start(member.offset))
+        .map_err(io_err(path))?;
+    file.read_exact(&mut bytes).map_err(io_err(path))?;
+    Ok(bytes)
+}
+
+fn index_shard(path: &Path) -> Result<Vec<Location>, ReadError> {
+    let shared = Arc::new(path.to_path_buf());
+    let mut out: Vec<Location> = Vec::new();
+    for TarMember { name, offset, size } in index_tar(path)? {
         let Some((key, suffix)) = name.split_once('.') else {
             continue;
         };
         let member = Member {
             suffix: suffix.to_string(),
-            offset: entry.raw_file_position(),
-            size: entry.size(),
+            offset,
+            size,
         };
         match out.last_mut() {
             Some(Location::Shard {

@@ -17,23 +17,30 @@ pub fn sample_key(index: u64) -> String {
     format!("{index:08}")
 }
 
-/// Appends one sample's members to a tar builder, with fixed metadata so the
-/// bytes depend only on the content.
+/// Appends one member to a tar builder, with fixed metadata so the bytes
+/// depend only on the name and content.
+pub fn append_member<W: Write>(
+    tar: &mut tar::Builder<W>,
+    name: &str,
+    data: &[u8],
+) -> io::Result<()> {
+    let mut header = tar::Header::new_ustar();
+    header.set_size(data.len() as u64);
+    header.set_mode(0o644);
+    header.set_mtime(0);
+    header.set_uid(0);
+    header.set_gid(0);
+    header.set_entry_type(tar::EntryType::Regular);
+    tar.append_data(&mut header, name, data)
+}
+
+/// Appends one sample's members to a tar builder ([`append_member`]).
 pub fn append_sample<W: Write>(
     tar: &mut tar::Builder<W>,
     sample: &EncodedSample,
 ) -> io::Result<()> {
     let key = sample_key(sample.index);
-    let mut add = |name: String, data: &[u8]| {
-        let mut header = tar::Header::new_ustar();
-        header.set_size(data.len() as u64);
-        header.set_mode(0o644);
-        header.set_mtime(0);
-        header.set_uid(0);
-        header.set_gid(0);
-        header.set_entry_type(tar::EntryType::Regular);
-        tar.append_data(&mut header, name, data)
-    };
+    let mut add = |name: String, data: &[u8]| append_member(tar, &name, data);
     add(format!("{key}.jpg"), &sample.jpg)?;
     for (k, mask) in sample.masks.iter().enumerate() {
         add(format!("{key}.mask_{k:02}.png"), mask)?;
