@@ -3,7 +3,7 @@
 //! threshold ramps, Gaussian blur, mip-pyramid resampling, image I/O and the
 //! bounded, decode-once photo library every generator draws from; per-pixel
 //! descriptor maps (the interface every model, trained or not, implements)
-//! and the CIE L*a*b* conversion.
+//! and the CIE L*a*b* conversion; photo fingerprints.
 
 #![warn(missing_docs)]
 
@@ -15,6 +15,7 @@ pub mod channel_rows;
 pub mod coarse;
 pub mod coverage;
 pub mod descriptor;
+pub mod fingerprint;
 pub mod io;
 pub mod lab;
 pub mod levels;
