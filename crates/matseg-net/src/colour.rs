@@ -73,8 +73,12 @@ impl ColourPart {
     /// `x` `[N, 3, H, W]`, prepared by [`crate::normalise_input`]: its
     /// colours averaged over each cell of an `h4` x `w4` grid.
     pub fn forward(&self, x: &Tensor, h4: i64, w4: i64) -> Tensor {
-        let rgb = denormalise_input(x).clamp(0.0, 255.0);
-        let lab = srgb_to_lab(&rgb).adaptive_avg_pool2d([h4, w4]);
+        self.forward_cells(&cell_lab(x, h4, w4))
+    }
+
+    /// The weighted part of cells whose mean L*a*b* colours
+    /// `[N, 3, h, w]` ([`cell_lab`]) are given.
+    pub fn forward_cells(&self, lab: &Tensor) -> Tensor {
         let scaled = lab / self.log_bandwidth.exp();
         // [N, 3, h, w] -> [N, h, w, 3] x [3, M] -> [N, M, h, w]
         let angles = scaled
@@ -84,6 +88,14 @@ impl ColourPart {
             + self.phase.view([1, COLOUR_FEATURES, 1, 1]);
         crate::blocks::l2_normalise(&angles.cos(), 1) * self.log_weight.exp()
     }
+}
+
+/// The mean CIE L*a*b* colour `[N, 3, h4, w4]` of each cell of an `h4` x
+/// `w4` grid over the net's input `x` `[N, 3, H, W]` (prepared by
+/// [`crate::normalise_input`]): what the colour part reads of an image.
+pub fn cell_lab(x: &Tensor, h4: i64, w4: i64) -> Tensor {
+    let rgb = denormalise_input(x).clamp(0.0, 255.0);
+    srgb_to_lab(&rgb).adaptive_avg_pool2d([h4, w4])
 }
 
 /// CIE L*a*b* (D65 white) `[N, 3, H, W]` of sRGB levels 0..255 `[N, 3, H,

@@ -199,8 +199,14 @@ impl BatchPlan {
     pub fn draw<R: Rng + ?Sized>(&self, rng: &mut R) -> (usize, usize, usize) {
         let side = |rng: &mut R| 32 * rng.random_range(self.min_side / 32..=self.max_side / 32);
         let (w, h) = (side(rng), side(rng));
-        let images = (self.pixels as f64 / (w * h) as f64).round() as usize;
-        (w, h, images.clamp(self.min_images, self.max_images))
+        (w, h, self.images(w, h))
+    }
+
+    /// Images in a batch of `width x height` images: as many as make
+    /// about [`BatchPlan::pixels`], within the plan's bounds.
+    pub fn images(&self, width: usize, height: usize) -> usize {
+        let images = (self.pixels as f64 / (width * height) as f64).round() as usize;
+        images.clamp(self.min_images, self.max_images)
     }
 }
 
@@ -233,18 +239,90 @@ pub fn batch_samples(
     Ok(samples)
 }
 
+/// Seed offset of cached samples' fitting and augmentation.
+const CACHED_STREAM: u64 = 0x6361_6368_6564_2121;
+
+/// Sample `index` of a feature cache made from `source`: the source's
+/// sample `index` (modulo its count when it is stored), fitted to `width
+/// x height` as `zoom` scales it and augmented with probability `p_augment`, all drawn from
+/// (seed, index) alone.
+pub fn cached_view(
+    source: &dyn SampleSource,
+    index: u64,
+    (width, height): (usize, usize),
+    zoom: Zoom,
+    p_augment: f64,
+    seed: u64,
+) -> Result<TrainingSample, DataError> {
+    let mut rng = sample_rng(seed ^ CACHED_STREAM, index);
+    let sample = match source.count() {
+        Some(0) => return Err(DataError::EmptyMix),
+        Some(n) => source.sample(index % n)?,
+        None => source.sample(index)?,
+    };
+    let mut fitted = fit_with(sample, width, height, zoom, &mut rng);
+    if rng.random_bool(p_augment) {
+        augment(&mut fitted, &mut rng);
+    }
+    Ok(fitted)
+}
+
+/// How a sample is scaled before a window of the batch's size is cut out.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Zoom {
+    /// As `matseg train` fits its batches: the whole sample shrunk (or
+    /// grown) to just cover the window, then up to 1.5 times more.
+    #[default]
+    Cover,
+    /// Any scale from that to the sample's own (log-uniform): windows from
+    /// the whole scene shrunk down to a crop at full resolution, so that
+    /// materials are seen at the scales photos show them at too.
+    Native,
+}
+
+impl Zoom {
+    /// The scale factor for a `sw x sh` sample and a `width x height` window.
+    fn draw(
+        self,
+        (sw, sh): (f64, f64),
+        (width, height): (usize, usize),
+        rng: &mut ChaCha8Rng,
+    ) -> f64 {
+        let cover = (width as f64 / sw).max(height as f64 / sh);
+        match self {
+            Zoom::Cover => cover * rng.random_range(1.0..1.5),
+            Zoom::Native => {
+                let most = (1.0 / cover).max(1.5);
+                cover * rng.random_range(0.0..most.ln()).exp()
+            }
+        }
+    }
+}
+
 /// Scales `sample` to cover `width x height` (up to 1.5x more, at random)
-/// and crops a random window of that size; weights are resampled alike and
-/// the ROI is kept where its resampled value is at least 0.5.
+/// and crops a random window of that size ([`fit_with`], [`Zoom::Cover`]).
 pub fn fit(
     sample: TrainingSample,
     width: usize,
     height: usize,
     rng: &mut ChaCha8Rng,
 ) -> TrainingSample {
+    fit_with(sample, width, height, Zoom::Cover, rng)
+}
+
+/// Scales `sample` as `zoom` draws and crops a random `width x height`
+/// window; weights are resampled alike and the ROI is kept where its
+/// resampled value is at least 0.5.
+pub fn fit_with(
+    sample: TrainingSample,
+    width: usize,
+    height: usize,
+    zoom: Zoom,
+    rng: &mut ChaCha8Rng,
+) -> TrainingSample {
     let (sw, sh) = (sample.width as f64, sample.height as f64);
-    let cover = (width as f64 / sw).max(height as f64 / sh);
-    let scale = cover * rng.random_range(1.0..1.5);
+    let scale = zoom.draw((sw, sh), (width, height), rng);
     let rw = ((sw * scale).round() as u32).max(width as u32);
     let rh = ((sh * scale).round() as u32).max(height as u32);
     let x0 = rng.random_range(0..=rw - width as u32);

@@ -196,6 +196,16 @@ impl TrainedNet {
         Ok(unit_at(&self.grid_at(&photo, None), width, height))
     }
 
+    /// The net, e.g. to run its encoder alone.
+    pub fn net(&self) -> &MaterialNet {
+        &self.net
+    }
+
+    /// Its variables.
+    pub fn vs(&self) -> &nn::VarStore {
+        &self.vs
+    }
+
     /// Channels of the descriptors.
     pub fn output_dim(&self) -> i64 {
         self.net.output_dim()

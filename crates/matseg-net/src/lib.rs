@@ -15,6 +15,8 @@ pub mod convnext;
 pub mod data;
 pub mod decoder;
 pub mod encoder;
+pub mod features;
+pub mod grid;
 pub mod imagenet;
 pub mod infer;
 pub mod loader;

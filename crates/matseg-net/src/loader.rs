@@ -1,45 +1,44 @@
-//! Training batches prepared ahead in background threads. Batch `s` depends
-//! only on (seed, s) ([`batch_samples`]), so the threads take turns (worker
-//! `k` prepares batches `first + k`, `first + k + workers`, ...) and the
-//! trainer reads them back in step order: the batches are the same whatever
-//! the number of threads.
+//! Training batches prepared ahead in background threads. Batch `s`
+//! depends only on (seed, s) ([`crate::data::batch_samples`], [`crate::train::TrainingData`]),
+//! so the threads take turns (worker `k` prepares batches `first + k`,
+//! `first + k + workers`, ...) and the trainer reads them back in step order:
+//! the batches are the same whatever the number of threads.
 
-use crate::batch::TrainingSample;
-use crate::data::{batch_samples, BatchPlan, DataError, SampleSource};
+use crate::data::DataError;
+use crate::NetError;
 use std::sync::mpsc::{sync_channel, Receiver};
 use std::thread::Scope;
 
 /// Batches each worker may hold ready beyond the one it is preparing.
 const READY_PER_WORKER: usize = 1;
 
-/// One prepared batch, or why it could not be prepared.
-pub type PreparedBatch = Result<Vec<TrainingSample>, DataError>;
-
 /// The receiving end of the workers [`BatchLoader::spawn`] started.
-pub struct BatchLoader {
+pub struct BatchLoader<B> {
     first: u64,
-    workers: Vec<Receiver<PreparedBatch>>,
+    workers: Vec<Receiver<Result<B, NetError>>>,
 }
 
-impl BatchLoader {
+impl<B: Send> BatchLoader<B> {
     /// Starts `workers` threads (at least one) in `scope` preparing batches
-    /// `first..end` of `source` under `plan` and `seed`. A worker stops
-    /// after a failed batch, and when the loader is dropped.
-    pub fn spawn<'scope>(
+    /// `first..end` with `make`. A worker stops after a failed batch, and
+    /// when the loader is dropped.
+    pub fn spawn<'scope, F>(
         scope: &'scope Scope<'scope, '_>,
-        source: &'scope dyn SampleSource,
-        plan: BatchPlan,
-        seed: u64,
+        make: &'scope F,
         (first, end): (u64, u64),
         workers: usize,
-    ) -> Self {
+    ) -> Self
+    where
+        F: Fn(u64) -> Result<B, NetError> + Sync,
+        B: 'scope,
+    {
         let count = workers.max(1);
         let receivers = (0..count as u64)
             .map(|k| {
                 let (tx, rx) = sync_channel(READY_PER_WORKER);
                 scope.spawn(move || {
                     for step in (first + k..end).step_by(count) {
-                        let batch = batch_samples(source, &plan, seed, step);
+                        let batch = make(step);
                         let failed = batch.is_err();
                         if tx.send(batch).is_err() || failed {
                             return;
@@ -57,11 +56,11 @@ impl BatchLoader {
 
     /// Batch `step`, waiting for it. Steps must be asked for in order, from
     /// the first, and only below the end given to [`BatchLoader::spawn`].
-    pub fn batch(&self, step: u64) -> PreparedBatch {
+    pub fn batch(&self, step: u64) -> Result<B, NetError> {
         let worker = ((step - self.first) % self.workers.len() as u64) as usize;
         self.workers[worker]
             .recv()
-            .unwrap_or(Err(DataError::WorkerStopped(step)))
+            .unwrap_or(Err(NetError::Data(DataError::WorkerStopped(step))))
     }
 }
 
@@ -81,6 +80,8 @@ pub fn default_workers(on_gpu: bool) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::batch::TrainingSample;
+    use crate::data::{batch_samples, BatchPlan, SampleSource};
 
     /// Tiny constant samples; index `fail_at` cannot be made.
     struct Counting {
@@ -137,8 +138,9 @@ mod tests {
             .map(|s| key(&batch_samples(&source, &PLAN, 5, s).unwrap()))
             .collect();
         for workers in [1, 2, 4] {
+            let make = |s| Ok(batch_samples(&source, &PLAN, 5, s)?);
             let loaded: Vec<_> = std::thread::scope(|scope| {
-                let loader = BatchLoader::spawn(scope, &source, PLAN, 5, (3, 12), workers);
+                let loader = BatchLoader::spawn(scope, &make, (3, 12), workers);
                 (3..12).map(|s| key(&loader.batch(s).unwrap())).collect()
             });
             assert_eq!(loaded, direct, "{workers} workers");
@@ -151,10 +153,14 @@ mod tests {
         // sample 0 is in batch 0. The scope ends only if the other
         // workers, blocked on full channels, stop when the loader drops.
         let source = Counting { fail_at: Some(0) };
+        let make = |s| Ok(batch_samples(&source, &PLAN, 5, s)?);
         let first = std::thread::scope(|scope| {
-            let loader = BatchLoader::spawn(scope, &source, PLAN, 5, (0, 50), 3);
+            let loader = BatchLoader::spawn(scope, &make, (0, 50), 3);
             loader.batch(0)
         });
-        assert_eq!(first.unwrap_err().to_string(), "sample 0: broken");
+        assert_eq!(
+            first.expect_err("a failed batch").to_string(),
+            "training data: sample 0: broken"
+        );
     }
 }

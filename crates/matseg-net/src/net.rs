@@ -3,10 +3,10 @@
 //! L2 normalisation.
 
 use crate::blocks::{l2_normalise, resize_bilinear};
-use crate::colour::{ColourPart, COLOUR_FEATURES};
+use crate::colour::{cell_lab, ColourPart, COLOUR_FEATURES};
 use crate::convnext::ConvNextConfig;
 use crate::decoder::Decoder;
-use crate::encoder::{Encoder, EncoderConfig};
+use crate::encoder::{Encoder, EncoderConfig, Taps};
 use crate::psp::Psp;
 use serde::{Deserialize, Serialize};
 use tch::nn;
@@ -134,6 +134,11 @@ impl MaterialNet {
         }
     }
 
+    /// Channels of the encoder's taps at strides 4, 8, 16 and 32.
+    pub fn tap_channels(&self) -> [i64; 4] {
+        self.encoder.channels()
+    }
+
     /// Channels of the descriptors [`MaterialNet::forward_t`] returns.
     pub fn output_dim(&self) -> i64 {
         let taps = self.encoder.channels();
@@ -156,8 +161,26 @@ impl MaterialNet {
     /// learned descriptor, the encoder's taps, the colour.
     pub fn coarse_t(&self, x: &Tensor, train: bool) -> Tensor {
         let taps = self.encoder.forward_t(x, train);
+        let lab = self.colour.as_ref().map(|_| {
+            let (_, _, h4, w4) = taps.s4.size4().expect("an NCHW tensor");
+            cell_lab(x, h4, w4)
+        });
+        self.coarse_from_taps(&taps, lab.as_ref(), train)
+    }
+
+    /// The encoder's taps of input images `[N, 3, H, W]` prepared by
+    /// [`normalise_input`]; `train` selects batch statistics.
+    pub fn encode_t(&self, x: &Tensor, train: bool) -> Taps {
+        self.encoder.forward_t(x, train)
+    }
+
+    /// [`MaterialNet::coarse_t`] from the encoder's taps (and, with
+    /// [`NetConfig::colour_features`], the images' cell colours
+    /// [`cell_lab`] on the stride-4 grid): everything after the encoder,
+    /// for training on taps computed once.
+    pub fn coarse_from_taps(&self, taps: &Taps, lab: Option<&Tensor>, train: bool) -> Tensor {
         let psp = self.psp.forward_t(&taps.s32, train);
-        let learned = self.decoder.forward_t(&psp, &taps, train).apply(&self.head);
+        let learned = self.decoder.forward_t(&psp, taps, train).apply(&self.head);
         if self.part_log_weights.is_none() && self.colour.is_none() {
             return learned;
         }
@@ -176,7 +199,8 @@ impl MaterialNet {
             None => vec![l2_normalise(&learned, 1)],
         };
         if let Some(colour) = &self.colour {
-            parts.push(colour.forward(x, h4, w4));
+            let lab = lab.expect("the colour part needs the cells' colours");
+            parts.push(colour.forward_cells(lab));
         }
         Tensor::cat(&parts, 1)
     }

@@ -1,7 +1,7 @@
-//! The training loop: batches from a [`SampleSource`] prepared in a
-//! background thread, the MatSeg loss, AdamW with linear warm-up, a metrics
-//! log, periodic validation on held-out generated batches, and checkpoints
-//! that resume exactly.
+//! The training loop: batches from a [`SampleSource`] or a feature cache
+//! ([`crate::features`]) prepared in background threads, the MatSeg loss,
+//! AdamW with linear warm-up, a metrics log, periodic validation on
+//! held-out generated batches, and checkpoints that resume exactly.
 //!
 //! A run folder holds `run.json` (the net's shape and the options),
 //! `model.safetensors` (the weights, for inference), `best.safetensors`
@@ -11,7 +11,9 @@
 //! atomically), `metrics.jsonl` (one line per step) and `loss.png`.
 
 use crate::batch::{Batch, TrainingSample};
+use crate::blocks::l2_normalise;
 use crate::data::{batch_samples, BatchPlan, SampleSource};
+use crate::features::{epoch_indices, CacheManifest, CachedBatch, CachedSample, FeatureCache};
 use crate::loader::BatchLoader;
 use crate::loss::matseg_loss;
 use crate::net::{MaterialNet, NetConfig};
@@ -118,6 +120,20 @@ pub struct RunConfig {
     /// grid and averaged (a multi-scale descriptor, one forward pass each).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub extra_inference_sides: Vec<u32>,
+    /// The feature cache a run on cached features trains on (then `data`
+    /// says where the cache's scenes came from).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub features: Option<CachedFeatures>,
+}
+
+/// The feature cache of a run on cached features: its folder and its
+/// manifest as the run started on it (a resumed run must find the same).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CachedFeatures {
+    /// The cache's folder.
+    pub cache: String,
+    /// Its `cache.json`.
+    pub manifest: CacheManifest,
 }
 
 /// A stored dataset mixed into the training data (see
@@ -267,15 +283,36 @@ impl Trainer {
     pub fn train_step(&mut self, samples: &[TrainingSample]) -> Option<f64> {
         let batch = Batch::new(samples, self.vs.device());
         let descriptors = self.net.forward_t(&batch.images, true);
+        self.update(matseg_loss(&descriptors, &batch.targets))
+    }
+
+    /// One step on cached samples: the net after its encoder, on the
+    /// cached taps, with the loss on the stride-4 grid; the loss, or
+    /// `None` for a skipped batch.
+    pub fn train_step_cached(&mut self, samples: &[CachedSample]) -> Option<f64> {
+        let batch = CachedBatch::new(samples, self.vs.device());
+        let grid = self
+            .net
+            .coarse_from_taps(&batch.taps, Some(&batch.lab), true);
+        self.update(matseg_loss(&l2_normalise(&grid, 1), &batch.targets))
+    }
+
+    /// One step on a prepared batch of either kind.
+    pub fn step_on(&mut self, batch: &StepBatch) -> Option<f64> {
+        match batch {
+            StepBatch::Samples(samples) => self.train_step(samples),
+            StepBatch::Features(samples) => self.train_step_cached(samples),
+        }
+    }
+
+    /// Takes the step's update on `loss` (none for a skipped batch) and
+    /// moves to the next step.
+    fn update(&mut self, loss: Option<Tensor>) -> Option<f64> {
         let lr = self.lr(self.step);
         self.step += 1;
-        match matseg_loss(&descriptors, &batch.targets) {
-            Some(loss) => {
-                self.optimizer.step(&loss, lr);
-                Some(loss.double_value(&[]))
-            }
-            None => None,
-        }
+        let loss = loss?;
+        self.optimizer.step(&loss, lr);
+        Some(loss.double_value(&[]))
     }
 
     /// The loss on `samples` without training (inference-mode BatchNorm).
@@ -377,13 +414,76 @@ fn write_tensors(path: &Path, named: &[(String, Tensor)]) -> Result<(), NetError
     })
 }
 
-/// Trains `trainer` on `source` until `options.steps`, writing into `dir`;
+/// What a run trains on.
+#[derive(Clone, Copy)]
+pub enum TrainingData<'a> {
+    /// Training samples, fitted and augmented into batches by the plan.
+    Samples(&'a dyn SampleSource),
+    /// A feature cache, epoch after epoch ([`epoch_indices`]).
+    Features(&'a FeatureCache),
+}
+
+/// The batch of one step, as the loader threads prepare it.
+pub enum StepBatch {
+    /// Same-size training samples.
+    Samples(Vec<TrainingSample>),
+    /// Samples of a feature cache.
+    Features(Vec<CachedSample>),
+}
+
+impl TrainingData<'_> {
+    /// The batch of `step` under `options` (plan and seed).
+    pub fn batch(&self, options: &TrainOptions, step: u64) -> Result<StepBatch, NetError> {
+        match self {
+            TrainingData::Samples(source) => Ok(StepBatch::Samples(batch_samples(
+                *source,
+                &options.plan,
+                options.seed,
+                step,
+            )?)),
+            TrainingData::Features(cache) => {
+                let m = &cache.manifest;
+                let images = options.plan.images(m.width, m.height);
+                epoch_indices(cache.len(), images, options.seed, step)
+                    .into_iter()
+                    .map(|i| cache.get(i))
+                    .collect::<Result<_, _>>()
+                    .map(StepBatch::Features)
+            }
+        }
+    }
+
+    /// Image (width, height) in pixels of `batch`, which this data made.
+    fn size(&self, batch: &StepBatch) -> (usize, usize) {
+        match (self, batch) {
+            (_, StepBatch::Samples(s)) => (s[0].width, s[0].height),
+            (TrainingData::Features(cache), StepBatch::Features(_)) => {
+                (cache.manifest.width, cache.manifest.height)
+            }
+            (TrainingData::Samples(_), StepBatch::Features(_)) => {
+                unreachable!("samples make sample batches")
+            }
+        }
+    }
+}
+
+impl StepBatch {
+    /// Images in the batch.
+    pub fn images(&self) -> usize {
+        match self {
+            StepBatch::Samples(s) => s.len(),
+            StepBatch::Features(s) => s.len(),
+        }
+    }
+}
+
+/// Trains `trainer` on `data` until `options.steps`, writing into `dir`;
 /// `progress(step, loss)` is called after every step. Batches are prepared
 /// ahead in `loader_threads` background threads (the same batches whatever
 /// their number: [`BatchLoader`]).
 pub fn run(
     trainer: &mut Trainer,
-    source: &dyn SampleSource,
+    data: TrainingData,
     validation: Validation,
     dir: &Path,
     loader_threads: usize,
@@ -399,22 +499,18 @@ pub fn run(
             .collect::<Result<_, _>>()?,
         None => Vec::new(),
     };
+    let make = |step| data.batch(&options, step);
     std::thread::scope(|scope| -> Result<(), NetError> {
-        let loader = BatchLoader::spawn(
-            scope,
-            source,
-            options.plan,
-            options.seed,
-            (trainer.step, options.steps),
-            loader_threads,
-        );
+        let loader =
+            BatchLoader::spawn(scope, &make, (trainer.step, options.steps), loader_threads);
         while trainer.step < options.steps {
             let step = trainer.step;
             let started = Instant::now();
-            let samples = loader.batch(step)?;
+            let batch = loader.batch(step)?;
             let data_seconds = started.elapsed().as_secs_f64();
             let lr = trainer.lr(step);
-            let loss = trainer.train_step(&samples);
+            let loss = trainer.step_on(&batch);
+            let (width, height) = data.size(&batch);
             let seconds = started.elapsed().as_secs_f64();
             let checkpoint = trainer.step.is_multiple_of(options.checkpoint_every.max(1))
                 || trainer.step == options.steps;
@@ -433,9 +529,9 @@ pub fn run(
                 step,
                 loss,
                 lr,
-                images: samples.len(),
-                width: samples[0].width,
-                height: samples[0].height,
+                images: batch.images(),
+                width,
+                height,
                 seconds,
                 data_seconds,
                 validation,

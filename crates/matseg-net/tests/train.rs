@@ -8,7 +8,9 @@ use matseg_image::descriptor::Comparison;
 use matseg_net::colour::COLOUR_PART;
 use matseg_net::data::{batch_samples, BatchPlan, GeneratorSource};
 use matseg_net::infer::{PixelDescriptors, TrainedNet};
-use matseg_net::train::{self, RunConfig, StepMetrics, TrainOptions, Trainer, Validation};
+use matseg_net::train::{
+    self, RunConfig, StepMetrics, TrainOptions, Trainer, TrainingData, Validation,
+};
 use matseg_net::{load_net_adding, ConvNextConfig, EncoderConfig, NetConfig, NetError};
 use matseg_scene::Recipe2d;
 use std::path::Path;
@@ -61,6 +63,7 @@ fn config(steps: u64) -> RunConfig {
         mix: None,
         inference_side: None,
         extra_inference_sides: Vec::new(),
+        features: None,
     }
 }
 
@@ -96,9 +99,14 @@ fn train_to(trainer: &mut Trainer, steps: u64, dir: &Path) -> Vec<StepMetrics> {
         samples: Some(&source),
         points: Some(&first_component),
     };
-    train::run(trainer, &source, validation, dir, 2, |m| {
-        seen.push(m.clone())
-    })
+    train::run(
+        trainer,
+        TrainingData::Samples(&source),
+        validation,
+        dir,
+        2,
+        |m| seen.push(m.clone()),
+    )
     .unwrap();
     seen
 }

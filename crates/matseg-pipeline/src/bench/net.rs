@@ -84,6 +84,7 @@ impl NetBench {
                 mix: None,
                 inference_side: None,
                 extra_inference_sides: Vec::new(),
+                features: None,
             },
             device,
         );

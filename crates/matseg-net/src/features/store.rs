@@ -1,0 +1,218 @@
+//! A feature cache on disk: the manifest, shards written whole under a
+//! temporary name, and random access to samples.
+
+use super::record::CachedSample;
+use super::{CacheManifest, MANIFEST_FILE, MEMBER_SUFFIX};
+use crate::NetError;
+use matseg_data::wds::{append_member, sample_key, shard_path};
+use matseg_data::{index_tar, read_tar_member, TarMember};
+use matseg_image::io::temporary_path;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+fn file_error(path: &Path, message: impl std::fmt::Display) -> NetError {
+    NetError::File {
+        file: path.display().to_string(),
+        message: message.to_string(),
+    }
+}
+
+/// Samples `first..end` of shard `shard` under `manifest`.
+fn shard_range(manifest: &CacheManifest, shard: u64) -> (u64, u64) {
+    let first = shard * manifest.shard_size;
+    (first, (first + manifest.shard_size).min(manifest.samples))
+}
+
+/// An opened feature cache: its manifest and where each sample is.
+#[derive(Clone, Debug)]
+pub struct FeatureCache {
+    dir: PathBuf,
+    /// What the cache holds.
+    pub manifest: CacheManifest,
+    samples: Vec<(Arc<PathBuf>, TarMember)>,
+}
+
+impl FeatureCache {
+    /// Opens the cache in `dir`: its manifest and every shard's index. A
+    /// missing shard, one that is truncated, or one that is not this
+    /// cache's is a one-line error naming it.
+    pub fn open(dir: &Path) -> Result<Self, NetError> {
+        let manifest = CacheManifest::read(dir)?;
+        let mut samples = Vec::with_capacity(manifest.samples as usize);
+        for shard in 0..manifest.shards() {
+            let path = shard_path(dir, shard);
+            if !path.is_file() {
+                return Err(file_error(
+                    &path,
+                    "missing: the cache is incomplete (run the matseg features command that \
+                     made it again to finish it)",
+                ));
+            }
+            let members = index_tar(&path).map_err(|e| file_error(&path, e))?;
+            let (first, end) = shard_range(&manifest, shard);
+            let expected: Vec<String> = (first..end)
+                .map(|i| format!("{}.{MEMBER_SUFFIX}", sample_key(i)))
+                .collect();
+            let names: Vec<&str> = members.iter().map(|m| m.name.as_str()).collect();
+            if names != expected {
+                return Err(file_error(
+                    &path,
+                    format!(
+                        "not a shard of this cache: expected samples {first}..{end} as \
+                         {} members, found {} members{}",
+                        expected.len(),
+                        names.len(),
+                        names
+                            .first()
+                            .map_or(String::new(), |n| format!(" from {n}"))
+                    ),
+                ));
+            }
+            let shared = Arc::new(path);
+            samples.extend(members.into_iter().map(|m| (shared.clone(), m)));
+        }
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            manifest,
+            samples,
+        })
+    }
+
+    /// The cache's folder.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// Samples in the cache.
+    pub fn len(&self) -> u64 {
+        self.samples.len() as u64
+    }
+
+    /// True when the cache holds no sample.
+    pub fn is_empty(&self) -> bool {
+        self.samples.is_empty()
+    }
+
+    /// Reads sample `index` (below [`FeatureCache::len`]); a member that
+    /// does not hold what the manifest says is an error naming it.
+    pub fn get(&self, index: u64) -> Result<CachedSample, NetError> {
+        let (path, member) = &self.samples[index as usize];
+        let named = || format!("{}!{}", path.display(), member.name);
+        let bytes = read_tar_member(path, member).map_err(|e| file_error(path, e))?;
+        CachedSample::from_bytes(&bytes, &self.manifest, &named()).map_err(|message| {
+            NetError::File {
+                file: named(),
+                message,
+            }
+        })
+    }
+}
+
+/// Writes a cache's shards: the manifest first (or the check that the
+/// folder's matches), then each shard whole.
+pub struct CacheWriter {
+    dir: PathBuf,
+    manifest: CacheManifest,
+}
+
+impl CacheWriter {
+    /// Starts (or continues) the cache `manifest` describes in `dir`. A
+    /// folder holding a cache made with other settings is refused.
+    pub fn create(dir: &Path, manifest: CacheManifest) -> Result<Self, NetError> {
+        std::fs::create_dir_all(dir).map_err(|e| file_error(dir, format!("cannot create: {e}")))?;
+        let path = dir.join(MANIFEST_FILE);
+        if path.is_file() {
+            let have = CacheManifest::read(dir)?;
+            if let Some(what) = have.difference(&manifest) {
+                return Err(file_error(
+                    &path,
+                    format!(
+                        "holds a cache made with other settings ({what} differs); choose \
+                         another --out"
+                    ),
+                ));
+            }
+        } else {
+            let json = serde_json::to_vec_pretty(&manifest).expect("a manifest serialises");
+            matseg_image::io::write_atomic(&path, &json)
+                .map_err(|e| file_error(&path, format!("cannot write: {e}")))?;
+        }
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            manifest,
+        })
+    }
+
+    /// What the cache holds.
+    pub fn manifest(&self) -> &CacheManifest {
+        &self.manifest
+    }
+
+    /// The shards not yet written, in order.
+    pub fn missing_shards(&self) -> Vec<u64> {
+        (0..self.manifest.shards())
+            .filter(|&s| !shard_path(&self.dir, s).is_file())
+            .collect()
+    }
+
+    /// The samples `first..end` of shard `shard`.
+    pub fn shard_samples(&self, shard: u64) -> std::ops::Range<u64> {
+        let (first, end) = shard_range(&self.manifest, shard);
+        first..end
+    }
+
+    /// Writes shard `shard` from `samples` (its samples in order, each
+    /// made when asked for): to a temporary file, renamed when complete.
+    /// On any error the temporary file is removed and the error names the
+    /// shard.
+    pub fn write_shard(
+        &self,
+        shard: u64,
+        samples: impl IntoIterator<Item = Result<CachedSample, NetError>>,
+    ) -> Result<(), NetError> {
+        let path = shard_path(&self.dir, shard);
+        let tmp = temporary_path(&path);
+        let written = write_tar(&tmp, &path, self.shard_samples(shard), samples);
+        if written.is_err() {
+            let _ = std::fs::remove_file(&tmp);
+        }
+        written
+    }
+}
+
+/// Writes `samples` (indices `range`) as a tar to `tmp`, then renames it
+/// to `path`.
+fn write_tar(
+    tmp: &Path,
+    path: &Path,
+    range: std::ops::Range<u64>,
+    samples: impl IntoIterator<Item = Result<CachedSample, NetError>>,
+) -> Result<(), NetError> {
+    let disk = |e: std::io::Error| file_error(path, format!("cannot write: {e}"));
+    let file = std::fs::File::create(tmp).map_err(disk)?;
+    let mut tar = tar::Builder::new(std::io::BufWriter::new(file));
+    tar.mode(tar::HeaderMode::Deterministic);
+    let mut count = 0;
+    for (index, sample) in range.clone().zip(samples) {
+        let name = format!("{}.{MEMBER_SUFFIX}", sample_key(index));
+        append_member(&mut tar, &name, &sample?.to_bytes()).map_err(disk)?;
+        count += 1;
+    }
+    if count != range.end - range.start {
+        return Err(file_error(
+            path,
+            format!(
+                "{count} samples made for a shard of {}",
+                range.end - range.start
+            ),
+        ));
+    }
+    let mut out = tar.into_inner().map_err(disk)?;
+    out.flush().map_err(disk)?;
+    out.into_inner()
+        .map_err(|e| disk(e.into_error()))?
+        .sync_all()
+        .map_err(disk)?;
+    std::fs::rename(tmp, path).map_err(disk)
+}
