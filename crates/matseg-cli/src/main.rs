@@ -15,6 +15,8 @@ mod bench_set;
 mod common;
 mod demo;
 mod eval;
+#[cfg(feature = "net")]
+mod features;
 mod generate;
 mod maps;
 #[cfg(feature = "net")]
@@ -80,6 +82,9 @@ enum Command {
     /// Network weights: `import` converts PyTorch checkpoints to safetensors.
     #[command(subcommand)]
     Weights(weights::Command),
+    /// Cache training samples' encoder features, for fast training with `train --features`.
+    #[cfg(feature = "net")]
+    Features(features::Args),
     /// Train the material-descriptor net (pipeline.md §8).
     #[cfg(feature = "net")]
     Train(train::Args),
@@ -124,6 +129,8 @@ fn main() -> ExitCode {
         Command::BenchSet(command) => bench_set::run(command),
         Command::Weights(command) => weights::run(command),
         Command::Assets(command) => assets::run(command),
+        #[cfg(feature = "net")]
+        Command::Features(args) => features::run(args),
         #[cfg(feature = "net")]
         Command::Train(args) => train::run(args),
         #[cfg(feature = "net")]

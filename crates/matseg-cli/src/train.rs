@@ -16,8 +16,13 @@ use std::path::PathBuf;
 #[derive(clap::Args)]
 pub struct Args {
     /// Train from this dataset (MatSeg folders or WebDataset shards).
-    #[arg(long, conflicts_with = "online")]
+    #[arg(long, conflicts_with_all = ["online", "features"])]
     data: Option<PathBuf>,
+    /// Train on this feature cache (`matseg features`): the encoder stays
+    /// frozen and the rest of the net trains on its cached taps, with the
+    /// loss on the stride-4 grid, epoch after epoch.
+    #[arg(long, value_name = "CACHE", conflicts_with_all = ["online", "mix_data"])]
+    features: Option<PathBuf>,
     /// Train straight from the 2D generator (bundled assets unless
     /// --sources/--textures), with no disk in between.
     #[arg(long)]
@@ -58,11 +63,13 @@ pub struct Args {
     #[arg(long)]
     colour_features: bool,
     /// Initial weights: imagenet (the MobileNetV2 encoder's, from the
-    /// registry), scratch, a safetensors file with the encoder's standard
-    /// names, or a whole net's weights of the same shape (a run's
-    /// model.safetensors or best.safetensors) to continue from.
-    #[arg(long, default_value = TrainConfig::INIT)]
-    init: String,
+    /// registry), scratch, default (the shipped model), a safetensors file
+    /// with the encoder's standard names, or a whole net's weights of the
+    /// same shape (a run's model.safetensors or best.safetensors, or its
+    /// folder) to continue from; with --features, the cache's model unless
+    /// given (which must be the same encoder). Default: imagenet.
+    #[arg(long)]
+    init: Option<String>,
     /// cpu or cuda.
     #[arg(long, default_value = "cpu")]
     device: String,
@@ -121,7 +128,7 @@ pub struct Args {
     #[arg(long, required_unless_present = "resume")]
     out: Option<PathBuf>,
     /// Continue the run in this folder from its last checkpoint.
-    #[arg(long, conflicts_with_all = ["out", "encoder", "init", "lr_scales", "encoder_features", "colour_features", "mix_data", "inference_side"])]
+    #[arg(long, conflicts_with_all = ["out", "encoder", "init", "lr_scales", "encoder_features", "colour_features", "mix_data", "inference_side", "features"])]
     resume: Option<PathBuf>,
 }
 
@@ -173,11 +180,13 @@ fn config(args: &Args) -> Result<TrainConfig> {
         .out
         .clone()
         .expect("clap requires --out without --resume");
-    let data = match (&args.data, args.online) {
-        (Some(path), false) => TrainData::Dataset(path.clone()),
-        (None, true) => TrainData::Online,
-        _ => bail!("give --data DIR or --online"),
+    let data = match (&args.data, &args.features, args.online) {
+        (Some(path), None, false) => TrainData::Dataset(path.clone()),
+        (None, Some(cache), false) => TrainData::Features(cache.clone()),
+        (None, None, true) => TrainData::Online,
+        _ => bail!("give --data DIR, --features CACHE or --online"),
     };
+    let defaults = TrainConfig::new(out, data);
     Ok(TrainConfig {
         mix: args.mix_data.as_ref().map(|dir| MixIn {
             data: dir.clone(),
@@ -186,7 +195,7 @@ fn config(args: &Args) -> Result<TrainConfig> {
         encoder: args.encoder.clone(),
         encoder_features: args.encoder_features,
         colour_features: args.colour_features,
-        init: args.init.clone(),
+        init: args.init.clone().unwrap_or(defaults.init.clone()),
         steps: args.steps,
         lr: args.lr,
         warmup: args.warmup,
@@ -202,6 +211,6 @@ fn config(args: &Args) -> Result<TrainConfig> {
         validation_batches: args.validation_batches,
         seed: args.seed,
         inference_sides: args.inference_side.clone(),
-        ..TrainConfig::new(out, data)
+        ..defaults
     })
 }

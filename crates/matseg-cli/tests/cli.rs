@@ -708,6 +708,177 @@ fn train_refuses_held_runs_unknown_encoders_and_devices() {
     assert_one_line_error(&other, "--device tpu: expected cpu or cuda");
 }
 
+/// `matseg features` of 6 online scenes of the bundled assets at 64 px
+/// into `out`, with `extra` arguments.
+fn cache_features(out: &Path, extra: &[&str]) -> Output {
+    let (photos, textures) = (assets("photos"), assets("textures"));
+    let mut args = vec![
+        "features",
+        "--online",
+        "-n",
+        "6",
+        "--side",
+        "64",
+        "--shard-size",
+        "4",
+        "--zoom",
+        "native",
+        "--sources",
+        &photos,
+        "--textures",
+        &textures,
+        "--out",
+    ];
+    let out = out.to_str().unwrap();
+    args.push(out);
+    args.extend_from_slice(extra);
+    matseg(&args)
+}
+
+#[test]
+fn a_feature_cache_trains_resumes_and_refuses_other_encoders_and_caches() {
+    let dir = tempfile::tempdir().unwrap();
+    let (one, two) = (dir.path().join("one"), dir.path().join("two"));
+    let made = cache_features(&one, &["--loader-threads", "1"]);
+    assert!(made.status.success(), "{}", stderr(&made));
+    assert!(String::from_utf8_lossy(&made.stdout).contains("6 samples made, 0 already complete"));
+    assert!(cache_features(&two, &["--loader-threads", "2"])
+        .status
+        .success());
+    for shard in ["shard-000000.tar", "shard-000001.tar"] {
+        let bytes = |d: &Path| std::fs::read(d.join(shard)).unwrap();
+        assert_eq!(bytes(&one), bytes(&two), "{shard} depends on the threads");
+    }
+    // Run again: nothing to make; with other settings: refused.
+    let again = cache_features(&one, &[]);
+    assert!(String::from_utf8_lossy(&again.stdout).contains("0 samples made, 6 already complete"));
+    assert_one_line_error(
+        &cache_features(&one, &["--seed", "5"]),
+        "cache.json: holds a cache made with other settings (the seed differs); choose another --out",
+    );
+    assert_one_line_error(
+        &matseg(&[
+            "features",
+            "--online",
+            "--side",
+            "70",
+            "--out",
+            dir.path().join("odd").to_str().unwrap(),
+        ]),
+        "sample sides 70x70: expected multiples of 32, at least 32",
+    );
+
+    let (photos, textures) = (assets("photos"), assets("textures"));
+    let run = dir.path().join("run");
+    let train = |cache: &Path, extra: &[&str]| {
+        let mut args = vec![
+            "train",
+            "--features",
+            cache.to_str().unwrap(),
+            "--encoder-features",
+            "--colour-features",
+            "--steps",
+            "2",
+            "--batch-pixels",
+            "8192",
+            "--checkpoint-every",
+            "1",
+            "--validation-batches",
+            "1",
+            "--sources",
+            &photos,
+            "--textures",
+            &textures,
+            "--out",
+            run.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        matseg(&args)
+    };
+    let trained = train(&one, &[]);
+    assert!(trained.status.success(), "{}", stderr(&trained));
+    assert!(stderr(&trained).contains("net: 322 tensors from default"));
+    let config: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(run.join("run.json")).unwrap()).unwrap();
+    assert_eq!(config["features"]["manifest"]["model"], "default");
+    assert_eq!(config["data"], "online");
+    let scales = config["options"]["lr_scales"].as_array().unwrap();
+    assert_eq!(
+        scales.last().unwrap(),
+        &serde_json::json!({"prefix": "encoder.", "scale": 0.0})
+    );
+    let log = std::fs::read_to_string(run.join("metrics.jsonl")).unwrap();
+    let steps: Vec<serde_json::Value> = log
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(steps.len(), 2);
+    assert!(steps.iter().all(|m| m["images"] == 2 && m["width"] == 64));
+    // The run's model describes photos like any run's.
+    let out = dir.path().join("seg");
+    matseg_ok(&[
+        "segment",
+        &format!("{photos}/coffee.jpg"),
+        "--point",
+        "100,100",
+        "--model",
+        run.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(out.join("similarity_0.png").is_file());
+
+    // A resumed run must find the cache it started on.
+    let manifest = one.join("cache.json");
+    let good = std::fs::read_to_string(&manifest).unwrap();
+    std::fs::write(
+        &manifest,
+        good.replace("\"p_augment\": 0.5", "\"p_augment\": 0.25"),
+    )
+    .unwrap();
+    let resumed = matseg(&[
+        "train",
+        "--resume",
+        run.to_str().unwrap(),
+        "--sources",
+        &photos,
+    ]);
+    assert_one_line_error(
+        &resumed,
+        "cache.json: is not the cache this run started on (the augmentation differs)",
+    );
+    std::fs::write(&manifest, good).unwrap();
+
+    // A net whose encoder did not make the cache, and a cache's model
+    // asked for without a cache, are refused.
+    std::fs::remove_dir_all(&run).unwrap();
+    assert_one_line_error(
+        &train(&two, &["--init", "scratch"]),
+        "made by the encoder of default, whose weights differ from those of scratch",
+    );
+    assert_one_line_error(
+        &matseg(&[
+            "train",
+            "--online",
+            "--init",
+            "cache",
+            "--out",
+            run.to_str().unwrap(),
+        ]),
+        "--init cache: names a feature cache's model, for runs on a feature cache",
+    );
+    assert_one_line_error(
+        &matseg(&[
+            "train",
+            "--features",
+            dir.path().to_str().unwrap(),
+            "--out",
+            run.to_str().unwrap(),
+        ]),
+        "cache.json: no such file: not a feature cache (make one with matseg features)",
+    );
+}
+
 /// The 8-bit grey values of a PNG.
 fn grey_values(path: &Path) -> image::GrayImage {
     image::open(path).unwrap().to_luma8()

@@ -17,6 +17,8 @@
 //!   by name and trained nets by folder.
 //! - [`weights`]: checkpoints converted to safetensors, and the registry's
 //!   ImageNet weights fetched once into the cache.
+//! - [`features`] (feature `net`): feature caches, samples run once
+//!   through an encoder for fast training on them.
 //! - [`train`] (feature `net`): training runs started from a configuration
 //!   or resumed from their folder, with each step reported to a callback.
 //! - [`segment`] (feature `net`): a model's descriptors of a photo,
@@ -38,6 +40,8 @@
 pub mod bench;
 pub mod demo;
 pub mod error;
+#[cfg(feature = "net")]
+pub mod features;
 mod files;
 pub mod files3d;
 pub mod material_mixes;

@@ -12,10 +12,12 @@ use matseg_data::Dataset;
 use matseg_eval::{evaluate_points, load_point_benchmark, PointBenchmark};
 use matseg_net::colour::COLOUR_PART;
 use matseg_net::data::{BatchPlan, DatasetSource, GeneratorSource, MixedSource, SampleSource};
-use matseg_net::infer::{NetModel, TrainedNet};
+use matseg_net::features::{encoder_digest, CacheManifest, FeatureCache};
+use matseg_net::infer::{resolve_model, run_files, NetModel, TrainedNet, DEFAULT_MODEL};
 use matseg_net::loader::default_workers;
 use matseg_net::train::{
-    self, LrScale, Mix, NetScore, RunConfig, StepMetrics, TrainOptions, Trainer, Validation,
+    self, CachedFeatures, LrScale, Mix, NetScore, RunConfig, StepMetrics, TrainOptions, Trainer,
+    TrainingData, Validation,
 };
 use matseg_net::{load_named, load_net_adding, EncoderConfig, NetConfig, NetError, PRESETS};
 use matseg_scene::Recipe2d;
@@ -31,6 +33,10 @@ pub enum TrainData {
     Online,
     /// A stored dataset: MatSeg folders or WebDataset shards.
     Dataset(PathBuf),
+    /// A feature cache made by [`crate::features::make_features`]: the
+    /// encoder stays frozen (it made the cache), the rest of the net trains
+    /// on the cached taps with the loss on the stride-4 grid.
+    Features(PathBuf),
 }
 
 /// A stored dataset mixed into the training data.
@@ -59,8 +65,9 @@ pub struct TrainConfig {
     /// Each stride-4 cell's mean colour joins the descriptor.
     pub colour_features: bool,
     /// Initial weights: `imagenet` (the registry's MobileNetV2 encoder),
-    /// `scratch`, an encoder's safetensors file with its standard names, or
-    /// a whole net's weights of the same shape to continue from.
+    /// `scratch`, `default` (the shipped model), an encoder's safetensors
+    /// file with its standard names, a whole net's weights of the same
+    /// shape or a run folder to continue from, or [`TrainConfig::CACHE_INIT`].
     pub init: String,
     /// Steps (batches) in all.
     pub steps: u64,
@@ -101,6 +108,9 @@ impl TrainConfig {
     pub const ENCODER: &'static str = "mobilenet-v2";
     /// Default initial weights.
     pub const INIT: &'static str = "imagenet";
+    /// Initial weights of a run on a feature cache: the model the cache's
+    /// encoder came from (the default of [`TrainData::Features`] runs).
+    pub const CACHE_INIT: &'static str = "cache";
     /// Weight decay of every run.
     pub const WEIGHT_DECAY: f64 = 4e-5;
 
@@ -108,12 +118,15 @@ impl TrainConfig {
     pub fn new(out: impl Into<PathBuf>, data: TrainData) -> Self {
         Self {
             out: out.into(),
-            data,
             mix: None,
             encoder: Self::ENCODER.to_string(),
             encoder_features: false,
             colour_features: false,
-            init: Self::INIT.to_string(),
+            init: match data {
+                TrainData::Features(_) => Self::CACHE_INIT,
+                _ => Self::INIT,
+            }
+            .to_string(),
             steps: Self::STEPS,
             lr: None,
             warmup: train::WARMUP_STEPS,
@@ -124,6 +137,7 @@ impl TrainConfig {
             validation_batches: Self::VALIDATION_BATCHES,
             seed: 0,
             inference_sides: Vec::new(),
+            data,
         }
     }
 
@@ -141,6 +155,33 @@ impl TrainConfig {
             })?
         };
         let pretrained = self.init != "scratch";
+        let features = match &self.data {
+            TrainData::Features(dir) => Some(CachedFeatures {
+                cache: dir.display().to_string(),
+                manifest: CacheManifest::read(dir)?,
+            }),
+            _ => None,
+        };
+        let mut plan = self.plan;
+        let mut lr_scales = self.lr_scales.clone();
+        if let Some(cached) = &features {
+            if self.mix.is_some() {
+                return Err(PipelineError::Settings(
+                    "a run on a feature cache takes its data from the cache: mix datasets in                      when making the cache"
+                        .into(),
+                ));
+            }
+            // The batches are the cache's samples; the plan keeps their
+            // size (for the held-out batches too) and how many make one.
+            let m = &cached.manifest;
+            plan.min_side = m.width.min(m.height);
+            plan.max_side = m.width.max(m.height);
+            // The encoder made the cache: it stays as it is.
+            lr_scales.push(LrScale {
+                prefix: ENCODER_PREFIX.into(),
+                scale: 0.0,
+            });
+        }
         let options = TrainOptions {
             steps: self.steps,
             lr: self.lr.unwrap_or(if pretrained {
@@ -151,11 +192,11 @@ impl TrainConfig {
             warmup: self.warmup,
             decay: self.decay,
             weight_decay: Self::WEIGHT_DECAY,
-            plan: self.plan,
+            plan,
             seed: self.seed,
             checkpoint_every: self.checkpoint_every,
             validation_batches: self.validation_batches,
-            lr_scales: self.lr_scales.clone(),
+            lr_scales,
         };
         options
             .plan
@@ -174,9 +215,10 @@ impl TrainConfig {
             net,
             options,
             init: self.init.clone(),
-            data: match &self.data {
-                TrainData::Online => ONLINE.to_string(),
-                TrainData::Dataset(path) => path.display().to_string(),
+            data: match (&self.data, &features) {
+                (_, Some(cached)) => cached.manifest.data.clone(),
+                (TrainData::Dataset(path), None) => path.display().to_string(),
+                _ => ONLINE.to_string(),
             },
             mix: self.mix.as_ref().map(|m| Mix {
                 data: m.data.display().to_string(),
@@ -184,12 +226,16 @@ impl TrainConfig {
             }),
             inference_side: self.inference_sides.first().copied(),
             extra_inference_sides: self.inference_sides.iter().skip(1).copied().collect(),
+            features,
         })
     }
 }
 
 /// What `run.json` records as the data of an online run.
-const ONLINE: &str = "online";
+pub(crate) const ONLINE: &str = "online";
+
+/// The start of the encoder's variable names.
+const ENCODER_PREFIX: &str = "encoder.";
 
 /// Validation scenes come from the generator under this seed offset, apart
 /// from the online training scenes.
@@ -246,7 +292,21 @@ pub fn start(config: &TrainConfig, device: Device) -> Result<TrainingRun, Pipeli
             ));
         }
     }
-    let initial_weights = load_initial_weights(&trainer, &config.init)?;
+    let init = match (&trainer.config.features, config.init.as_str()) {
+        (Some(cached), TrainConfig::CACHE_INIT) => cached.manifest.model.clone(),
+        (None, TrainConfig::CACHE_INIT) => {
+            return Err(PipelineError::setting(
+                "init",
+                Some(TrainConfig::CACHE_INIT),
+                "names a feature cache's model, for runs on a feature cache",
+            ))
+        }
+        (_, init) => init.to_string(),
+    };
+    let initial_weights = load_initial_weights(&trainer, &init)?;
+    if let Some(cached) = &trainer.config.features {
+        check_cache_encoder(&trainer, cached, &init)?;
+    }
     create_folder(&dir)?;
     train::write_run_config(&dir, &trainer.config)?;
     Ok(TrainingRun {
@@ -254,6 +314,35 @@ pub fn start(config: &TrainConfig, device: Device) -> Result<TrainingRun, Pipeli
         dir,
         initial_weights,
     })
+}
+
+/// Refuses a run whose net's encoder is not the one that made its cache.
+fn check_cache_encoder(
+    trainer: &Trainer,
+    cached: &CachedFeatures,
+    init: &str,
+) -> Result<(), PipelineError> {
+    let m = &cached.manifest;
+    if trainer.config.net.encoder != m.encoder {
+        return Err(PipelineError::file(
+            format!("{}/{}", cached.cache, matseg_net::features::MANIFEST_FILE),
+            format!(
+                "made by another encoder ({:?}) than this run's ({:?})",
+                m.encoder, trainer.config.net.encoder
+            ),
+        ));
+    }
+    if encoder_digest(&trainer.vs) != m.encoder_digest {
+        return Err(PipelineError::file(
+            format!("{}/{}", cached.cache, matseg_net::features::MANIFEST_FILE),
+            format!(
+                "made by the encoder of {}, whose weights differ from those of {init}:                  start from the cache's model (--init {})",
+                m.model,
+                TrainConfig::CACHE_INIT
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// Continues the run in `dir` from its last checkpoint, on `device`.
@@ -353,7 +442,11 @@ impl TrainingRun {
             recipe: Recipe2d::default(),
             seed,
         };
-        let main: Box<dyn SampleSource + '_> = if config.data == ONLINE {
+        let cache = match &config.features {
+            Some(cached) => Some(open_cache(&self.trainer, cached)?),
+            None => None,
+        };
+        let main: Box<dyn SampleSource + '_> = if config.data == ONLINE || cache.is_some() {
             Box::new(generator(config.options.seed))
         } else {
             Box::new(dataset_source(&config.data)?)
@@ -367,9 +460,10 @@ impl TrainingRun {
             other,
             fraction: *fraction,
         });
-        let source: &dyn SampleSource = match &mixture {
-            Some(mixture) => mixture,
-            None => main.as_ref(),
+        let data = match (&cache, &mixture) {
+            (Some(cache), _) => TrainingData::Features(cache),
+            (None, Some(mixture)) => TrainingData::Samples(mixture),
+            (None, None) => TrainingData::Samples(main.as_ref()),
         };
         let held_out = generator(config.options.seed ^ VALIDATION_GENERATOR_SEED);
         let bench = match inputs.val_points {
@@ -397,7 +491,7 @@ impl TrainingRun {
         let (mut images, mut pixels, mut waited) = (0, 0, 0.0);
         train::run(
             &mut self.trainer,
-            source,
+            data,
             validation,
             &self.dir,
             loader_threads,
@@ -419,6 +513,20 @@ impl TrainingRun {
     }
 }
 
+/// Opens a run's feature cache, checking that it is the one the run
+/// started on and that the net's encoder still made it.
+fn open_cache(trainer: &Trainer, cached: &CachedFeatures) -> Result<FeatureCache, PipelineError> {
+    let cache = FeatureCache::open(Path::new(&cached.cache))?;
+    if let Some(what) = cache.manifest.difference(&cached.manifest) {
+        return Err(PipelineError::file(
+            format!("{}/{}", cached.cache, matseg_net::features::MANIFEST_FILE),
+            format!("is not the cache this run started on ({what} differs)"),
+        ));
+    }
+    check_cache_encoder(trainer, cached, "the run")?;
+    Ok(cache)
+}
+
 /// Loads the initial weights `init` names into a new run's net; says what
 /// it loaded.
 fn load_initial_weights(trainer: &Trainer, init: &str) -> Result<Option<String>, PipelineError> {
@@ -434,9 +542,12 @@ fn load_initial_weights(trainer: &Trainer, init: &str) -> Result<Option<String>,
             }
             imagenet_weights(Arch::MobilenetV2, None)?.path
         }
-        file => PathBuf::from(file),
+        model => run_files(&resolve_model(Path::new(model))?).1,
     };
-    let label = path.display().to_string();
+    let label = match init {
+        DEFAULT_MODEL => DEFAULT_MODEL.to_string(),
+        _ => path.display().to_string(),
+    };
     let (tensors, _) = read_weights(&path)?;
     // A whole net's weights (a run's model.safetensors or best.safetensors)
     // carry the net's own names; an encoder's, the encoder's standard ones.
@@ -455,7 +566,7 @@ fn load_initial_weights(trainer: &Trainer, init: &str) -> Result<Option<String>,
 }
 
 /// The dataset `run.json`'s `data` names.
-fn dataset_source(data: &str) -> Result<DatasetSource, PipelineError> {
+pub(crate) fn dataset_source(data: &str) -> Result<DatasetSource, PipelineError> {
     let dataset = Dataset::open(Path::new(data))?;
     if dataset.is_empty() {
         return Err(PipelineError::file(data, "no complete samples"));
