@@ -3,7 +3,7 @@
 //! with its kind, size, source package and version, and licence.
 
 use crate::error::AssetError;
-use crate::manifest::{Kind, Registry};
+use crate::manifest::{Kind, PackageSpec, Registry};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -59,12 +59,30 @@ pub struct PackageRecord {
     pub files: Vec<CatalogEntry>,
     /// Files left out, each with why.
     pub warnings: Vec<String>,
+    /// The manifest's entry it was installed by: a package whose entry has
+    /// changed since (other files taken, other licences) is installed again.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spec: Option<serde_json::Value>,
 }
 
 impl PackageRecord {
     /// The record's file name: `KIND-FOLDER.json`.
     pub fn file_name(kind: Kind, folder: &str) -> String {
         format!("{kind}-{folder}.json")
+    }
+
+    /// `spec` as its record keeps it.
+    pub fn spec_value(spec: &PackageSpec) -> serde_json::Value {
+        serde_json::to_value(spec).expect("a manifest entry serialises")
+    }
+
+    /// Whether the record at `path` is complete and was installed by `spec`
+    /// as the manifest now gives it.
+    pub fn is_current(path: &std::path::Path, spec: &PackageSpec) -> bool {
+        std::fs::read(path)
+            .ok()
+            .and_then(|bytes| serde_json::from_slice::<PackageRecord>(&bytes).ok())
+            .is_some_and(|record| record.spec == Some(Self::spec_value(spec)))
     }
 }
 

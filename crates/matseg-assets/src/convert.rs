@@ -9,6 +9,7 @@
 use crate::error::{content, AssetError};
 use crate::manifest::Kind;
 use image::RgbImage;
+use matseg_image::fingerprint::Fingerprint;
 use serde_json::{json, Value};
 use std::io::Cursor;
 
@@ -48,6 +49,10 @@ pub fn convert(kind: Kind, name: &str, bytes: Vec<u8>) -> Result<Vec<Converted>,
     if kind == Kind::Weights {
         return checkpoint_to_safetensors(name, &bytes);
     }
+    if kind == Kind::Photos && lower.ends_with(".edj") {
+        let jpeg = crate::eet::eet_photo(&bytes)?;
+        return convert_image(kind, &replace_ext(name, ".edj", ".jpg"), "", jpeg).map(|c| vec![c]);
+    }
     if matches!(kind, Kind::Photos | Kind::Textures) {
         return convert_image(kind, name, &lower, bytes).map(|c| vec![c]);
     }
@@ -74,7 +79,7 @@ fn convert_image(
             let info = if textures {
                 texture_info(&img)?
             } else {
-                json!({ "width": img.width(), "height": img.height() })
+                photo_info(&img)?
             };
             Ok(Converted::primary(
                 replace_ext(name, from, to),
@@ -83,12 +88,13 @@ fn convert_image(
             ))
         }
         None => {
+            let img = image::load_from_memory(&bytes)
+                .map_err(|e| content(format!("not a readable image: {e}")))?
+                .into_rgb8();
             let info = if textures {
-                let img = image::load_from_memory(&bytes)
-                    .map_err(|e| content(format!("not a readable image: {e}")))?;
-                texture_info(&img.into_rgb8())?
+                texture_info(&img)?
             } else {
-                image_info(&bytes)?
+                photo_info(&img)?
             };
             Ok(Converted::primary(name.to_string(), bytes, info))
         }
@@ -151,18 +157,20 @@ fn replace_ext(name: &str, old: &str, new: &str) -> String {
     format!("{}{new}", &name[..name.len() - old.len()])
 }
 
-/// Width and height from an image's header (JPEG or PNG).
-fn image_info(bytes: &[u8]) -> Result<Value, AssetError> {
-    let reader = image::ImageReader::new(Cursor::new(bytes))
-        .with_guessed_format()
-        .map_err(|e| content(e.to_string()))?;
-    let (w, h) = reader
-        .into_dimensions()
-        .map_err(|e| content(format!("not a readable image: {e}")))?;
-    if w == 0 || h == 0 {
-        return Err(content("image has no pixels"));
+/// The smallest side a photo may have: the 2D generator's scenes are 400
+/// to 999 pixels, and a smaller photo would be magnified into blur.
+pub const MIN_PHOTO_SIDE: u32 = 200;
+
+/// Width, height and [`Fingerprint`] of a photo, after checking that it
+/// is at least [`MIN_PHOTO_SIDE`] pixels a side.
+fn photo_info(img: &RgbImage) -> Result<Value, AssetError> {
+    let (w, h) = img.dimensions();
+    if w.min(h) < MIN_PHOTO_SIDE {
+        return Err(content(format!(
+            "{w}x{h} is too small for a photo source (at least {MIN_PHOTO_SIDE} pixels a side)"
+        )));
     }
-    Ok(json!({ "width": w, "height": h }))
+    Ok(json!({ "width": w, "height": h, "fingerprint": Fingerprint::of(img).to_hex() }))
 }
 
 /// The smallest side a texture may have: smaller ones are icons or

@@ -81,7 +81,8 @@ pub enum Progress<'a> {
 }
 
 /// Fetches and installs the packages of `manifest` holding `kinds` (all when
-/// empty) into the cache `layout`; `force` redoes complete ones. Writes the
+/// empty) into the cache `layout`: those not yet installed, and those whose
+/// manifest entry has changed since; `force` redoes complete ones too. Writes the
 /// catalogue at the end, whatever failed.
 pub fn fetch(
     manifest: &Manifest,
@@ -103,7 +104,7 @@ pub fn fetch(
             .corpus
             .join(PACKAGES_DIR)
             .join(PackageRecord::file_name(spec.kind, &spec.folder()));
-        if record.is_file() && !force {
+        if !force && PackageRecord::is_current(&record, spec) {
             report.already.push(spec.name.clone());
         } else {
             let dir = layout.downloads.join(spec.folder());

@@ -4,12 +4,14 @@
 //! record last.
 
 use crate::archive::{extract_from, visit, Entry};
+use crate::benchmark_photos::benchmark_photo_of;
 use crate::catalog::{CatalogEntry, PackageRecord, PACKAGES_DIR};
 use crate::convert::convert;
 use crate::dep5::Copyright;
 use crate::error::AssetError;
 use crate::glob::{glob_match, literal_prefix};
 use crate::manifest::{Kind, PackageSpec, Registry};
+use matseg_image::fingerprint::Fingerprint;
 use matseg_image::library::{LICENSES_FILE, UNKNOWN_LICENCE};
 use matseg_image::licence_family;
 use serde_json::json;
@@ -68,6 +70,8 @@ pub fn install(
 
     let mut warnings = Vec::new();
     let mut staged = Vec::new();
+    // The photos staged so far, to leave out second copies.
+    let mut photos: Vec<(String, Fingerprint)> = Vec::new();
     for t in taken {
         match convert(spec.kind, &t.name, t.bytes) {
             Ok(files) => {
@@ -94,6 +98,11 @@ pub fn install(
                     } else {
                         converted.info
                     };
+                    if let Some(why) = photo_left_out(&info, &mut photos, &converted.name) {
+                        warnings.push(format!("{}: {why}", t.source));
+                        std::fs::remove_file(&path).map_err(|e| io(e, &path))?;
+                        continue;
+                    }
                     staged.push(Staged {
                         name: converted.name,
                         bytes: converted.bytes.len() as u64,
@@ -150,6 +159,7 @@ pub fn install(
         kind: spec.kind,
         files,
         warnings,
+        spec: Some(PackageRecord::spec_value(spec)),
     };
     let records = corpus.join(PACKAGES_DIR);
     std::fs::create_dir_all(&records).map_err(|e| io(e, &records))?;
@@ -160,6 +170,30 @@ pub fn install(
     )
     .map_err(|e| io(e, &path))?;
     Ok(record)
+}
+
+/// Why a staged photo (its catalogue `info`, its corpus `name`) is left
+/// out, if it is: it is a photo of the project's benchmark, or the same
+/// photo as one staged before it (`photos`, to which it is added when kept).
+fn photo_left_out(
+    info: &serde_json::Value,
+    photos: &mut Vec<(String, Fingerprint)>,
+    name: &str,
+) -> Option<String> {
+    let print = info["fingerprint"]
+        .as_str()
+        .and_then(Fingerprint::from_hex)?;
+    if let Some(benchmark) = benchmark_photo_of(&print) {
+        return Some(format!(
+            "the same photo as benchmarks/real-dev/images/{benchmark}: a benchmark photo is never \
+             a generator source"
+        ));
+    }
+    if let Some((first, _)) = photos.iter().find(|(_, p)| p.same_photo(&print)) {
+        return Some(format!("the same photo as {first}, kept once"));
+    }
+    photos.push((name.to_string(), print));
+    None
 }
 
 /// The files `spec` takes from the package file `archive`, with their

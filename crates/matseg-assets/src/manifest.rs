@@ -75,7 +75,7 @@ impl fmt::Display for Kind {
 }
 
 /// An archive inside a package, and what to take from it.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct Nested {
     /// Pattern of the inner archive's path in the package.
@@ -92,7 +92,7 @@ impl Nested {
 }
 
 /// One package of the manifest.
-#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Deserialize, serde::Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct PackageSpec {
     /// Its name in its registry.

@@ -29,8 +29,16 @@ fn deb(files: &[(&str, Vec<u8>)]) -> Vec<u8> {
     archive_fixtures::deb(&borrowed(files))
 }
 
-fn jpeg(w: u32, h: u32) -> Vec<u8> {
-    let img = image::RgbImage::from_fn(w, h, |x, y| image::Rgb([x as u8 * 9, y as u8 * 9, 128]));
+/// A `w x h` photo of soft waves, its pattern set by `k`.
+fn scene(w: u32, h: u32, k: f32) -> image::RgbImage {
+    image::RgbImage::from_fn(w, h, |x, y| {
+        let (u, v) = (x as f32 / w as f32, y as f32 / h as f32);
+        let s = ((u * (2.0 + k) + v * 3.0).sin() * (v * (4.0 + k) - u * k).cos() + 1.0) * 120.0;
+        image::Rgb([s as u8, (255.0 * v) as u8, (200.0 * u) as u8])
+    })
+}
+
+fn jpeg_of(img: &image::RgbImage) -> Vec<u8> {
     let mut out = Vec::new();
     img.write_to(
         &mut std::io::Cursor::new(&mut out),
@@ -162,8 +170,14 @@ fn fixtures(scratch: &Path) -> Fixtures {
         "wallpapers",
         "wallpapers_1.2-3_all.deb",
         deb(&[
-            ("./usr/share/backgrounds/free.jpg", jpeg(12, 8)),
-            ("./usr/share/backgrounds/gpl.jpg", jpeg(16, 10)),
+            (
+                "./usr/share/backgrounds/free.jpg",
+                jpeg_of(&scene(240, 200, 1.0)),
+            ),
+            (
+                "./usr/share/backgrounds/gpl.jpg",
+                jpeg_of(&scene(320, 200, 3.0)),
+            ),
             ("./usr/share/backgrounds/broken.jpg", b"not a jpeg".to_vec()),
             ("./usr/share/backgrounds/readme.txt", b"skip me".to_vec()),
             (
@@ -362,7 +376,7 @@ fn fetch_builds_the_corpus_with_licences_and_a_catalogue() {
         summary[&(matseg_assets::manifest::Kind::Meshes, "cc0".to_string())],
         (1, chair_bytes)
     );
-    assert_eq!(by_path("photos/wallpapers/gpl.jpg").info["width"], 16);
+    assert_eq!(by_path("photos/wallpapers/gpl.jpg").info["width"], 320);
     assert_eq!(
         by_path("photos/wallpapers/gpl.jpg").source,
         "usr/share/backgrounds/gpl.jpg"
@@ -451,6 +465,95 @@ fn fetch_builds_the_corpus_with_licences_and_a_catalogue() {
     );
     assert_eq!(Catalog::read(&layout.corpus).unwrap(), catalog);
     assert!(!layout.corpus.join(".staging/photos-wallpapers").exists());
+}
+
+const PHOTO_MANIFEST: &str = r#"
+[[package]]
+name = "shots"
+registry = "deb"
+kind = "photos"
+take = ["usr/share/shots/*"]
+licence = "CC0-1.0"
+"#;
+
+#[test]
+fn photos_are_checked_for_size_copies_and_benchmark_photos() {
+    let cache = tempfile::tempdir().unwrap();
+    let layout = CacheLayout::new(cache.path());
+    let manifest = Manifest::parse(PHOTO_MANIFEST, "test manifest").unwrap();
+    let keep = scene(450, 300, 1.0);
+    let copy = image::imageops::resize(&keep, 300, 200, image::imageops::FilterType::Triangle);
+    // A photo of the benchmark, at a size of its own.
+    let benchmark = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../benchmarks/real-dev/images/mossy-log.jpg");
+    let benchmark = image::open(benchmark).unwrap().into_rgb8();
+    let benchmark = image::imageops::resize(
+        &benchmark,
+        benchmark.width() * 3 / 2,
+        benchmark.height() * 3 / 2,
+        image::imageops::FilterType::Triangle,
+    );
+    // An Eet archive holding one photo at two sizes: the one of at most
+    // 4096 pixels a side is taken.
+    let (huge, photo) = (scene(4200, 210, 2.0), scene(320, 220, 2.0));
+    let mut eet = b"\x1e\xe7\x0f\x42 directory".to_vec();
+    eet.extend(jpeg_of(&huge));
+    eet.extend(b"next entry");
+    eet.extend(jpeg_of(&photo));
+    let shots = deb(&[
+        ("./usr/share/shots/keep.jpg", jpeg_of(&keep)),
+        ("./usr/share/shots/copy.jpg", jpeg_of(&copy)),
+        ("./usr/share/shots/tiny.jpg", jpeg_of(&scene(190, 400, 4.0))),
+        ("./usr/share/shots/log.jpg", jpeg_of(&benchmark)),
+        ("./usr/share/shots/Leaves.edj", eet),
+    ]);
+    let mut files = BTreeMap::new();
+    files.insert("shots".to_string(), ("shots_1_all.deb".to_string(), shots));
+    let downloader = Fixtures {
+        files,
+        downloads: RefCell::new(0),
+        fail: None,
+    };
+    let report = fetch(&manifest, &[], false, &layout, &downloader, &mut |_| {}).unwrap();
+    let record = &report.installed[0];
+    let kept: Vec<(&str, &serde_json::Value)> = record
+        .files
+        .iter()
+        .map(|f| (f.path.as_str(), &f.info["width"]))
+        .collect();
+    assert_eq!(
+        kept,
+        [
+            ("photos/shots/keep.jpg", &serde_json::json!(450)),
+            ("photos/shots/Leaves.jpg", &serde_json::json!(320)),
+        ]
+    );
+    let mut warnings = record.warnings.clone();
+    warnings.sort();
+    assert_eq!(
+        warnings,
+        [
+            "usr/share/shots/copy.jpg: the same photo as keep.jpg, kept once",
+            "usr/share/shots/log.jpg: the same photo as benchmarks/real-dev/images/mossy-log.jpg: \
+             a benchmark photo is never a generator source",
+            "usr/share/shots/tiny.jpg: 190x400 is too small for a photo source (at least 200 \
+             pixels a side)",
+        ]
+    );
+    let leaves = image::open(layout.corpus.join("photos/shots/Leaves.jpg")).unwrap();
+    assert_eq!((leaves.width(), leaves.height()), (320, 220));
+
+    // The same manifest again: nothing to do; a changed entry: installed again.
+    let again = fetch(&manifest, &[], false, &layout, &downloader, &mut |_| {}).unwrap();
+    assert_eq!((again.already.len(), again.installed.len()), (1, 0));
+    let changed = Manifest::parse(
+        &PHOTO_MANIFEST.replace("CC0-1.0", "CC-BY-4.0"),
+        "test manifest",
+    )
+    .unwrap();
+    let again = fetch(&changed, &[], false, &layout, &downloader, &mut |_| {}).unwrap();
+    assert_eq!((again.already.len(), again.installed.len()), (0, 1));
+    assert_eq!(again.installed[0].files[0].licence, "CC-BY-4.0");
 }
 
 #[test]

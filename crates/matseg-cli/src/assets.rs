@@ -46,6 +46,11 @@ pub struct ListArgs {
     /// Cache folder (as for `fetch`).
     #[arg(long)]
     cache: Option<PathBuf>,
+    /// Instead of the summary, every file of this kind (photos, textures,
+    /// hdris, meshes, weights) as tab-separated lines: path, package,
+    /// version, licence, licence family, and for photos their fingerprint.
+    #[arg(long, value_name = "KIND")]
+    files: Option<String>,
 }
 
 /// Runs `matseg assets`.
@@ -151,7 +156,29 @@ fn run_list(args: ListArgs) -> Result<()> {
             corpus.display()
         );
     }
-    print_summary(&corpus)
+    match &args.files {
+        Some(kind) => print_files(&corpus, parse_kinds(kind)?),
+        None => print_summary(&corpus),
+    }
+}
+
+/// The catalogue's files of `kinds` (their own, not models' parts), a
+/// tab-separated line each.
+fn print_files(corpus: &Path, kinds: Vec<Kind>) -> Result<()> {
+    let catalog = Catalog::read(corpus)?;
+    println!("path\tpackage\tversion\tlicence\tfamily\tfingerprint");
+    for f in catalog
+        .files
+        .iter()
+        .filter(|f| f.part_of.is_none() && kinds.contains(&f.kind))
+    {
+        let print = f.info["fingerprint"].as_str().unwrap_or_default();
+        println!(
+            "{}\t{}\t{}\t{}\t{}\t{print}",
+            f.path, f.package, f.version, f.licence, f.family
+        );
+    }
+    Ok(())
 }
 
 /// The table of files and megabytes per kind and licence family.
