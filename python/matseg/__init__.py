@@ -15,7 +15,7 @@ only when used.
 """
 
 from ._core import MatsegError
-from .data import BatchPlan, Dataset, Generator, read_image
+from .data import BatchPlan, Dataset, FeatureCache, Generator, read_image
 from .model import Model
 
-__all__ = ["BatchPlan", "Dataset", "Generator", "MatsegError", "Model", "read_image"]
+__all__ = ["BatchPlan", "Dataset", "FeatureCache", "Generator", "MatsegError", "Model", "read_image"]

@@ -239,3 +239,62 @@ class Dataset:
 
     def __repr__(self):
         return f"Dataset({self.root!r}, {len(self)} samples)"
+
+
+class FeatureCache:
+    """A feature cache made by `matseg features`: training samples already
+    run through a model's encoder, with their ground truth on the stride-4
+    grid. `batch(step, plan, seed)` is batch `step` of `matseg train
+    --features` on it. Picklable (reopened in each process)."""
+
+    def __init__(self, root):
+        root = os.fspath(root)
+        if not os.path.exists(root):
+            raise FileNotFoundError(f"{root}: no such folder")
+        self.root = root
+        self._native = _core.FeatureCache(root)
+        self.manifest = json.loads(self._native.manifest())
+
+    def __len__(self):
+        return len(self._native)
+
+    def difference(self, manifest):
+        """What differs between this cache and the one `manifest` (a dict,
+        as a run's `features` keeps it) describes, in words; None when they
+        are the same."""
+        return self._native.difference(json.dumps(manifest))
+
+    def batch(self, step, plan, seed=0):
+        """Batch `step`: `taps` (the encoder's four taps, BxCxhxw float32
+        each), `lab` (the cells' L*a*b* colours, Bx3xhxw), `weights` (BxKxhxw,
+        zero-padded to the batch's most materials) and `roi` (Bxhxw), all on
+        the stride-4 grid but the taps."""
+        samples = self._native.batch(plan.to_json(), int(seed), int(step))
+
+        def array(sample, name):
+            shape, data = sample[name]
+            return np.frombuffer(data, "<f2").reshape(shape).astype(np.float32)
+
+        def stacked(name):
+            return np.stack([array(s, name) for s in samples])
+
+        weights = [array(s, "weights") for s in samples]
+        k = max(w.shape[0] for w in weights)
+        padded = np.zeros((len(weights), k) + weights[0].shape[1:], np.float32)
+        for i, w in enumerate(weights):
+            padded[i, : w.shape[0]] = w
+        return {
+            "taps": [stacked(name) for name in ("s4", "s8", "s16", "s32")],
+            "lab": stacked("lab"),
+            "weights": padded,
+            "roi": stacked("roi"),
+        }
+
+    def __getstate__(self):
+        return {"root": self.root}
+
+    def __setstate__(self, state):
+        self.__init__(state["root"])
+
+    def __repr__(self):
+        return f"FeatureCache({self.root!r}, {len(self)} samples)"

@@ -6,9 +6,13 @@ as `matseg train`, and computes the same descriptors (tested to 1e-4).
     d = net(net.normalise(rgb))                 # rgb: Bx3xHxW 0..255, sides multiples of 32
 """
 
+import hashlib
 import json
 import math
 import os
+import struct
+
+import numpy as np
 
 import torch
 import torch.nn.functional as F
@@ -237,6 +241,11 @@ def srgb_to_lab(rgb):
     return torch.stack([fy * 116.0 - 16.0, (fx - fy) * 500.0, (fy - fz) * 200.0], 1)
 
 
+def cell_lab(x, h4, w4):
+    """Each cell's mean L*a*b* colour, Bx3xh4xw4, of the net's input x."""
+    return adaptive_avg_pool(srgb_to_lab(denormalise(x).clamp(0.0, 255.0)), h4, w4)
+
+
 class ColourPart(nn.Module):
     """Each stride-4 cell's mean colour as random Fourier features of its
     L*a*b* value (a Gaussian kernel of learned bandwidth), with a learned
@@ -254,8 +263,11 @@ class ColourPart(nn.Module):
         self.log_bandwidth = nn.Parameter(torch.full((1,), math.log(CONSTANTS["colour_initial_bandwidth"])))
 
     def forward(self, x, h4, w4):
-        rgb = denormalise(x).clamp(0.0, 255.0)
-        lab = adaptive_avg_pool(srgb_to_lab(rgb), h4, w4) / self.log_bandwidth.exp()
+        return self.from_cells(cell_lab(x, h4, w4))
+
+    def from_cells(self, lab):
+        """The weighted part of cells whose mean L*a*b* colours Bx3xhxw are given."""
+        lab = lab / self.log_bandwidth.exp()
         angles = (lab.permute(0, 2, 3, 1) @ self.projection.T).permute(0, 3, 1, 2)
         angles = angles + self.phase.view(1, -1, 1, 1)
         return l2_normalise(torch.cos(angles)) * self.log_weight.exp()
@@ -304,6 +316,13 @@ class MaterialNet(nn.Module):
     def coarse(self, x):
         """Descriptors on the stride-4 grid, not yet normalised."""
         taps = self.encoder(x)
+        lab = cell_lab(x, *taps[0].shape[2:]) if self.colour is not None else None
+        return self.coarse_from_taps(taps, lab)
+
+    def coarse_from_taps(self, taps, lab=None):
+        """`coarse` from the encoder's four taps (and, with a colour part,
+        the cells' colours `cell_lab` on the stride-4 grid): everything
+        after the encoder, for training on cached features."""
         learned = self.head(self.decoder(self.psp(taps[3]), taps))
         if self.part_log_weights is None and self.colour is None:
             return learned
@@ -315,7 +334,7 @@ class MaterialNet(nn.Module):
         else:
             parts = [l2_normalise(learned)]
         if self.colour is not None:
-            parts.append(self.colour(x, h4, w4))
+            parts.append(self.colour.from_cells(lab))
         return torch.cat(parts, 1)
 
     def forward(self, x):
@@ -328,6 +347,23 @@ def state_names(net):
     """The names of the net's stored variables (parameters and BatchNorm
     statistics, as matseg's safetensors files hold them)."""
     return [k for k in net.state_dict() if not k.endswith("num_batches_tracked")]
+
+
+def encoder_digest(net):
+    """SHA-256 of the encoder's stored variables, as `matseg features`
+    records it for a cache (matseg_net::features::encoder_digest): names
+    under `encoder.` sorted, each its name's length and bytes, its shape
+    and its float32 values."""
+    h = hashlib.sha256()
+    for name, a in sorted(state_arrays(net).items()):
+        if not name.startswith("encoder."):
+            continue
+        h.update(struct.pack("<Q", len(name.encode())))
+        h.update(name.encode())
+        for d in a.shape:
+            h.update(struct.pack("<q", d))
+        h.update(np.ascontiguousarray(a, "<f4").tobytes())
+    return h.hexdigest()
 
 
 def state_arrays(net):

@@ -8,6 +8,9 @@ DataLoader workers and DDP ranks, each index to exactly one of them.
     for batch in loader:            # images Bx3xHxW (the net's input), weights BxKxHxW, roi BxHxW
         ...
 
+`FeatureStream` does the same for the batches of a feature cache
+(`matseg features`): the encoder's taps and the targets on its grid.
+
 The split: the consumer with global number g = worker * world_size + rank
 of G = world_size * workers takes indices start + g, start + g + G, ...;
 as a DataLoader takes its workers' items in turn, rank r sees indices
@@ -90,6 +93,35 @@ class BatchStream(IterableDataset):
         b = self.source.batch(step, self.plan, self.seed, self.mix)
         return {
             "images": normalise(torch.from_numpy(b["images"]).float()),
+            "weights": torch.from_numpy(b["weights"]),
+            "roi": torch.from_numpy(b["roi"]),
+            "step": step,
+        }
+
+    def __iter__(self):
+        number, count = consumer()
+        for step in my_indices(self.first_step, self.stop, number, count):
+            yield self.batch(step)
+
+
+class FeatureStream(IterableDataset):
+    """The batches of `matseg train --features` on a `matseg.FeatureCache`
+    (under `plan`, whose pixels set the images a batch, and `seed`), steps
+    first_step..first_step+steps split across workers and ranks: taps (a
+    list of four BxCxhxw float32 tensors), lab, weights and roi on the
+    stride-4 grid, step."""
+
+    def __init__(self, cache, plan, seed=0, steps=None, first_step=0):
+        self.cache, self.plan, self.seed = cache, plan, seed
+        self.first_step = first_step
+        self.stop = None if steps is None else first_step + steps
+
+    def batch(self, step):
+        """Batch `step` as tensors."""
+        b = self.cache.batch(step, self.plan, self.seed)
+        return {
+            "taps": [torch.from_numpy(t) for t in b["taps"]],
+            "lab": torch.from_numpy(b["lab"]),
             "weights": torch.from_numpy(b["weights"]),
             "roi": torch.from_numpy(b["roi"]),
             "step": step,

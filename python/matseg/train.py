@@ -1,7 +1,8 @@
 """Training the matseg net with PyTorch, on one process or many under
 torchrun (DistributedDataParallel: gloo on CPUs, nccl on GPUs). It reads
 the same batches as `matseg train` (online 2D scenes or a stored dataset,
-the same batch plan) and writes the same run folder (run.json,
+the same batch plan, or a feature cache of `matseg features`) and writes
+the same run folder (run.json,
 model.safetensors, metrics.jsonl, checkpoint.safetensors), which `matseg
 segment`, `matseg eval` and `matseg serve` load. `--resume RUN` continues
 a run from its last checkpoint, its own or `matseg train`'s, with the next
@@ -9,6 +10,7 @@ batch of the stream; `matseg train --resume` continues this trainer's runs
 of one process.
 
     python -m matseg.train --out runs/a --steps 2000
+    python -m matseg.train --out runs/b --features CACHE --steps 8000
     torchrun --nproc_per_node 8 -m matseg.train --out runs/a --data DATA --device cuda
     torchrun --nproc_per_node 8 -m matseg.train --resume runs/a --device cuda
 """
@@ -28,8 +30,8 @@ from torch.utils.data import DataLoader
 
 from . import _core, checkpoint
 from . import net as netlib
-from .data import BatchPlan, Dataset, Generator
-from .torch import BatchStream
+from .data import BatchPlan, Dataset, FeatureCache, Generator
+from .torch import BatchStream, FeatureStream
 
 DEFAULTS = _core.train_defaults()
 METRICS_FILE = netlib.CONSTANTS["metrics_file"]
@@ -44,14 +46,19 @@ def parse_args(argv):
                    help="continue RUN from its last checkpoint, with its own settings (a run of "
                         "python -m matseg.train or matseg train)")
     p.add_argument("--data", help="stored dataset (folders or shards); default: online 2D scenes")
+    p.add_argument("--features", metavar="CACHE",
+                   help="a feature cache (matseg features): the encoder stays frozen and the rest of "
+                        "the net trains on the cached taps, with the loss on the stride-4 grid")
     p.add_argument("--mix-data", metavar="DIR",
                    help="a stored dataset (e.g. matseg generate --kind 3d renders) mixed into the training data")
     p.add_argument("--mix-fraction", type=float, default=DEFAULTS["mix_fraction"],
                    help="the share of samples taken from --mix-data")
     p.add_argument("--sources", nargs="+", help="photo folders of the online scenes (default: corpus, else bundled)")
     p.add_argument("--textures", nargs="+", help="texture folders of the online scenes")
-    p.add_argument("--init", default="default",
-                   help="initial weights: default (the shipped model), a run folder or weights file, or scratch")
+    p.add_argument("--init",
+                   help="initial weights: default (the shipped model), a run folder or weights file, or "
+                        "scratch; with --features, the cache's model unless given (it must be the "
+                        "cache's encoder). Default: default")
     p.add_argument("--encoder", default=DEFAULTS["encoder"], help="encoder preset (with --init scratch)")
     p.add_argument("--steps", type=int, default=DEFAULTS["steps"], help="batches per process")
     p.add_argument("--lr", type=float, help="peak learning rate (default: matseg train's for the init)")
@@ -75,7 +82,43 @@ def parse_args(argv):
     args = p.parse_args(argv)
     if (args.out is None) == (args.resume is None):
         p.error("give --out RUN for a new run or --resume RUN")
+    if args.features and (args.data or args.mix_data):
+        p.error("--features: a run on a feature cache takes its data from the cache")
     return args
+
+
+class FromTaps(torch.nn.Module):
+    """The net after its encoder, as one module (what DDP wraps in a run on
+    cached features): unit descriptors on the stride-4 grid of the taps."""
+
+    def __init__(self, net):
+        super().__init__()
+        self.net = net
+
+    def forward(self, taps, lab):
+        return netlib.l2_normalise(self.net.coarse_from_taps(taps, lab))
+
+
+def check_cache_encoder(net, run):
+    """Refuses a run on a feature cache whose net's encoder did not make it."""
+    manifest = run["features"]["manifest"]
+    where = os.path.join(run["features"]["cache"], "cache.json")
+    if net.config["encoder"] != manifest["encoder"]:
+        raise SystemExit(f"{where}: made by another encoder ({manifest['encoder']}) than this run's "
+                         f"({net.config['encoder']})")
+    if netlib.encoder_digest(net) != manifest["encoder_digest"]:
+        raise SystemExit(f"{where}: made by the encoder of {manifest['model']}, whose weights differ from "
+                         f"those of {run['init']}: start from the cache's model (--init cache)")
+
+
+def open_cache(run):
+    """The feature cache of a run on one, checked to be the one it started on."""
+    cache = FeatureCache(run["features"]["cache"])
+    what = cache.difference(run["features"]["manifest"])
+    if what is not None:
+        raise SystemExit(f"{os.path.join(cache.root, 'cache.json')}: is not the cache this run started "
+                         f"on ({what} differs)")
+    return cache
 
 
 def param_groups(net, lr_scales):
@@ -100,12 +143,12 @@ def state_digest(net):
     return h.hexdigest()
 
 
-def initial_net(args):
-    """The net to start from and the run.json fields it carries over."""
-    if args.init == "scratch":
+def initial_net(args, init):
+    """The net to start from (`init`) and the run.json fields it carries over."""
+    if init == "scratch":
         config = json.loads(_core.net_preset(args.encoder, False, False))
         return netlib.MaterialNet(config), {"lr_scales": []}
-    net, run = netlib.load(args.init)
+    net, run = netlib.load(init)
     carried = {"lr_scales": run["options"].get("lr_scales", [])}
     for key in ("inference_side", "extra_inference_sides"):
         if key in run:
@@ -117,10 +160,18 @@ def new_run(args):
     """The net and run.json of a new run from the arguments."""
     if os.path.isfile(os.path.join(args.out, netlib.RUN_FILE)):
         raise SystemExit(f"{args.out}: already holds a run; resume it (--resume), or choose another folder")
+    cache = FeatureCache(args.features) if args.features else None
+    init = args.init or "default"
+    if cache is not None and args.init in (None, "cache"):
+        init = cache.manifest["model"]
     sizes = {"min_side": args.min_side, "max_side": args.max_side, "pixels": args.batch_pixels}
+    if cache is not None:
+        # The batches are the cache's samples: the plan keeps their size.
+        sides = (cache.manifest["width"], cache.manifest["height"])
+        sizes.update(min_side=min(sides), max_side=max(sides))
     plan = BatchPlan(**{**BatchPlan.default().__dict__, **{k: v for k, v in sizes.items() if v is not None}})
-    net, carried = initial_net(args)
-    pretrained = args.init != "scratch"
+    net, carried = initial_net(args, init)
+    pretrained = init != "scratch"
     options = {
         "steps": args.steps,
         "lr": args.lr if args.lr is not None else DEFAULTS["lr_pretrained" if pretrained else "lr_scratch"],
@@ -129,8 +180,14 @@ def new_run(args):
         "checkpoint_every": args.checkpoint_every, "validation_batches": args.validation_batches,
         "lr_scales": carried.pop("lr_scales"),
     }
-    run = {"net": net.config, "options": options, "init": args.init,
+    run = {"net": net.config, "options": options, "init": init,
            "data": os.path.abspath(args.data) if args.data else "online", **carried}
+    if cache is not None:
+        # The encoder made the cache: it stays as it is.
+        options["lr_scales"].append({"prefix": "encoder.", "scale": 0.0})
+        run["features"] = {"cache": os.path.abspath(cache.root), "manifest": cache.manifest}
+        run["data"] = cache.manifest["data"]
+        check_cache_encoder(net, run)
     if args.mix_data:
         if not 0.0 <= args.mix_fraction <= 1.0:
             raise SystemExit(f"--mix-fraction {args.mix_fraction}: not in 0..1")
@@ -149,10 +206,13 @@ def resumed_run(folder):
 
 
 def batch_stream(run, args, first_batch):
-    """The run's batches from `first_batch` on: from its stored dataset or
-    online 2D scenes of the run's seed (and --sources/--textures), with its
-    mixed-in dataset."""
+    """The run's batches from `first_batch` on: from its feature cache, its
+    stored dataset or online 2D scenes of the run's seed (and
+    --sources/--textures), with its mixed-in dataset."""
     options = run["options"]
+    if "features" in run:
+        return FeatureStream(open_cache(run), BatchPlan(**options["plan"]), options["seed"],
+                             first_step=first_batch)
     if run["data"] != "online":
         source = Dataset(run["data"])
     else:
@@ -222,12 +282,19 @@ def main(argv=None):
         dist.init_process_group("nccl" if device.type == "cuda" else "gloo")
 
     options = run["options"]
+    features = "features" in run
+    if features:
+        # The cache's encoder stays frozen (and out of DDP's reduction).
+        for p in net.encoder.parameters():
+            p.requires_grad_(False)
     net = net.to(device)
     groups = param_groups(net, options.get("lr_scales", []))
     betas = tuple(DEFAULTS["betas"])
     optimizer = torch.optim.AdamW(groups, lr=options["lr"], betas=betas, eps=DEFAULTS["eps"],
                                   weight_decay=options["weight_decay"])
     updates, first_step, first_batch = checkpoint.read(folder, net, optimizer) if args.resume else (0, 0, 0)
+    if features and args.resume:
+        check_cache_encoder(net, run)
     if first_step >= options["steps"]:
         if rank == 0:
             print(f"{folder}: all {options['steps']} steps are trained", flush=True)
@@ -235,7 +302,8 @@ def main(argv=None):
             dist.destroy_process_group()
         return
     net.train()
-    model = DistributedDataParallel(net, device_ids=[local] if device.type == "cuda" else None) if world > 1 else net
+    module = FromTaps(net) if features else net
+    model = DistributedDataParallel(module, device_ids=[local] if device.type == "cuda" else None) if world > 1 else module
     loader = DataLoader(batch_stream(run, args, first_batch), batch_size=None, num_workers=args.workers,
                         persistent_workers=args.workers > 0)
 
@@ -255,8 +323,14 @@ def main(argv=None):
         lr = schedule[step]
         for g in optimizer.param_groups:
             g["lr"] = lr * g["scale"]
-        x = batch["images"].to(device, non_blocking=True)
-        desc = model(x)
+        if features:
+            taps = [t.to(device, non_blocking=True) for t in batch["taps"]]
+            desc = model(taps, batch["lab"].to(device))
+            count, (height, width) = taps[0].shape[0], [4 * n for n in taps[0].shape[2:]]
+        else:
+            x = batch["images"].to(device, non_blocking=True)
+            desc = model(x)
+            count, (height, width) = x.shape[0], x.shape[2:]
         loss = netlib.matseg_loss(desc, batch["weights"].to(device), batch["roi"].to(device))
         # A batch with fewer than two materials teaches nothing: one process
         # skips it, as matseg train does; under DDP every rank still takes
@@ -273,13 +347,13 @@ def main(argv=None):
         if device.type == "cuda":
             torch.cuda.synchronize(device)
         step_seconds = time.perf_counter() - step_started
-        images += x.shape[0]
+        images += count
         done = step + 1
         at_checkpoint = done % options["checkpoint_every"] == 0 or done == steps
         if rank == 0:
             # matseg train's fields (StepMetrics), and the batch's index in the stream.
-            record = {"step": step, "loss": loss_value, "lr": lr, "images": x.shape[0],
-                      "width": x.shape[3], "height": x.shape[2], "seconds": step_seconds,
+            record = {"step": step, "loss": loss_value, "lr": lr, "images": count,
+                      "width": int(width), "height": int(height), "seconds": step_seconds,
                       "data_seconds": data_seconds, "batch": batch["step"]}
             if at_checkpoint:
                 # The weights first: the point benchmark scores the saved run.

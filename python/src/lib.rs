@@ -6,6 +6,7 @@
 mod batches;
 mod dataset;
 mod errors;
+mod features;
 mod generator;
 mod model;
 mod samples;
@@ -18,6 +19,7 @@ use pyo3::prelude::*;
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<generator::PyGenerator>()?;
     m.add_class::<dataset::PyDataset>()?;
+    m.add_class::<features::PyFeatureCache>()?;
     m.add_class::<model::PyModel>()?;
     m.add_function(wrap_pyfunction!(batches::default_plan, m)?)?;
     m.add_function(wrap_pyfunction!(batches::matseg_loss, m)?)?;

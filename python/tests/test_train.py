@@ -147,3 +147,77 @@ def test_training_reads_stored_shards(tmp_path, shards_2d):
     run_json = json.loads((out / "run.json").read_text())
     assert run_json["data"] == str(shards_2d)
     assert (out / "model.safetensors").stat().st_size > 1_000_000
+
+
+# Runs on a feature cache of 8 online scenes at 64 px, two images a step.
+CACHED = ["--batch-pixels", 2 * 64 * 64, "--seed", 4, "--checkpoint-every", 2, "--validation-batches", 1]
+
+
+@pytest.fixture(scope="module")
+def feature_cache(matseg_bin, tmp_path_factory):
+    """`matseg features` of 8 online scenes at 64 px through the shipped
+    model's encoder, in shards of 4."""
+    out = tmp_path_factory.mktemp("features") / "cache"
+    run([matseg_bin, "features", "--online", "-n", 8, "--side", 64, "--shard-size", 4, "--zoom", "native",
+         "--out", out])
+    return out
+
+
+def test_a_run_on_a_feature_cache_resumes_exactly_and_matches_matseg_train(tmp_path, matseg_bin, feature_cache):
+    straight, resumed = tmp_path / "straight", tmp_path / "resumed"
+    python_train("--out", straight, "--features", feature_cache, "--steps", 4, "--workers", 0, *CACHED)
+    config = json.loads((straight / "run.json").read_text())
+    assert config["init"] == "default" and config["features"]["manifest"]["samples"] == 8
+    assert config["options"]["lr_scales"][-1] == {"prefix": "encoder.", "scale": 0.0}
+    steps = metrics(straight)
+    assert [(m["images"], m["width"], m["height"]) for m in steps] == [(2, 64, 64)] * 4
+    assert all(m["loss"] is not None for m in steps)
+
+    python_train("--out", resumed, "--features", feature_cache, "--steps", 2, "--workers", 0, *CACHED)
+    extend(resumed, 4)
+    python_train("--resume", resumed, "--workers", 1)
+    assert (resumed / "model.safetensors").read_bytes() == (straight / "model.safetensors").read_bytes()
+
+    # matseg train on the same cache takes the same steps, and resumes this
+    # trainer's run with the loss the run itself had.
+    rust = tmp_path / "rust"
+    run([matseg_bin, "train", "--features", feature_cache, "--encoder-features", "--colour-features",
+         "--lr-scale", "encoder.=0.1", "--lr-scale", "colour.=100", "--lr", 1e-5, "--warmup", 100, "--steps", 4,
+         *CACHED, "--out", rust])
+    for r, p in zip(metrics(rust), steps):
+        assert r["loss"] == pytest.approx(p["loss"], rel=1e-4), (r, p)
+    py_then_rust = tmp_path / "py2"
+    python_train("--out", py_then_rust, "--features", feature_cache, "--steps", 2, "--workers", 0, *CACHED)
+    extend(py_then_rust, 3)
+    run([matseg_bin, "train", "--resume", py_then_rust])
+    assert metrics(py_then_rust)[2]["loss"] == pytest.approx(steps[2]["loss"], rel=1e-5)
+
+
+def test_a_cache_of_another_encoder_is_refused(tmp_path, feature_cache):
+    done = subprocess.run([sys.executable, "-m", "matseg.train", "--out", tmp_path / "run", "--features",
+                           feature_cache, "--init", "scratch", "--steps", "1"], capture_output=True, text=True)
+    assert done.returncode != 0
+    assert "made by the encoder of default, whose weights differ from those of scratch" in done.stderr
+
+
+def test_a_feature_cache_reads_as_arrays_and_bad_folders_are_named(tmp_path, feature_cache):
+    import matseg
+    from matseg.torch import FeatureStream
+
+    cache = matseg.FeatureCache(feature_cache)
+    assert len(cache) == 8 and cache.manifest["taps"] == [24, 32, 96, 1280]
+    plan = matseg.BatchPlan(64, 64, 3 * 64 * 64, 2, 7, 0.5)
+    b = cache.batch(5, plan, seed=1)
+    assert [t.shape for t in b["taps"]] == [(3, 24, 16, 16), (3, 32, 8, 8), (3, 96, 4, 4), (3, 1280, 2, 2)]
+    assert b["lab"].shape == (3, 3, 16, 16) and b["roi"].shape == (3, 16, 16)
+    assert b["weights"].shape[:2][0] == 3 and b["weights"].dtype == np.float32
+    # Cell targets: material shares sum to at most 1, and nearly 1 in cells
+    # wholly inside the ROI (less only where fitting blurred an ROI edge).
+    sums = b["weights"].sum(1)
+    assert sums.max() <= 1.0 + 1e-3 and sums[b["roi"] > 0.99].min() > 0.85
+    stream = FeatureStream(cache, plan, seed=1, steps=2, first_step=5)
+    assert np.array_equal(next(iter(stream))["lab"].numpy(), b["lab"])
+    with pytest.raises(FileNotFoundError):
+        matseg.FeatureCache(tmp_path / "missing")
+    with pytest.raises(matseg.MatsegError, match="not a feature cache"):
+        matseg.FeatureCache(tmp_path)
