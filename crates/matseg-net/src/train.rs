@@ -442,13 +442,7 @@ impl TrainingData<'_> {
                 step,
             )?)),
             TrainingData::Features(cache) => {
-                let m = &cache.manifest;
-                let images = options.plan.images(m.width, m.height);
-                epoch_indices(cache.len(), images, options.seed, step)
-                    .into_iter()
-                    .map(|i| cache.get(i))
-                    .collect::<Result<_, _>>()
-                    .map(StepBatch::Features)
+                cached_batch(cache, &options.plan, options.seed, step).map(StepBatch::Features)
             }
         }
     }
@@ -465,6 +459,23 @@ impl TrainingData<'_> {
             }
         }
     }
+}
+
+/// The samples of batch `step` from a feature cache: as many as `plan`
+/// puts in a batch of the cache's size, in the epochs' order of `seed`
+/// ([`epoch_indices`]).
+pub fn cached_batch(
+    cache: &FeatureCache,
+    plan: &BatchPlan,
+    seed: u64,
+    step: u64,
+) -> Result<Vec<CachedSample>, NetError> {
+    let m = &cache.manifest;
+    let images = plan.images(m.width, m.height);
+    epoch_indices(cache.len(), images, seed, step)
+        .into_iter()
+        .map(|i| cache.get(i))
+        .collect()
 }
 
 impl StepBatch {

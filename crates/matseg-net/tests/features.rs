@@ -306,7 +306,9 @@ fn bad_caches_are_named_in_one_line() {
     // the shard nor its temporary file left.
     let writer = CacheWriter::create(dir.path(), manifest).unwrap();
     assert_eq!(writer.missing_shards(), [2]);
-    let tmp = dir.path().join("shard-000002.tar.tmp");
+    let tmp = dir
+        .path()
+        .join(format!("shard-000002.tar.tmp.{}", std::process::id()));
     std::os::unix::fs::symlink("/dev/full", &tmp).unwrap();
     let e = writer
         .write_shard(2, last_shard.into_iter().map(Ok))

@@ -102,6 +102,12 @@ impl CachedSample {
         Ok(Self { tensors })
     }
 
+    /// The tensors as stored: `s4`, `s8`, `s16`, `s32`, `lab`, `weights`,
+    /// `roi`, each 16-bit floats with its shape.
+    pub fn stored(&self) -> &[Stored] {
+        &self.tensors
+    }
+
     /// Materials in the sample.
     pub fn materials(&self) -> usize {
         self.tensors[5].shape[0]

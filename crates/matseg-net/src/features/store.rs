@@ -163,7 +163,8 @@ impl CacheWriter {
     }
 
     /// Writes shard `shard` from `samples` (its samples in order, each
-    /// made when asked for): to a temporary file, renamed when complete.
+    /// made when asked for): to a temporary file of this process, renamed
+    /// when complete.
     /// On any error the temporary file is removed and the error names the
     /// shard.
     pub fn write_shard(
@@ -172,7 +173,13 @@ impl CacheWriter {
         samples: impl IntoIterator<Item = Result<CachedSample, NetError>>,
     ) -> Result<(), NetError> {
         let path = shard_path(&self.dir, shard);
-        let tmp = temporary_path(&path);
+        // This process's own temporary file: two jobs making the same cache
+        // never write into one file (each renames a complete shard).
+        let tmp = PathBuf::from(format!(
+            "{}.{}",
+            temporary_path(&path).display(),
+            std::process::id()
+        ));
         let written = write_tar(&tmp, &path, self.shard_samples(shard), samples);
         if written.is_err() {
             let _ = std::fs::remove_file(&tmp);
