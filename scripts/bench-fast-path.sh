@@ -47,14 +47,13 @@ for ((r = 0; r < RUNS; r++)); do
         --steps "$CACHED_STEPS" --checkpoint-every "$CACHED_STEPS")")
     echo "run $((r + 1)): online ${online[r]} s, cache ${cache[r]} s, cached ${cached[r]} s" >&2
 done
-images_online=$("$PY" -c 'import json,sys; print(sum(json.loads(l)["images"] for l in open(sys.argv[1])))' \
-    "$work/online/metrics.jsonl")
-images_cached=$("$PY" -c 'import json,sys; print(sum(json.loads(l)["images"] for l in open(sys.argv[1])))' \
-    "$work/cached/metrics.jsonl")
-"$PY" - "$images_online" "$images_cached" "$CACHE_SAMPLES" "$EPOCHS" \
+"$PY" - "$work/online/metrics.jsonl" "$work/cached/metrics.jsonl" "$CACHE_SAMPLES" "$EPOCHS" \
     "${online[*]}" "${cache[*]}" "${cached[*]}" <<'EOF'
-import statistics, sys
-n_online, n_cached, n_cache, epochs = (int(v) for v in sys.argv[1:5])
+import json, statistics, sys
+def images(metrics):
+    return sum(json.loads(line)["images"] for line in open(metrics))
+n_online, n_cached = images(sys.argv[1]), images(sys.argv[2])
+n_cache, epochs = int(sys.argv[3]), int(sys.argv[4])
 online, cache, cached = ([float(v) for v in a.split()] for a in sys.argv[5:8])
 px = 256 * 256 / 1e6
 def row(name, images, times):
