@@ -74,6 +74,7 @@ impl PyGenerator {
                 recipe,
                 sources: files.sources(),
                 cache,
+                path: None,
             }),
         }
     }

@@ -13,6 +13,7 @@ use matseg_data::{
 use matseg_pipeline::files3d::{recipe_3d, Folders3d};
 use matseg_pipeline::sources::{Defaults, DEFAULT_CACHE_MB};
 use matseg_render::cache::AssetCache;
+use matseg_scene::CameraPath;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -67,6 +68,14 @@ pub struct Args {
     /// Image side in pixels (3d), overriding the recipe.
     #[arg(long)]
     size: Option<u32>,
+    /// Sequences (3d): each of the N scenes rendered as F frames along a
+    /// camera path (orbit, dolly, dimming light), N x F samples in all.
+    #[arg(long, value_name = "F")]
+    frames: Option<u32>,
+    /// TOML camera path of the sequences (3d; see docs/video.md); its
+    /// `frames` unless --frames is given.
+    #[arg(long, value_name = "FILE")]
+    camera_path: Option<PathBuf>,
     /// Output layout.
     #[arg(long, value_enum, default_value = "folders")]
     format: FormatArg,
@@ -108,9 +117,13 @@ pub fn run(args: Args) -> Result<()> {
         index,
     };
     job.validate()?;
+    let camera_path = camera_path(&args)?;
+    let frames = camera_path.as_ref().map_or(1, |p| p.frames as u64);
     let opts = GenerateOptions {
         out: args.out.clone(),
-        n: args.n,
+        n: args.n.checked_mul(frames).ok_or_else(|| {
+            anyhow::anyhow!("-n {} x --frames {frames}: too many samples", args.n)
+        })?,
         seed: args.seed,
         format: match args.format {
             FormatArg::Folders => Format::Folders,
@@ -157,6 +170,7 @@ pub fn run(args: Args) -> Result<()> {
                     recipe: &recipe,
                     sources: files.sources(),
                     cache: &cache,
+                    path: camera_path.as_ref(),
                 },
             )?
         }
@@ -172,6 +186,27 @@ pub fn run(args: Args) -> Result<()> {
         report.generated as f64 / secs.max(1e-9)
     );
     Ok(())
+}
+
+/// The camera path of 3D sequences: the TOML file's (or the defaults), with
+/// `--frames` overriding its frame count; `None` without either option.
+fn camera_path(args: &Args) -> Result<Option<CameraPath>> {
+    if args.frames.is_none() && args.camera_path.is_none() {
+        return Ok(None);
+    }
+    if !matches!(args.kind, Kind::ThreeD) {
+        anyhow::bail!("--frames and --camera-path make sequences of 3D scenes: add --kind 3d");
+    }
+    let mut path = match &args.camera_path {
+        Some(file) => CameraPath::from_toml_file(file)?,
+        None => CameraPath::default(),
+    };
+    if let Some(frames) = args.frames {
+        path.frames = frames;
+    }
+    path.validate()
+        .map_err(|e| anyhow::anyhow!("--frames: {}", e.0))?;
+    Ok(Some(path))
 }
 
 /// Writes the dataset with a progress bar.

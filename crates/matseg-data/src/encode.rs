@@ -29,6 +29,9 @@ pub struct SampleMeta {
     /// Every drawn parameter: a 2D scene record, or the 3D scene
     /// description (`matseg render` re-renders it).
     pub scene: serde_json::Value,
+    /// In a 3D sequence, which frame of which sequence this is.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frame: Option<crate::maker::FrameOf>,
 }
 
 /// The encoded files of one sample.
@@ -86,6 +89,7 @@ impl SampleMeta {
             sources,
             licences,
             scene,
+            frame: None,
         }
     }
 }

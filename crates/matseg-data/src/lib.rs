@@ -16,7 +16,7 @@ pub use generate::{
     generate_dataset, generate_with, DatasetManifest, Format, GenerateError, GenerateOptions,
     GenerateReport, JobError, JobSlice,
 };
-pub use maker::{Generator2d, Generator3d, SampleError, SampleMaker};
+pub use maker::{FrameOf, Generator2d, Generator3d, SampleError, SampleMaker};
 pub use reader::{
     decode_encoded, index_tar, read_tar_member, Dataset, ReadError, Sample, TarMember,
     TrainingTargets,

@@ -10,10 +10,11 @@ use matseg_render::cache::AssetCache;
 use matseg_render::scene::{MeshSource, SceneDescription};
 use matseg_render::{render, tone_map};
 use matseg_scene::{
-    build_scene_3d, generate_2d, quantise_fractions, Recipe2d, Recipe3d, SourceRef, Sources,
-    Sources3d,
+    build_scene_3d, generate_2d, quantise_fractions, CameraPath, Recipe2d, Recipe3d, SourceRef,
+    Sources, Sources3d,
 };
 use rand::Rng;
+use serde::{Deserialize, Serialize};
 use std::path::Path;
 
 /// Why a sample could not be made.
@@ -77,14 +78,49 @@ pub struct Generator3d<'a> {
     pub sources: Sources3d<'a>,
     /// Decoded assets shared by the samples.
     pub cache: &'a AssetCache,
+    /// Sequences (pipeline.md §3.4): sample `i` is frame `i % frames` of
+    /// scene `i / frames`, seen along this path. `None`: one frame a scene.
+    pub path: Option<&'a CameraPath>,
+}
+
+/// Where a frame of a sequence sits, as its sidecar records it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct FrameOf {
+    /// The sequence (the scene drawn).
+    pub sequence: u64,
+    /// The frame, from 0.
+    pub frame: u32,
+    /// Frames in the sequence.
+    pub frames: u32,
 }
 
 impl Generator3d<'_> {
-    /// The scene description of sample `index`.
+    /// The scene description of sample `index`: scene `index` itself, or
+    /// in a sequence the frame of its scene.
     pub fn describe(&self, seed: u64, index: u64) -> SceneDescription {
-        let mut rng = sample_rng(seed, index);
+        let (scene, frame) = match self.frame_of(index) {
+            Some(f) => (f.sequence, Some(f.frame)),
+            None => (index, None),
+        };
+        let mut rng = sample_rng(seed, scene);
         let render_seed: u64 = rng.random();
-        build_scene_3d(&mut rng, self.recipe, self.sources, render_seed)
+        let first = build_scene_3d(&mut rng, self.recipe, self.sources, render_seed);
+        match (self.path, frame) {
+            (Some(path), Some(frame)) => path.frame(&first, frame),
+            _ => first,
+        }
+    }
+
+    /// Which frame of which sequence sample `index` is (sequences only).
+    pub fn frame_of(&self, index: u64) -> Option<FrameOf> {
+        self.path.map(|path| {
+            let frames = path.frames.max(1);
+            FrameOf {
+                sequence: index / frames as u64,
+                frame: (index % frames as u64) as u32,
+                frames,
+            }
+        })
     }
 }
 
@@ -117,7 +153,11 @@ impl SampleMaker for Generator3d<'_> {
     }
 
     fn recipe(&self) -> serde_json::Value {
-        serde_json::to_value(self.recipe).expect("recipe serialises")
+        let recipe = serde_json::to_value(self.recipe).expect("recipe serialises");
+        match self.path {
+            None => recipe,
+            Some(path) => serde_json::json!({ "scene": recipe, "camera_path": path }),
+        }
     }
 
     fn sources_fingerprint(&self) -> String {
@@ -141,7 +181,8 @@ impl SampleMaker for Generator3d<'_> {
         let image = tone_map(&out.radiance, w, h, scene.exposure_ev);
         let annotation = quantise_fractions(w, h, &out.fractions, &out.roi);
         let scene_json = serde_json::to_value(&scene).expect("a scene description serialises");
-        let meta = SampleMeta::new("3d", seed, index, scene_sources(&scene), scene_json);
+        let mut meta = SampleMeta::new("3d", seed, index, scene_sources(&scene), scene_json);
+        meta.frame = self.frame_of(index);
         Ok(encode_sample(index, &image, &annotation, &meta))
     }
 }

@@ -9,6 +9,7 @@ pub mod material;
 pub mod recipe;
 pub mod recipe3d;
 pub mod scene3d;
+pub mod sequence;
 
 pub use annotation::{
     colourise, quantise_fractions, quantise_weights, QuantisedAnnotation, PALETTE,
@@ -20,3 +21,4 @@ pub use material::{Fill, MaterialRecord, MaterialSource, ShadingRecord};
 pub use recipe::{CompositionRecipe, Recipe2d, RecipeError, SceneDraws, SceneShape};
 pub use recipe3d::Recipe3d;
 pub use scene3d::{build_scene_3d, Sources3d};
+pub use sequence::CameraPath;

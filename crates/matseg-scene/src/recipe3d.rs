@@ -95,6 +95,16 @@ pub struct Recipe3d {
     pub min_elevation_over_ground_deg: f32,
     /// Largest camera roll in degrees (either way).
     pub max_roll_deg: f32,
+    /// The main object's PBR materials are all different files (while the
+    /// library has enough); off by default, as in the paper, where two
+    /// materials may be one PBR at two placements. Left out of the
+    /// recipe's JSON when off, so datasets made before it resume.
+    #[serde(skip_serializing_if = "is_false")]
+    pub distinct_materials: bool,
+}
+
+fn is_false(b: &bool) -> bool {
+    !*b
 }
 
 impl Default for Recipe3d {
@@ -141,6 +151,7 @@ impl Default for Recipe3d {
             elevation_drop: 1.1,
             min_elevation_over_ground_deg: 5.0,
             max_roll_deg: 10.0,
+            distinct_materials: false,
         }
     }
 }

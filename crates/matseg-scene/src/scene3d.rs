@@ -132,12 +132,13 @@ fn random_rotation<R: Rng + ?Sized>(rng: &mut R) -> Vec3 {
     )
 }
 
-/// A material: a PBR from the library with a random placement, or a random
-/// principled one.
+/// A material: a PBR from the library (none of `taken`, while others are
+/// left) with a random placement, or a random principled one.
 fn material<R: Rng + ?Sized>(
     rng: &mut R,
     recipe: &Recipe3d,
     sources: Sources3d,
+    taken: &[MaterialDescription],
 ) -> MaterialDescription {
     let placement = Placement {
         scale: 10f32.powf(uniform(rng, recipe.pbr_scale_log10)),
@@ -145,8 +146,17 @@ fn material<R: Rng + ?Sized>(
         offset: [rng.random(), rng.random()],
     };
     if !sources.materials.is_empty() && rng.random_bool(recipe.p_pbr) {
-        let dir = sources.materials.choose(rng).expect("not empty").clone();
-        return MaterialDescription::pbr(dir, placement);
+        let free: Vec<&PathBuf> = sources
+            .materials
+            .iter()
+            .filter(|dir| !taken.iter().any(|m| m.pbr.as_ref() == Some(*dir)))
+            .collect();
+        let dir = if free.is_empty() {
+            sources.materials.choose(rng)
+        } else {
+            free.choose(rng).copied()
+        };
+        return MaterialDescription::pbr(dir.expect("not empty").clone(), placement);
     }
     let metal = rng.random_bool(recipe.p_metal);
     let transmissive = !metal && rng.random_bool(recipe.p_transmissive);
@@ -239,8 +249,16 @@ pub fn build_scene_3d<R: Rng + ?Sized>(
     } else {
         2
     };
-    let mut materials: Vec<MaterialDescription> =
-        (0..k).map(|_| material(rng, recipe, sources)).collect();
+    let mut materials: Vec<MaterialDescription> = Vec::new();
+    for _ in 0..k {
+        let taken = if recipe.distinct_materials {
+            materials.as_slice()
+        } else {
+            &[]
+        };
+        let m = material(rng, recipe, sources, taken);
+        materials.push(m);
+    }
     let mut maps = Vec::new();
     let indices: Vec<usize> = (0..k).collect();
     let layout = split_tree(rng, recipe, sources, &indices, &mut maps);
@@ -284,7 +302,7 @@ pub fn build_scene_3d<R: Rng + ?Sized>(
     // The world: ground, distractors, lights, environment.
     let ground = rng.random_bool(recipe.p_ground) && !sources.materials.is_empty();
     if ground {
-        let mut m = material(rng, recipe, sources);
+        let mut m = material(rng, recipe, sources, &[]);
         m.placement.scale = 10f32.powf(rng.random_range(-2.0..-0.5));
         materials.push(m);
         objects.push(ObjectDescription {
@@ -303,7 +321,7 @@ pub fn build_scene_3d<R: Rng + ?Sized>(
     if rng.random_bool(recipe.p_distractors) {
         for _ in 0..count(rng, recipe.distractor_count) {
             let radius = uniform(rng, recipe.distractor_radius);
-            materials.push(material(rng, recipe, sources));
+            materials.push(material(rng, recipe, sources, &[]));
             let d = extent + radius + rng.random_range(0.0..60.0);
             let a: f32 = rng.random_range(0.0..std::f32::consts::TAU);
             let z = if ground {
@@ -475,6 +493,64 @@ mod tests {
         assert!(
             (100..200).contains(&many),
             "K > 2 in about 85% x 6/7 of scenes: {many}"
+        );
+    }
+
+    #[test]
+    fn distinct_materials_never_repeat_a_pbr_on_the_main_object_and_off_change_nothing() {
+        let photos = photos();
+        let materials: Vec<PathBuf> = (0..4).map(|i| PathBuf::from(format!("pbr{i}"))).collect();
+        let sources = Sources3d {
+            photos: &photos,
+            materials: &materials,
+            meshes: &[],
+            hdris: &[],
+        };
+        let plain = Recipe3d {
+            p_pbr: 1.0,
+            ..Recipe3d::default()
+        };
+        let distinct = Recipe3d {
+            distinct_materials: true,
+            ..plain.clone()
+        };
+        let main_pbrs = |scene: &SceneDescription| -> Vec<PathBuf> {
+            let mut used = Vec::new();
+            scene
+                .objects
+                .iter()
+                .find(|o| o.main)
+                .unwrap()
+                .surface
+                .materials(&mut used);
+            used.iter()
+                .filter_map(|&m| scene.materials[m].pbr.clone())
+                .collect()
+        };
+        let mut repeats = 0;
+        for seed in 0..100u64 {
+            let draw = |recipe: &Recipe3d| {
+                build_scene_3d(&mut ChaCha8Rng::seed_from_u64(seed), recipe, sources, seed)
+            };
+            let pbrs = main_pbrs(&draw(&distinct));
+            let mut unique = pbrs.clone();
+            unique.sort();
+            unique.dedup();
+            // With more materials than PBR files some must repeat.
+            assert_eq!(unique.len(), pbrs.len().min(materials.len()), "seed {seed}");
+            let plain_pbrs = main_pbrs(&draw(&plain));
+            let mut plain_unique = plain_pbrs.clone();
+            plain_unique.sort();
+            plain_unique.dedup();
+            repeats += (plain_unique.len() < plain_pbrs.len().min(materials.len())) as usize;
+        }
+        assert!(repeats > 10, "without the option PBRs repeat: {repeats}");
+        // Off, the recipe's JSON is as before the option existed.
+        let json = serde_json::to_value(&plain).unwrap();
+        assert!(json.get("distinct_materials").is_none());
+        assert_eq!(
+            serde_json::to_value(&distinct).unwrap()["distinct_materials"],
+            true
         );
     }
 

@@ -49,6 +49,7 @@ pub fn scenes_page(
         recipe: &recipe,
         sources: files.sources(),
         cache: &cache,
+        path: None,
     };
     generate_with(&opts, &maker, &|k| (0..k).for_each(|_| progress.advance()))?;
     progress.finish();
