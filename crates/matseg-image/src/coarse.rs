@@ -42,11 +42,15 @@ impl CoarseDescriptors {
     /// The cosine of `query` with every cell, resized bilinearly to the
     /// photo: `width * height` values, row by row.
     pub fn similarity_map(&self, query: &[f32]) -> Vec<f32> {
-        let cells: Vec<f32> = (0..self.grid.width * self.grid.height)
+        self.resize_to_photo(&self.cell_similarity(query))
+    }
+
+    /// The cosine of `query` with every cell of the grid, row by row.
+    pub fn cell_similarity(&self, query: &[f32]) -> Vec<f32> {
+        (0..self.grid.width * self.grid.height)
             .into_par_iter()
             .map(|i| dot(query, self.grid.at(i)))
-            .collect();
-        self.resize_to_photo(&cells)
+            .collect()
     }
 
     /// Each photo pixel's nearest descriptor among `queries` (the index of
