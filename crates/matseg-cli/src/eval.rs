@@ -15,6 +15,10 @@ pub enum Command {
     Points(PointArgs),
     /// Photos with ground-truth masks: mean IoU at the best threshold.
     Masks(MaskArgs),
+    /// Generated 3D sequences: materials clicked on the first frame and
+    /// followed, IoU at the best threshold on every frame.
+    #[cfg(feature = "net")]
+    Track(crate::track::EvalArgs),
 }
 
 /// Options shared by both benchmarks.
@@ -96,6 +100,8 @@ pub fn run(command: Command) -> Result<()> {
     match command {
         Command::Points(args) => points(args),
         Command::Masks(args) => masks(args),
+        #[cfg(feature = "net")]
+        Command::Track(args) => crate::track::eval(args),
     }
 }
 

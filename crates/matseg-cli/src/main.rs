@@ -31,6 +31,8 @@ mod segment;
 mod serve;
 mod textures;
 #[cfg(feature = "net")]
+mod track;
+#[cfg(feature = "net")]
 mod train;
 #[cfg(feature = "net")]
 mod training;
@@ -91,6 +93,9 @@ enum Command {
     /// Similarity maps and segmentation of a photo, from points or by clustering (pipeline.md §8).
     #[cfg(feature = "net")]
     Segment(segment::Args),
+    /// Follow the material under clicked points through a video or a frame folder (pipeline.md §8.2).
+    #[cfg(feature = "net")]
+    Track(track::Args),
     /// The local web app: click a point on a photo, see where else its material is.
     #[cfg(feature = "net")]
     Serve(serve::Args),
@@ -135,6 +140,8 @@ fn main() -> ExitCode {
         Command::Train(args) => train::run(args),
         #[cfg(feature = "net")]
         Command::Segment(args) => segment::run(args),
+        #[cfg(feature = "net")]
+        Command::Track(args) => track::run(args),
         #[cfg(feature = "net")]
         Command::Serve(args) => serve::run(args),
         #[cfg(feature = "net")]

@@ -43,7 +43,8 @@ pub struct Args {
     out: PathBuf,
 }
 
-fn parse_point(s: &str) -> Result<(f32, f32), String> {
+/// A point `X,Y` in pixels.
+pub fn parse_point(s: &str) -> Result<(f32, f32), String> {
     let (x, y) = s
         .split_once(',')
         .ok_or_else(|| format!("{s}: expected X,Y"))?;

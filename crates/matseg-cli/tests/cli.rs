@@ -1,54 +1,16 @@
 //! The `matseg` binary end to end: outputs and one-line errors.
 
+mod common;
+
+use common::*;
 use std::path::Path;
 use std::process::{Command, Output};
-
-/// The cache the tests' `matseg` runs use: the tests' own, so a corpus the
-/// developer fetched does not become their default sources.
-fn test_cache() -> std::path::PathBuf {
-    Path::new(env!("CARGO_TARGET_TMPDIR")).join("matseg-cache")
-}
-
-fn matseg(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_matseg"))
-        .args(args)
-        .env("MATSEG_CACHE", test_cache())
-        .output()
-        .unwrap()
-}
-
-/// Runs `matseg` and asserts that it succeeded (stderr in the message).
-fn matseg_ok(args: &[&str]) -> Output {
-    let out = matseg(args);
-    assert!(out.status.success(), "{}", stderr(&out));
-    out
-}
 
 /// `matseg generate --out OUT -n 1 EXTRA...`.
 fn generate_one(out: &str, extra: &[&str]) -> Output {
     let mut args = vec!["generate", "--out", out, "-n", "1"];
     args.extend_from_slice(extra);
     matseg(&args)
-}
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
-
-fn assets(sub: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../assets")
-        .join(sub)
-        .display()
-        .to_string()
-}
-
-/// Asserts failure with exactly one line on stderr that contains `needle`.
-fn assert_one_line_error(out: &Output, needle: &str) {
-    let err = stderr(out);
-    assert!(!out.status.success(), "expected failure, got: {err}");
-    assert_eq!(err.lines().count(), 1, "not one line: {err}");
-    assert!(err.starts_with("error: ") && err.contains(needle), "{err}");
 }
 
 #[test]

@@ -26,6 +26,12 @@
 //! - [`bench`]: the benchmark harnesses behind `matseg bench*` and
 //!   `cargo bench`.
 //! - [`demo`]: the pipeline on the bundled assets as an HTML report.
+//! - [`frames`]: the frames of a folder or a video (through ffmpeg), one
+//!   at a time; [`overlay_video`]: a tracked video's overlay, as an MP4 or
+//!   an animated PNG.
+//! - [`track`] (feature `net`): clicked materials followed through the
+//!   frames of a video; [`track_bench`]: that scored on generated
+//!   sequences with exact masks.
 //! - [`point_bench`]: point benchmarks made from generated scenes, and
 //!   drawn to check them.
 //! - [`render`]: one scene description rendered with its annotation.
@@ -44,9 +50,11 @@ pub mod error;
 pub mod features;
 mod files;
 pub mod files3d;
+pub mod frames;
 pub mod material_mixes;
 pub mod materials;
 pub mod models;
+pub mod overlay_video;
 pub mod point_bench;
 pub mod progress;
 pub mod render;
@@ -55,6 +63,10 @@ pub mod segment;
 pub mod soft_maps;
 pub mod sources;
 pub mod textures;
+#[cfg(feature = "net")]
+pub mod track;
+#[cfg(feature = "net")]
+pub mod track_bench;
 #[cfg(feature = "net")]
 pub mod train;
 pub mod weights;

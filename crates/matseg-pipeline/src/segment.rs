@@ -211,7 +211,7 @@ fn write_segmentation(photo: &RgbImage, labels: &[u32], out: &Path) -> Result<()
 
 /// Draws the outline of the disc of `radius` (at least 3) around `point`
 /// in white.
-fn outline_disc(img: &mut RgbImage, (x, y): (f32, f32), radius: f32) {
+pub(crate) fn outline_disc(img: &mut RgbImage, (x, y): (f32, f32), radius: f32) {
     let r = radius.max(3.0);
     for k in 0..64 {
         let t = k as f32 / 64.0 * std::f32::consts::TAU;
