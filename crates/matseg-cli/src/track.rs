@@ -9,7 +9,7 @@ use anyhow::Result;
 use matseg_image::tracking::TrackOptions;
 use matseg_pipeline::frames::FrameSource;
 use matseg_pipeline::segment::{Model, DEFAULT_RADIUS};
-use matseg_pipeline::track::{track_to_folder, TrackSettings, DEFAULT_TRACK_SIDE};
+use matseg_pipeline::track::{track_to_folder, TrackFiles, TrackSettings, DEFAULT_TRACK_SIDE};
 use matseg_pipeline::track_bench::{eval_track, TrackBenchSettings};
 use std::path::PathBuf;
 
@@ -97,7 +97,10 @@ pub fn run(args: Args) -> Result<()> {
         &source,
         &settings,
         &args.out,
-        !args.preview,
+        TrackFiles {
+            mp4: !args.preview,
+            frames: false,
+        },
         &BarProgress::default(),
     )?;
     println!(

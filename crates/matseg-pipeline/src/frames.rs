@@ -182,6 +182,22 @@ impl FrameSource {
         }
     }
 
+    /// Frame `n` (from 0), the frames before it decoded and dropped; past
+    /// the end, an error that says how many frames there are.
+    pub fn frame(&self, n: u64) -> Result<RgbImage, PipelineError> {
+        match self.frames()?.nth(n as usize) {
+            Some(frame) => frame,
+            None => {
+                let frames = self.frames()?.try_fold(0u64, |k, f| f.map(|_| k + 1))?;
+                Err(PipelineError::setting(
+                    "frame",
+                    Some(n),
+                    format!("past the end: {} has {frames} frames", self.path.display()),
+                ))
+            }
+        }
+    }
+
     /// The frames from the first, one at a time.
     pub fn frames(&self) -> Result<Frames, PipelineError> {
         let inner = match &self.kind {

@@ -15,7 +15,7 @@ use crate::progress::Progress;
 use crate::segment::{check_points, outline_disc, Model};
 use image::RgbImage;
 use matseg_image::coarse::CoarseDescriptors;
-use matseg_image::io::encode_png_gray;
+use matseg_image::io::{encode_jpeg, encode_png_gray};
 use matseg_image::tracking::{MaterialTracker, TrackOptions};
 use matseg_scene::PALETTE;
 use rayon::prelude::*;
@@ -74,19 +74,45 @@ pub struct TrackedFrame {
     pub areas: Vec<f64>,
 }
 
-/// Points followed through frames given one at a time, in order.
-pub struct Tracking<'m> {
-    model: &'m Model,
+/// What describes the frames: a model of the caller's own, or one shared
+/// behind a lock (the web app's), taken for one frame at a time so other
+/// requests are answered between frames.
+pub trait FrameDescriber {
+    /// The model's descriptors of `frame` at longer side `side`.
+    fn describe_frame(&self, frame: &RgbImage, side: u32) -> CoarseDescriptors;
+}
+
+impl FrameDescriber for Model {
+    fn describe_frame(&self, frame: &RgbImage, side: u32) -> CoarseDescriptors {
+        self.describe_coarse_at(
+            frame.as_raw(),
+            frame.width() as usize,
+            frame.height() as usize,
+            side,
+        )
+    }
+}
+
+impl FrameDescriber for std::sync::Mutex<Model> {
+    fn describe_frame(&self, frame: &RgbImage, side: u32) -> CoarseDescriptors {
+        let model = self.lock().unwrap_or_else(|e| e.into_inner());
+        model.describe_frame(frame, side)
+    }
+}
+
+/// Points followed through frames given one at a time, in order; each
+/// call is handed the model that describes the frame.
+pub struct Tracking {
     tracker: MaterialTracker,
     side: u32,
     size: (u32, u32),
 }
 
-impl<'m> Tracking<'m> {
+impl Tracking {
     /// Starts following the materials under `settings.points` on `clicked`
     /// (the frame they were clicked on); `label` names that frame in errors.
     pub fn start(
-        model: &'m Model,
+        model: &dyn FrameDescriber,
         clicked: &RgbImage,
         settings: &TrackSettings,
         label: &str,
@@ -113,7 +139,8 @@ impl<'m> Tracking<'m> {
                 "must be in 16..4096",
             ));
         }
-        let map = describe_at(model, clicked, settings.side);
+        check_options(&settings.options)?;
+        let map = model.describe_frame(clicked, settings.side);
         let queries = settings
             .points
             .iter()
@@ -124,7 +151,6 @@ impl<'m> Tracking<'m> {
         let mut tracker = MaterialTracker::new(queries, settings.options);
         tracker.step(&map);
         Ok(Tracking {
-            model,
             tracker,
             side: settings.side,
             size: clicked.dimensions(),
@@ -133,7 +159,11 @@ impl<'m> Tracking<'m> {
 
     /// The frame's similarity maps, labels and areas; the memory learns
     /// from it. Frames must have the clicked frame's size.
-    pub fn step(&mut self, frame: &RgbImage) -> Result<TrackedFrame, PipelineError> {
+    pub fn step(
+        &mut self,
+        model: &dyn FrameDescriber,
+        frame: &RgbImage,
+    ) -> Result<TrackedFrame, PipelineError> {
         if frame.dimensions() != self.size {
             let ((w, h), (w0, h0)) = (frame.dimensions(), self.size);
             return Err(PipelineError::file(
@@ -141,7 +171,7 @@ impl<'m> Tracking<'m> {
                 format!("is {w}x{h}, the clicked frame {w0}x{h0}: all frames must have one size"),
             ));
         }
-        let map = describe_at(self.model, frame, self.side);
+        let map = model.describe_frame(frame, self.side);
         let margins = self.tracker.step(&map);
         let similarity: Vec<Vec<f32>> = margins
             .iter()
@@ -166,14 +196,37 @@ impl<'m> Tracking<'m> {
     }
 }
 
-/// The model's descriptors of `frame` at one longer side.
-fn describe_at(model: &Model, frame: &RgbImage, side: u32) -> CoarseDescriptors {
-    model.describe_coarse_at(
-        frame.as_raw(),
-        frame.width() as usize,
-        frame.height() as usize,
-        side,
-    )
+/// Refuses tracker settings that decide nothing: a confidence outside
+/// (0.5, 1), a prior outside [-1, 1], a temperature that is not positive.
+fn check_options(options: &TrackOptions) -> Result<(), PipelineError> {
+    let TrackOptions {
+        confident,
+        prior,
+        temperature,
+        ..
+    } = *options;
+    if !(confident > 0.5 && confident < 1.0) {
+        return Err(PipelineError::setting(
+            "confident",
+            Some(confident),
+            "must be above 0.5 and below 1",
+        ));
+    }
+    if !(-1.0..=1.0).contains(&prior) {
+        return Err(PipelineError::setting(
+            "prior",
+            Some(prior),
+            "must be a cosine, in -1..1",
+        ));
+    }
+    if !(temperature > 0.0 && temperature.is_finite()) {
+        return Err(PipelineError::setting(
+            "temperature",
+            Some(temperature),
+            "must be above 0",
+        ));
+    }
+    Ok(())
 }
 
 /// Each pixel's label among `similarity` maps: `k + 1` for the highest
@@ -226,6 +279,30 @@ pub fn track_overlay(
     overlay
 }
 
+/// The files [`track_to_folder`] writes besides the labels, the
+/// similarity maps and `track.json`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrackFiles {
+    /// The overlay as H.264 `overlay.mp4` where ffmpeg runs; when false
+    /// (or without ffmpeg), the animated `overlay.png` preview.
+    pub mp4: bool,
+    /// Each frame as `frames/NNNNNN.jpg` (quality [`FRAME_JPEG_QUALITY`]),
+    /// what the web app scrubs through.
+    pub frames: bool,
+}
+
+impl Default for TrackFiles {
+    fn default() -> Self {
+        TrackFiles {
+            mp4: true,
+            frames: false,
+        }
+    }
+}
+
+/// The JPEG quality of the frames [`TrackFiles::frames`] keeps.
+pub const FRAME_JPEG_QUALITY: u8 = 90;
+
 /// What [`track_to_folder`] did, as written to `track.json`.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct TrackReport {
@@ -264,17 +341,17 @@ pub struct TrackReport {
 /// `source`, through every frame, and writes into `out`:
 /// `labels/NNNNNN.png` (0: none, k: point k - 1), `similarity/K/NNNNNN.png`
 /// per point (its probability, 0..1 to grey), the overlay
-/// (`overlay.mp4`, or an animated `overlay.png` preview without ffmpeg or
-/// when `mp4` is false) and `track.json`. Everything is written into
+/// (`overlay.mp4`, or an animated `overlay.png` preview), `track.json`,
+/// and the frames themselves when `files` asks. Everything is written into
 /// `OUT.partial` and renamed into place at the end, so a failure leaves
 /// nothing half-written; an existing `out` is replaced only when it holds
 /// an earlier `track.json`.
 pub fn track_to_folder(
-    model: &Model,
+    model: &dyn FrameDescriber,
     source: &FrameSource,
     settings: &TrackSettings,
     out: &Path,
-    mp4: bool,
+    files: TrackFiles,
     progress: &dyn Progress,
 ) -> Result<TrackReport, PipelineError> {
     if out.exists() && !out.join("track.json").is_file() && !is_empty_dir(out) {
@@ -288,7 +365,7 @@ pub fn track_to_folder(
         std::fs::remove_dir_all(&partial)
             .map_err(|e| PipelineError::file(partial.display(), format!("cannot remove: {e}")))?;
     }
-    let result = track_into(model, source, settings, &partial, mp4, progress);
+    let result = track_into(model, source, settings, &partial, files, progress);
     let report = match result {
         Ok(report) => report,
         Err(e) => {
@@ -319,26 +396,16 @@ fn is_empty_dir(dir: &Path) -> bool {
 
 /// [`track_to_folder`]'s work, into the folder `dir`.
 fn track_into(
-    model: &Model,
+    model: &dyn FrameDescriber,
     source: &FrameSource,
     settings: &TrackSettings,
     dir: &Path,
-    mp4: bool,
+    files: TrackFiles,
     progress: &dyn Progress,
 ) -> Result<TrackReport, PipelineError> {
     let label = source.path.display().to_string();
     // A first pass up to the clicked frame.
-    let clicked = match source.frames()?.nth(settings.frame as usize) {
-        Some(frame) => frame?,
-        None => {
-            let frames = source.frames()?.try_fold(0u64, |n, f| f.map(|_| n + 1))?;
-            return Err(PipelineError::setting(
-                "frame",
-                Some(settings.frame),
-                format!("past the end: {label} has {frames} frames"),
-            ));
-        }
-    };
+    let clicked = source.frame(settings.frame)?;
     let mut tracking = Tracking::start(
         model,
         &clicked,
@@ -347,21 +414,30 @@ fn track_into(
     )?;
     drop(clicked);
     create_folder(&dir.join("labels"))?;
+    if files.frames {
+        create_folder(&dir.join("frames"))?;
+    }
     for k in 0..settings.points.len() {
         create_folder(&dir.join("similarity").join(k.to_string()))?;
     }
     let size = (source.width, source.height);
-    let mut overlay = OverlayVideo::create(dir, size, source.fps, source.frame_count(), mp4)?;
+    let mut overlay = OverlayVideo::create(dir, size, source.fps, source.frame_count(), files.mp4)?;
     progress.start(source.frame_count(), "frames");
     let (mut areas, mut track_seconds, mut frame_seconds) = (Vec::new(), Vec::new(), Vec::new());
     let mut started = Instant::now();
     for (i, frame) in source.frames()?.enumerate() {
         let frame = frame?;
         let tracked = tracking
-            .step(&frame)
+            .step(model, &frame)
             .map_err(|e| PipelineError::file(format!("frame {i} of {label}"), e.to_string()))?;
         track_seconds.push(started.elapsed().as_secs_f64());
         let name = format!("{i:06}.png");
+        if files.frames {
+            write_file(
+                &dir.join("frames").join(format!("{i:06}.jpg")),
+                &encode_jpeg(&frame, FRAME_JPEG_QUALITY),
+            )?;
+        }
         write_file(
             &dir.join("labels").join(&name),
             &encode_png_gray(size.0, size.1, &tracked.labels),
@@ -436,5 +512,31 @@ mod tests {
         assert_eq!(median_after_first(&[9.0, 1.0, 3.0, 2.0]), 2.0);
         assert_eq!(median_after_first(&[4.0]), 4.0);
         assert_eq!(partial_path(Path::new("a/out")), Path::new("a/out.partial"));
+    }
+
+    #[test]
+    fn tracker_settings_that_decide_nothing_are_refused() {
+        assert!(check_options(&TrackOptions::default()).is_ok());
+        let with = |f: fn(&mut TrackOptions)| {
+            let mut options = TrackOptions::default();
+            f(&mut options);
+            check_options(&options).unwrap_err().to_string()
+        };
+        assert_eq!(
+            with(|o| o.confident = 0.5),
+            "confident 0.5: must be above 0.5 and below 1"
+        );
+        assert_eq!(
+            with(|o| o.prior = 1.5),
+            "prior 1.5: must be a cosine, in -1..1"
+        );
+        assert_eq!(
+            with(|o| o.temperature = 0.0),
+            "temperature 0: must be above 0"
+        );
+        assert_eq!(
+            with(|o| o.temperature = f32::NAN),
+            "temperature NaN: must be above 0"
+        );
     }
 }
