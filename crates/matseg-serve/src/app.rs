@@ -7,7 +7,8 @@ use crate::browse::DatasetFolder;
 use crate::described::{DescribedCache, Uploads};
 use crate::evaluate::Evaluations;
 use crate::roots::{PathError, Roots};
-use crate::{annotate, browse, evaluate, photos};
+use crate::video::Videos;
+use crate::{annotate, browse, evaluate, photos, video};
 use axum::extract::{DefaultBodyLimit, Path, Request, State};
 use axum::http::{header, HeaderMap, StatusCode};
 use axum::middleware::{self, Next};
@@ -44,21 +45,25 @@ pub struct AppState {
     pub benches: Vec<BenchFolder>,
     /// Evaluations run or running, by bench root.
     pub evaluations: Evaluations,
+    /// Videos: listed, uploaded and tracked.
+    pub videos: Videos,
     /// The token every API call must carry, when set.
     pub token: Option<String>,
 }
 
 /// The pages and the files they load: name, content type, body.
-const STATIC_FILES: [(&str, &str, &str); 10] = [
+const STATIC_FILES: [(&str, &str, &str); 12] = [
     ("index.html", HTML, include_str!("static/index.html")),
     ("browse.html", HTML, include_str!("static/browse.html")),
     ("annotate.html", HTML, include_str!("static/annotate.html")),
     ("evaluate.html", HTML, include_str!("static/evaluate.html")),
+    ("video.html", HTML, include_str!("static/video.html")),
     ("common.js", JS, include_str!("static/common.js")),
     ("segment.js", JS, include_str!("static/segment.js")),
     ("browse.js", JS, include_str!("static/browse.js")),
     ("annotate.js", JS, include_str!("static/annotate.js")),
     ("evaluate.js", JS, include_str!("static/evaluate.js")),
+    ("video.js", JS, include_str!("static/video.js")),
     ("style.css", CSS, include_str!("static/style.css")),
 ];
 const HTML: &str = "text/html; charset=utf-8";
@@ -100,6 +105,18 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/api/benches", get(annotate::benches))
         .route("/api/annotation", get(annotate::load).post(annotate::save))
         .route("/api/evaluate", get(evaluate::status).post(evaluate::start))
+        .route("/api/videos", get(video::list))
+        .route("/api/video", get(video::video))
+        .route(
+            "/api/video/upload",
+            post(video::upload).layer(DefaultBodyLimit::disable()),
+        )
+        .route("/api/video/frame", get(video::frame))
+        .route("/api/track", get(video::status).post(video::start))
+        .route("/api/track/frame", get(video::job_frame))
+        .route("/api/track/labels", get(video::job_labels))
+        .route("/api/track/overlay", get(video::job_overlay))
+        .route("/api/track/download", get(video::download))
         .route_layer(middleware::from_fn_with_state(state.clone(), check_token))
         .route_layer(middleware::from_fn(server_timing));
     Router::new()
@@ -176,6 +193,39 @@ impl From<PathError> for ApiError {
     }
 }
 
+/// The name an upload asks for (`?name=FILE`; empty when none).
+#[derive(serde::Deserialize)]
+pub struct UploadName {
+    /// The file name the page gave.
+    #[serde(default)]
+    pub name: String,
+}
+
+/// An upload's body, at most `limit` bytes (413 above it, whether the
+/// request declares its length or not); `what` names it in the error.
+pub async fn upload_body(
+    headers: &HeaderMap,
+    body: axum::body::Body,
+    limit: usize,
+    what: &str,
+) -> Result<axum::body::Bytes, ApiError> {
+    let too_large = || {
+        ApiError::new(
+            StatusCode::PAYLOAD_TOO_LARGE,
+            format!("{what} larger than {} MiB", limit >> 20),
+        )
+    };
+    let declared = headers
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok()?.parse::<usize>().ok());
+    if declared.is_some_and(|n| n > limit) {
+        return Err(too_large());
+    }
+    axum::body::to_bytes(body, limit)
+        .await
+        .map_err(|_| too_large())
+}
+
 /// Runs `work` on a blocking thread (decoding, describing, reading
 /// samples), off the async workers.
 pub async fn blocking<T: Send + 'static>(
@@ -227,7 +277,7 @@ mod tests {
 
     #[test]
     fn the_pages_draw_labels_in_the_command_lines_palette() {
-        let common = STATIC_FILES[4].2;
+        let common = STATIC_FILES[5].2;
         let start = common.find("PALETTE = [").unwrap();
         let end = start + common[start..].find("];").unwrap();
         let numbers: Vec<u8> = common[start + 11..end]

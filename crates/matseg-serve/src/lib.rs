@@ -1,9 +1,10 @@
-//! `matseg serve`: the local web app. Four pages: *segment* opens a photo
+//! `matseg serve`: the local web app. Five pages: *segment* opens a photo
 //! (bundled, uploaded, or from the folders the server was given) and a
 //! click shows where else in it the material under the point is
 //! (shift-clicks add points, whose segmentation is drawn live); *browse*
 //! pages through a generated dataset; *annotate* builds a point benchmark;
-//! *evaluate* scores the model and baselines on one. Each photo is
+//! *evaluate* scores the model and baselines on one; *video* follows
+//! clicked materials through a video. Each photo is
 //! described once by the model; clicks are answered from the cached
 //! descriptors.
 //!
@@ -21,6 +22,7 @@ pub mod evaluate;
 pub mod load;
 pub mod photos;
 pub mod roots;
+pub mod video;
 
 use annotate::BenchFolder;
 use app::AppState;
@@ -133,11 +135,13 @@ pub fn state(options: &ServeOptions) -> Result<Arc<AppState>, ServeError> {
         photo_roots.push(name.clone());
         benches.push(BenchFolder::new(&name, dir.clone()));
     }
-    let photos = photos::list_photos(
-        roots
-            .iter()
-            .filter(|(name, _)| photo_roots.iter().any(|p| p == name)),
-    )?;
+    let photo_root = |name: &&str| photo_roots.iter().any(|p| p == name);
+    let photos = photos::list_photos(roots.iter().filter(|(name, _)| photo_root(name)))?;
+    let videos = video::list_videos(roots.iter().filter(|(name, _)| photo_root(name)))?;
+    let videos = video::Videos::new(videos).map_err(|e| ServeError::Folder {
+        path: std::env::temp_dir(),
+        message: format!("cannot make the server's temporary folder: {e}"),
+    })?;
     let model = Model::load(&options.model, options.device)?;
     let budget = MemoryBudget::new(options.cache_mb.saturating_mul(1 << 20));
     Ok(Arc::new(AppState {
@@ -152,6 +156,7 @@ pub fn state(options: &ServeOptions) -> Result<Arc<AppState>, ServeError> {
         datasets,
         benches,
         evaluations: Default::default(),
+        videos,
         token: options.token.clone(),
     }))
 }

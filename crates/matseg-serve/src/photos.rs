@@ -6,9 +6,9 @@
 //! folder, `upload` and the name an upload was given, or a dataset root
 //! and `sample/INDEX`.
 
-use crate::app::{blocking, ApiError, AppState};
+use crate::app::{blocking, upload_body, ApiError, AppState, UploadName};
 use crate::described::{release_freed_memory, Described};
-use axum::body::{Body, Bytes};
+use axum::body::Body;
 use axum::extract::{Query, State};
 use axum::http::{header, HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
@@ -197,13 +197,6 @@ pub async fn photo(
     Ok(([(header::CONTENT_TYPE, image_type(&bytes))], bytes).into_response())
 }
 
-/// The name an upload asks for.
-#[derive(Deserialize)]
-pub struct UploadName {
-    #[serde(default)]
-    name: String,
-}
-
 /// `POST /api/upload[?name=FILE]`: a PNG or JPEG photo as the body, kept
 /// in memory; answers its reference and size. Too large: 413; not an
 /// image or a truncated one: 400.
@@ -213,21 +206,7 @@ pub async fn upload(
     headers: HeaderMap,
     body: Body,
 ) -> Result<Json<serde_json::Value>, ApiError> {
-    let too_large = || {
-        ApiError::new(
-            StatusCode::PAYLOAD_TOO_LARGE,
-            format!("upload larger than {} MiB", MAX_UPLOAD_BYTES >> 20),
-        )
-    };
-    let declared = headers
-        .get(header::CONTENT_LENGTH)
-        .and_then(|v| v.to_str().ok()?.parse::<usize>().ok());
-    if declared.is_some_and(|n| n > MAX_UPLOAD_BYTES) {
-        return Err(too_large());
-    }
-    let bytes: Bytes = axum::body::to_bytes(body, MAX_UPLOAD_BYTES)
-        .await
-        .map_err(|_| too_large())?;
+    let bytes = upload_body(&headers, body, MAX_UPLOAD_BYTES, "upload").await?;
     let shown = if name.name.is_empty() {
         "upload".to_string()
     } else {
@@ -338,7 +317,7 @@ pub async fn described(
 }
 
 /// Points `x,y;x,y...` in photo pixels.
-fn parse_points(text: &str) -> Result<Vec<(f32, f32)>, ApiError> {
+pub(crate) fn parse_points(text: &str) -> Result<Vec<(f32, f32)>, ApiError> {
     text.split(';')
         .filter(|p| !p.trim().is_empty())
         .map(|p| {

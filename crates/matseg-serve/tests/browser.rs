@@ -4,7 +4,9 @@
 //! files; a second point splits the photo in two
 //! colours; the automatic split and an upload; browse a generated dataset
 //! and open a sample; annotate two groups, save, and the files parse with
-//! the evaluation reader; evaluate the benchmark and open an image's maps.
+//! the evaluation reader; evaluate the benchmark and open an image's maps;
+//! click a material on a video's first frame, track it, and its overlay
+//! moves with it; its labels downloaded; a corrupt video refused.
 //!
 //! With `MATSEG_SCREENSHOTS=DIR`, a screenshot of each page is written
 //! there (a relative DIR from the workspace's root; docs/images holds the
@@ -21,10 +23,10 @@ use matseg_serve::{serve, ServeOptions};
 use std::path::{Path, PathBuf};
 
 /// Starts the server on a free port; its address.
-fn start_server(data: PathBuf, bench: PathBuf) -> String {
+fn start_server(data: Vec<PathBuf>, bench: PathBuf) -> String {
     let options = ServeOptions {
         model: "default".into(),
-        data: vec![data],
+        data,
         bench: vec![bench],
         host: "127.0.0.1".into(),
         port: 0,
@@ -90,13 +92,186 @@ fn every_page_works_in_a_real_browser() {
         )
         .unwrap();
     }
-    let server = start_server(data.path().into(), bench.path().into());
+    let videos = tempfile::tempdir().unwrap();
+    write_moving_patch_video(&videos.path().join("clip.mkv"));
+    let server = start_server(
+        vec![data.path().into(), videos.path().into()],
+        bench.path().into(),
+    );
     let mut browser = Browser::start(1280, 800);
 
     segment_page(&mut browser, &server);
     browse_page(&mut browser, &server);
     annotate_page(&mut browser, &server, bench.path());
     evaluate_page(&mut browser, &server);
+    video_page(&mut browser, &server);
+}
+
+/// The moving patch's frames: its size, count, and left edge on frame `i`.
+const CLIP_SIZE: (u32, u32) = (320, 240);
+const CLIP_FRAMES: u32 = 12;
+const PATCH: u32 = 96;
+fn patch_left(i: u32) -> u32 {
+    40 + i * 13
+}
+
+/// A lossless video (FFV1 in MKV) of a square of wood sliding right
+/// across grass, 12 frames; the wood's grain moves with the square.
+fn write_moving_patch_video(file: &Path) {
+    let textures = assets_dir().join("textures");
+    let grass = image::open(textures.join("grass.jpg")).unwrap().to_rgb8();
+    let wood = image::open(textures.join("wood_table_coffee.jpg"))
+        .unwrap()
+        .to_rgb8();
+    let frames = tempfile::tempdir().unwrap();
+    for i in 0..CLIP_FRAMES {
+        let (w, h) = CLIP_SIZE;
+        let mut frame = image::imageops::crop_imm(&grass, 0, 0, w, h).to_image();
+        let patch = image::imageops::crop_imm(&wood, 20, 20, PATCH, PATCH).to_image();
+        image::imageops::replace(&mut frame, &patch, patch_left(i) as i64, 72);
+        frame
+            .save(frames.path().join(format!("{i:06}.png")))
+            .unwrap();
+    }
+    let ffmpeg = matseg_pipeline::frames::ffmpeg_program("ffmpeg");
+    let out = std::process::Command::new(&ffmpeg)
+        .args(["-v", "error", "-framerate", "10", "-i"])
+        .arg(frames.path().join("%06d.png"))
+        .args(["-c:v", "ffv1"])
+        .arg(file)
+        .output()
+        .unwrap_or_else(|e| {
+            panic!(
+                "{}: {e}; scripts/ffmpeg-env.sh installs it",
+                ffmpeg.display()
+            )
+        });
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// Waits for the download `file` to be complete; its bytes.
+fn downloaded(file: &Path) -> Vec<u8> {
+    let started = std::time::Instant::now();
+    while !file.is_file() {
+        assert!(
+            started.elapsed().as_secs() < 30,
+            "{} not downloaded",
+            file.display()
+        );
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    std::thread::sleep(std::time::Duration::from_millis(200));
+    std::fs::read(file).unwrap()
+}
+
+fn video_page(browser: &mut Browser, server: &str) {
+    const CANVAS: &str = "#canvas";
+    let shown =
+        |frame: u32| format!("document.getElementById('canvas').dataset.frame === '{frame}'");
+    browser.open(
+        &format!("{server}/video?root=data1&path=clip.mkv"),
+        &shown(0),
+    );
+    let last = CLIP_FRAMES - 1;
+    let centre = |i: u32| (patch_left(i) + PATCH / 2, 72 + PATCH / 2);
+    let (x0, y0) = centre(0);
+    let (x1, y1) = centre(last);
+    let wood = browser.canvas_pixel(CANVAS, x0 + 20, y0 + 20);
+    let grass = browser.canvas_pixel(CANVAS, 300, 20);
+
+    // The wood clicked on the first frame and tracked: on that frame the
+    // wood takes the first colour, the grass stays as it was.
+    browser.click_canvas(CANVAS, x0, y0, 0);
+    browser.click("#track");
+    browser.wait_for("document.getElementById('canvas').dataset.tracked !== undefined");
+    let tinted = browser.canvas_pixel(CANVAS, x0 + 20, y0 + 20);
+    assert!(
+        close(tinted, blended(wood, PALETTE[0]), 3),
+        "{wood:?} -> {tinted:?}"
+    );
+    let untouched = browser.canvas_pixel(CANVAS, 300, 20);
+    assert!(close(untouched, grass, 3), "{grass:?} -> {untouched:?}");
+
+    // On the last frame the tint is where the wood went, not where it was.
+    browser.eval(&format!(
+        "{{ const s = document.getElementById('frame'); s.value = '{last}'; s.dispatchEvent(new Event('input')) }}"
+    ));
+    browser.wait_for(&shown(last));
+    let moved = browser.canvas_pixel(CANVAS, x1, y1);
+    let left = browser.canvas_pixel(CANVAS, x0, y0);
+    // The frame itself: the overlay at opacity 0.
+    let set_opacity = |browser: &mut Browser, value: &str| {
+        browser.eval(&format!(
+            "{{ const o = document.getElementById('opacity'); o.value = '{value}'; o.dispatchEvent(new Event('input')) }}"
+        ));
+    };
+    set_opacity(browser, "0");
+    let (wood_there, grass_here) = (
+        browser.canvas_pixel(CANVAS, x1, y1),
+        browser.canvas_pixel(CANVAS, x0, y0),
+    );
+    set_opacity(browser, "0.7");
+    assert!(
+        close(moved, blended(wood_there, PALETTE[0]), 3),
+        "the wood's new place is tinted: {wood_there:?} -> {moved:?}"
+    );
+    assert!(
+        close(left, grass_here, 3),
+        "the grass it left is not: {grass_here:?} -> {left:?}"
+    );
+    screenshot(browser, "video");
+
+    // The labels downloaded: track.json and one PNG a frame, the served ones.
+    let downloads = tempfile::tempdir().unwrap();
+    browser.download_into(downloads.path());
+    browser.click("#save-labels");
+    let tar = downloaded(&downloads.path().join("clip-labels.tar"));
+    let mut archive = tar::Archive::new(std::io::Cursor::new(tar));
+    let mut names = Vec::new();
+    let mut last_labels = Vec::new();
+    for entry in archive.entries().unwrap() {
+        let mut entry = entry.unwrap();
+        let name = entry.path().unwrap().display().to_string();
+        if name == format!("labels/{last:06}.png") {
+            std::io::Read::read_to_end(&mut entry, &mut last_labels).unwrap();
+        }
+        names.push(name);
+    }
+    assert_eq!(names.len(), 1 + CLIP_FRAMES as usize, "{names:?}");
+    assert_eq!(names[0], "track.json");
+    let job = browser.eval("document.getElementById('canvas').dataset.tracked");
+    let served = http_get(
+        server,
+        &format!(
+            "/api/track/labels?job={}&frame={last}",
+            job.as_str().unwrap()
+        ),
+    );
+    assert_eq!(last_labels, served);
+    let labels = image::load_from_memory(&served).unwrap().to_luma8();
+    assert_eq!(
+        labels.get_pixel(x1, y1).0,
+        [1],
+        "labelled as the clicked material"
+    );
+    assert_eq!(
+        labels.get_pixel(x0, y0).0,
+        [0],
+        "the grass is no clicked material"
+    );
+
+    // A corrupt video: refused in one line, and the server goes on.
+    let broken = downloads.path().join("broken.mp4");
+    std::fs::write(&broken, b"not a video at all").unwrap();
+    browser.pick_files("#file", &[&broken]);
+    browser.wait_for(
+        "document.getElementById('status').textContent.startsWith('broken.mp4: not a readable video')",
+    );
+    assert!(http_get(server, "/api/videos").starts_with(b"{"));
 }
 
 fn segment_page(browser: &mut Browser, server: &str) {

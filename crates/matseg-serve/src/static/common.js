@@ -118,6 +118,21 @@ export async function greyPng(values, width, height) {
   return scratch.convertToBlob({ type: "image/png" });
 }
 
+// Calls `upload(file)` with the file picked in `input` or dropped on any
+// of `zones`.
+export function takeFiles(input, zones, upload) {
+  input.addEventListener("change", (event) => {
+    if (event.target.files.length) upload(event.target.files[0]);
+  });
+  for (const zone of zones) {
+    zone.addEventListener("dragover", (event) => event.preventDefault());
+    zone.addEventListener("drop", (event) => {
+      event.preventDefault();
+      if (event.dataTransfer.files.length) upload(event.dataTransfer.files[0]);
+    });
+  }
+}
+
 // Fills `select` with the server's folders of one kind (`root: folder`).
 export function listFolders(select, folders) {
   for (const { root, folder } of folders) {

@@ -5,7 +5,7 @@
 // into K materials. The server describes a photo once and answers every
 // click from its descriptors.
 
-import { api, pixels, similarities, bitmap, blend, ring, pointOf, download, greyPng, COLOUR_MAPS, PALETTE }
+import { api, pixels, similarities, bitmap, blend, ring, pointOf, download, greyPng, takeFiles, COLOUR_MAPS, PALETTE }
   from "/common.js";
 
 const canvas = document.getElementById("canvas");
@@ -146,16 +146,7 @@ async function upload(file) {
     status.textContent = error.message;
   }
 }
-document.getElementById("file").addEventListener("change", (event) => {
-  if (event.target.files.length) upload(event.target.files[0]);
-});
-for (const zone of [document.getElementById("drop"), canvas]) {
-  zone.addEventListener("dragover", (event) => event.preventDefault());
-  zone.addEventListener("drop", (event) => {
-    event.preventDefault();
-    if (event.dataTransfer.files.length) upload(event.dataTransfer.files[0]);
-  });
-}
+takeFiles(document.getElementById("file"), [document.getElementById("drop"), canvas], upload);
 
 // The photo list, a page at a time.
 let listed = 0;

@@ -1,0 +1,243 @@
+// The video page: open a video (listed, uploaded, or named in the address
+// as ?root=R&path=P), pick a frame with the slider, click the materials to
+// follow (shift-click adds one), and Track: the server follows them through
+// every frame (`matseg track`). Then the slider and Play scrub through the
+// tracked frames with each material tinted in its colour; the label PNGs
+// (a tar), the overlay video and one frame's labels can be downloaded.
+
+import { api, apiUrl, pixels, bitmap, blend, ring, pointOf, download, takeFiles, PALETTE } from "/common.js";
+
+const canvas = document.getElementById("canvas");
+const context = canvas.getContext("2d", { willReadFrequently: true });
+const status = document.getElementById("status");
+const slider = document.getElementById("frame");
+const opacity = document.getElementById("opacity");
+const list = document.getElementById("videos");
+const pointList = document.getElementById("points");
+const buttons = Object.fromEntries(["play", "track", "save-labels", "save-overlay", "save-frame"]
+  .map((id) => [id, document.getElementById(id)]));
+// job: the finished tracking job whose frames are shown (null: the video's
+// own frames, points being picked); labels: the shown frame's labels.
+const state = { video: null, name: "", info: null, points: [], clicked: 0, job: null,
+  image: null, labels: null, shown: -1, playing: false, asked: 0 };
+
+function draw() {
+  if (!state.image) return;
+  context.drawImage(state.image, 0, 0, canvas.width, canvas.height);
+  const labels = state.labels;
+  if (labels) {
+    blend(context, (i) => labels[i] ? [...PALETTE[(labels[i] - 1) % PALETTE.length], 1] : [0, 0, 0, 0],
+      Number(opacity.value));
+  }
+  if (state.shown === state.clicked) {
+    for (const [i, [x, y]] of state.points.entries()) ring(context, x, y, PALETTE[i % PALETTE.length]);
+  }
+}
+
+function listPoints() {
+  pointList.replaceChildren(...state.points.map(([x, y], i) => {
+    const item = document.createElement("li");
+    const swatch = document.createElement("span");
+    swatch.className = "swatch";
+    swatch.style.background = `rgb(${PALETTE[i % PALETTE.length].join(",")})`;
+    item.append(swatch, ` ${x}, ${y} on frame ${state.clicked}`);
+    return item;
+  }));
+  buttons.track.disabled = !state.points.length;
+}
+
+// Shows frame `n`: the job's frame and labels once tracked, else the
+// video's own frame. Only the newest request is drawn.
+async function show(n) {
+  const asked = ++state.asked;
+  document.getElementById("frame-value").textContent = String(n);
+  try {
+    let image, labels = null;
+    if (state.job) {
+      const [frame, label] = await Promise.all([
+        api("/api/track/frame", { job: state.job, frame: n }).then(bitmap),
+        api("/api/track/labels", { job: state.job, frame: n }).then(pixels),
+      ]);
+      image = frame;
+      labels = Uint8Array.from({ length: label.length / 4 }, (_, i) => label[4 * i]);
+    } else {
+      image = await bitmap(await api("/api/video/frame", { ...state.video, frame: n }));
+    }
+    if (asked !== state.asked) return;
+    state.image = image;
+    state.labels = labels;
+    state.shown = n;
+    draw();
+    canvas.dataset.frame = String(n);
+  } catch (error) {
+    status.textContent = error.message;
+  }
+}
+
+async function open(video, name) {
+  for (const item of list.children) item.classList.toggle("open", item.dataset.key === `${video.root}/${video.path}`);
+  stop();
+  Object.assign(state, { video, name: name.replace(/\.[^.]*$/, "").replace(/[^\w.-]+/g, "_"),
+    points: [], clicked: 0, job: null, labels: null });
+  delete canvas.dataset.tracked;
+  delete canvas.dataset.frame;
+  for (const id of ["play", "save-labels", "save-overlay", "save-frame"]) buttons[id].disabled = true;
+  listPoints();
+  try {
+    state.info = await (await api("/api/video", video)).json();
+  } catch (error) {
+    status.textContent = error.message;
+    return;
+  }
+  canvas.width = state.info.width;
+  canvas.height = state.info.height;
+  slider.max = String(Math.max(0, state.info.frames - 1));
+  slider.value = "0";
+  status.textContent = `${name}: ${state.info.width} x ${state.info.height}, ${state.info.frames} frames at ${state.info.fps.toFixed(2)} fps`;
+  canvas.dataset.video = `${video.root}/${video.path}`;
+  await show(0);
+}
+
+// A click picks points on the shown frame; after a track, it starts a new
+// choice on that frame.
+canvas.addEventListener("click", (event) => {
+  if (!state.image || state.playing) return;
+  const point = pointOf(canvas, event);
+  if (state.job || state.clicked !== state.shown) {
+    state.job = null;
+    state.labels = null;
+    delete canvas.dataset.tracked;
+    for (const id of ["play", "save-labels", "save-overlay", "save-frame"]) buttons[id].disabled = true;
+    state.points = [];
+  }
+  state.clicked = state.shown;
+  state.points = event.shiftKey ? [...state.points, point] : [point];
+  listPoints();
+  draw();
+});
+
+slider.addEventListener("input", () => {
+  const n = Number(slider.value);
+  if (state.job) {
+    show(n);
+  } else {
+    // The video's own frames are decoded from its start: shown when the
+    // slider is let go.
+    document.getElementById("frame-value").textContent = String(n);
+  }
+});
+slider.addEventListener("change", () => {
+  if (!state.job) show(Number(slider.value));
+});
+opacity.addEventListener("input", draw);
+document.getElementById("clear").addEventListener("click", () => {
+  state.points = [];
+  listPoints();
+  draw();
+});
+
+const sleep = (ms) => new Promise((done) => setTimeout(done, ms));
+
+buttons.track.addEventListener("click", async () => {
+  if (!state.points.length) return;
+  buttons.track.disabled = true;
+  const started = performance.now();
+  try {
+    const points = state.points.map(([x, y]) => `${x},${y}`).join(";");
+    const { job } = await (await api("/api/track", { ...state.video, frame: state.clicked, points },
+      { method: "POST" })).json();
+    for (;;) {
+      const answer = await (await api("/api/track", { job })).json();
+      if (answer.state === "failed") throw new Error(answer.error);
+      if (answer.state === "done") {
+        state.report = answer.report;
+        break;
+      }
+      status.textContent = `tracking: ${answer.done} of ${answer.total || "?"} frames`;
+      await sleep(300);
+    }
+    state.job = job;
+    const seconds = (performance.now() - started) / 1000;
+    status.textContent = `${state.report.frames} frames tracked in ${seconds.toFixed(1)} s`;
+    for (const id of ["play", "save-labels", "save-overlay", "save-frame"]) buttons[id].disabled = false;
+    slider.max = String(state.report.frames - 1);
+    slider.value = String(state.clicked);
+    await show(state.clicked);
+    canvas.dataset.tracked = String(job);
+  } catch (error) {
+    status.textContent = error.message;
+  }
+  buttons.track.disabled = !state.points.length;
+});
+
+function stop() {
+  state.playing = false;
+  buttons.play.textContent = "Play";
+}
+
+// Plays the tracked frames at the video's rate (at most 30 a second),
+// each frame shown before the next is asked for.
+buttons.play.addEventListener("click", async () => {
+  if (state.playing) return stop();
+  state.playing = true;
+  buttons.play.textContent = "Pause";
+  const period = 1000 / Math.min(30, state.report.fps || 25);
+  while (state.playing && state.job) {
+    const started = performance.now();
+    const next = (state.shown + 1) % state.report.frames;
+    slider.value = String(next);
+    await show(next);
+    await sleep(Math.max(0, period - (performance.now() - started)));
+  }
+});
+
+// The server names these downloads after the video.
+buttons["save-labels"].addEventListener("click", () => {
+  const link = document.createElement("a");
+  link.href = apiUrl("/api/track/download", { job: state.job });
+  link.click();
+});
+buttons["save-overlay"].addEventListener("click", () => {
+  const link = document.createElement("a");
+  link.href = apiUrl("/api/track/overlay", { job: state.job });
+  link.click();
+});
+buttons["save-frame"].addEventListener("click", async () => {
+  const labels = await api("/api/track/labels", { job: state.job, frame: state.shown });
+  download(await labels.blob(), `${state.name}-labels-${String(state.shown).padStart(6, "0")}.png`);
+});
+
+// Uploads: the file picker and drops on the drop zone or the frame.
+async function upload(file) {
+  status.textContent = `uploading ${file.name}...`;
+  try {
+    const video = await (await api("/api/video/upload", { name: file.name }, { method: "POST", body: file })).json();
+    await listVideos();
+    await open({ root: video.root, path: video.path }, file.name);
+  } catch (error) {
+    status.textContent = error.message;
+  }
+}
+takeFiles(document.getElementById("file"), [document.getElementById("drop"), canvas], upload);
+
+async function listVideos() {
+  const { videos } = await (await api("/api/videos")).json();
+  list.replaceChildren(...videos.map((video) => {
+    const item = document.createElement("li");
+    item.textContent = `${video.root}: ${video.path}`;
+    item.dataset.key = `${video.root}/${video.path}`;
+    item.addEventListener("click", () => open(video, video.path));
+    return item;
+  }));
+  return videos;
+}
+
+const videos = await listVideos();
+const asked = new URLSearchParams(location.search);
+if (asked.get("root") && asked.get("path")) {
+  open({ root: asked.get("root"), path: asked.get("path") }, asked.get("path"));
+} else if (videos.length) {
+  open(videos[0], videos[0].path);
+} else {
+  status.textContent = "No video in the served folders: upload one, or start the server with --data FOLDER.";
+}
