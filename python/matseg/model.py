@@ -2,6 +2,7 @@
 clicked points, segmentation by points or by clustering."""
 
 import os
+from typing import NamedTuple
 
 import numpy as np
 
@@ -9,6 +10,22 @@ from . import _core
 
 #: Radius of a query point's disc, in pixels (as `matseg segment`).
 DEFAULT_RADIUS = _core.DEFAULT_RADIUS
+
+#: The longer side video frames are described at (as `matseg track`).
+DEFAULT_TRACK_SIDE = _core.DEFAULT_TRACK_SIDE
+
+_MEMORY, _SAMPLES, _CONFIDENT, _PRIOR, _TEMPERATURE = _core.DEFAULT_TRACKER
+
+
+class TrackedFrame(NamedTuple):
+    """One frame of `Model.track`: what `matseg track` writes for it."""
+
+    #: HxW uint8: 0 where no clicked material is, k where point k - 1's is.
+    labels: np.ndarray
+    #: KxHxW float32: per point, each pixel's probability of its material.
+    probability: np.ndarray
+    #: Per point, the share of the frame labelled with it.
+    areas: list
 
 
 def check_image(image):
@@ -100,6 +117,49 @@ class Model:
                 raise ValueError("segment: two points or more (one point: use similarity)")
             _, labels = self._native.similarity(image.tobytes(), w, h, pts, float(radius))
         return np.frombuffer(labels, "<i4").reshape(h, w).copy()
+
+    def track(self, frames, points, frame=0, radius=DEFAULT_RADIUS, side=DEFAULT_TRACK_SIDE,
+              memory=_MEMORY, samples=_SAMPLES, confident=_CONFIDENT, prior=_PRIOR,
+              temperature=_TEMPERATURE):
+        """Follows the materials under `points` ((x, y) pixels, clicked on
+        frame number `frame`) through `frames`, an iterable of HxWx3 uint8
+        arrays of one size (a list, or a generator decoding a video): yields
+        a `TrackedFrame` for every frame from the first, as `matseg track`
+        labels them (docs/video.md). Frames are taken one at a time; those
+        before the clicked one are held until it comes. The settings are
+        `matseg track`'s."""
+        pts = check_points(points)
+        if isinstance(frame, bool) or not isinstance(frame, (int, np.integer)) or frame < 0:
+            raise ValueError(f"frame: expected a frame number from 0, got {frame!r}")
+        settings = (int(memory), int(samples), float(confident), float(prior), float(temperature))
+        frames = iter(frames)
+        held = []
+        for index in range(int(frame) + 1):
+            try:
+                held.append(check_image(next(frames)))
+            except StopIteration:
+                raise IndexError(f"frame {frame}: past the end: the frames are {index}") from None
+        clicked = held[-1]
+        h, w = clicked.shape[:2]
+        tracker = _core.Tracker(self._native, clicked.tobytes(), w, h, pts, float(radius),
+                                int(side), settings)
+
+        def step(image):
+            fh, fw = image.shape[:2]
+            probability, labels, areas = tracker.step(image.tobytes(), fw, fh)
+            return TrackedFrame(
+                labels=np.frombuffer(labels, np.uint8).reshape(fh, fw).copy(),
+                probability=np.frombuffer(probability, "<f4").reshape(-1, fh, fw).copy(),
+                areas=list(areas),
+            )
+
+        def tracked():
+            while held:
+                yield step(held.pop(0))
+            for image in frames:
+                yield step(check_image(image))
+
+        return tracked()
 
     def __repr__(self):
         return f"Model({self.path!r})"

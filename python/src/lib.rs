@@ -21,6 +21,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<dataset::PyDataset>()?;
     m.add_class::<features::PyFeatureCache>()?;
     m.add_class::<model::PyModel>()?;
+    m.add_class::<model::PyTracker>()?;
     m.add_function(wrap_pyfunction!(batches::default_plan, m)?)?;
     m.add_function(wrap_pyfunction!(batches::matseg_loss, m)?)?;
     m.add_function(wrap_pyfunction!(model::resolve_model, m)?)?;
@@ -40,5 +41,20 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
         matseg_pipeline::sources::DEFAULT_CACHE_MB,
     )?;
     m.add("DEFAULT_RADIUS", matseg_pipeline::segment::DEFAULT_RADIUS)?;
+    m.add(
+        "DEFAULT_TRACK_SIDE",
+        matseg_pipeline::track::DEFAULT_TRACK_SIDE,
+    )?;
+    let tracker = matseg_image::tracking::TrackOptions::default();
+    m.add(
+        "DEFAULT_TRACKER",
+        (
+            tracker.memory,
+            tracker.samples,
+            tracker.confident,
+            tracker.prior,
+            tracker.temperature,
+        ),
+    )?;
     Ok(())
 }

@@ -5,8 +5,10 @@ use crate::errors::matseg_error;
 use crate::samples::f32_bytes;
 use image::RgbImage;
 use matseg_eval::ClusterOptions;
+use matseg_image::tracking::TrackOptions;
 use matseg_net::infer::resolve_model as resolve;
 use matseg_pipeline::segment::{check_points, cluster, describe, query_points, Model, MAX_POINTS};
+use matseg_pipeline::track::{TrackSettings, Tracking};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
@@ -283,5 +285,81 @@ impl PyModel {
         };
         let (labels, n) = py.detach(|| cluster(&describe(&self.net(), &photo), &options));
         Ok((label_bytes(py, &labels), n))
+    }
+}
+
+/// Clicked materials followed through frames handed over one at a time,
+/// as `matseg track` follows them (`matseg.Model.track`).
+#[pyclass(module = "matseg._core", name = "Tracker", frozen)]
+pub struct PyTracker {
+    model: Py<PyModel>,
+    tracking: Mutex<Tracking>,
+}
+
+#[pymethods]
+impl PyTracker {
+    /// Starts following the materials under `points` on the clicked frame
+    /// (`rgb`, `width` x `height`); `tracker` is (memory, samples,
+    /// confident, prior, temperature).
+    #[new]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        model: Py<PyModel>,
+        rgb: &[u8],
+        width: u32,
+        height: u32,
+        points: Vec<(f32, f32)>,
+        radius: f32,
+        side: u32,
+        tracker: (usize, usize, f32, f32, f32),
+    ) -> PyResult<Self> {
+        let clicked = photo(rgb, width, height)?;
+        let (memory, samples, confident, prior, temperature) = tracker;
+        let settings = TrackSettings {
+            points,
+            frame: 0,
+            radius,
+            side,
+            options: TrackOptions {
+                memory,
+                samples,
+                confident,
+                prior,
+                temperature,
+            },
+        };
+        let net = &model.get().net;
+        let tracking = py
+            .detach(|| Tracking::start(net, &clicked, &settings, "the clicked frame"))
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        Ok(Self {
+            model,
+            tracking: Mutex::new(tracking),
+        })
+    }
+
+    /// The next frame's probabilities `[K, height, width]` (f32 bytes),
+    /// labels `[height, width]` (u8 bytes: 0 none, k the k-th point's
+    /// material) and each point's share of the frame.
+    fn step<'py>(
+        &self,
+        py: Python<'py>,
+        rgb: &[u8],
+        width: u32,
+        height: u32,
+    ) -> PyResult<(Bound<'py, PyBytes>, Bound<'py, PyBytes>, Vec<f64>)> {
+        let frame = photo(rgb, width, height)?;
+        let net = &self.model.get().net;
+        let mut tracking = self.tracking.lock().unwrap_or_else(|e| e.into_inner());
+        let tracking = &mut *tracking;
+        let tracked = py
+            .detach(|| tracking.step(net, &frame))
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        Ok((
+            PyBytes::new(py, &f32_bytes(&tracked.similarity.concat())),
+            PyBytes::new(py, &tracked.labels),
+            tracked.areas,
+        ))
     }
 }
