@@ -114,7 +114,6 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/api/video/frame", get(video::frame))
         .route("/api/track", get(video::status).post(video::start))
         .route("/api/track/frame", get(video::job_frame))
-        .route("/api/track/labels", get(video::job_labels))
         .route("/api/track/overlay", get(video::job_overlay))
         .route("/api/track/download", get(video::download))
         .route_layer(middleware::from_fn_with_state(state.clone(), check_token))

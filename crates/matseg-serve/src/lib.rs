@@ -136,8 +136,9 @@ pub fn state(options: &ServeOptions) -> Result<Arc<AppState>, ServeError> {
         benches.push(BenchFolder::new(&name, dir.clone()));
     }
     let photo_root = |name: &&str| photo_roots.iter().any(|p| p == name);
-    let photos = photos::list_photos(roots.iter().filter(|(name, _)| photo_root(name)))?;
-    let videos = video::list_videos(roots.iter().filter(|(name, _)| photo_root(name)))?;
+    let served = || roots.iter().filter(|(name, _)| photo_root(name));
+    let photos = roots::files_under(served(), &photos::PHOTO_EXTENSIONS)?;
+    let videos = roots::files_under(served(), &video::VIDEO_EXTENSIONS)?;
     let videos = video::Videos::new(videos).map_err(|e| ServeError::Folder {
         path: std::env::temp_dir(),
         message: format!("cannot make the server's temporary folder: {e}"),

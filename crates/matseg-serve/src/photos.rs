@@ -15,8 +15,7 @@ use axum::response::{IntoResponse, Response};
 use axum::Json;
 use image::RgbImage;
 use matseg_eval::cluster::ClusterOptions;
-use matseg_image::io::{decode_rgb, encode_png_gray, encode_png_rgb, find_files, read_rgb};
-use matseg_image::LibraryError;
+use matseg_image::io::{decode_rgb, encode_png_gray, encode_png_rgb, read_rgb};
 use matseg_pipeline::segment::{
     check_points, cluster, describe, query_points, similarity_grey, DEFAULT_RADIUS,
 };
@@ -25,7 +24,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// Image extensions the photo list shows.
-const PHOTO_EXTENSIONS: [&str; 3] = ["jpg", "jpeg", "png"];
+pub const PHOTO_EXTENSIONS: [&str; 3] = ["jpg", "jpeg", "png"];
 
 /// Most photos one listing request returns.
 const MAX_LISTING: usize = 1000;
@@ -41,21 +40,6 @@ pub const UPLOAD_ROOT: &str = "upload";
 
 /// The most clusters an automatic segmentation makes (the palette's size).
 pub const MAX_CLUSTERS: usize = matseg_scene::PALETTE.len();
-
-/// The photos under `roots` (name and folder), each as its root's name and
-/// its path inside, listed once when the server starts.
-pub fn list_photos<'a>(
-    roots: impl Iterator<Item = (&'a str, &'a Path)>,
-) -> Result<Vec<(String, PathBuf)>, LibraryError> {
-    let mut photos = Vec::new();
-    for (name, dir) in roots {
-        for file in find_files(&[dir.to_path_buf()], &PHOTO_EXTENSIONS)? {
-            let path = file.strip_prefix(dir).unwrap_or(&file).to_path_buf();
-            photos.push((name.to_string(), path));
-        }
-    }
-    Ok(photos)
-}
 
 /// A page of a listing.
 #[derive(Deserialize)]

@@ -70,6 +70,23 @@ impl Roots {
     }
 }
 
+/// The files with one of `extensions` under `roots` (name and folder),
+/// each as its root's name and its path inside: the photo and video lists,
+/// made once when the server starts.
+pub fn files_under<'a>(
+    roots: impl Iterator<Item = (&'a str, &'a Path)>,
+    extensions: &[&str],
+) -> Result<Vec<(String, PathBuf)>, matseg_image::LibraryError> {
+    let mut files = Vec::new();
+    for (name, dir) in roots {
+        for file in matseg_image::io::find_files(&[dir.to_path_buf()], extensions)? {
+            let path = file.strip_prefix(dir).unwrap_or(&file).to_path_buf();
+            files.push((name.to_string(), path));
+        }
+    }
+    Ok(files)
+}
+
 /// `text` with `%XX` escapes decoded; `None` when an escape is malformed or
 /// the result is not UTF-8.
 fn percent_decode(text: &str) -> Option<String> {

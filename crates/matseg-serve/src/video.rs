@@ -13,8 +13,7 @@ use axum::extract::{Query, State};
 use axum::http::{header, HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
-use matseg_image::io::{encode_jpeg, find_files};
-use matseg_image::LibraryError;
+use matseg_image::io::encode_jpeg;
 use matseg_pipeline::frames::FrameSource;
 use matseg_pipeline::progress::Progress;
 use matseg_pipeline::track::{
@@ -37,21 +36,6 @@ pub const KEPT_TRACKS: usize = 2;
 
 /// The root name of uploaded videos.
 pub const VIDEO_UPLOAD_ROOT: &str = "upload";
-
-/// The videos under `roots`, as root name and path inside, listed once
-/// when the server starts.
-pub fn list_videos<'a>(
-    roots: impl Iterator<Item = (&'a str, &'a Path)>,
-) -> Result<Vec<(String, PathBuf)>, LibraryError> {
-    let mut videos = Vec::new();
-    for (name, dir) in roots {
-        for file in find_files(&[dir.to_path_buf()], &VIDEO_EXTENSIONS)? {
-            let path = file.strip_prefix(dir).unwrap_or(&file).to_path_buf();
-            videos.push((name.to_string(), path));
-        }
-    }
-    Ok(videos)
-}
 
 /// Where a tracking job stands.
 enum JobState {
@@ -466,40 +450,38 @@ fn finished_dir(state: &AppState, id: u64) -> Result<(PathBuf, String), ApiError
     }
 }
 
-/// A frame of a finished job.
+/// A frame of a finished job, and which part of it.
 #[derive(Deserialize)]
 pub struct JobFrameQuery {
     job: u64,
     frame: u64,
+    /// `image` (the default) or `labels`.
+    #[serde(default)]
+    part: FramePart,
 }
 
-/// `GET /api/track/frame?job&frame`: the frame as the job decoded it (JPEG).
+/// What of a tracked frame to answer.
+#[derive(Clone, Copy, Default, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FramePart {
+    /// The frame as the job decoded it (JPEG).
+    #[default]
+    Image,
+    /// Its labels (8-bit grey PNG: 0 none, k the k-th point's material).
+    Labels,
+}
+
+/// `GET /api/track/frame?job&frame[&part=labels]`: a tracked frame, or its
+/// labels.
 pub async fn job_frame(
     State(state): State<Arc<AppState>>,
     Query(query): Query<JobFrameQuery>,
 ) -> Result<Response, ApiError> {
-    job_file(
-        &state,
-        query.job,
-        &format!("frames/{:06}.jpg", query.frame),
-        "image/jpeg",
-    )
-    .await
-}
-
-/// `GET /api/track/labels?job&frame`: the frame's labels (8-bit grey PNG:
-/// 0 none, k the k-th point's material).
-pub async fn job_labels(
-    State(state): State<Arc<AppState>>,
-    Query(query): Query<JobFrameQuery>,
-) -> Result<Response, ApiError> {
-    job_file(
-        &state,
-        query.job,
-        &format!("labels/{:06}.png", query.frame),
-        "image/png",
-    )
-    .await
+    let (file, kind) = match query.part {
+        FramePart::Image => (format!("frames/{:06}.jpg", query.frame), "image/jpeg"),
+        FramePart::Labels => (format!("labels/{:06}.png", query.frame), "image/png"),
+    };
+    job_file(&state, query.job, &file, kind).await
 }
 
 /// `GET /api/track/overlay?job`: the overlay video (MP4, or the animated

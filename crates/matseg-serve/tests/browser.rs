@@ -13,13 +13,16 @@
 //! ones the README shows).
 
 mod cdp;
+mod ffmpeg;
 
 use cdp::{Browser, ALT, SHIFT};
+use ffmpeg::run_ffmpeg;
 use matseg_data::{generate_dataset, GenerateOptions};
 use matseg_image::LicenceFilter;
 use matseg_pipeline::sources::{assets_dir, Defaults, Libraries};
 use matseg_scene::{Recipe2d, PALETTE};
 use matseg_serve::{serve, ServeOptions};
+use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 
 /// Starts the server on a free port; its address.
@@ -133,23 +136,15 @@ fn write_moving_patch_video(file: &Path) {
             .save(frames.path().join(format!("{i:06}.png")))
             .unwrap();
     }
-    let ffmpeg = matseg_pipeline::frames::ffmpeg_program("ffmpeg");
-    let out = std::process::Command::new(&ffmpeg)
-        .args(["-v", "error", "-framerate", "10", "-i"])
-        .arg(frames.path().join("%06d.png"))
-        .args(["-c:v", "ffv1"])
-        .arg(file)
-        .output()
-        .unwrap_or_else(|e| {
-            panic!(
-                "{}: {e}; scripts/ffmpeg-env.sh installs it",
-                ffmpeg.display()
-            )
-        });
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let pattern = frames.path().join("%06d.png");
+    let input = ["-framerate", "10", "-i"].map(OsStr::new);
+    let output = ["-c:v", "ffv1"].map(OsStr::new);
+    run_ffmpeg(
+        input
+            .into_iter()
+            .chain([pattern.as_os_str()])
+            .chain(output)
+            .chain([file.as_os_str()]),
     );
 }
 
@@ -247,7 +242,7 @@ fn video_page(browser: &mut Browser, server: &str) {
     let served = http_get(
         server,
         &format!(
-            "/api/track/labels?job={}&frame={last}",
+            "/api/track/frame?job={}&frame={last}&part=labels",
             job.as_str().unwrap()
         ),
     );

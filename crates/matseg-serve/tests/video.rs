@@ -5,38 +5,27 @@
 //! job), after which the server goes on answering. Videos are made and read
 //! with the ffmpeg that scripts/ffmpeg-env.sh installs (`make test` runs it).
 
+mod ffmpeg;
+
 use axum::body::Body;
 use axum::http::{Request, StatusCode};
+use ffmpeg::run_ffmpeg;
 use matseg_serve::{app::router, state, ServeOptions};
+use std::ffi::OsStr;
 use std::path::Path;
 use std::time::{Duration, Instant};
 use tower::ServiceExt;
 
 /// FFmpeg's test pattern, 160x120, 6 frames, lossless (FFV1 in MKV).
 fn write_test_pattern(file: &Path) {
-    let ffmpeg = matseg_pipeline::frames::ffmpeg_program("ffmpeg");
-    let out = std::process::Command::new(&ffmpeg)
-        .args([
-            "-v",
-            "error",
-            "-f",
-            "lavfi",
-            "-i",
-            "testsrc=size=160x120:rate=10",
-        ])
-        .args(["-frames:v", "6", "-c:v", "ffv1"])
-        .arg(file)
-        .output()
-        .unwrap_or_else(|e| {
-            panic!(
-                "{}: {e}; scripts/ffmpeg-env.sh installs it",
-                ffmpeg.display()
-            )
-        });
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let pattern = ["-f", "lavfi", "-i", "testsrc=size=160x120:rate=10"];
+    let output = ["-frames:v", "6", "-c:v", "ffv1"].map(OsStr::new);
+    run_ffmpeg(
+        pattern
+            .map(OsStr::new)
+            .into_iter()
+            .chain(output)
+            .chain([file.as_os_str()]),
     );
 }
 
@@ -170,7 +159,11 @@ async fn a_video_is_tracked_and_its_labels_served() {
         let (status, jpeg) = get(&app, &format!("/api/track/frame?job={job}&frame={frame}")).await;
         assert_eq!(status, StatusCode::OK);
         assert!(image::load_from_memory(&jpeg).is_ok());
-        let (status, png) = get(&app, &format!("/api/track/labels?job={job}&frame={frame}")).await;
+        let (status, png) = get(
+            &app,
+            &format!("/api/track/frame?job={job}&frame={frame}&part=labels"),
+        )
+        .await;
         assert_eq!(status, StatusCode::OK);
         let labels = image::load_from_memory(&png).unwrap().to_luma8();
         assert_eq!(labels.dimensions(), (160, 120));
@@ -181,7 +174,11 @@ async fn a_video_is_tracked_and_its_labels_served() {
             );
         }
     }
-    let (status, _) = get(&app, &format!("/api/track/labels?job={job}&frame=6")).await;
+    let (status, _) = get(
+        &app,
+        &format!("/api/track/frame?job={job}&frame=6&part=labels"),
+    )
+    .await;
     assert_eq!(status, StatusCode::NOT_FOUND);
 
     // The archive: track.json and the six label PNGs, as served.

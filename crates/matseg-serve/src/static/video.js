@@ -56,7 +56,7 @@ async function show(n) {
     if (state.job) {
       const [frame, label] = await Promise.all([
         api("/api/track/frame", { job: state.job, frame: n }).then(bitmap),
-        api("/api/track/labels", { job: state.job, frame: n }).then(pixels),
+        api("/api/track/frame", { job: state.job, frame: n, part: "labels" }).then(pixels),
       ]);
       image = frame;
       labels = Uint8Array.from({ length: label.length / 4 }, (_, i) => label[4 * i]);
@@ -203,7 +203,7 @@ buttons["save-overlay"].addEventListener("click", () => {
   link.click();
 });
 buttons["save-frame"].addEventListener("click", async () => {
-  const labels = await api("/api/track/labels", { job: state.job, frame: state.shown });
+  const labels = await api("/api/track/frame", { job: state.job, frame: state.shown, part: "labels" });
   download(await labels.blob(), `${state.name}-labels-${String(state.shown).padStart(6, "0")}.png`);
 });
 
