@@ -6,6 +6,7 @@
 
 #![warn(missing_docs)]
 
+pub mod annotation;
 pub mod baselines;
 pub mod cluster;
 pub mod evaluate;
@@ -16,6 +17,7 @@ pub mod points;
 pub mod synthetic;
 pub mod triplet;
 
+pub use annotation::{Annotation, AnnotationProblem, Group, Relation};
 pub use cluster::{cluster_descriptors, ClusterOptions, Clustering};
 pub use evaluate::{evaluate_masks, evaluate_points, MaskEvalOptions, MaskReport, PointReport};
 pub use iou::{best_iou, best_iou_on_grid, BestIou};

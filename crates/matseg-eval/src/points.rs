@@ -9,6 +9,7 @@
 //! Points of one material id are the same material (weight 1); a relation
 //! line gives every pair of its ids a partial weight; other pairs weigh 0.
 
+use crate::annotation::{find_image, Annotation, DATA_FILE};
 use std::path::{Path, PathBuf};
 
 /// Weight of a `[...]` relation.
@@ -29,7 +30,8 @@ pub struct BenchError {
 }
 
 impl BenchError {
-    fn new(path: &Path, line: Option<usize>, message: impl Into<String>) -> Self {
+    /// A problem of the file `path` (at `line`, for text files).
+    pub fn new(path: &Path, line: Option<usize>, message: impl Into<String>) -> Self {
         Self {
             path: path.to_path_buf(),
             line,
@@ -113,51 +115,51 @@ pub fn load_point_benchmark(dir: &Path, skip_bad: bool) -> Result<PointBenchmark
 
 fn load_image(dir: &Path, name: &str) -> Result<BenchImage, BenchError> {
     let folder = dir.join("data").join(name);
-    let image_path = ["jpg", "jpeg", "png", "JPG", "PNG"]
-        .iter()
-        .map(|ext| dir.join("images").join(format!("{name}.{ext}")))
-        .find(|p| p.is_file())
+    let image_path = find_image(dir, name)
         .ok_or_else(|| BenchError::new(&folder, None, format!("no image images/{name}.jpg")))?;
-    let (width, height) = image::image_dimensions(&image_path)
-        .map_err(|e| BenchError::new(&image_path, None, format!("unreadable image: {e}")))?;
-
-    let json_path = folder.join("data.json");
-    let text = std::fs::read_to_string(&json_path)
-        .map_err(|e| BenchError::new(&json_path, None, format!("cannot read: {e}")))?;
-    let (material_ids, points) = parse_points(&text, width, height)
-        .map_err(|message| BenchError::new(&json_path, None, message))?;
-
+    let (width, height) = matseg_image::io::read_dimensions(&image_path)?;
+    let json_path = folder.join(DATA_FILE);
+    let annotation =
+        Annotation::read(&folder)?.ok_or_else(|| BenchError::new(&json_path, None, "missing"))?;
+    annotation.check(width, height).map_err(|problem| {
+        BenchError::new(&folder.join(problem.file()), None, problem.to_string())
+    })?;
+    if annotation.groups.is_empty() {
+        return Err(BenchError::new(&json_path, None, "no materials"));
+    }
+    let material_ids: Vec<String> = annotation.groups.iter().map(|g| g.id.clone()).collect();
+    let points = annotation
+        .groups
+        .iter()
+        .map(|g| {
+            g.points
+                .iter()
+                .map(|&[x, y, r]| BenchPoint {
+                    x: x as f32,
+                    y: y as f32,
+                    r: r as f32,
+                })
+                .collect()
+        })
+        .collect();
     let n = material_ids.len();
     let mut weights: Vec<Vec<f64>> = (0..n)
         .map(|i| (0..n).map(|j| if i == j { 1.0 } else { 0.0 }).collect())
         .collect();
-    let relations_path = folder.join("group_relations.txt");
-    let mut has_relations = false;
-    if relations_path.is_file() {
-        let text = std::fs::read_to_string(&relations_path)
-            .map_err(|e| BenchError::new(&relations_path, None, format!("cannot read: {e}")))?;
-        for (number, line) in text.lines().enumerate() {
-            let fail = |m: String| BenchError::new(&relations_path, Some(number + 1), m);
-            let Some((ids, weight)) = parse_relation(line).map_err(fail)? else {
-                continue;
-            };
-            let index: Vec<usize> = ids
-                .iter()
-                .map(|id| {
-                    material_ids
-                        .iter()
-                        .position(|m| m == id)
-                        .ok_or_else(|| fail(format!("unknown material id {id:?}")))
-                })
-                .collect::<Result<_, _>>()?;
-            for &i in &index {
-                for &j in &index {
-                    if i != j {
-                        weights[i][j] = weights[i][j].max(weight);
-                    }
+    let index_of = |id: &String| {
+        material_ids
+            .iter()
+            .position(|m| m == id)
+            .expect("checked: relations name known groups")
+    };
+    for relation in &annotation.relations {
+        let index: Vec<usize> = relation.ids.iter().map(index_of).collect();
+        for &i in &index {
+            for &j in &index {
+                if i != j {
+                    weights[i][j] = weights[i][j].max(relation.weight);
                 }
             }
-            has_relations = true;
         }
     }
     Ok(BenchImage {
@@ -166,102 +168,8 @@ fn load_image(dir: &Path, name: &str) -> Result<BenchImage, BenchError> {
         material_ids,
         points,
         weights,
-        has_relations,
+        has_relations: !annotation.relations.is_empty(),
     })
-}
-
-type ParsedPoints = (Vec<String>, Vec<Vec<BenchPoint>>);
-
-/// Material ids (numeric ids in numeric order) and their points, each
-/// checked to lie inside a `width x height` image.
-fn parse_points(text: &str, width: u32, height: u32) -> Result<ParsedPoints, String> {
-    let value: serde_json::Value =
-        serde_json::from_str(text).map_err(|e| format!("bad JSON: {e}"))?;
-    let object = value
-        .as_object()
-        .ok_or("expected an object of material ids")?;
-    let mut entries: Vec<(&String, &serde_json::Value)> = object.iter().collect();
-    entries.sort_by_key(|(id, _)| (id.parse::<u64>().unwrap_or(u64::MAX), id.to_string()));
-    let mut ids = Vec::new();
-    let mut points = Vec::new();
-    for (id, entry) in entries {
-        let list = entry
-            .get("pt_im")
-            .and_then(|p| p.as_array())
-            .ok_or_else(|| format!("material {id:?}: no \"pt_im\" list"))?;
-        let mut material = Vec::new();
-        for (k, p) in list.iter().enumerate() {
-            let coords: Vec<f64> = p
-                .as_array()
-                .filter(|a| a.len() == 3)
-                .and_then(|a| a.iter().map(|v| v.as_f64()).collect())
-                .ok_or_else(|| format!("material {id:?}, point {k}: expected [x, y, r]"))?;
-            let (x, y, r) = (coords[0], coords[1], coords[2]);
-            if !(0.0..width as f64).contains(&x) || !(0.0..height as f64).contains(&y) || r < 0.0 {
-                return Err(format!(
-                    "material {id:?}, point {k}: ({x}, {y}, r {r}) is outside the {width}x{height} image"
-                ));
-            }
-            material.push(BenchPoint {
-                x: x as f32,
-                y: y as f32,
-                r: r as f32,
-            });
-        }
-        if material.is_empty() {
-            return Err(format!("material {id:?} has no points"));
-        }
-        ids.push(id.clone());
-        points.push(material);
-    }
-    if ids.is_empty() {
-        return Err("no materials".into());
-    }
-    Ok((ids, points))
-}
-
-/// The `group_relations.txt` line of ids with `weight`: `[1, 2]` for
-/// [`SQUARE_RELATION`], `(1, 2)` otherwise.
-pub fn format_relation(ids: &[String], weight: f64) -> String {
-    let (open, close) = if weight == SQUARE_RELATION {
-        ('[', ']')
-    } else {
-        ('(', ')')
-    };
-    format!("{open}{}{close}", ids.join(", "))
-}
-
-/// One relation line: its ids and weight, `None` for a blank line.
-pub fn parse_relation(line: &str) -> Result<Option<(Vec<String>, f64)>, String> {
-    let line = line.trim();
-    if line.is_empty() {
-        return Ok(None);
-    }
-    let (inner, weight) =
-        if let Some(inner) = line.strip_prefix('[').and_then(|l| l.strip_suffix(']')) {
-            (inner, SQUARE_RELATION)
-        } else if let Some(inner) = line.strip_prefix('(').and_then(|l| l.strip_suffix(')')) {
-            (inner, ROUND_RELATION)
-        } else {
-            return Err(format!(
-                "{line:?}: a relation is a list of ids in [...] or (...)"
-            ));
-        };
-    let ids: Vec<String> = inner
-        .split(',')
-        .map(|id| {
-            id.trim()
-                .trim_matches(|c| c == '"' || c == '\'')
-                .to_string()
-        })
-        .filter(|id| !id.is_empty())
-        .collect();
-    if ids.len() < 2 {
-        return Err(format!(
-            "{line:?}: a relation needs at least two material ids"
-        ));
-    }
-    Ok(Some((ids, weight)))
 }
 
 /// The points of all materials of one image, flattened, with their
@@ -274,52 +182,4 @@ pub fn flatten(image: &BenchImage) -> (Vec<BenchPoint>, Vec<usize>) {
         material.extend(std::iter::repeat_n(m, list.len()));
     }
     (points, material)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn relations_parse_with_their_weights() {
-        assert_eq!(
-            parse_relation(" [1, 2,3] ").unwrap(),
-            Some((vec!["1".into(), "2".into(), "3".into()], SQUARE_RELATION))
-        );
-        assert_eq!(
-            parse_relation("(\"4\",5)").unwrap(),
-            Some((vec!["4".into(), "5".into()], ROUND_RELATION))
-        );
-        assert_eq!(parse_relation("   ").unwrap(), None);
-        assert!(parse_relation("1, 2")
-            .unwrap_err()
-            .contains("[...] or (...)"));
-        assert!(parse_relation("[1]").unwrap_err().contains("at least two"));
-        assert!(parse_relation("[1, 2)").is_err());
-    }
-
-    #[test]
-    fn points_parse_in_numeric_id_order_and_must_lie_inside() {
-        let text = r#"{"10": {"pt_im": [[1, 2, 3]]}, "2": {"pt_im": [[4.5, 5, 1], [0, 0, 0]], "other": 1}}"#;
-        let (ids, points) = parse_points(text, 10, 10).unwrap();
-        assert_eq!(ids, vec!["2", "10"]);
-        assert_eq!(points[0].len(), 2);
-        assert_eq!(
-            points[1][0],
-            BenchPoint {
-                x: 1.0,
-                y: 2.0,
-                r: 3.0
-            }
-        );
-        let outside = parse_points(r#"{"1": {"pt_im": [[10, 2, 3]]}}"#, 10, 10).unwrap_err();
-        assert!(outside.contains("outside the 10x10 image"), "{outside}");
-        assert!(parse_points(r#"{"1": {"pt": []}}"#, 10, 10)
-            .unwrap_err()
-            .contains("pt_im"));
-        assert!(parse_points(r#"{"1": {"pt_im": [[1, 2]]}}"#, 10, 10)
-            .unwrap_err()
-            .contains("[x, y, r]"));
-        assert!(parse_points("[1", 10, 10).unwrap_err().contains("bad JSON"));
-    }
 }

@@ -4,7 +4,8 @@
 //! related to both (a `[...]` relation, weight 0.6), so the Soft subset has
 //! something to score. Written in the MatSeg layout [`crate::points`] reads.
 
-use crate::points::BenchPoint;
+use crate::annotation::{Annotation, Group, Relation};
+use crate::points::{BenchError, SQUARE_RELATION};
 use image::RgbImage;
 use matseg_image::io::{encode_jpeg, write_atomic};
 use matseg_image::Plane;
@@ -37,26 +38,18 @@ impl Default for SyntheticOptions {
     }
 }
 
-/// The points of one scene, by material id, and its relation lines.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct PointAnnotation {
-    /// Material ids ("1", "2", ...) and their points.
-    pub materials: Vec<(String, Vec<BenchPoint>)>,
-    /// Lines of `group_relations.txt`.
-    pub relations: Vec<String>,
-}
-
 /// Picks points from the material `weights` of a scene (row-major planes of
 /// one size): up to `points_per_material` pure points per material, and a
-/// mixture material for every pair that mixes on enough pixels. Points stay
-/// `radius` away from the border.
+/// mixture material for every pair that mixes on enough pixels, related to
+/// both; unnamed groups with ids `1`, `2`... Points stay `radius` away from
+/// the border.
 pub fn annotate_points<R: Rng + ?Sized>(
     rng: &mut R,
     weights: &[Plane],
     options: &SyntheticOptions,
-) -> PointAnnotation {
+) -> Annotation {
     let Some(first) = weights.first() else {
-        return PointAnnotation::default();
+        return Annotation::default();
     };
     let (w, h) = (first.width, first.height);
     let margin = options.radius.ceil() as usize;
@@ -64,7 +57,8 @@ pub fn annotate_points<R: Rng + ?Sized>(
         let (x, y) = (i % w, i / w);
         x >= margin && y >= margin && x + margin < w && y + margin < h
     };
-    let pick = |candidates: Vec<usize>, rng: &mut R| -> Vec<BenchPoint> {
+    let radius = f64::from(options.radius);
+    let pick = |candidates: Vec<usize>, rng: &mut R| -> Vec<[f64; 3]> {
         let n = options.points_per_material.min(candidates.len());
         let mut chosen: Vec<usize> = sample(rng, candidates.len(), n)
             .into_iter()
@@ -73,14 +67,19 @@ pub fn annotate_points<R: Rng + ?Sized>(
         chosen.sort_unstable();
         chosen
             .into_iter()
-            .map(|i| BenchPoint {
-                x: (i % w) as f32,
-                y: (i / w) as f32,
-                r: options.radius,
-            })
+            .map(|i| [(i % w) as f64, (i / w) as f64, radius])
             .collect()
     };
-    let mut annotation = PointAnnotation::default();
+    let group = |id: String, points| Group {
+        id,
+        name: None,
+        points,
+    };
+    let related = |a: usize, b: usize| Relation {
+        ids: vec![a.to_string(), b.to_string()],
+        weight: SQUARE_RELATION,
+    };
+    let mut annotation = Annotation::default();
     let mut present = vec![false; weights.len()];
     for (k, plane) in weights.iter().enumerate() {
         let pure: Vec<usize> = (0..w * h)
@@ -89,7 +88,7 @@ pub fn annotate_points<R: Rng + ?Sized>(
         let points = pick(pure, rng);
         if !points.is_empty() {
             present[k] = true;
-            annotation.materials.push(((k + 1).to_string(), points));
+            annotation.groups.push(group((k + 1).to_string(), points));
         }
     }
     let (lo, hi) = options.mixture;
@@ -111,46 +110,33 @@ pub fn annotate_points<R: Rng + ?Sized>(
             if mixed.len() < options.points_per_material {
                 continue;
             }
-            let id = next_id.to_string();
+            let id = next_id;
             next_id += 1;
-            annotation.materials.push((id.clone(), pick(mixed, rng)));
-            annotation.relations.push(format!("[{}, {id}]", j + 1));
-            annotation.relations.push(format!("[{}, {id}]", k + 1));
+            annotation
+                .groups
+                .push(group(id.to_string(), pick(mixed, rng)));
+            annotation.relations.push(related(j + 1, id));
+            annotation.relations.push(related(k + 1, id));
         }
     }
     annotation
 }
 
-/// Writes one image of a point benchmark: `images/NAME.jpg`,
-/// `data/NAME/data.json` and, with relations, `group_relations.txt`.
+/// Writes one image of a point benchmark: `images/NAME.jpg`, and its
+/// annotation in `data/NAME/` as [`Annotation::write`] writes it.
 pub fn write_point_image(
     dir: &Path,
     name: &str,
     image: &RgbImage,
-    annotation: &PointAnnotation,
-) -> std::io::Result<()> {
-    let data = dir.join("data").join(name);
-    std::fs::create_dir_all(&data)?;
-    std::fs::create_dir_all(dir.join("images"))?;
-    let json: serde_json::Map<String, serde_json::Value> = annotation
-        .materials
-        .iter()
-        .map(|(id, points)| {
-            let list: Vec<[f32; 3]> = points.iter().map(|p| [p.x, p.y, p.r]).collect();
-            (id.clone(), serde_json::json!({ "pt_im": list }))
-        })
-        .collect();
-    let text = serde_json::to_string_pretty(&json).expect("JSON of numbers");
-    write_atomic(&data.join("data.json"), text.as_bytes())?;
-    if !annotation.relations.is_empty() {
-        let lines = annotation.relations.join("\n") + "\n";
-        write_atomic(&data.join("group_relations.txt"), lines.as_bytes())?;
-    }
+    annotation: &Annotation,
+) -> Result<(), BenchError> {
+    annotation.write(&dir.join("data").join(name))?;
     // The image last: the reader lists data folders, then opens the image.
-    write_atomic(
-        &dir.join("images").join(format!("{name}.jpg")),
-        &encode_jpeg(image, 95),
-    )
+    let images = dir.join("images");
+    let file = images.join(format!("{name}.jpg"));
+    std::fs::create_dir_all(&images)
+        .and_then(|()| write_atomic(&file, &encode_jpeg(image, 95)))
+        .map_err(|e| BenchError::new(&file, None, format!("cannot write: {e}")))
 }
 
 #[cfg(test)]
@@ -187,23 +173,29 @@ mod tests {
         ];
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
         let a = annotate_points(&mut rng, &weights, &SyntheticOptions::default());
-        let ids: Vec<&str> = a.materials.iter().map(|(id, _)| id.as_str()).collect();
+        let ids: Vec<&str> = a.groups.iter().map(|g| g.id.as_str()).collect();
         assert_eq!(ids, ["1", "2", "3"]);
-        assert_eq!(a.relations, ["[1, 3]", "[2, 3]"]);
+        let relations: Vec<String> = a
+            .relations
+            .iter()
+            .map(|r| crate::annotation::format_relation(&r.ids, r.weight))
+            .collect();
+        assert_eq!(relations, ["[1, 3]", "[2, 3]"]);
+        assert_eq!(a.check(w as u32, h as u32), Ok(()));
         let xs = |k: usize| {
-            a.materials[k]
-                .1
+            a.groups[k]
+                .points
                 .iter()
-                .map(|p| p.x as usize)
+                .map(|p| p[0] as usize)
                 .collect::<Vec<_>>()
         };
         assert!(xs(0).iter().all(|&x| (2..13).contains(&x)) && xs(0).len() == 5);
         assert!(xs(1).iter().all(|&x| x >= 27 && x < w - 2));
         assert!(xs(2).iter().all(|&x| (13..27).contains(&x)));
         assert!(a
-            .materials
+            .groups
             .iter()
-            .flat_map(|m| &m.1)
-            .all(|p| p.y >= 2.0 && p.y < (h - 2) as f32));
+            .flat_map(|g| &g.points)
+            .all(|p| p[1] >= 2.0 && p[1] < (h - 2) as f64 && p[2] == 2.0));
     }
 }

@@ -7,8 +7,8 @@ use matseg_eval::baselines::ColourBaseline;
 use matseg_eval::points::BenchPoint;
 use matseg_eval::synthetic::{annotate_points, write_point_image, SyntheticOptions};
 use matseg_eval::{
-    evaluate_masks, evaluate_points, load_point_benchmark, scan_mask_benchmark, MaskEvalOptions,
-    QueryOptions,
+    evaluate_masks, evaluate_points, load_point_benchmark, scan_mask_benchmark, Annotation,
+    MaskEvalOptions, QueryOptions,
 };
 use matseg_image::Plane;
 use rand::SeedableRng;
@@ -62,8 +62,8 @@ fn malformed_benchmarks_name_the_file_and_line() {
         ("[1, 2]\n1, 3\n", "group_relations.txt:2", "[...] or (...)"),
         (
             "(1, 9)\n",
-            "group_relations.txt:1",
-            "unknown material id \"9\"",
+            "group_relations.txt",
+            "relation [\"1\", \"9\"]: group 9 unknown or repeated",
         ),
     ];
     for (relations, location, problem) in cases {
@@ -132,7 +132,8 @@ fn flat_colours_score_one_with_the_rgb_baseline() {
     let (img, weights) = bands();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
     let annotation = annotate_points(&mut rng, &weights, &SyntheticOptions::default());
-    assert_eq!(annotation.relations, ["[1, 3]", "[2, 3]"]);
+    let pairs: Vec<&[String]> = annotation.relations.iter().map(|r| &r.ids[..]).collect();
+    assert_eq!(pairs, [["1", "3"], ["2", "3"]]);
     write_point_image(dir.path(), "bands", &img, &annotation).unwrap();
     let bench = load_point_benchmark(dir.path(), false).unwrap();
     let report = evaluate_points(&ColourBaseline::RGB, &bench, 0).unwrap();
@@ -184,5 +185,49 @@ fn flat_colour_masks_are_found_exactly() {
             .mean_iou
             .unwrap()
             <= 1.0
+    );
+}
+
+#[test]
+fn written_and_hand_made_benchmarks_read_through_the_one_reader() {
+    // Written by the synthetic benchmark writer: read back as written.
+    let dir = tempfile::tempdir().unwrap();
+    let (img, weights) = bands();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    let annotation = annotate_points(&mut rng, &weights, &SyntheticOptions::default());
+    write_point_image(dir.path(), "bands", &img, &annotation).unwrap();
+    let folder = dir.path().join("data/bands");
+    assert_eq!(Annotation::read(&folder).unwrap(), Some(annotation.clone()));
+    let bench = load_point_benchmark(dir.path(), false).unwrap();
+    assert_eq!(bench.images[0].material_ids, ["1", "2", "3"]);
+
+    // Made by hand: the development benchmark shipped with the project.
+    let real = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../benchmarks/real-dev");
+    let bench = load_point_benchmark(&real, false).unwrap();
+    assert!(bench.images.len() >= 40 && bench.skipped.is_empty());
+    for image in &bench.images {
+        let read = Annotation::read(&real.join("data").join(&image.name))
+            .unwrap()
+            .unwrap();
+        let ids: Vec<&str> = read.groups.iter().map(|g| g.id.as_str()).collect();
+        assert_eq!(ids, image.material_ids, "{}", image.name);
+        assert_eq!(read.relations.is_empty(), !image.has_relations);
+    }
+
+    // A malformed annotation: the checker's message is the reader's.
+    let mut outside = annotation.clone();
+    outside.groups[1].points[0] = [90.0, 3.0, 2.0];
+    let problem = outside.check(90, 40).unwrap_err().to_string();
+    assert_eq!(
+        problem,
+        "group 2: point (90, 3, r 2) is outside the 90x40 image"
+    );
+    outside.write(&folder).unwrap();
+    let error = load_point_benchmark(dir.path(), false)
+        .unwrap_err()
+        .to_string();
+    assert_eq!(
+        error,
+        format!("{}: {problem}", folder.join("data.json").display())
     );
 }

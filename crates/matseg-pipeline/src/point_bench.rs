@@ -79,7 +79,7 @@ pub fn make_point_benchmark(
         let scene = generate_2d(&mut rng, &recipe, libraries.sources())?;
         let weights: Vec<_> = scene.weights.iter().map(|w| w.to_plane()).collect();
         let annotation = annotate_points(&mut rng, &weights, &options);
-        if annotation.materials.len() < 2 {
+        if annotation.groups.len() < 2 {
             left_out += 1;
             continue;
         }

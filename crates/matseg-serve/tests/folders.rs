@@ -7,10 +7,11 @@ use axum::body::Body;
 use axum::http::{Request, StatusCode};
 use image::{GrayImage, RgbImage};
 use matseg_data::encode::EncodedSample;
+use matseg_eval::Annotation;
 use matseg_image::io::{encode_jpeg, encode_png_gray};
-use matseg_serve::{annotate::Annotation, app::router, state, ServeOptions};
+use matseg_serve::{app::router, state, ServeOptions};
 use std::path::{Path, PathBuf};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 use tower::ServiceExt;
 
 fn options(data: Vec<PathBuf>, bench: Vec<PathBuf>) -> ServeOptions {
@@ -262,7 +263,9 @@ async fn annotations_are_saved_in_the_benchmark_layout_and_evaluated() {
         (Some(600), Some(400))
     );
 
-    // The evaluation reader parses the files.
+    // The evaluation reader parses the files: the library's annotation
+    // reader gives back what was sent, and the benchmark loads.
+    assert_eq!(Annotation::read(&data.join("coffee")).unwrap(), Some(sent));
     let loaded = matseg_eval::load_point_benchmark(bench.path(), false).unwrap();
     assert_eq!(loaded.images.len(), 2);
     let coffee = &loaded.images[1];
@@ -298,6 +301,34 @@ async fn annotations_are_saved_in_the_benchmark_layout_and_evaluated() {
         std::fs::read(data.join("coffee/data.json")).unwrap(),
         before
     );
+    // The same problem in a file written by hand: `matseg eval` refuses it
+    // with the page's message.
+    let (_, refused) = post(
+        &app,
+        "/api/annotation?root=bench0&name=chelsea",
+        r#"{"groups": [{"id": "1", "points": [[6, 300, 5]]}]}"#,
+    )
+    .await;
+    let hand = bench_folder();
+    let chelsea = hand.path().join("data/chelsea");
+    std::fs::create_dir_all(&chelsea).unwrap();
+    std::fs::write(
+        chelsea.join("data.json"),
+        r#"{"1": {"pt_im": [[6, 300, 5]]}}"#,
+    )
+    .unwrap();
+    let read = matseg_eval::load_point_benchmark(hand.path(), false)
+        .unwrap_err()
+        .to_string();
+    let problem = "group 1: point (6, 300, r 5) is outside the 451x300 image";
+    assert_eq!(
+        refused["error"],
+        format!("annotation of \"chelsea\": {problem}")
+    );
+    assert_eq!(
+        read,
+        format!("{}: {problem}", chelsea.join("data.json").display())
+    );
     for name in ["../coffee", "nothing"] {
         let (status, _) = post(
             &app,
@@ -317,6 +348,7 @@ async fn annotations_are_saved_in_the_benchmark_layout_and_evaluated() {
         .starts_with("baseline \"nope\""));
     let (status, _) = post(&app, "/api/evaluate?root=bench0&baselines=rgb", "").await;
     assert_eq!(status, StatusCode::OK);
+    let started = Instant::now();
     let report = loop {
         let answer = get_json(&app, "/api/evaluate?root=bench0").await;
         match answer["state"].as_str().unwrap() {
@@ -324,6 +356,7 @@ async fn annotations_are_saved_in_the_benchmark_layout_and_evaluated() {
             "done" => break answer["report"].clone(),
             other => panic!("{other}: {answer}"),
         }
+        assert!(started.elapsed() < Duration::from_secs(600), "no end");
     };
     let models = report["models"].as_array().unwrap();
     assert_eq!(models.len(), 2);
