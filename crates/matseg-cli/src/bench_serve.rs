@@ -50,7 +50,7 @@ impl Server {
     fn start(data: &std::path::Path, args: &Args) -> Result<Self> {
         let exe = std::env::current_exe().context("cannot find the matseg binary")?;
         let mut child = Command::new(exe)
-            .args(["serve", "--port", "0", "--model", &args.model])
+            .args(["serve", "--json", "--port", "0", "--model", &args.model])
             .arg("--cache-mb")
             .arg(args.cache_mb.to_string())
             .arg("--data")
@@ -62,11 +62,9 @@ impl Server {
         BufReader::new(child.stdout.take().expect("piped"))
             .read_line(&mut line)
             .context("matseg serve printed no address")?;
-        let host = line
-            .trim()
-            .strip_prefix("matseg serve: http://")
-            .and_then(|rest| rest.split('/').next())
-            .map(str::to_string);
+        let host = serde_json::from_str::<serde_json::Value>(&line)
+            .ok()
+            .and_then(|ready| Some(ready["address"].as_str()?.to_string()));
         match host {
             Some(host) => Ok(Self { child, host }),
             None => {

@@ -36,6 +36,11 @@ pub struct Args {
     /// cpu or cuda.
     #[arg(long, default_value = "cpu")]
     device: String,
+    /// Announce the address as one JSON line, `{"address": "HOST:PORT",
+    /// "url": "http://..."}`, instead of the banner: for scripts that start
+    /// the server with `--port 0`.
+    #[arg(long)]
+    json: bool,
 }
 
 /// Runs `matseg serve` until interrupted.
@@ -53,7 +58,13 @@ pub fn run(args: Args) -> Result<()> {
     let token = options.token.clone();
     serve(&options, |address| {
         let query = token.map(|t| format!("?token={t}")).unwrap_or_default();
-        println!("matseg serve: http://{address}/{query}");
+        let url = format!("http://{address}/{query}");
+        if args.json {
+            let line = serde_json::json!({ "address": address.to_string(), "url": url });
+            println!("{line}");
+        } else {
+            println!("matseg serve: {url}");
+        }
     })?;
     Ok(())
 }

@@ -12,7 +12,7 @@ use image::RgbImage;
 use matseg_image::coarse::CoarseDescriptors;
 use matseg_image::descriptor::{Comparison, DescriptorMap, DescriptorModel};
 use std::path::{Path, PathBuf};
-use std::sync::{Mutex, PoisonError};
+use std::sync::{Mutex, MutexGuard, PoisonError};
 use tch::{nn, Device, Tensor};
 
 /// A trained net with its variables.
@@ -311,6 +311,12 @@ impl<T> TorchModel<T> {
         }
     }
 
+    /// The model, held until the guard is dropped (a panic of an earlier
+    /// holder does not keep it from the next).
+    pub fn lock(&self) -> MutexGuard<'_, T> {
+        self.model.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
     /// The model, to change its settings before it is used.
     pub fn model_mut(&mut self) -> &mut T {
         self.model.get_mut().unwrap_or_else(PoisonError::into_inner)
@@ -345,9 +351,6 @@ impl<T: PixelDescriptors + Send> DescriptorModel for TorchModel<T> {
     }
 
     fn describe(&self, image: &RgbImage) -> DescriptorMap {
-        self.model
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner)
-            .descriptor_map(image)
+        self.lock().descriptor_map(image)
     }
 }

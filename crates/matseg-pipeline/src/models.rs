@@ -41,6 +41,20 @@ const NET_BASELINES: &[&str] = &[];
 /// The chosen baselines (in table order), then the nets (each named after
 /// its run folder); at least one model.
 pub fn models(choice: &ModelChoice) -> Result<Vec<Box<dyn DescriptorModel>>, PipelineError> {
+    #[allow(unused_mut)]
+    let mut models = baselines(choice)?;
+    #[cfg(feature = "net")]
+    models.extend(nets(choice)?);
+    if models.is_empty() {
+        return Err(PipelineError::Settings(
+            "nothing to score: give --baseline NAME... or --model RUN...".into(),
+        ));
+    }
+    Ok(models)
+}
+
+/// The chosen baselines alone, in table order (none when none is chosen).
+pub fn baselines(choice: &ModelChoice) -> Result<Vec<Box<dyn DescriptorModel>>, PipelineError> {
     let known = known_baselines();
     let mut wanted: Vec<&str> = Vec::new();
     for name in &choice.baselines {
@@ -64,13 +78,6 @@ pub fn models(choice: &ModelChoice) -> Result<Vec<Box<dyn DescriptorModel>>, Pip
             #[cfg(not(feature = "net"))]
             None => unreachable!("every known baseline is built"),
         }
-    }
-    #[cfg(feature = "net")]
-    models.extend(nets(choice)?);
-    if models.is_empty() {
-        return Err(PipelineError::Settings(
-            "nothing to score: give --baseline NAME... or --model RUN...".into(),
-        ));
     }
     Ok(models)
 }

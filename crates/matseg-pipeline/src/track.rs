@@ -93,10 +93,9 @@ impl FrameDescriber for Model {
     }
 }
 
-impl FrameDescriber for std::sync::Mutex<Model> {
+impl FrameDescriber for matseg_net::infer::NetModel {
     fn describe_frame(&self, frame: &RgbImage, side: u32) -> CoarseDescriptors {
-        let model = self.lock().unwrap_or_else(|e| e.into_inner());
-        model.describe_frame(frame, side)
+        self.lock().describe_frame(frame, side)
     }
 }
 

@@ -16,17 +16,15 @@ use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::{Json, Router};
 use matseg_image::MemoryBudget;
-use matseg_pipeline::segment::Model;
+use matseg_net::infer::NetModel;
 use std::path::PathBuf;
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 /// What the handlers share.
 pub struct AppState {
-    /// The model photos are described with.
-    pub model: Mutex<Model>,
-    /// The model as the server was given it (`default`, a run or a file),
-    /// for evaluations, which load their own copy.
-    pub model_path: PathBuf,
+    /// The model photos are described and benchmarks are scored with,
+    /// named after its run folder (`default` for the shipped model).
+    pub model: NetModel,
     /// The device the model runs on.
     pub device: tch::Device,
     /// The folders photos come from.

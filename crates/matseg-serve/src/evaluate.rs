@@ -1,7 +1,8 @@
 //! The evaluate page's API: `matseg eval points` on a `--bench` folder for
-//! the served model and the baselines the page picks, run on a thread of
-//! its own; the page polls for the report (All / Soft / top-1 scores per
-//! model and per image).
+//! the baselines the page picks and the served model (locked one image at a
+//! time, so the other pages are answered meanwhile), run on a thread of its
+//! own; the page polls for the report (All / Soft / top-1 scores per model
+//! and per image), or for why it failed.
 
 use crate::annotate::bench;
 use crate::app::{ApiError, AppState};
@@ -9,7 +10,8 @@ use axum::extract::{Query, State};
 use axum::http::StatusCode;
 use axum::Json;
 use matseg_eval::evaluate::DEFAULT_MAX_SIDE;
-use matseg_pipeline::models::{known_baselines, models, ModelChoice};
+use matseg_image::descriptor::{Comparison, DescriptorMap, DescriptorModel};
+use matseg_pipeline::models::{baselines, known_baselines, ModelChoice};
 use matseg_pipeline::point_bench::score_point_benchmark;
 use serde::Deserialize;
 use std::collections::HashMap;
@@ -71,18 +73,14 @@ pub async fn start(
     }
     let choice = ModelChoice {
         baselines,
-        nets: vec![state.model_path.clone()],
+        nets: Vec::new(),
         net_sides: Vec::new(),
         device: state.device,
     };
     let root = query.root.clone();
     let worker = state.clone();
     std::thread::spawn(move || {
-        let outcome = run(&folder, &choice);
-        let done = match outcome {
-            Ok(report) => Evaluation::Done(report),
-            Err(message) => Evaluation::Failed(message),
-        };
+        let done = finished(&folder, || run(&folder, &choice, worker.clone()));
         worker
             .evaluations
             .lock()
@@ -92,10 +90,59 @@ pub async fn start(
     Ok(Json(serde_json::json!({ "state": "running" })))
 }
 
-/// Scores the chosen models on the benchmark in `folder`: the report as
-/// `matseg eval points --json` prints it.
-fn run(folder: &std::path::Path, choice: &ModelChoice) -> Result<serde_json::Value, String> {
-    let models = models(choice).map_err(|e| e.to_string())?;
+/// How the evaluation `job` of the benchmark in `folder` ended: done with
+/// its report, or failed with its error or, when it panicked, with what
+/// the panic said.
+fn finished(
+    folder: &std::path::Path,
+    job: impl FnOnce() -> Result<serde_json::Value, String>,
+) -> Evaluation {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(job)) {
+        Ok(Ok(report)) => Evaluation::Done(report),
+        Ok(Err(message)) => Evaluation::Failed(message),
+        Err(panic) => Evaluation::Failed(format!(
+            "{}: the evaluation stopped on an internal error: {}",
+            folder.display(),
+            panic_message(panic.as_ref())
+        )),
+    }
+}
+
+/// What a panic said, when it said it with a string.
+fn panic_message(panic: &(dyn std::any::Any + Send)) -> &str {
+    panic
+        .downcast_ref::<&str>()
+        .copied()
+        .or_else(|| panic.downcast_ref::<String>().map(String::as_str))
+        .unwrap_or("no message")
+}
+
+/// The served model as an evaluated one.
+struct ServedModel(Arc<AppState>);
+
+impl DescriptorModel for ServedModel {
+    fn name(&self) -> &str {
+        self.0.model.name()
+    }
+
+    fn comparison(&self) -> Comparison {
+        self.0.model.comparison()
+    }
+
+    fn describe(&self, image: &image::RgbImage) -> DescriptorMap {
+        self.0.model.describe(image)
+    }
+}
+
+/// Scores the chosen baselines and the served model on the benchmark in
+/// `folder`: the report as `matseg eval points --json` prints it.
+fn run(
+    folder: &std::path::Path,
+    choice: &ModelChoice,
+    state: Arc<AppState>,
+) -> Result<serde_json::Value, String> {
+    let mut models = baselines(choice).map_err(|e| e.to_string())?;
+    models.push(Box::new(ServedModel(state)));
     let evaluation = score_point_benchmark(folder, &models, true, DEFAULT_MAX_SIDE)
         .map_err(|e| e.to_string())?;
     if evaluation.models[0].counts.images == 0 {
@@ -131,4 +178,28 @@ pub async fn status(
         Some(Evaluation::Done(report)) => serde_json::json!({ "state": "done", "report": report }),
         Some(Evaluation::Failed(error)) => serde_json::json!({ "state": "failed", "error": error }),
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    #[test]
+    fn a_job_that_panics_is_reported_failed_with_why() {
+        let folder = Path::new("bench");
+        let failed = |e: Evaluation| match e {
+            Evaluation::Failed(message) => message,
+            _ => panic!("not failed"),
+        };
+        let panicked = finished(folder, || panic!("decoder gave up on {}", "a.jpg"));
+        assert_eq!(
+            failed(panicked),
+            "bench: the evaluation stopped on an internal error: decoder gave up on a.jpg"
+        );
+        let refused = finished(folder, || Err("bench: no annotated image".into()));
+        assert_eq!(failed(refused), "bench: no annotated image");
+        let done = finished(folder, || Ok(serde_json::json!({ "models": [] })));
+        assert!(matches!(done, Evaluation::Done(report) if report["models"].is_array()));
+    }
 }

@@ -29,11 +29,11 @@ use app::AppState;
 use browse::DatasetFolder;
 use described::{DescribedCache, Uploads};
 use matseg_image::MemoryBudget;
-use matseg_pipeline::segment::Model;
+use matseg_net::infer::NetModel;
 use roots::Roots;
 use std::net::SocketAddr;
 use std::path::PathBuf;
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 /// Why the server could not start.
 #[derive(Debug, thiserror::Error)]
@@ -143,11 +143,10 @@ pub fn state(options: &ServeOptions) -> Result<Arc<AppState>, ServeError> {
         path: std::env::temp_dir(),
         message: format!("cannot make the server's temporary folder: {e}"),
     })?;
-    let model = Model::load(&options.model, options.device)?;
+    let model = NetModel::load(&options.model, options.device)?;
     let budget = MemoryBudget::new(options.cache_mb.saturating_mul(1 << 20));
     Ok(Arc::new(AppState {
-        model: Mutex::new(model),
-        model_path: options.model.clone(),
+        model,
         device: options.device,
         roots,
         photos,

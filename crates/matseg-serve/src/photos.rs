@@ -286,7 +286,7 @@ pub async fn described(
     let described = blocking(move || {
         let image = source.pixels(&state, &photo)?;
         let map = {
-            let model = state.model.lock().unwrap_or_else(|e| e.into_inner());
+            let model = state.model.lock();
             describe(&model, &image)
         };
         let described = Arc::new(Described { photo: image, map });
