@@ -51,10 +51,7 @@ impl Progress for Warnings {
     fn advance(&self) {}
     fn finish(&self) {}
     fn warn(&self, message: &str) {
-        self.0
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .push(message.to_string());
+        matseg_image::sync::lock(&self.0).push(message.to_string());
     }
 }
 

@@ -7,6 +7,7 @@ use image::RgbImage;
 use matseg_eval::ClusterOptions;
 use matseg_image::tracking::TrackOptions;
 use matseg_net::infer::resolve_model as resolve;
+use matseg_net::infer::NetModel;
 use matseg_pipeline::segment::{check_points, cluster, describe, query_points, Model, MAX_POINTS};
 use matseg_pipeline::track::{TrackSettings, Tracking};
 use pyo3::exceptions::PyValueError;
@@ -152,7 +153,7 @@ pub fn plot_losses(metrics: PathBuf, png: PathBuf) -> PyResult<()> {
 /// A loaded net (on the CPU).
 #[pyclass(module = "matseg._core", name = "Model", frozen)]
 pub struct PyModel {
-    net: Mutex<Model>,
+    net: NetModel,
 }
 
 /// An RGB image from its bytes, checked against its size.
@@ -182,7 +183,7 @@ fn label_bytes<'py>(py: Python<'py>, labels: &[u32]) -> Bound<'py, PyBytes> {
 
 impl PyModel {
     fn net(&self) -> MutexGuard<'_, Model> {
-        self.net.lock().unwrap_or_else(|e| e.into_inner())
+        self.net.lock()
     }
 }
 
@@ -192,11 +193,9 @@ impl PyModel {
     #[new]
     fn new(py: Python<'_>, name: PathBuf) -> PyResult<Self> {
         let net = py
-            .detach(|| Model::load(Path::new(&name), Device::Cpu))
+            .detach(|| NetModel::load(Path::new(&name), Device::Cpu))
             .map_err(matseg_error)?;
-        Ok(Self {
-            net: Mutex::new(net),
-        })
+        Ok(Self { net })
     }
 
     /// Descriptor channels.
@@ -351,7 +350,7 @@ impl PyTracker {
     ) -> PyResult<(Bound<'py, PyBytes>, Bound<'py, PyBytes>, Vec<f64>)> {
         let frame = photo(rgb, width, height)?;
         let net = &self.model.get().net;
-        let mut tracking = self.tracking.lock().unwrap_or_else(|e| e.into_inner());
+        let mut tracking = matseg_image::sync::lock(&self.tracking);
         let tracking = &mut *tracking;
         let tracked = py
             .detach(|| tracking.step(net, &frame))

@@ -148,7 +148,7 @@ pub struct BarProgress {
 
 impl BarProgress {
     fn bar(&self) -> std::sync::MutexGuard<'_, Option<ProgressBar>> {
-        self.bar.lock().unwrap_or_else(|e| e.into_inner())
+        matseg_image::sync::lock(&self.bar)
     }
 }
 

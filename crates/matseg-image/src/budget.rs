@@ -87,7 +87,7 @@ impl<K: Hash + Eq + Clone, V> ByteLru<K, V> {
     }
 
     fn state(&self) -> std::sync::MutexGuard<'_, LruState<K, V>> {
-        self.state.lock().unwrap_or_else(|e| e.into_inner())
+        crate::sync::lock(&self.state)
     }
 
     /// The value under `key`, if held.

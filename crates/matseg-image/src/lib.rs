@@ -27,6 +27,7 @@ pub mod ramp;
 pub mod resample;
 pub mod rgb;
 pub mod sparse;
+pub mod sync;
 pub mod tracking;
 
 pub use blur::{gaussian_blur, gaussian_blur_covered, CoveredBlur};

@@ -5,6 +5,7 @@ use crate::budget::{ByteLru, MemoryBudget};
 use crate::io::{has_image_extension, read_dimensions, read_rgb};
 use crate::licence::LicenceFilter;
 use crate::resample::Pyramid;
+use crate::sync::lock;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, OnceLock};
@@ -44,6 +45,16 @@ pub enum LibraryError {
         path: PathBuf,
         /// Why decoding failed.
         reason: String,
+    },
+    /// A photo index beyond the listed photos.
+    #[error("{label}: no photo {index} ({len} listed)")]
+    NoSuchPhoto {
+        /// The library's sources.
+        label: String,
+        /// The index asked for.
+        index: usize,
+        /// The photos listed.
+        len: usize,
     },
     /// No readable image in any of the sources.
     #[error("{0}: no readable images (jpg, jpeg, png)")]
@@ -238,11 +249,18 @@ impl PhotoLibrary {
 
     /// The decoded photo `index`, from the cache or decoded now.
     pub fn get(&self, index: usize) -> Result<Arc<Photo>, LibraryError> {
+        if index >= self.entries.len() {
+            return Err(LibraryError::NoSuchPhoto {
+                label: self.label.clone(),
+                index,
+                len: self.entries.len(),
+            });
+        }
         let undecodable = |reason: &str| LibraryError::Undecodable {
             path: self.entries[index].path.clone(),
             reason: reason.to_string(),
         };
-        if let Some(reason) = self.failed.lock().expect("lock").get(&index) {
+        if let Some(reason) = lock(&self.failed).get(&index) {
             return Err(undecodable(reason));
         }
         if let Some(photo) = self.cache.get(&index) {
@@ -253,10 +271,7 @@ impl PhotoLibrary {
         let img = match read_rgb(&entry.path) {
             Ok(img) => img,
             Err(e) => {
-                self.failed
-                    .lock()
-                    .expect("lock")
-                    .insert(index, e.message.clone());
+                lock(&self.failed).insert(index, e.message.clone());
                 return Err(undecodable(&e.message));
             }
         };
@@ -271,7 +286,7 @@ impl PhotoLibrary {
     /// outcome depends only on the draws, so it stays deterministic.
     pub fn pick(&self, mut draw: impl FnMut(usize) -> usize) -> Result<Arc<Photo>, LibraryError> {
         loop {
-            if self.failed.lock().expect("lock").len() == self.entries.len() {
+            if lock(&self.failed).len() == self.entries.len() {
                 return Err(LibraryError::AllFailed(self.label.clone()));
             }
             if let Ok(photo) = self.get(draw(self.entries.len())) {
@@ -282,9 +297,7 @@ impl PhotoLibrary {
 
     /// Photos that failed to decode so far.
     pub fn failures(&self) -> Vec<SkippedFile> {
-        self.failed
-            .lock()
-            .expect("lock")
+        lock(&self.failed)
             .iter()
             .map(|(&i, reason)| SkippedFile {
                 path: self.entries[i].path.clone(),
@@ -464,6 +477,28 @@ mod tests {
         let failures = lib.failures();
         assert_eq!(failures.len(), 1);
         assert!(failures[0].path.ends_with("0.png"));
+    }
+
+    #[test]
+    fn a_panic_while_the_failures_are_held_does_not_stop_the_next_photo() {
+        let dir = tempfile::tempdir().unwrap();
+        write_png(&dir.path().join("a.png"), 64, 64);
+        write_png(&dir.path().join("b.png"), 64, 64);
+        let (lib, _) = PhotoLibrary::scan(&[dir.path().to_path_buf()], 1 << 30).unwrap();
+        std::fs::write(dir.path().join("b.png"), b"truncated").unwrap();
+        let panicked = std::thread::scope(|s| {
+            s.spawn(|| {
+                let _held = lib.failed.lock();
+                panic!("a decoder gives up");
+            })
+            .join()
+        });
+        assert!(panicked.is_err() && lib.failed.is_poisoned());
+        assert_eq!(lib.get(0).unwrap().index, 0);
+        assert!(lib.get(1).is_err());
+        assert_eq!(lib.failures().len(), 1);
+        let beyond = lib.get(2).unwrap_err().to_string();
+        assert!(beyond.ends_with("no photo 2 (2 listed)"), "{beyond}");
     }
 
     #[test]

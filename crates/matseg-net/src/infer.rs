@@ -314,7 +314,7 @@ impl<T> TorchModel<T> {
     /// The model, held until the guard is dropped (a panic of an earlier
     /// holder does not keep it from the next).
     pub fn lock(&self) -> MutexGuard<'_, T> {
-        self.model.lock().unwrap_or_else(PoisonError::into_inner)
+        matseg_image::sync::lock(&self.model)
     }
 
     /// The model, to change its settings before it is used.

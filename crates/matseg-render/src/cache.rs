@@ -8,6 +8,7 @@
 use crate::environment::EnvironmentMap;
 use crate::mesh::Mesh;
 use crate::scene::{LoadedMap, MaterialTextures, SceneError};
+use matseg_image::sync::lock;
 use matseg_image::{Channel, MemoryBudget};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -64,7 +65,7 @@ impl AssetCache {
 
     /// Bytes this cache holds now (approximate).
     pub fn bytes(&self) -> usize {
-        *self.held.lock().expect("cache lock")
+        *lock(&self.held)
     }
 
     /// The cached value for `key`, or `load`'s, stored when it fits. Two
@@ -79,24 +80,24 @@ impl AssetCache {
     where
         K: std::hash::Hash + Eq,
     {
-        if let Some(v) = shelf.lock().expect("cache lock").get(&key) {
+        if let Some(v) = lock(shelf).get(&key) {
             return Ok(v.clone());
         }
         let value = Arc::new(load()?);
         let bytes = size(&value);
-        let mut held = self.held.lock().expect("cache lock");
+        let mut held = lock(&self.held);
         if !self.budget.fits(bytes) {
-            self.materials.lock().expect("cache lock").clear();
-            self.maps.lock().expect("cache lock").clear();
-            self.hdris.lock().expect("cache lock").clear();
-            self.meshes.lock().expect("cache lock").clear();
+            lock(&self.materials).clear();
+            lock(&self.maps).clear();
+            lock(&self.hdris).clear();
+            lock(&self.meshes).clear();
             self.budget.release(*held);
             *held = 0;
         }
         if bytes <= self.budget.limit() {
             *held += bytes;
             self.budget.add(bytes);
-            shelf.lock().expect("cache lock").insert(key, value.clone());
+            lock(shelf).insert(key, value.clone());
         }
         Ok(value)
     }
@@ -168,6 +169,24 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("missing.jpg"), "{err}");
+    }
+
+    #[test]
+    fn a_panic_while_a_shelf_is_held_does_not_stop_the_next_scene() {
+        let photo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/photos/coffee.jpg");
+        let cache = AssetCache::default();
+        let panicked = std::thread::scope(|s| {
+            s.spawn(|| {
+                let _held = cache.maps.lock();
+                let _also = cache.held.lock();
+                panic!("a decoder gives up");
+            })
+            .join()
+        });
+        assert!(panicked.is_err() && cache.maps.is_poisoned() && cache.held.is_poisoned());
+        let map = cache.map(&photo, Channel::R).unwrap();
+        assert!(Arc::ptr_eq(&map, &cache.map(&photo, Channel::R).unwrap()));
+        assert_eq!(cache.bytes(), map.levels.bytes());
     }
 
     #[test]

@@ -174,7 +174,7 @@ pub async fn save(
         annotation
             .check(width, height)
             .map_err(|m| ApiError::bad(format!("annotation of {:?}: {m}", query.name)))?;
-        let _saving = bench.saving.lock().unwrap_or_else(|e| e.into_inner());
+        let _saving = matseg_image::sync::lock(&bench.saving);
         annotation
             .write(&bench.data_dir(&query.name))
             .map_err(|e| ApiError::internal(e.to_string()))?;

@@ -62,7 +62,7 @@ pub async fn start(
         )));
     }
     {
-        let mut evaluations = state.evaluations.lock().unwrap_or_else(|e| e.into_inner());
+        let mut evaluations = matseg_image::sync::lock(&state.evaluations);
         if let Some(Evaluation::Running(_)) = evaluations.get(&query.root) {
             return Err(ApiError::new(
                 StatusCode::CONFLICT,
@@ -81,11 +81,7 @@ pub async fn start(
     let worker = state.clone();
     std::thread::spawn(move || {
         let done = finished(&folder, || run(&folder, &choice, worker.clone()));
-        worker
-            .evaluations
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .insert(root, done);
+        matseg_image::sync::lock(&worker.evaluations).insert(root, done);
     });
     Ok(Json(serde_json::json!({ "state": "running" })))
 }
@@ -168,7 +164,7 @@ pub async fn status(
     Query(query): Query<StatusQuery>,
 ) -> Result<Json<serde_json::Value>, ApiError> {
     bench(&state, &query.root)?;
-    let evaluations = state.evaluations.lock().unwrap_or_else(|e| e.into_inner());
+    let evaluations = matseg_image::sync::lock(&state.evaluations);
     Ok(Json(match evaluations.get(&query.root) {
         None => serde_json::json!({ "state": "idle" }),
         Some(Evaluation::Running(since)) => serde_json::json!({

@@ -113,11 +113,7 @@ impl VideoRef {
     /// The video's file, and the name errors give it.
     fn file(&self, state: &AppState) -> Result<(PathBuf, String), ApiError> {
         if self.root == VIDEO_UPLOAD_ROOT {
-            let uploads = state
-                .videos
-                .uploads
-                .lock()
-                .unwrap_or_else(|e| e.into_inner());
+            let uploads = matseg_image::sync::lock(&state.videos.uploads);
             let file = uploads.get(&self.path).ok_or_else(|| {
                 ApiError::not_found(format!("upload {:?}: not kept; upload it again", self.path))
             })?;
@@ -162,11 +158,7 @@ pub async fn list(State(state): State<Arc<AppState>>) -> Json<serde_json::Value>
         .iter()
         .map(|(root, path)| serde_json::json!({ "root": root, "path": path }))
         .collect();
-    let uploads = state
-        .videos
-        .uploads
-        .lock()
-        .unwrap_or_else(|e| e.into_inner());
+    let uploads = matseg_image::sync::lock(&state.videos.uploads);
     let mut names: Vec<&String> = uploads.keys().collect();
     names.sort();
     videos.extend(
@@ -211,12 +203,7 @@ pub async fn upload(
             }
         };
         std::fs::rename(&partial, &file).map_err(|e| ApiError::internal(format!("{name}: {e}")))?;
-        state
-            .videos
-            .uploads
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .insert(name.clone(), file);
+        matseg_image::sync::lock(&state.videos.uploads).insert(name.clone(), file);
         let mut answer = info(&source);
         answer["root"] = VIDEO_UPLOAD_ROOT.into();
         answer["path"] = name.into();
@@ -319,7 +306,7 @@ pub async fn start(
     let mut settings = TrackSettings::new(points);
     settings.frame = query.frame;
     let (id, dir, progress) = {
-        let mut jobs = state.videos.jobs.lock().unwrap_or_else(|e| e.into_inner());
+        let mut jobs = matseg_image::sync::lock(&state.videos.jobs);
         if jobs.iter().any(|j| matches!(j.state, JobState::Running)) {
             return Err(ApiError::new(
                 StatusCode::CONFLICT,
@@ -363,7 +350,7 @@ pub async fn start(
             ),
             Err(_) => JobState::Failed(format!("{name}: tracking stopped on an internal error")),
         };
-        let mut jobs = worker.videos.jobs.lock().unwrap_or_else(|e| e.into_inner());
+        let mut jobs = matseg_image::sync::lock(&worker.videos.jobs);
         if let Some(job) = jobs.iter_mut().find(|j| j.id == id) {
             job.state = done;
         }
@@ -393,7 +380,7 @@ pub async fn status(
     State(state): State<Arc<AppState>>,
     Query(query): Query<JobQuery>,
 ) -> Result<Json<serde_json::Value>, ApiError> {
-    let jobs = state.videos.jobs.lock().unwrap_or_else(|e| e.into_inner());
+    let jobs = matseg_image::sync::lock(&state.videos.jobs);
     let job = find_job(&jobs, query.job)?;
     let (done, total) = (
         job.progress.done.load(Ordering::Relaxed),
@@ -438,7 +425,7 @@ fn download_stem(name: &str) -> String {
 
 /// A finished job's folder, and the stem its downloads are named after.
 fn finished_dir(state: &AppState, id: u64) -> Result<(PathBuf, String), ApiError> {
-    let jobs = state.videos.jobs.lock().unwrap_or_else(|e| e.into_inner());
+    let jobs = matseg_image::sync::lock(&state.videos.jobs);
     let job = find_job(&jobs, id)?;
     match &job.state {
         JobState::Done(_) => Ok((job.dir.clone(), job.stem.clone())),
