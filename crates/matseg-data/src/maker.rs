@@ -23,6 +23,9 @@ pub enum SampleError {
     /// The 2D composer failed (a source that cannot be read).
     #[error(transparent)]
     Compose(#[from] matseg_scene::ComposeError),
+    /// The 3D scene could not be drawn (no photos, a recipe out of range).
+    #[error(transparent)]
+    Scene(#[from] matseg_scene::Scene3dError),
     /// The 3D scene could not be loaded or rendered.
     #[error(transparent)]
     Render(#[from] matseg_render::SceneError),
@@ -97,18 +100,18 @@ pub struct FrameOf {
 impl Generator3d<'_> {
     /// The scene description of sample `index`: scene `index` itself, or
     /// in a sequence the frame of its scene.
-    pub fn describe(&self, seed: u64, index: u64) -> SceneDescription {
+    pub fn describe(&self, seed: u64, index: u64) -> Result<SceneDescription, SampleError> {
         let (scene, frame) = match self.frame_of(index) {
             Some(f) => (f.sequence, Some(f.frame)),
             None => (index, None),
         };
         let mut rng = sample_rng(seed, scene);
         let render_seed: u64 = rng.random();
-        let first = build_scene_3d(&mut rng, self.recipe, self.sources, render_seed);
-        match (self.path, frame) {
+        let first = build_scene_3d(&mut rng, self.recipe, self.sources, render_seed)?;
+        Ok(match (self.path, frame) {
             (Some(path), Some(frame)) => path.frame(&first, frame),
             _ => first,
-        }
+        })
     }
 
     /// Which frame of which sequence sample `index` is (sequences only).
@@ -174,7 +177,7 @@ impl SampleMaker for Generator3d<'_> {
     }
 
     fn make(&self, seed: u64, index: u64) -> Result<EncodedSample, SampleError> {
-        let scene = self.describe(seed, index);
+        let scene = self.describe(seed, index)?;
         let loaded = scene.load_cached(Path::new(""), self.cache)?;
         let out = render(&loaded)?;
         let (w, h) = (out.width, out.height);

@@ -44,6 +44,12 @@ pub enum MaterialError {
         /// Why.
         source: std::io::Error,
     },
+    /// Fewer materials than a mix needs.
+    #[error("mixing needs two materials or more; {0} given")]
+    TooFewToMix(usize),
+    /// A mix recipe value out of its range.
+    #[error("mix recipe: {0}")]
+    MixRecipe(#[from] crate::OutOfRange),
 }
 
 /// The maps of one material; only the colour is required.

@@ -3,8 +3,9 @@
 //! ("equal"), the per-pixel maximum ("max"), or a weight per source per map
 //! ("flexible"). Weights sum to 1; mixed normals are renormalised.
 
-use crate::material_library::MaterialMaps;
+use crate::material_library::{MaterialError, MaterialMaps};
 use crate::pbr::{decode_normal, encode_normal};
+use crate::soft_maps::{check_probabilities, OutOfRange};
 use image::{GrayImage, RgbImage};
 use matseg_image::io::{encode_png_gray, encode_png_rgb};
 use matseg_image::plane::round_to_u8;
@@ -104,13 +105,37 @@ impl MixedMaterial {
 /// unoccluded, opaque, mid specular.
 const DEFAULT_LEVELS: [u8; 6] = [0, 128, 0, 255, 255, 128];
 
-/// Draws a mix of `library` materials (at least two).
+impl MixRecipe {
+    /// Checks ranges: probabilities in [0, 1] (the two modes' together too)
+    /// and room for two sources; the message names the offending field.
+    pub fn validate(&self) -> Result<(), OutOfRange> {
+        check_probabilities(&[
+            ("p_more_sources", self.p_more_sources),
+            ("p_equal", self.p_equal),
+            ("p_max", self.p_max),
+            ("p_equal + p_max", self.p_equal + self.p_max),
+        ])?;
+        if self.max_sources < 2 {
+            return Err(OutOfRange(format!(
+                "max_sources = {} is below 2",
+                self.max_sources
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Draws a mix of `library` materials: an error when there are fewer than
+/// two, or the recipe is out of range.
 pub fn mix_materials<R: Rng + ?Sized>(
     rng: &mut R,
     library: &[MaterialMaps],
     recipe: &MixRecipe,
-) -> (MixedMaterial, MixRecord) {
-    assert!(library.len() >= 2, "mixing needs two materials");
+) -> Result<(MixedMaterial, MixRecord), MaterialError> {
+    recipe.validate()?;
+    if library.len() < 2 {
+        return Err(MaterialError::TooFewToMix(library.len()));
+    }
     let mut count = 2;
     while count < recipe.max_sources.min(library.len()) && rng.random_bool(recipe.p_more_sources) {
         count += 1;
@@ -206,7 +231,7 @@ pub fn mix_materials<R: Rng + ?Sized>(
             image::Luma([round_to_u8(combine(&values, k + 2))])
         })
     });
-    (
+    Ok((
         MixedMaterial {
             colour,
             normal,
@@ -217,7 +242,7 @@ pub fn mix_materials<R: Rng + ?Sized>(
             mode,
             weights,
         },
-    )
+    ))
 }
 
 #[cfg(test)]
@@ -240,6 +265,29 @@ mod tests {
     }
 
     #[test]
+    fn too_few_materials_and_bad_recipes_are_errors_not_panics() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
+        let one = vec![flat(0, [128, 128, 255])];
+        let error = mix_materials(&mut rng, &one, &MixRecipe::default()).unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            "mixing needs two materials or more; 1 given"
+        );
+        let two = vec![flat(0, [128, 128, 255]), flat(200, [255, 128, 128])];
+        let greedy = MixRecipe {
+            p_equal: 0.75,
+            p_max: 0.5,
+            ..MixRecipe::default()
+        };
+        let error = mix_materials(&mut rng, &two, &greedy).unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            "mix recipe: p_equal + p_max = 1.25 is not a probability in [0, 1]"
+        );
+        assert!(mix_materials(&mut rng, &two, &MixRecipe::default()).is_ok());
+    }
+
+    #[test]
     fn mixes_weigh_sources_by_their_mode_and_keep_normals_unit() {
         let library = vec![
             flat(0, [128, 128, 255]),
@@ -249,7 +297,7 @@ mod tests {
         let mut seen = [false; 3];
         for seed in 0..60 {
             let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-            let (m, record) = mix_materials(&mut rng, &library, &MixRecipe::default());
+            let (m, record) = mix_materials(&mut rng, &library, &MixRecipe::default()).unwrap();
             seen[record.mode as usize] = true;
             let levels: Vec<f32> = record
                 .sources

@@ -81,7 +81,7 @@ fn write_mix(
     root: &Path,
     recipe: &MixRecipe,
 ) -> Result<(), MaterialError> {
-    let (mixed, record) = mix_materials(&mut sample_rng(seed, i), library, recipe);
+    let (mixed, record) = mix_materials(&mut sample_rng(seed, i), library, recipe)?;
     let sources: Vec<String> = record
         .sources
         .iter()

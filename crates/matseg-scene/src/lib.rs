@@ -20,5 +20,5 @@ pub use compose2d::{
 pub use material::{Fill, MaterialRecord, MaterialSource, ShadingRecord};
 pub use recipe::{CompositionRecipe, Recipe2d, RecipeError, SceneDraws, SceneShape};
 pub use recipe3d::Recipe3d;
-pub use scene3d::{build_scene_3d, Sources3d};
+pub use scene3d::{build_scene_3d, Scene3dError, Sources3d};
 pub use sequence::CameraPath;

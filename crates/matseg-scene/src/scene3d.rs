@@ -5,6 +5,7 @@
 //! is `matseg_render`'s job; the description is the sample's recipe.
 
 use crate::recipe3d::Recipe3d;
+use matseg_extract::OutOfRange;
 use matseg_image::{Channel, Ramp};
 use matseg_render::camera::Camera;
 use matseg_render::environment::Light;
@@ -202,7 +203,7 @@ fn split_tree<R: Rng + ?Sized>(
         photo: sources
             .photos
             .choose(rng)
-            .expect("photos are required")
+            .expect("build_scene_3d checks there are photos")
             .clone(),
         channel,
         normalise,
@@ -236,13 +237,29 @@ fn split_tree<R: Rng + ?Sized>(
     }
 }
 
-/// Draws one 3D scene. `sources.photos` must not be empty.
+/// Why a 3D scene cannot be drawn.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum Scene3dError {
+    /// No natural photos, which split the surfaces into materials.
+    #[error("3D scenes need natural photos to split surfaces into materials; none given")]
+    NoPhotos,
+    /// A recipe value out of its range.
+    #[error("3D recipe: {0}")]
+    Recipe(#[from] OutOfRange),
+}
+
+/// Draws one 3D scene: an error when `sources.photos` is empty or the
+/// recipe is out of range.
 pub fn build_scene_3d<R: Rng + ?Sized>(
     rng: &mut R,
     recipe: &Recipe3d,
     sources: Sources3d,
     seed: u64,
-) -> SceneDescription {
+) -> Result<SceneDescription, Scene3dError> {
+    recipe.validate()?;
+    if sources.photos.is_empty() {
+        return Err(Scene3dError::NoPhotos);
+    }
     // Materials of the main object, then its layout.
     let k = if rng.random_bool(recipe.p_many_materials) {
         rng.random_range(recipe.materials_min..=recipe.materials_max)
@@ -412,7 +429,7 @@ pub fn build_scene_3d<R: Rng + ?Sized>(
         roll_deg: rng.random_range(-recipe.max_roll_deg..=recipe.max_roll_deg),
         focal_mm: recipe.focal_mm,
     };
-    SceneDescription {
+    Ok(SceneDescription {
         width: recipe.size,
         height: recipe.size,
         spp: recipe.spp,
@@ -426,7 +443,7 @@ pub fn build_scene_3d<R: Rng + ?Sized>(
         materials,
         maps,
         objects,
-    }
+    })
 }
 
 #[cfg(test)]
@@ -463,8 +480,10 @@ mod tests {
         recipe.validate().unwrap();
         let mut many = 0;
         for seed in 0..200u64 {
-            let draw =
-                || build_scene_3d(&mut ChaCha8Rng::seed_from_u64(seed), &recipe, sources, seed);
+            let draw = || {
+                build_scene_3d(&mut ChaCha8Rng::seed_from_u64(seed), &recipe, sources, seed)
+                    .unwrap()
+            };
             let scene = draw();
             assert_eq!(scene, draw(), "seed {seed}");
             scene
@@ -530,7 +549,7 @@ mod tests {
         let mut repeats = 0;
         for seed in 0..100u64 {
             let draw = |recipe: &Recipe3d| {
-                build_scene_3d(&mut ChaCha8Rng::seed_from_u64(seed), recipe, sources, seed)
+                build_scene_3d(&mut ChaCha8Rng::seed_from_u64(seed), recipe, sources, seed).unwrap()
             };
             let pbrs = main_pbrs(&draw(&distinct));
             let mut unique = pbrs.clone();
@@ -569,12 +588,38 @@ mod tests {
             ..Recipe3d::default()
         };
         recipe.p_single_object = 1.0;
-        let scene = build_scene_3d(&mut ChaCha8Rng::seed_from_u64(5), &recipe, sources, 5);
+        let scene = build_scene_3d(&mut ChaCha8Rng::seed_from_u64(5), &recipe, sources, 5).unwrap();
         let out = matseg_render::render(&scene.load(Path::new(".")).unwrap()).unwrap();
         assert!(out.roi.contains(&1.0), "the main object is in view");
         for i in 0..out.roi.len() {
             let sum: f32 = out.fractions.iter().map(|f| f[i]).sum();
             assert!((sum - out.roi[i]).abs() < 1e-5);
         }
+    }
+
+    #[test]
+    fn no_photos_or_a_bad_recipe_is_an_error_not_a_panic() {
+        let none = Sources3d {
+            photos: &[],
+            materials: &[],
+            meshes: &[],
+            hdris: &[],
+        };
+        let draw = |recipe: &Recipe3d, sources| {
+            build_scene_3d(&mut ChaCha8Rng::seed_from_u64(1), recipe, sources, 1)
+        };
+        let recipe = Recipe3d::default();
+        assert_eq!(draw(&recipe, none).unwrap_err(), Scene3dError::NoPhotos);
+        let photos = photos();
+        let some = Sources3d {
+            photos: &photos,
+            ..none
+        };
+        let bad = Recipe3d {
+            p_mesh: 1.5,
+            ..Recipe3d::default()
+        };
+        assert!(matches!(draw(&bad, some), Err(Scene3dError::Recipe(_))));
+        assert!(draw(&recipe, some).is_ok());
     }
 }
