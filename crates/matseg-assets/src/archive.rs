@@ -66,8 +66,7 @@ pub fn visit<R: Read + Seek + Send>(
 ) -> Result<(), AssetError> {
     let lower = name.to_ascii_lowercase();
     if lower.ends_with(".deb") {
-        let (size, compression) =
-            deb_member(&mut source, "data.tar").map_err(AssetError::Archive)?;
+        let (size, compression) = deb_member(&mut source, "data.tar")?;
         untar(source.take(size), compression, want, on_entry)
     } else if [".whl", ".zip", ".sh3f"].iter().any(|e| lower.ends_with(e)) {
         unzip(source, want, on_entry)
@@ -94,13 +93,17 @@ enum Compression {
 
 /// Moves `source` (a `.deb`) to the start of its member whose name starts
 /// with `prefix`; that member's size and the compression its suffix names.
-fn deb_member<R: Read + Seek>(source: &mut R, prefix: &str) -> Result<(u64, Compression), String> {
-    let io = |e: std::io::Error| format!("cannot read: {e}");
+fn deb_member<R: Read + Seek>(
+    source: &mut R,
+    prefix: &str,
+) -> Result<(u64, Compression), AssetError> {
+    let archive = AssetError::Archive;
+    let io = |e: std::io::Error| archive(format!("cannot read: {e}"));
     let len = source.seek(SeekFrom::End(0)).map_err(io)?;
     source.seek(SeekFrom::Start(0)).map_err(io)?;
     let mut magic = [0u8; 8];
     if source.read_exact(&mut magic).is_err() || &magic != b"!<arch>\n" {
-        return Err("not a Debian package (no ar signature)".into());
+        return Err(archive("not a Debian package (no ar signature)".into()));
     }
     let mut at = 8u64;
     while at + 60 <= len {
@@ -113,10 +116,10 @@ fn deb_member<R: Read + Seek>(source: &mut R, prefix: &str) -> Result<(u64, Comp
         let size: u64 = String::from_utf8_lossy(&header[48..58])
             .trim()
             .parse()
-            .map_err(|_| format!("ar member {member}: bad size field"))?;
+            .map_err(|_| archive(format!("ar member {member}: bad size field")))?;
         let start = at + 60;
         if start + size > len {
-            return Err(format!("ar member {member} is truncated"));
+            return Err(archive(format!("ar member {member} is truncated")));
         }
         if member.starts_with(prefix) {
             let compression = match member.rsplit('.').next() {
@@ -124,9 +127,9 @@ fn deb_member<R: Read + Seek>(source: &mut R, prefix: &str) -> Result<(u64, Comp
                 Some("gz") => Compression::Gzip,
                 Some("xz") => Compression::Xz,
                 _ => {
-                    return Err(format!(
+                    return Err(archive(format!(
                         "{member}: unsupported compression (gz, xz or none)"
-                    ))
+                    )))
                 }
             };
             return Ok((size, compression));
@@ -134,7 +137,7 @@ fn deb_member<R: Read + Seek>(source: &mut R, prefix: &str) -> Result<(u64, Comp
         at = start + size + size % 2;
         source.seek(SeekFrom::Start(at)).map_err(io)?;
     }
-    Err(format!("no {prefix}.* member"))
+    Err(archive(format!("no {prefix}.* member")))
 }
 
 /// The wanted files of a tar stream compressed with `compression`.

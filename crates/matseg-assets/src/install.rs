@@ -311,20 +311,36 @@ fn package_licence(
     }
 }
 
+/// A staged file that does not read as matseg reads it; its message leaves
+/// the file out (the warning names where it came from).
+#[derive(Debug, thiserror::Error)]
+enum Unreadable {
+    /// A mesh the mesh reader refuses.
+    #[error("{}", .0.message)]
+    Mesh(matseg_render::mesh_io::MeshError),
+    /// An HDRI the HDR reader refuses.
+    #[error("{}", .0.message)]
+    Hdri(matseg_render::hdr_io::HdrError),
+}
+
 /// Checks a staged file of kind `kind` by reading it as matseg will:
 /// meshes through the mesh reader, HDRIs through the HDR reader (any EXR
 /// compression, DWAB included). The catalogue's information for it.
-fn check(kind: Kind, path: &Path, info: serde_json::Value) -> Result<serde_json::Value, String> {
+fn check(
+    kind: Kind,
+    path: &Path,
+    info: serde_json::Value,
+) -> Result<serde_json::Value, Unreadable> {
     match kind {
         Kind::Meshes => matseg_render::mesh_io::read_mesh(path)
             .map(|m| json!({ "vertices": m.positions.len(), "triangles": m.triangles.len() }))
-            .map_err(|e| e.message),
+            .map_err(Unreadable::Mesh),
         Kind::Hdris => matseg_render::hdr_io::read_hdr(path)
             .map(|img| {
                 let (max, mean) = img.luminance_stats();
                 json!({ "width": img.width, "height": img.height, "max_luminance": max, "mean_luminance": mean })
             })
-            .map_err(|e| e.message),
+            .map_err(Unreadable::Hdri),
         _ => Ok(info),
     }
 }

@@ -99,9 +99,9 @@ impl TrainedNet {
             file: weights.display().to_string(),
             source,
         })?;
-        load_tensors(&vs, &saved).map_err(|message| NetError::File {
+        load_tensors(&vs, &saved).map_err(|e| NetError::File {
             file: weights.display().to_string(),
-            message,
+            message: e.to_string(),
         })?;
         Ok(Self {
             vs,

@@ -2,6 +2,7 @@
 //! checkpoint holds everything a resumed run needs to take exactly the same
 //! next step (tch's built-in optimisers keep their moments out of reach).
 
+use crate::weights::TensorMismatch;
 use tch::{nn, Kind, Tensor};
 
 /// AdamW's constants (PyTorch's defaults for the betas and epsilon).
@@ -201,13 +202,13 @@ impl AdamW {
 
     /// Restores a [`AdamW::state`]; the error names what is missing or
     /// misshapen.
-    pub(crate) fn load_state(&mut self, state: &[(String, Tensor)]) -> Result<(), String> {
+    pub(crate) fn load_state(&mut self, state: &[(String, Tensor)]) -> Result<(), TensorMismatch> {
         let find = |key: &str| {
             state
                 .iter()
                 .find(|(n, _)| n == key)
                 .map(|(_, t)| t)
-                .ok_or_else(|| format!("optimizer state has no {key}"))
+                .ok_or_else(|| TensorMismatch::NoOptimizerState(key.to_string()))
         };
         self.steps = find("steps")?.int64_value(&[0]);
         for slot in &self.slots {
@@ -215,10 +216,10 @@ impl AdamW {
                 let key = format!("{prefix}.{}", slot.name);
                 let saved = find(&key)?;
                 if saved.size() != slot.variable.size() {
-                    return Err(format!(
-                        "optimizer state {key} has shape {:?}",
-                        saved.size()
-                    ));
+                    return Err(TensorMismatch::OptimizerShape {
+                        name: key,
+                        found: saved.size(),
+                    });
                 }
                 let mut part = slot.view(flat);
                 tch::no_grad(|| part.copy_(saved));
@@ -372,7 +373,7 @@ mod tests {
         let mut state = a.state();
         state.retain(|(n, _)| n != "v.b");
         assert_eq!(
-            b.load_state(&state).unwrap_err(),
+            b.load_state(&state).unwrap_err().to_string(),
             "optimizer state has no v.b"
         );
     }

@@ -269,8 +269,11 @@ impl Trainer {
                 trainer.step
             )));
         }
-        load_tensors(&trainer.vs, &model).map_err(&bad)?;
-        trainer.optimizer.load_state(&optim).map_err(&bad)?;
+        load_tensors(&trainer.vs, &model).map_err(|e| bad(e.to_string()))?;
+        trainer
+            .optimizer
+            .load_state(&optim)
+            .map_err(|e| bad(e.to_string()))?;
         Ok(trainer)
     }
 

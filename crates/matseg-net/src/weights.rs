@@ -5,6 +5,47 @@
 use crate::NetError;
 use tch::{nn, Tensor};
 
+/// Saved tensors that do not fit the variables (or optimizer slots) they
+/// are copied into.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum TensorMismatch {
+    /// A variable with no tensor of its name.
+    #[error("no parameter {0}")]
+    NoParameter(String),
+    /// A tensor of another shape than its variable's.
+    #[error("{name} has shape {found:?}, the net expects {expected:?}")]
+    Shape {
+        /// The tensor.
+        name: String,
+        /// Its shape.
+        found: Vec<i64>,
+        /// The variable's.
+        expected: Vec<i64>,
+    },
+    /// A tensor of integers or another non-float type.
+    #[error("{name} is {dtype}, not a 32- or 16-bit float")]
+    NotFloat {
+        /// The tensor.
+        name: String,
+        /// Its type.
+        dtype: String,
+    },
+    /// A checkpoint whose tensors are another net's.
+    #[error("{0}: a checkpoint of another net")]
+    OtherNet(Box<TensorMismatch>),
+    /// An optimizer slot the saved state lacks.
+    #[error("optimizer state has no {0}")]
+    NoOptimizerState(String),
+    /// An optimizer slot saved with another shape.
+    #[error("optimizer state {name} has shape {found:?}")]
+    OptimizerShape {
+        /// The slot.
+        name: String,
+        /// The saved shape.
+        found: Vec<i64>,
+    },
+}
+
 /// Copies into every variable of `vs` under `prefix` (a path such as
 /// `"encoder"`, or `""` for all) the tensor `lookup` gives for its name
 /// without the prefix; in name order, so the first problem reported is
@@ -16,8 +57,8 @@ fn copy_by_name(
     vs: &nn::VarStore,
     prefix: &str,
     fresh_part: Option<&str>,
-    lookup: impl Fn(&str) -> Option<Result<Tensor, String>>,
-) -> Result<(usize, usize), String> {
+    lookup: impl Fn(&str) -> Option<Result<Tensor, TensorMismatch>>,
+) -> Result<(usize, usize), TensorMismatch> {
     let strip = if prefix.is_empty() {
         String::new()
     } else {
@@ -36,14 +77,14 @@ fn copy_by_name(
                 kept += 1;
                 continue;
             }
-            None => return Err(format!("no parameter {key}")),
+            None => return Err(TensorMismatch::NoParameter(key.to_string())),
         };
         if source.size() != variable.size() {
-            return Err(format!(
-                "{key} has shape {:?}, the net expects {:?}",
-                source.size(),
-                variable.size()
-            ));
+            return Err(TensorMismatch::Shape {
+                name: key.to_string(),
+                found: source.size(),
+                expected: variable.size(),
+            });
         }
         let source = source.to_device(variable.device());
         tch::no_grad(|| variable.copy_(&source));
@@ -66,9 +107,9 @@ pub fn load_named(
         tensors.iter().find(|t| t.name == key).map(float_tensor)
     })
     .map(|(copied, _)| copied)
-    .map_err(|message| NetError::File {
+    .map_err(|e| NetError::File {
         file: source.to_string(),
-        message,
+        message: e.to_string(),
     })
 }
 
@@ -86,30 +127,31 @@ pub fn load_net_adding(
     copy_by_name(vs, "", Some(new_part), |key| {
         tensors.iter().find(|t| t.name == key).map(float_tensor)
     })
-    .map_err(|message| NetError::File {
+    .map_err(|e| NetError::File {
         file: source.to_string(),
-        message,
+        message: e.to_string(),
     })
 }
 
 /// An imported tensor's values as a float tensor of its shape.
-fn float_tensor(tensor: &matseg_weights::Tensor) -> Result<Tensor, String> {
+fn float_tensor(tensor: &matseg_weights::Tensor) -> Result<Tensor, TensorMismatch> {
     let shape: Vec<i64> = tensor.shape.iter().map(|&s| s as i64).collect();
     tensor
         .float_values()
         .map(|values| Tensor::from_slice(&values).view(shape.as_slice()))
-        .ok_or_else(|| {
-            format!(
-                "{} is {:?}, not a 32- or 16-bit float",
-                tensor.name, tensor.dtype
-            )
+        .ok_or_else(|| TensorMismatch::NotFloat {
+            name: tensor.name.clone(),
+            dtype: format!("{:?}", tensor.dtype),
         })
 }
 
 /// Copies a checkpoint's `named` tensors into all variables of `vs`; the
 /// error says the checkpoint is of another net when one is missing or
 /// misshapen.
-pub(crate) fn load_tensors(vs: &nn::VarStore, named: &[(String, Tensor)]) -> Result<(), String> {
+pub(crate) fn load_tensors(
+    vs: &nn::VarStore,
+    named: &[(String, Tensor)],
+) -> Result<(), TensorMismatch> {
     copy_by_name(vs, "", None, |key| {
         named
             .iter()
@@ -117,5 +159,5 @@ pub(crate) fn load_tensors(vs: &nn::VarStore, named: &[(String, Tensor)]) -> Res
             .map(|(_, t)| Ok(t.shallow_clone()))
     })
     .map(|_| ())
-    .map_err(|e| format!("{e}: a checkpoint of another net"))
+    .map_err(|e| TensorMismatch::OtherNet(Box::new(e)))
 }

@@ -2,6 +2,7 @@
 //! resumable parallel job, and the default libraries the 3D generator and
 //! renderer take when the user names none.
 
+use crate::error::PipelineError;
 use crate::progress::Progress;
 use crate::sources::{assets_dir, cache_root, Defaults, SourceError};
 use matseg_data::sample_rng;
@@ -57,7 +58,7 @@ pub fn make_library(
         .filter(|&(i, j)| !folder(out, &library, i, j).join("material.json").is_file())
         .collect();
     progress.start(jobs.len() as u64, "materials");
-    let results: Vec<Result<Timing, String>> = jobs
+    let results: Vec<Result<Timing, PipelineError>> = jobs
         .par_iter()
         .map(|&(i, j)| {
             let result = make_one(out, &library, (i, j), seed, seamless, &recipe);
@@ -79,7 +80,7 @@ pub fn make_library(
                 total.write_seconds += one.write_seconds;
             }
             Err(e) => {
-                progress.warn(&e);
+                progress.warn(&e.to_string());
                 total.failed += 1;
             }
         }
@@ -107,9 +108,9 @@ fn make_one(
     seed: u64,
     seamless: bool,
     recipe: &PbrRecipe,
-) -> Result<Timing, String> {
+) -> Result<Timing, PipelineError> {
     let entry = &library.entries()[i];
-    let texture = read_rgb(&entry.path).map_err(|e| e.to_string())?;
+    let texture = read_rgb(&entry.path)?;
     let start = Instant::now();
     let mut rng = sample_rng(seed, ((i as u64) << 20) | j);
     let mut material = make_pbr(&mut rng, &texture, recipe);
@@ -128,8 +129,7 @@ fn make_one(
         &entry.licence,
         |d| material.write_maps(d),
         json,
-    )
-    .map_err(|e| e.to_string())?;
+    )?;
     Ok(Timing {
         megapixels: (texture.width() as f64 * texture.height() as f64) / 1e6,
         make_seconds,

@@ -94,7 +94,7 @@ pub fn make_texture_library(
     });
     progress.start(todo.len() as u64, "photos");
     let (start, cpu) = (Instant::now(), process_cpu_seconds());
-    let results: Vec<Result<(usize, u64), String>> = todo
+    let results: Vec<Result<(usize, u64), PipelineError>> = todo
         .par_iter()
         .map(|&i| {
             let outcome = extract_one(out, &library, i, options);
@@ -111,7 +111,7 @@ pub fn make_texture_library(
                 textures += n;
                 pixels += px;
             }
-            Err(e) => unreadable.push(e),
+            Err(e) => unreadable.push(e.to_string()),
         }
     }
     write_licences(out)?;
@@ -141,14 +141,14 @@ fn extract_one(
     library: &PhotoLibrary,
     i: usize,
     options: &TextureOptions,
-) -> Result<(usize, u64), String> {
+) -> Result<(usize, u64), PipelineError> {
     let entry = &library.entries()[i];
-    let img = read_rgb(&entry.path).map_err(|e| e.to_string())?;
+    let img = read_rgb(&entry.path)?;
     let stem = entry.flat_stem();
     let mut textures = Vec::new();
     for (k, (square, crop)) in extract_textures(&img, options).into_iter().enumerate() {
         let file = format!("{stem}__{k}.jpg");
-        write_file(&out.join(&file), &encode_jpeg(&crop, 95)).map_err(|e| e.to_string())?;
+        write_file(&out.join(&file), &encode_jpeg(&crop, 95))?;
         textures.push(TextureRecord { file, square });
     }
     let record = PhotoRecord {
@@ -163,7 +163,7 @@ fn extract_one(
     let n = record.textures.len();
     let json = serde_json::to_vec_pretty(&record).expect("JSON");
     let path = record_path(out, entry);
-    write_file(&path, &json).map_err(|e| e.to_string())?;
+    write_file(&path, &json)?;
     Ok((n, img.width() as u64 * img.height() as u64))
 }
 

@@ -2,6 +2,7 @@
 //! encoded) read and written here, and OpenEXR (ZIP, PIZ, RLE, B44, DWAA,
 //! DWAB, ...) read through the `exr` crate. Values are linear float RGB.
 
+use crate::content::ContentError;
 use crate::math::Vec3;
 use std::path::Path;
 
@@ -61,9 +62,9 @@ pub fn read_hdr(path: &Path) -> Result<HdrImage, HdrError> {
     let img = match ext.as_str() {
         "hdr" => {
             let bytes = std::fs::read(path).map_err(|e| fail(format!("cannot read: {e}")))?;
-            decode_radiance(&bytes).map_err(fail)?
+            decode_radiance(&bytes).map_err(|e| fail(e.0))?
         }
-        "exr" => read_exr(path).map_err(fail)?,
+        "exr" => read_exr(path).map_err(|e| fail(e.0))?,
         _ => return Err(fail("not an .hdr or .exr file".into())),
     };
     if img.pixels.iter().any(|p| !p.is_finite()) {
@@ -76,7 +77,7 @@ pub fn read_hdr(path: &Path) -> Result<HdrImage, HdrError> {
     Ok(img)
 }
 
-fn read_exr(path: &Path) -> Result<HdrImage, String> {
+fn read_exr(path: &Path) -> Result<HdrImage, ContentError> {
     use exr::prelude::*;
     let image = read_first_rgba_layer_from_file(
         path,
@@ -119,7 +120,7 @@ fn rgb_to_rgbe(c: Vec3) -> [u8; 4] {
 }
 
 /// Decodes a Radiance file's bytes.
-fn decode_radiance(bytes: &[u8]) -> Result<HdrImage, String> {
+fn decode_radiance(bytes: &[u8]) -> Result<HdrImage, ContentError> {
     if !bytes.starts_with(b"#?") {
         return Err("not a Radiance HDR file (no #? signature)".into());
     }
@@ -139,7 +140,7 @@ fn decode_radiance(bytes: &[u8]) -> Result<HdrImage, String> {
     loop {
         let l = line()?;
         if l.starts_with("FORMAT=") && l != "FORMAT=32-bit_rle_rgbe" {
-            return Err(format!("unsupported {l}"));
+            return Err(format!("unsupported {l}").into());
         }
         if l.is_empty() {
             break;
@@ -154,10 +155,10 @@ fn decode_radiance(bytes: &[u8]) -> Result<HdrImage, String> {
             w.parse::<usize>()
                 .map_err(|_| format!("bad resolution {res:?}"))?,
         ),
-        _ => return Err(format!("unsupported orientation {res:?} (only -Y H +X W)")),
+        _ => return Err(format!("unsupported orientation {res:?} (only -Y H +X W)").into()),
     };
     if width == 0 || height == 0 || width > 1 << 16 || height > 1 << 16 {
-        return Err(format!("bad size {width}x{height}"));
+        return Err(format!("bad size {width}x{height}").into());
     }
     let mut data = &bytes[at..];
     let mut pixels = Vec::with_capacity(width * height);
@@ -171,7 +172,7 @@ fn decode_radiance(bytes: &[u8]) -> Result<HdrImage, String> {
             && data[2] & 0x80 == 0;
         if rle {
             if ((data[2] as usize) << 8 | data[3] as usize) != width {
-                return Err(format!("row {y}: run-length row of the wrong width"));
+                return Err(format!("row {y}: run-length row of the wrong width").into());
             }
             data = &data[4..];
             for c in 0..4 {
@@ -184,7 +185,7 @@ fn decode_radiance(bytes: &[u8]) -> Result<HdrImage, String> {
                         let (&v, rest) = data.split_first().ok_or_else(short)?;
                         data = rest;
                         if x + n > width {
-                            return Err(format!("row {y}: run past the end of the row"));
+                            return Err(format!("row {y}: run past the end of the row").into());
                         }
                         row[x..x + n].iter_mut().for_each(|p| p[c] = v);
                         x += n;
@@ -195,7 +196,8 @@ fn decode_radiance(bytes: &[u8]) -> Result<HdrImage, String> {
                                 short()
                             } else {
                                 format!("row {y}: bad run")
-                            });
+                            }
+                            .into());
                         }
                         for (p, &v) in row[x..x + n].iter_mut().zip(&data[..n]) {
                             p[c] = v;
@@ -207,7 +209,7 @@ fn decode_radiance(bytes: &[u8]) -> Result<HdrImage, String> {
             }
         } else {
             if data.len() < 4 * width {
-                return Err(short());
+                return Err(short().into());
             }
             for (p, chunk) in row.iter_mut().zip(data.chunks_exact(4)) {
                 *p = [chunk[0], chunk[1], chunk[2], chunk[3]];
@@ -366,10 +368,11 @@ mod tests {
     #[test]
     fn truncated_and_foreign_files_are_refused() {
         let bytes = encode_radiance(&gradient(40, 3));
-        let err = decode_radiance(&bytes[..bytes.len() - 10]).unwrap_err();
+        let err = decode_radiance(&bytes[..bytes.len() - 10]).unwrap_err().0;
         assert!(err.contains("ends early at row 2"), "{err}");
         assert!(decode_radiance(b"P6\n")
             .unwrap_err()
+            .0
             .contains("no #? signature"));
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("x.exr");

@@ -11,6 +11,7 @@ pub mod bsdf;
 pub mod bvh;
 pub mod cache;
 pub mod camera;
+mod content;
 pub mod denoise;
 pub mod environment;
 pub mod hdr_io;

@@ -146,31 +146,27 @@ impl Mesh {
     /// Checks the invariants the renderer relies on: every index in range,
     /// attribute arrays as long as the positions, finite coordinates.
     pub fn validate(&self) -> Result<(), InvalidMesh> {
-        self.check().map_err(InvalidMesh)
-    }
-
-    /// [`Mesh::validate`]'s invariants; the first broken one.
-    fn check(&self) -> Result<(), String> {
+        let invalid = |message: String| Err(InvalidMesh(message));
         let n = self.positions.len();
         if self.triangles.is_empty() {
-            return Err("no triangles".into());
+            return invalid("no triangles".into());
         }
         if let Some(t) = self
             .triangles
             .iter()
             .find(|t| t.iter().any(|&i| i as usize >= n))
         {
-            return Err(format!("triangle {t:?} indexes past {n} vertices"));
+            return invalid(format!("triangle {t:?} indexes past {n} vertices"));
         }
         if self.normals.len() != n || self.uvs.len() != n {
-            return Err(format!(
+            return invalid(format!(
                 "{n} vertices but {} normals and {} texture coordinates",
                 self.normals.len(),
                 self.uvs.len()
             ));
         }
         if self.positions.iter().any(|p| !p.is_finite()) {
-            return Err("a vertex position is not a finite number".into());
+            return invalid("a vertex position is not a finite number".into());
         }
         Ok(())
     }

@@ -3,6 +3,7 @@
 //! ones; meshes without texture coordinates get a box projection. Errors
 //! name the file and the line or element that is wrong.
 
+use crate::content::ContentError;
 use crate::math::Vec3;
 use crate::mesh::{Mesh, UvProjection};
 use std::collections::HashMap;
@@ -38,13 +39,13 @@ pub fn read_mesh(path: &Path) -> Result<Mesh, MeshError> {
         "obj" => parse_obj(&String::from_utf8_lossy(&bytes)),
         "off" => parse_off(&String::from_utf8_lossy(&bytes)),
         "ply" => parse_ply(&bytes),
-        _ => Err(format!(
+        _ => Err(ContentError(format!(
             "unknown mesh format (expected one of {})",
             MESH_EXTENSIONS.join(", ")
-        )),
+        ))),
     }
-    .map_err(fail)?;
-    finish(&mut mesh).map_err(fail)?;
+    .map_err(|e| fail(e.0))?;
+    finish(&mut mesh).map_err(|e| fail(e.0))?;
     Ok(mesh)
 }
 
@@ -71,7 +72,7 @@ pub fn obj_text(mesh: &Mesh) -> String {
 }
 
 /// Fills in what a file left out (normals, UVs) and validates.
-fn finish(mesh: &mut Mesh) -> Result<(), String> {
+fn finish(mesh: &mut Mesh) -> Result<(), ContentError> {
     if mesh.triangles.is_empty() {
         return Err("no faces".into());
     }
@@ -81,7 +82,7 @@ fn finish(mesh: &mut Mesh) -> Result<(), String> {
     if mesh.uvs.len() != mesh.positions.len() {
         mesh.project_uvs(UvProjection::Box);
     }
-    mesh.validate().map_err(|e| e.0)
+    mesh.validate().map_err(|e| ContentError(e.0))
 }
 
 /// Triangle fan of a polygon.
@@ -102,7 +103,7 @@ fn parse_floats<const N: usize>(parts: &mut std::str::SplitWhitespace) -> Option
 /// OBJ: `v`, `vt`, `vn`, `f` with `v`, `v/vt`, `v//vn`, `v/vt/vn` corners and
 /// negative (relative) indices. Corners with different attribute triples
 /// become separate vertices. Other statements are ignored.
-fn parse_obj(text: &str) -> Result<Mesh, String> {
+fn parse_obj(text: &str) -> Result<Mesh, ContentError> {
     let (mut pos, mut tex, mut nor) = (Vec::new(), Vec::new(), Vec::new());
     let mut mesh = Mesh::default();
     let mut corners: HashMap<(usize, Option<usize>, Option<usize>), u32> = HashMap::new();
@@ -134,7 +135,7 @@ fn parse_obj(text: &str) -> Result<Mesh, String> {
                                 let i: i64 = s.parse().map_err(|_| bad("bad face index"))?;
                                 let idx = if i < 0 { n as i64 + i } else { i - 1 };
                                 if idx < 0 || idx as usize >= n {
-                                    return Err(bad(&format!("face index {i} out of range")));
+                                    return Err(bad(&format!("face index {i} out of range")).into());
                                 }
                                 Ok(Some(idx as usize))
                             }
@@ -176,14 +177,14 @@ fn parse_obj(text: &str) -> Result<Mesh, String> {
 
 /// OFF (and COFF/NOFF headers): counts, vertices, then `n i0 i1 ...` faces.
 /// `#` comments are skipped.
-fn parse_off(text: &str) -> Result<Mesh, String> {
+fn parse_off(text: &str) -> Result<Mesh, ContentError> {
     let mut tokens = text
         .lines()
         .map(|l| l.split('#').next().unwrap_or(""))
         .flat_map(str::split_whitespace);
     let header = tokens.next().ok_or("empty file")?;
     if !header.ends_with("OFF") {
-        return Err(format!("not an OFF file (header {header:?})"));
+        return Err(format!("not an OFF file (header {header:?})").into());
     }
     let mut number = |what: &str| -> Result<f64, String> {
         tokens
@@ -226,7 +227,7 @@ fn parse_off(text: &str) -> Result<Mesh, String> {
         for _ in 0..n {
             let v = number(&what)? as usize;
             if v >= nv {
-                return Err(format!("face {i} indexes vertex {v} of {nv}"));
+                return Err(format!("face {i} indexes vertex {v} of {nv}").into());
             }
             poly.push(v as u32);
         }
@@ -327,13 +328,13 @@ enum PlyBody<'a> {
 }
 
 impl PlyBody<'_> {
-    fn value(&mut self, kind: Scalar) -> Result<f64, String> {
+    fn value(&mut self, kind: Scalar) -> Result<f64, ContentError> {
         match self {
             PlyBody::Ascii(tokens) => tokens
                 .next()
                 .ok_or("ends early")?
                 .parse()
-                .map_err(|_| "bad number".to_string()),
+                .map_err(|_| "bad number".into()),
             PlyBody::Binary {
                 data,
                 at,
@@ -347,7 +348,7 @@ impl PlyBody<'_> {
         }
     }
 
-    fn row(&mut self, e: &Element) -> Result<Row, String> {
+    fn row(&mut self, e: &Element) -> Result<Row, ContentError> {
         e.properties
             .iter()
             .map(|p| match p.list_count {
@@ -364,7 +365,7 @@ impl PlyBody<'_> {
 /// PLY: the `vertex` element's `x y z` (and `nx ny nz`, `u v`/`s t`/
 /// `texture_u texture_v` when present) and the `face` element's
 /// `vertex_indices`/`vertex_index` lists. ASCII and binary in either byte order.
-fn parse_ply(bytes: &[u8]) -> Result<Mesh, String> {
+fn parse_ply(bytes: &[u8]) -> Result<Mesh, ContentError> {
     let header_end = bytes
         .windows(10)
         .position(|w| w == b"end_header")
@@ -430,7 +431,7 @@ fn parse_ply(bytes: &[u8]) -> Result<Mesh, String> {
             at: 0,
             big_endian: true,
         },
-        other => return Err(format!("unknown format {other:?}")),
+        other => return Err(format!("unknown format {other:?}").into()),
     };
     let mut mesh = Mesh::default();
     let (mut normals, mut uvs) = (Vec::new(), Vec::new());
@@ -465,10 +466,9 @@ fn parse_ply(bytes: &[u8]) -> Result<Mesh, String> {
                 let k = faces.ok_or("face element without vertex_indices")?;
                 let poly: Vec<u32> = row[k].iter().map(|&v| v as u32).collect();
                 if let Some(&v) = poly.iter().find(|&&v| v as usize >= mesh.positions.len()) {
-                    return Err(format!(
-                        "face {i} indexes vertex {v} of {}",
-                        mesh.positions.len()
-                    ));
+                    return Err(
+                        format!("face {i} indexes vertex {v} of {}", mesh.positions.len()).into(),
+                    );
                 }
                 fan(&poly, &mut mesh.triangles);
             }

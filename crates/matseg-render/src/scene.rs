@@ -438,33 +438,28 @@ impl SceneDescription {
 
     /// Checks indices and numbers before anything is decoded.
     pub fn validate(&self) -> Result<(), SceneError> {
-        self.check().map_err(SceneError::Invalid)
-    }
-
-    /// [`SceneDescription::validate`]'s rules; the first broken one.
-    fn check(&self) -> Result<(), String> {
         if self.width == 0 || self.height == 0 || self.width > 16384 || self.height > 16384 {
-            return Err(format!(
+            return Err(SceneError::Invalid(format!(
                 "image size {}x{} out of 1..16384",
                 self.width, self.height
-            ));
+            )));
         }
         if self.spp == 0 {
-            return Err("spp must be at least 1".into());
+            return Err(SceneError::Invalid("spp must be at least 1".into()));
         }
         if self.objects.is_empty() {
-            return Err("no objects".into());
+            return Err(SceneError::Invalid("no objects".into()));
         }
         fn check(
             layout: &Layout,
             materials: usize,
             maps: usize,
             object: usize,
-        ) -> Result<(), String> {
+        ) -> Result<(), SceneError> {
             match layout {
-                Layout::Material(m) if *m >= materials => {
-                    Err(format!("object {object}: material {m} of {materials}"))
-                }
+                Layout::Material(m) if *m >= materials => Err(SceneError::Invalid(format!(
+                    "object {object}: material {m} of {materials}"
+                ))),
                 Layout::Material(_) => Ok(()),
                 Layout::Split {
                     map,
@@ -474,12 +469,14 @@ impl SceneDescription {
                     ..
                 } => {
                     if *map >= maps {
-                        return Err(format!("object {object}: map {map} of {maps}"));
+                        return Err(SceneError::Invalid(format!(
+                            "object {object}: map {map} of {maps}"
+                        )));
                     }
                     if !positive(placement.scale) {
-                        return Err(format!(
+                        return Err(SceneError::Invalid(format!(
                             "object {object}: map placement scale must be positive"
-                        ));
+                        )));
                     }
                     check(below, materials, maps, object)?;
                     check(above, materials, maps, object)
@@ -489,14 +486,16 @@ impl SceneDescription {
         for (i, o) in self.objects.iter().enumerate() {
             check(&o.surface, self.materials.len(), self.maps.len(), i)?;
             if o.radius.is_some_and(|r| !positive(r)) {
-                return Err(format!("object {i}: radius must be positive"));
+                return Err(SceneError::Invalid(format!(
+                    "object {i}: radius must be positive"
+                )));
             }
         }
         for (i, m) in self.materials.iter().enumerate() {
             if !positive(m.placement.scale) || !positive(m.ior) {
-                return Err(format!(
+                return Err(SceneError::Invalid(format!(
                     "material {i}: placement scale and ior must be positive"
-                ));
+                )));
             }
         }
         Ok(())

@@ -91,11 +91,11 @@ pub async fn start(
 /// the panic said.
 fn finished(
     folder: &std::path::Path,
-    job: impl FnOnce() -> Result<serde_json::Value, String>,
+    job: impl FnOnce() -> Result<serde_json::Value, EvaluationError>,
 ) -> Evaluation {
     match std::panic::catch_unwind(std::panic::AssertUnwindSafe(job)) {
         Ok(Ok(report)) => Evaluation::Done(report),
-        Ok(Err(message)) => Evaluation::Failed(message),
+        Ok(Err(e)) => Evaluation::Failed(e.to_string()),
         Err(panic) => Evaluation::Failed(format!(
             "{}: the evaluation stopped on an internal error: {}",
             folder.display(),
@@ -111,6 +111,17 @@ fn panic_message(panic: &(dyn std::any::Any + Send)) -> &str {
         .copied()
         .or_else(|| panic.downcast_ref::<String>().map(String::as_str))
         .unwrap_or("no message")
+}
+
+/// Why an evaluation found no report.
+#[derive(Debug, thiserror::Error)]
+pub enum EvaluationError {
+    /// The benchmark or a baseline could not be read or scored.
+    #[error(transparent)]
+    Pipeline(#[from] matseg_pipeline::error::PipelineError),
+    /// A benchmark with no annotated image yet.
+    #[error("{}: no annotated image to evaluate", .0.display())]
+    NothingAnnotated(std::path::PathBuf),
 }
 
 /// The served model as an evaluated one.
@@ -136,16 +147,12 @@ fn run(
     folder: &std::path::Path,
     choice: &ModelChoice,
     state: Arc<AppState>,
-) -> Result<serde_json::Value, String> {
-    let mut models = baselines(choice).map_err(|e| e.to_string())?;
+) -> Result<serde_json::Value, EvaluationError> {
+    let mut models = baselines(choice)?;
     models.push(Box::new(ServedModel(state)));
-    let evaluation = score_point_benchmark(folder, &models, true, DEFAULT_MAX_SIDE)
-        .map_err(|e| e.to_string())?;
+    let evaluation = score_point_benchmark(folder, &models, true, DEFAULT_MAX_SIDE)?;
     if evaluation.models[0].counts.images == 0 {
-        return Err(format!(
-            "{}: no annotated image to evaluate",
-            folder.display()
-        ));
+        return Err(EvaluationError::NothingAnnotated(folder.to_path_buf()));
     }
     Ok(serde_json::to_value(evaluation).expect("plain JSON values"))
 }
@@ -193,8 +200,10 @@ mod tests {
             failed(panicked),
             "bench: the evaluation stopped on an internal error: decoder gave up on a.jpg"
         );
-        let refused = finished(folder, || Err("bench: no annotated image".into()));
-        assert_eq!(failed(refused), "bench: no annotated image");
+        let refused = finished(folder, || {
+            Err(EvaluationError::NothingAnnotated(folder.to_path_buf()))
+        });
+        assert_eq!(failed(refused), "bench: no annotated image to evaluate");
         let done = finished(folder, || Ok(serde_json::json!({ "models": [] })));
         assert!(matches!(done, Evaluation::Done(report) if report["models"].is_array()));
     }

@@ -41,13 +41,31 @@ pub fn read_checkpoint(bytes: &[u8], name: &str) -> Result<Vec<Tensor>, WeightsE
                 .read(&format!("{prefix}data/{key}"))
                 .map_err(|e| e.to_string())
         };
-        tensors(&object, &|key| storage(key)).map_err(fail)
+        tensors(&object, &|key| storage(key)).map_err(|e| fail(e.0))
     } else {
-        read_legacy(bytes).map_err(fail)
+        read_legacy(bytes).map_err(|e| fail(e.0))
     }
 }
 
-fn read_legacy(bytes: &[u8]) -> Result<Vec<Tensor>, String> {
+/// What is wrong inside a checkpoint (the file itself is named by the
+/// [`WeightsError`] it becomes).
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+struct CheckpointProblem(String);
+
+impl From<String> for CheckpointProblem {
+    fn from(message: String) -> Self {
+        Self(message)
+    }
+}
+
+impl From<&str> for CheckpointProblem {
+    fn from(message: &str) -> Self {
+        Self(message.to_string())
+    }
+}
+
+fn read_legacy(bytes: &[u8]) -> Result<Vec<Tensor>, CheckpointProblem> {
     let mut pos = 0;
     let mut next = |what: &str| -> Result<Value, String> {
         let (v, used) = read_pickle(&bytes[pos..]).map_err(|e| format!("{what}: {e}"))?;
@@ -60,7 +78,7 @@ fn read_legacy(bytes: &[u8]) -> Result<Vec<Tensor>, String> {
     }
     let protocol = next("protocol version")?;
     if protocol.int() != Some(1001) {
-        return Err(format!("unsupported legacy protocol {protocol:?}"));
+        return Err(format!("unsupported legacy protocol {protocol:?}").into());
     }
     next("system info")?;
     let object = next("state dict")?;
@@ -113,7 +131,7 @@ struct StorageRef {
     dtype: DType,
 }
 
-fn storage_ref(v: &Value) -> Result<StorageRef, String> {
+fn storage_ref(v: &Value) -> Result<StorageRef, CheckpointProblem> {
     let Value::Persistent(id) = v else {
         return Err("a tensor's storage is not a persistent id".into());
     };
@@ -126,12 +144,12 @@ fn storage_ref(v: &Value) -> Result<StorageRef, String> {
                     .ok_or_else(|| format!("unsupported storage type {class}"))?,
             })
         }
-        _ => Err(format!("unexpected storage id {items:?}")),
+        _ => Err(format!("unexpected storage id {items:?}").into()),
     }
 }
 
 /// Storage key to element type, for every tensor in `object`.
-fn storage_types(object: &Value) -> Result<HashMap<String, DType>, String> {
+fn storage_types(object: &Value) -> Result<HashMap<String, DType>, CheckpointProblem> {
     let mut types = HashMap::new();
     for (_, tensor) in state_dict(object)? {
         let r = storage_ref(rebuild_args(tensor)?.storage)?;
@@ -142,7 +160,7 @@ fn storage_types(object: &Value) -> Result<HashMap<String, DType>, String> {
 
 /// The `(name, tensor call)` entries of a state dict: a plain dict or an
 /// `OrderedDict` (possibly with its `_metadata` attached by `BUILD`).
-fn state_dict(object: &Value) -> Result<Vec<(&str, &Value)>, String> {
+fn state_dict(object: &Value) -> Result<Vec<(&str, &Value)>, CheckpointProblem> {
     let entries: &[(Value, Value)] = match object {
         Value::Dict(d) => d,
         Value::Build(inner, _) => return state_dict(inner),
@@ -172,7 +190,7 @@ struct TensorView<'a> {
 type StorageReader<'a> = dyn Fn(&str) -> Result<Vec<u8>, String> + 'a;
 
 /// The view a `_rebuild_tensor_v2` call makes.
-fn rebuild_args(tensor: &Value) -> Result<TensorView<'_>, String> {
+fn rebuild_args(tensor: &Value) -> Result<TensorView<'_>, CheckpointProblem> {
     let Value::Call(callable, args) = tensor else {
         return Err("a state dict value is not a tensor".into());
     };
@@ -197,13 +215,13 @@ fn rebuild_args(tensor: &Value) -> Result<TensorView<'_>, String> {
                 stride: ints(stride)?,
             })
         }
-        (other, _) => Err(format!("unsupported tensor constructor {other:?}")),
+        (other, _) => Err(format!("unsupported tensor constructor {other:?}").into()),
     }
 }
 
 /// Builds every tensor of the state dict, reading storages through `storage`
 /// and copying strided views into contiguous row-major data.
-fn tensors(object: &Value, storage: &StorageReader<'_>) -> Result<Vec<Tensor>, String> {
+fn tensors(object: &Value, storage: &StorageReader<'_>) -> Result<Vec<Tensor>, CheckpointProblem> {
     let mut cache: HashMap<String, Vec<u8>> = HashMap::new();
     let mut out = Vec::new();
     for (name, tensor) in state_dict(object)? {

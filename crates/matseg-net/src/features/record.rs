@@ -11,6 +11,29 @@ use tch::{Device, Kind, Tensor};
 /// The tensors of one sample, in the order they are stored.
 const NAMES: [&str; 7] = ["s4", "s8", "s16", "s32", "lab", "weights", "roi"];
 
+/// Bytes that are not a cached sample of the cache's manifest.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum CacheMismatch {
+    /// Not a safetensors file.
+    #[error("not a cached sample ({0})")]
+    NotASample(String),
+    /// A tensor missing.
+    #[error("not a cached sample: no {0} tensor")]
+    NoTensor(&'static str),
+    /// A tensor of another type or shape than the manifest says.
+    #[error("{name} is {dtype} {shape:?}, the cache's manifest says F16 {expected:?}")]
+    Layout {
+        /// The tensor.
+        name: &'static str,
+        /// Its type.
+        dtype: String,
+        /// Its shape.
+        shape: Vec<usize>,
+        /// The shape the manifest gives it.
+        expected: Vec<usize>,
+    },
+}
+
 /// One cached sample: 16-bit float tensors (little-endian bytes).
 #[derive(Clone, Debug, PartialEq)]
 pub struct CachedSample {
@@ -67,16 +90,20 @@ impl CachedSample {
     /// Reads a sample written by [`CachedSample::to_bytes`], checking
     /// every tensor's type and shape against `manifest`; `name` (the
     /// shard and member) is in the message of what is wrong.
-    pub fn from_bytes(bytes: &[u8], manifest: &CacheManifest, name: &str) -> Result<Self, String> {
+    pub fn from_bytes(
+        bytes: &[u8],
+        manifest: &CacheManifest,
+        name: &str,
+    ) -> Result<Self, CacheMismatch> {
         let mut found =
-            read_safetensors(bytes, name).map_err(|e| format!("not a cached sample ({e})"))?;
+            read_safetensors(bytes, name).map_err(|e| CacheMismatch::NotASample(e.to_string()))?;
         let (gw, gh) = manifest.grid();
         let mut tensors = Vec::with_capacity(NAMES.len());
         for (i, want) in NAMES.iter().enumerate() {
             let at = found
                 .iter()
                 .position(|t| t.name == *want)
-                .ok_or_else(|| format!("not a cached sample: no {want} tensor"))?;
+                .ok_or(CacheMismatch::NoTensor(want))?;
             let t = found.swap_remove(at);
             let shape = match i {
                 0..=3 => {
@@ -92,10 +119,12 @@ impl CachedSample {
                 _ => vec![gh, gw],
             };
             if t.dtype != DType::F16 || t.shape != shape {
-                return Err(format!(
-                    "{want} is {:?} {:?}, the cache's manifest says F16 {shape:?}",
-                    t.dtype, t.shape
-                ));
+                return Err(CacheMismatch::Layout {
+                    name: want,
+                    dtype: format!("{:?}", t.dtype),
+                    shape: t.shape,
+                    expected: shape,
+                });
             }
             tensors.push(t);
         }

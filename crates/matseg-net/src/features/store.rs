@@ -100,11 +100,9 @@ impl FeatureCache {
         let (path, member) = &self.samples[index as usize];
         let named = || format!("{}!{}", path.display(), member.name);
         let bytes = read_tar_member(path, member).map_err(|e| file_error(path, e))?;
-        CachedSample::from_bytes(&bytes, &self.manifest, &named()).map_err(|message| {
-            NetError::File {
-                file: named(),
-                message,
-            }
+        CachedSample::from_bytes(&bytes, &self.manifest, &named()).map_err(|e| NetError::File {
+            file: named(),
+            message: e.to_string(),
         })
     }
 }
