@@ -135,7 +135,7 @@ fn parse_obj(text: &str) -> Result<Mesh, ContentError> {
                                 let i: i64 = s.parse().map_err(|_| bad("bad face index"))?;
                                 let idx = if i < 0 { n as i64 + i } else { i - 1 };
                                 if idx < 0 || idx as usize >= n {
-                                    return Err(bad(&format!("face index {i} out of range")).into());
+                                    return Err(bad(&format!("face index {i} out of range")));
                                 }
                                 Ok(Some(idx as usize))
                             }
