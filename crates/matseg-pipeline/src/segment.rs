@@ -11,7 +11,7 @@ use matseg_eval::{cluster_descriptors, ClusterOptions};
 use matseg_image::coarse::CoarseDescriptors;
 use matseg_image::io::{encode_png_gray, encode_png_rgb};
 use matseg_net::TEMPERATURE;
-use matseg_scene::PALETTE;
+use matseg_scene::{blend_annotation_colour, PALETTE};
 use std::path::Path;
 use std::time::Instant;
 
@@ -139,10 +139,7 @@ pub fn similarity_overlay(
 pub fn segmentation_overlay(photo: &RgbImage, labels: &[u32]) -> RgbImage {
     let mut segmentation = photo.clone();
     for (p, &label) in segmentation.pixels_mut().zip(labels) {
-        let c = PALETTE[label as usize % PALETTE.len()];
-        for (v, &colour) in p.0.iter_mut().zip(&c) {
-            *v = ((*v as u16 + 2 * colour as u16) / 3) as u8;
-        }
+        blend_annotation_colour(&mut p.0, PALETTE[label as usize % PALETTE.len()]);
     }
     segmentation
 }

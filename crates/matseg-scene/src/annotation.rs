@@ -116,9 +116,25 @@ pub fn colourise(width: usize, height: usize, weights: &[&[f32]]) -> image::RgbI
     image::RgbImage::from_raw(width as u32, height as u32, raw).expect("size matches")
 }
 
+/// Blends an annotation `colour` over an image `pixel`, two parts colour to
+/// one part image: how every overlay of labels or soft masks on a photo
+/// is drawn.
+pub fn blend_annotation_colour(pixel: &mut [u8; 3], colour: [u8; 3]) {
+    for (v, colour) in pixel.iter_mut().zip(colour) {
+        *v = ((*v as u16 + 2 * colour as u16) / 3) as u8;
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn annotation_colour_takes_two_parts_in_three() {
+        let mut pixel = [0, 255, 30];
+        blend_annotation_colour(&mut pixel, [255, 0, 30]);
+        assert_eq!(pixel, [170, 85, 30]);
+    }
 
     #[test]
     fn quantised_masks_sum_to_255_and_stay_close() {

@@ -12,7 +12,8 @@ pub mod scene3d;
 pub mod sequence;
 
 pub use annotation::{
-    colourise, quantise_fractions, quantise_weights, QuantisedAnnotation, PALETTE,
+    blend_annotation_colour, colourise, quantise_fractions, quantise_weights, QuantisedAnnotation,
+    PALETTE,
 };
 pub use compose2d::{
     generate_2d, BackgroundRecord, ComposeError, Scene2d, SceneRecord, SourceRef, Sources,

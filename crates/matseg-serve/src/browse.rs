@@ -13,7 +13,7 @@ use axum::Json;
 use image::RgbImage;
 use matseg_data::reader::{Dataset, Sample, TrainingTargets};
 use matseg_image::io::{encode_jpeg, encode_png_gray, encode_png_rgb};
-use matseg_scene::colourise;
+use matseg_scene::{blend_annotation_colour, colourise};
 use serde::Deserialize;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -238,9 +238,7 @@ fn overlay(sample: &Sample, targets: &TrainingTargets) -> RgbImage {
         .zip(&targets.roi.data)
     {
         if inside > 0.0 {
-            for (v, &colour) in p.0.iter_mut().zip(&c.0) {
-                *v = ((*v as u16 + 2 * colour as u16) / 3) as u8;
-            }
+            blend_annotation_colour(&mut p.0, c.0);
         }
     }
     out
