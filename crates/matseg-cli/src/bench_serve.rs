@@ -3,10 +3,11 @@
 //! describes each photo with a first click (the descriptor pass), then has
 //! 1, 16... concurrent clients click random points on photos already
 //! described for a bounded time, and reads the server's memory
-//! (`matseg_serve::load`).
+//! (`matseg_serve::load`, `matseg_pipeline::bench::clock`).
 
 use anyhow::{bail, Context, Result};
-use matseg_serve::load::{clicks, memory_mib, percentile, write_photos, ClickStats, Connection};
+use matseg_pipeline::bench::clock::process_memory_mib;
+use matseg_serve::load::{clicks, percentile, write_photos, ClickStats, Connection};
 use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
@@ -75,7 +76,7 @@ impl Server {
     }
 
     fn memory(&self) -> (f64, f64) {
-        memory_mib(self.child.id()).unwrap_or((f64::NAN, f64::NAN))
+        process_memory_mib(self.child.id()).unwrap_or((f64::NAN, f64::NAN))
     }
 }
 

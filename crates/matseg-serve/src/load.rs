@@ -1,7 +1,8 @@
 //! Load measurement of a running server (`matseg bench-serve`): photos of
 //! a chosen size to serve, a keep-alive HTTP/1.1 client on loopback, the
 //! descriptor pass of each photo (its first click), clicks from concurrent
-//! clients on photos already described, and the server's memory.
+//! clients on photos already described (the server's memory is read by
+//! `matseg_pipeline::bench::clock::process_memory_mib`).
 //!
 //! Latencies are the server's own (`Server-Timing`, the handler's time)
 //! and the client's round trip; percentiles are nearest-rank.
@@ -241,17 +242,6 @@ pub fn clicks(
         round_trip_p99_ms: percentile(&mut round_trip, 99.0),
         per_second: answers.len() as f64 / seconds,
     }
-}
-
-/// A process's resident memory now and at its peak, in MiB (Linux).
-pub fn memory_mib(pid: u32) -> Option<(f64, f64)> {
-    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
-    let field = |name: &str| -> Option<f64> {
-        let line = status.lines().find(|l| l.starts_with(name))?;
-        let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
-        Some(kib / 1024.0)
-    };
-    Some((field("VmRSS:")?, field("VmHWM:")?))
 }
 
 #[cfg(test)]

@@ -20,12 +20,21 @@ pub fn process_cpu_seconds() -> Option<f64> {
     None
 }
 
-/// The process's peak resident memory (Linux `VmHWM`), in MiB.
+/// This process's peak resident memory (Linux `VmHWM`), in MiB.
 pub fn peak_rss_mib() -> Option<f64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib / 1024.0)
+    process_memory_mib(std::process::id()).map(|(_, peak)| peak)
+}
+
+/// Process `pid`'s resident memory now and at its peak (Linux `VmRSS` and
+/// `VmHWM`), in MiB; `None` where the platform does not tell.
+pub fn process_memory_mib(pid: u32) -> Option<(f64, f64)> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    let field = |name: &str| -> Option<f64> {
+        let line = status.lines().find(|l| l.starts_with(name))?;
+        let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+        Some(kib / 1024.0)
+    };
+    Some((field("VmRSS:")?, field("VmHWM:")?))
 }
 
 /// Wall-clock and process CPU time, read together.
@@ -91,5 +100,15 @@ mod tests {
         std::hint::black_box(x);
         let (wall, cpu) = clock.elapsed(1);
         assert!(wall > 0.0 && cpu > 0.0, "{wall} {cpu}");
+    }
+
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn memory_counts_an_allocation_touched() {
+        let block = vec![1u8; 64 << 20];
+        std::hint::black_box(&block);
+        let (resident, peak) = process_memory_mib(std::process::id()).unwrap();
+        assert!(resident >= 64.0 && resident <= peak, "{resident} {peak}");
+        assert_eq!(peak_rss_mib().map(|p| p >= peak), Some(true));
     }
 }
