@@ -5,39 +5,25 @@ use crate::batches::{batch_list, Mix};
 use crate::errors::matseg_error;
 use crate::samples::sample_dict;
 use matseg_data::{
-    decode_encoded, generate_with, EncodedSample, Format, GenerateOptions, Generator2d,
-    Generator3d, JobSlice, SampleMaker,
+    decode_encoded, generate_with, EncodedSample, Format, GenerateOptions, JobSlice,
 };
 use matseg_image::LicenceFilter;
 use matseg_net::data::GeneratorSource;
-use matseg_pipeline::files3d::{recipe_3d, Files3d, Folders3d};
+use matseg_pipeline::files3d::recipe_3d;
 use matseg_pipeline::progress::Progress;
-use matseg_pipeline::sources::{Defaults, Libraries};
-use matseg_render::cache::AssetCache;
-use matseg_scene::{Recipe2d, Recipe3d};
+use matseg_pipeline::scenes::{SceneFolders, SceneRecipe, SceneSources};
+use matseg_pipeline::sources::Defaults;
+use matseg_scene::Recipe2d;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
 use std::path::PathBuf;
 use std::sync::Mutex;
 
-/// What makes the samples, with the files it draws from.
-enum Scenes {
-    TwoD {
-        libraries: Libraries,
-        recipe: Recipe2d,
-    },
-    ThreeD {
-        files: Files3d,
-        cache: AssetCache,
-        recipe: Recipe3d,
-    },
-}
-
 /// A generator of one dataset (kind, sources, recipe, seed).
 #[pyclass(module = "matseg._core", name = "Generator", frozen)]
 pub struct PyGenerator {
-    scenes: Scenes,
+    scenes: SceneSources,
     seed: u64,
     warnings: Vec<String>,
 }
@@ -51,35 +37,18 @@ impl Progress for Warnings {
     fn advance(&self) {}
     fn finish(&self) {}
     fn warn(&self, message: &str) {
-        matseg_image::sync::lock(&self.0).push(message.to_string());
+        matseg_image::sync::lock(&self.0).push(format!("skipped {message}"));
     }
 }
 
 impl PyGenerator {
-    /// Runs `f` with the sample maker of this generator.
-    fn with_maker<R>(&self, f: impl FnOnce(&dyn SampleMaker) -> R) -> R {
-        match &self.scenes {
-            Scenes::TwoD { libraries, recipe } => f(&Generator2d {
-                recipe,
-                sources: libraries.sources(),
-            }),
-            Scenes::ThreeD {
-                files,
-                cache,
-                recipe,
-            } => f(&Generator3d {
-                recipe,
-                sources: files.sources(),
-                cache,
-                path: None,
-            }),
-        }
-    }
-
     /// The encoded files of sample `index`.
     fn make(&self, py: Python<'_>, index: u64) -> PyResult<EncodedSample> {
-        py.detach(|| self.with_maker(|maker| maker.make(self.seed, index)))
-            .map_err(matseg_error)
+        py.detach(|| {
+            self.scenes
+                .with_maker(None, |maker| maker.make(self.seed, index))
+        })
+        .map_err(matseg_error)
     }
 }
 
@@ -107,56 +76,45 @@ impl PyGenerator {
     ) -> PyResult<Self> {
         let licences =
             LicenceFilter::parse(licences).map_err(|e| PyValueError::new_err(e.to_string()))?;
-        let defaults = Defaults::CorpusOrBundled;
-        match kind {
-            "2d" => {
-                let recipe = match &recipe {
-                    Some(path) => Recipe2d::from_toml_file(path).map_err(matseg_error)?,
-                    None => Recipe2d::default(),
-                };
-                let libraries = py
-                    .detach(|| Libraries::load(&photos, &textures, cache_mb, defaults, &licences))
-                    .map_err(matseg_error)?;
-                let warnings = libraries
-                    .skipped_at_scan()
-                    .iter()
-                    .map(|s| format!("skipped {}: {}", s.path.display(), s.reason))
-                    .collect();
-                Ok(Self {
-                    scenes: Scenes::TwoD { libraries, recipe },
-                    seed,
-                    warnings,
-                })
-            }
+        let recipe = match kind {
+            "2d" => SceneRecipe::TwoD(match &recipe {
+                Some(path) => Recipe2d::from_toml_file(path).map_err(matseg_error)?,
+                None => Recipe2d::default(),
+            }),
             "3d" => {
-                let recipe = recipe_3d(recipe.as_deref(), size, spp).map_err(matseg_error)?;
-                let cache = AssetCache::new(cache_mb.saturating_mul(1 << 20));
-                let folders = Folders3d {
-                    photos,
-                    materials,
-                    meshes,
-                    hdris,
-                };
-                let collected = Warnings::default();
-                let files = py
-                    .detach(|| Files3d::load(&folders, &cache, defaults, &licences, &collected))
-                    .map_err(matseg_error)?;
-                let mut warnings = collected.0.into_inner().unwrap_or_else(|e| e.into_inner());
-                warnings.extend(files.skipped.iter().map(|s| format!("skipped {s}")));
-                Ok(Self {
-                    scenes: Scenes::ThreeD {
-                        files,
-                        cache,
-                        recipe,
-                    },
-                    seed,
-                    warnings,
-                })
+                SceneRecipe::ThreeD(recipe_3d(recipe.as_deref(), size, spp).map_err(matseg_error)?)
             }
-            other => Err(PyValueError::new_err(format!(
-                "kind: '{other}' is not a scene kind (2d or 3d)"
-            ))),
-        }
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "kind: '{other}' is not a scene kind (2d or 3d)"
+                )))
+            }
+        };
+        let folders = SceneFolders {
+            photos,
+            textures,
+            materials,
+            meshes,
+            hdris,
+        };
+        let collected = Warnings::default();
+        let scenes = py
+            .detach(|| {
+                SceneSources::load(
+                    recipe,
+                    &folders,
+                    cache_mb,
+                    Defaults::CorpusOrBundled,
+                    &licences,
+                    &collected,
+                )
+            })
+            .map_err(matseg_error)?;
+        Ok(Self {
+            scenes,
+            seed,
+            warnings: collected.0.into_inner().unwrap_or_else(|e| e.into_inner()),
+        })
     }
 
     /// Sample `index`, decoded (see `samples::sample_dict`).
@@ -189,7 +147,7 @@ impl PyGenerator {
         step: u64,
         mix: Mix<'_>,
     ) -> PyResult<Bound<'py, PyList>> {
-        let Scenes::TwoD { libraries, recipe } = &self.scenes else {
+        let SceneSources::TwoD { libraries, recipe } = &self.scenes else {
             return Err(PyValueError::new_err(
                 "online training batches come from a 2d generator; write 3d scenes with matseg generate and train on the dataset",
             ));
@@ -238,7 +196,10 @@ impl PyGenerator {
             },
         };
         let report = py
-            .detach(|| self.with_maker(|maker| generate_with(&opts, maker, &|_| {})))
+            .detach(|| {
+                self.scenes
+                    .with_maker(None, |maker| generate_with(&opts, maker, &|_| {}))
+            })
             .map_err(matseg_error)?;
         Ok((report.generated, report.skipped, report.bytes))
     }

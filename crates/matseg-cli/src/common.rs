@@ -4,10 +4,9 @@ use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use matseg_image::LicenceFilter;
 use matseg_pipeline::error::PipelineError;
-use matseg_pipeline::files3d::{Files3d, Folders3d};
 use matseg_pipeline::progress::Progress;
+use matseg_pipeline::scenes::SceneSources;
 use matseg_pipeline::sources::{Defaults, Libraries};
-use matseg_render::cache::AssetCache;
 use matseg_scene::Recipe2d;
 use std::path::{Path, PathBuf};
 
@@ -57,32 +56,13 @@ pub fn load_libraries(
     Ok(libraries)
 }
 
-/// Finds and checks the files of 3D scenes ([`Files3d::load`]) and prints
-/// a warning for each unreadable file.
-pub fn load_files_3d(
-    folders: &Folders3d,
-    cache: &AssetCache,
-    defaults: Defaults,
-    licences: &LicenceFilter,
-) -> Result<Files3d> {
-    let files = Files3d::load(folders, cache, defaults, licences, &BarProgress::default())?;
-    for s in &files.skipped {
-        eprintln!("warning: skipped {s}");
-    }
-    if !files.skipped.is_empty() {
-        eprintln!("warning: {} unreadable files skipped", files.skipped.len());
-    }
-    Ok(files)
-}
-
 /// Prints the source files that failed to decode during the run and the
 /// count of all unreadable ones.
-pub fn report_skipped(libraries: &Libraries) {
-    let late = libraries.failed_since_scan();
-    for s in &late {
-        eprintln!("warning: skipped {}: {}", s.path.display(), s.reason);
+pub fn report_skipped(sources: &SceneSources) {
+    for s in sources.failed_since_load() {
+        eprintln!("warning: skipped {s}");
     }
-    let total = libraries.skipped_at_scan().len() + late.len();
+    let total = sources.skipped().len();
     if total > 0 {
         eprintln!("warning: {total} unreadable source file(s) skipped");
     }

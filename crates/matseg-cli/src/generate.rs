@@ -1,18 +1,15 @@
 //! `matseg generate`.
 
 use crate::common::{
-    init_threads, load_files_3d, load_libraries, load_recipe, progress_bar, report_skipped,
-    LicenceArgs, SceneKind as Kind,
+    init_threads, load_recipe, progress_bar, report_skipped, BarProgress, LicenceArgs,
+    SceneKind as Kind,
 };
 use anyhow::Result;
 use clap::ValueEnum;
-use matseg_data::{
-    generate_with, Format, GenerateOptions, GenerateReport, Generator2d, Generator3d, JobSlice,
-    SampleMaker,
-};
-use matseg_pipeline::files3d::{recipe_3d, Folders3d};
+use matseg_data::{generate_with, Format, GenerateOptions, GenerateReport, JobSlice, SampleMaker};
+use matseg_pipeline::files3d::recipe_3d;
+use matseg_pipeline::scenes::{SceneFolders, SceneRecipe, SceneSources};
 use matseg_pipeline::sources::{Defaults, DEFAULT_CACHE_MB};
-use matseg_render::cache::AssetCache;
 use matseg_scene::CameraPath;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -133,48 +130,33 @@ pub fn run(args: Args) -> Result<()> {
         job,
     };
     let licences = args.licences.filter()?;
-    let start = Instant::now();
-    let report = match args.kind {
-        Kind::TwoD => {
-            let recipe = load_recipe(args.config.as_deref(), args.size_range.as_deref())?;
-            let libs = load_libraries(
-                &args.sources,
-                &args.textures,
-                args.cache_mb,
-                Defaults::CorpusOrBundled,
-                &licences,
-            )?;
-            let report = with_progress(
-                &opts,
-                &Generator2d {
-                    recipe: &recipe,
-                    sources: libs.sources(),
-                },
-            )?;
-            report_skipped(&libs);
-            report
-        }
+    let recipe = match args.kind {
+        Kind::TwoD => SceneRecipe::TwoD(load_recipe(
+            args.config.as_deref(),
+            args.size_range.as_deref(),
+        )?),
         Kind::ThreeD => {
-            let recipe = recipe_3d(args.config.as_deref(), args.size, args.spp)?;
-            let cache = AssetCache::new(args.cache_mb.saturating_mul(1 << 20));
-            let folders = Folders3d {
-                photos: args.sources.clone(),
-                materials: args.materials.clone(),
-                meshes: args.meshes.clone(),
-                hdris: args.hdris.clone(),
-            };
-            let files = load_files_3d(&folders, &cache, Defaults::CorpusOrBundled, &licences)?;
-            with_progress(
-                &opts,
-                &Generator3d {
-                    recipe: &recipe,
-                    sources: files.sources(),
-                    cache: &cache,
-                    path: camera_path.as_ref(),
-                },
-            )?
+            SceneRecipe::ThreeD(recipe_3d(args.config.as_deref(), args.size, args.spp)?)
         }
     };
+    let folders = SceneFolders {
+        photos: args.sources.clone(),
+        textures: args.textures.clone(),
+        materials: args.materials.clone(),
+        meshes: args.meshes.clone(),
+        hdris: args.hdris.clone(),
+    };
+    let start = Instant::now();
+    let sources = SceneSources::load(
+        recipe,
+        &folders,
+        args.cache_mb,
+        Defaults::CorpusOrBundled,
+        &licences,
+        &BarProgress::default(),
+    )?;
+    let report = sources.with_maker(camera_path.as_ref(), |maker| with_progress(&opts, maker))?;
+    report_skipped(&sources);
     let secs = start.elapsed().as_secs_f64();
     eprintln!(
         "{}: {} samples generated, {} already complete, {:.1} MB written in {:.1} s ({:.1} samples/s)",

@@ -58,6 +58,7 @@ pub mod overlay_video;
 pub mod point_bench;
 pub mod progress;
 pub mod render;
+pub mod scenes;
 #[cfg(feature = "net")]
 pub mod segment;
 pub mod soft_maps;
