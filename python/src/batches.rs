@@ -35,9 +35,9 @@ pub fn batch_list<'py>(
     plan.validate()
         .map_err(|e| PyValueError::new_err(format!("batch plan: {e}")))?;
     let mixed = match &mix {
-        Some((_, fraction)) if !(0.0..=1.0).contains(fraction) => {
+        Some((_, fraction)) if MixedSource::check_fraction(*fraction).is_err() => {
             return Err(PyValueError::new_err(format!(
-                "mix fraction {fraction} is not in 0..1"
+                "mix fraction {fraction}: expected 0..1"
             )))
         }
         Some((other, fraction)) => Some(MixedSource {

@@ -84,7 +84,7 @@ def test_a_mixed_in_dataset_takes_its_share_of_the_samples(folders_2d):
         assert all(np.array_equal(own[k], all_mixed[k]) for k in own)
     streamed = mt.BatchStream(gen, PLAN, seed=3, mix=(ds, 0.0)).batch(1)
     assert torch.equal(streamed["images"], mt.BatchStream(gen, PLAN, seed=3).batch(1)["images"])
-    with pytest.raises(ValueError, match="mix fraction 1.5 is not in 0..1"):
+    with pytest.raises(ValueError, match="mix fraction 1.5: expected 0..1"):
         gen.batch(0, PLAN, 3, mix=(ds, 1.5))
     with pytest.raises(TypeError, match="matseg.Dataset"):
         gen.batch(0, PLAN, 3, mix=(gen, 0.5))

@@ -112,6 +112,23 @@ pub struct MixedSource<'a> {
     pub fraction: f64,
 }
 
+/// A mixture's share outside 0..=1.
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+#[error("expected 0..1")]
+pub struct FractionOutOfRange;
+
+impl MixedSource<'_> {
+    /// Checks that `fraction` is a share of samples (in 0..=1), as every
+    /// mixture's must be.
+    pub fn check_fraction(fraction: f64) -> Result<(), FractionOutOfRange> {
+        if (0.0..=1.0).contains(&fraction) {
+            Ok(())
+        } else {
+            Err(FractionOutOfRange)
+        }
+    }
+}
+
 /// Seed of the mixture's per-sample choice.
 const MIX_STREAM: u64 = 0x6d69_7874_7572_6521;
 
@@ -431,5 +448,15 @@ mod tests {
             ..mixture
         };
         assert!((0..200).all(|i| !none.from_other(i)));
+    }
+
+    #[test]
+    fn mixture_fractions_are_shares() {
+        for ok in [0.0, 0.3, 1.0] {
+            assert_eq!(MixedSource::check_fraction(ok), Ok(()));
+        }
+        for bad in [-0.1, 1.5, f64::NAN] {
+            assert_eq!(MixedSource::check_fraction(bad), Err(FractionOutOfRange));
+        }
     }
 }

@@ -117,13 +117,7 @@ impl FeaturesConfig {
             ));
         }
         if let Some(mix) = &self.mix {
-            if !(0.0..=1.0).contains(&mix.fraction) {
-                return Err(PipelineError::setting(
-                    "mix fraction",
-                    Some(mix.fraction),
-                    "expected 0..1",
-                ));
-            }
+            mix.validate()?;
         }
         Ok(())
     }

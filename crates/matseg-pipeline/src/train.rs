@@ -48,6 +48,14 @@ pub struct MixIn {
     pub fraction: f64,
 }
 
+impl MixIn {
+    /// Checks the share (`mix fraction`, in 0..=1).
+    pub fn validate(&self) -> Result<(), PipelineError> {
+        MixedSource::check_fraction(self.fraction)
+            .map_err(|e| PipelineError::setting("mix fraction", Some(self.fraction), e.to_string()))
+    }
+}
+
 /// Everything a new run is made from; [`TrainConfig::new`] gives the
 /// defaults of `matseg train`.
 #[derive(Clone, Debug, PartialEq)]
@@ -167,7 +175,8 @@ impl TrainConfig {
         if let Some(cached) = &features {
             if self.mix.is_some() {
                 return Err(PipelineError::Settings(
-                    "a run on a feature cache takes its data from the cache: mix datasets in                      when making the cache"
+                    "a run on a feature cache takes its data from the cache: mix datasets in \
+                     when making the cache"
                         .into(),
                 ));
             }
@@ -203,13 +212,7 @@ impl TrainConfig {
             .validate()
             .map_err(|e| PipelineError::Settings(e.0))?;
         if let Some(mix) = &self.mix {
-            if !(0.0..=1.0).contains(&mix.fraction) {
-                return Err(PipelineError::setting(
-                    "mix fraction",
-                    Some(mix.fraction),
-                    "expected 0..1",
-                ));
-            }
+            mix.validate()?;
         }
         Ok(RunConfig {
             net,
