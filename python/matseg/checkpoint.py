@@ -15,22 +15,28 @@ from . import net as netlib
 from . import safetensors
 
 CHECKPOINT_FILE = netlib.CONSTANTS["checkpoint_file"]
+# The tensors' names, as `matseg train` writes and reads them.
+_KEYS = netlib.CONSTANTS["checkpoint_keys"]
+_MODEL, _OPTIM = _KEYS["model"], _KEYS["optimizer"]
+_MOMENTS = ((_KEYS["first_moment"], "exp_avg"), (_KEYS["second_moment"], "exp_avg_sq"))
+_STEPS = _OPTIM + _KEYS["optimizer_steps"]
+_NEXT_STEP, _NEXT_BATCH = _KEYS["next_step"], _KEYS["next_batch"]
 
 
 def write(folder, arrays, net, optimizer, updates, next_step, next_batch):
     """Writes `folder/checkpoint.safetensors` (through a temporary file):
     `arrays`, the net's `state_arrays`, and the optimizer's state of the
     net's parameters."""
-    tensors = {f"model.{k}": v for k, v in arrays.items()}
+    tensors = {_MODEL + k: v for k, v in arrays.items()}
     for name, p in net.named_parameters():
         state = optimizer.state.get(p, {})
-        for key, moment in (("m", "exp_avg"), ("v", "exp_avg_sq")):
+        for key, moment in _MOMENTS:
             t = state.get(moment)
             value = np.zeros(tuple(p.shape), np.float32) if t is None else t.detach().to("cpu", torch.float32).numpy()
-            tensors[f"optim.{key}.{name}"] = value
-    tensors["optim.steps"] = np.array([updates], np.int64)
-    tensors["next_step"] = np.array([next_step], np.int64)
-    tensors["next_batch"] = np.array([next_batch], np.int64)
+            tensors[_OPTIM + key + name] = value
+    tensors[_STEPS] = np.array([updates], np.int64)
+    tensors[_NEXT_STEP] = np.array([next_step], np.int64)
+    tensors[_NEXT_BATCH] = np.array([next_batch], np.int64)
     safetensors.write(os.path.join(folder, CHECKPOINT_FILE), tensors)
 
 
@@ -48,17 +54,17 @@ def read(folder, net, optimizer):
             raise ValueError(f"{path}: no {key}")
         return int(tensors[key].reshape(-1)[0])
 
-    updates, next_step = scalar("optim.steps"), scalar("next_step")
-    next_batch = scalar("next_batch") if "next_batch" in tensors else next_step
-    netlib.load_arrays(net, {k[len("model."):]: v for k, v in tensors.items() if k.startswith("model.")}, path)
+    updates, next_step = scalar(_STEPS), scalar(_NEXT_STEP)
+    next_batch = scalar(_NEXT_BATCH) if _NEXT_BATCH in tensors else next_step
+    netlib.load_arrays(net, {k[len(_MODEL):]: v for k, v in tensors.items() if k.startswith(_MODEL)}, path)
     for name, p in net.named_parameters():
         moments = {}
-        for key, moment in (("m", "exp_avg"), ("v", "exp_avg_sq")):
-            value = tensors.get(f"optim.{key}.{name}")
+        for key, moment in _MOMENTS:
+            value = tensors.get(_OPTIM + key + name)
             if value is None:
-                raise ValueError(f"{path}: optimizer state has no {key}.{name}")
+                raise ValueError(f"{path}: optimizer state has no {key}{name}")
             if tuple(value.shape) != tuple(p.shape):
-                raise ValueError(f"{path}: optimizer state {key}.{name} is {tuple(value.shape)}, "
+                raise ValueError(f"{path}: optimizer state {key}{name} is {tuple(value.shape)}, "
                                  f"the net's {tuple(p.shape)}")
             moments[moment] = torch.from_numpy(value).to(p.device, torch.float32)
         optimizer.state[p] = {"step": torch.tensor(float(updates), dtype=torch.float32), **moments}

@@ -64,6 +64,18 @@ pub fn net_constants(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("metrics_file", matseg_net::train::METRICS_FILE)?;
     d.set_item("plot_file", matseg_net::train::PLOT_FILE)?;
     d.set_item("best_model_file", matseg_net::train::BEST_MODEL_FILE)?;
+    let keys = PyDict::new(py);
+    {
+        use matseg_net::checkpoint_keys::*;
+        keys.set_item("model", MODEL)?;
+        keys.set_item("optimizer", OPTIMIZER)?;
+        keys.set_item("first_moment", FIRST_MOMENT)?;
+        keys.set_item("second_moment", SECOND_MOMENT)?;
+        keys.set_item("optimizer_steps", OPTIMIZER_STEPS)?;
+        keys.set_item("next_step", NEXT_STEP)?;
+        keys.set_item("next_batch", NEXT_BATCH)?;
+    }
+    d.set_item("checkpoint_keys", keys)?;
     Ok(d)
 }
 

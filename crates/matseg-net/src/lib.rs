@@ -10,6 +10,7 @@
 pub mod augment;
 pub mod batch;
 pub mod blocks;
+pub mod checkpoint_keys;
 pub mod colour;
 pub mod convnext;
 pub mod data;

@@ -2,6 +2,7 @@
 //! checkpoint holds everything a resumed run needs to take exactly the same
 //! next step (tch's built-in optimisers keep their moments out of reach).
 
+use crate::checkpoint_keys::{FIRST_MOMENT, OPTIMIZER_STEPS, SECOND_MOMENT};
 use crate::weights::TensorMismatch;
 use tch::{nn, Kind, Tensor};
 
@@ -187,15 +188,16 @@ impl AdamW {
         });
     }
 
-    /// The state as named tensors (`m.NAME`, `v.NAME`, `steps`).
+    /// The state as named tensors (`m.NAME`, `v.NAME`, `steps`: see
+    /// [`crate::checkpoint_keys`]).
     pub fn state(&self) -> Vec<(String, Tensor)> {
         let mut state = vec![(
-            "steps".to_string(),
+            OPTIMIZER_STEPS.to_string(),
             Tensor::from_slice(&[self.steps]).to_kind(Kind::Int64),
         )];
         for slot in &self.slots {
-            state.push((format!("m.{}", slot.name), slot.view(&self.m)));
-            state.push((format!("v.{}", slot.name), slot.view(&self.v)));
+            state.push((format!("{FIRST_MOMENT}{}", slot.name), slot.view(&self.m)));
+            state.push((format!("{SECOND_MOMENT}{}", slot.name), slot.view(&self.v)));
         }
         state
     }
@@ -210,10 +212,10 @@ impl AdamW {
                 .map(|(_, t)| t)
                 .ok_or_else(|| TensorMismatch::NoOptimizerState(key.to_string()))
         };
-        self.steps = find("steps")?.int64_value(&[0]);
+        self.steps = find(OPTIMIZER_STEPS)?.int64_value(&[0]);
         for slot in &self.slots {
-            for (prefix, flat) in [("m", &self.m), ("v", &self.v)] {
-                let key = format!("{prefix}.{}", slot.name);
+            for (prefix, flat) in [(FIRST_MOMENT, &self.m), (SECOND_MOMENT, &self.v)] {
+                let key = format!("{prefix}{}", slot.name);
                 let saved = find(&key)?;
                 if saved.size() != slot.variable.size() {
                     return Err(TensorMismatch::OptimizerShape {

@@ -12,6 +12,7 @@
 
 use crate::batch::{Batch, TrainingSample};
 use crate::blocks::l2_normalise;
+use crate::checkpoint_keys;
 use crate::data::{batch_samples, BatchPlan, SampleSource};
 use crate::features::{epoch_indices, CacheManifest, CachedBatch, CachedSample, FeatureCache};
 use crate::loader::BatchLoader;
@@ -250,13 +251,13 @@ impl Trainer {
         let mut optim = Vec::new();
         let mut next_batch = None;
         for (name, t) in saved {
-            if let Some(n) = name.strip_prefix("model.") {
+            if let Some(n) = name.strip_prefix(checkpoint_keys::MODEL) {
                 model.push((n.to_string(), t));
-            } else if let Some(n) = name.strip_prefix("optim.") {
+            } else if let Some(n) = name.strip_prefix(checkpoint_keys::OPTIMIZER) {
                 optim.push((n.to_string(), t));
-            } else if name == "next_step" {
+            } else if name == checkpoint_keys::NEXT_STEP {
                 trainer.step = t.int64_value(&[0]) as u64;
-            } else if name == "next_batch" {
+            } else if name == checkpoint_keys::NEXT_BATCH {
                 next_batch = Some(t.int64_value(&[0]) as u64);
             }
         }
@@ -353,16 +354,19 @@ impl Trainer {
         write_tensors(&dir.join(MODEL_FILE), &named)?;
         let mut all: Vec<(String, Tensor)> = named
             .into_iter()
-            .map(|(n, t)| (format!("model.{n}"), t))
+            .map(|(n, t)| (format!("{}{n}", checkpoint_keys::MODEL), t))
             .collect();
         all.extend(
             self.optimizer
                 .state()
                 .into_iter()
                 .map(on_cpu)
-                .map(|(n, t)| (format!("optim.{n}"), t)),
+                .map(|(n, t)| (format!("{}{n}", checkpoint_keys::OPTIMIZER), t)),
         );
-        all.push(("next_step".into(), Tensor::from_slice(&[self.step as i64])));
+        all.push((
+            checkpoint_keys::NEXT_STEP.into(),
+            Tensor::from_slice(&[self.step as i64]),
+        ));
         write_tensors(&dir.join(CHECKPOINT_FILE), &all)
     }
 }
