@@ -35,16 +35,15 @@ pub fn batch_list<'py>(
     plan.validate()
         .map_err(|e| PyValueError::new_err(format!("batch plan: {e}")))?;
     let mixed = match &mix {
-        Some((_, fraction)) if MixedSource::check_fraction(*fraction).is_err() => {
-            return Err(PyValueError::new_err(format!(
-                "mix fraction {fraction}: expected 0..1"
-            )))
+        Some((other, fraction)) => {
+            MixedSource::check_fraction(*fraction)
+                .map_err(|e| PyValueError::new_err(format!("mix fraction {fraction}: {e}")))?;
+            Some(MixedSource {
+                main: source,
+                other: other.source(),
+                fraction: *fraction,
+            })
         }
-        Some((other, fraction)) => Some(MixedSource {
-            main: source,
-            other: other.source(),
-            fraction: *fraction,
-        }),
         None => None,
     };
     let source: &dyn SampleSource = match &mixed {

@@ -59,10 +59,11 @@ pub fn load_libraries(
 /// Prints the source files that failed to decode during the run and the
 /// count of all unreadable ones.
 pub fn report_skipped(sources: &SceneSources) {
-    for s in sources.failed_since_load() {
+    let late = sources.failed_since_load();
+    for s in &late {
         eprintln!("warning: skipped {s}");
     }
-    let total = sources.skipped().len();
+    let total = sources.skipped_at_load() + late.len();
     if total > 0 {
         eprintln!("warning: {total} unreadable source file(s) skipped");
     }

@@ -140,11 +140,11 @@ pub fn run(args: Args) -> Result<()> {
         }
     };
     let folders = SceneFolders {
-        photos: args.sources.clone(),
-        textures: args.textures.clone(),
-        materials: args.materials.clone(),
-        meshes: args.meshes.clone(),
-        hdris: args.hdris.clone(),
+        photos: args.sources,
+        textures: args.textures,
+        materials: args.materials,
+        meshes: args.meshes,
+        hdris: args.hdris,
     };
     let start = Instant::now();
     let sources = SceneSources::load(

@@ -5,6 +5,7 @@
 use crate::error::PipelineError;
 use crate::materials::default_materials;
 use crate::progress::Progress;
+use crate::scenes::SceneFolders;
 use crate::sources::Defaults;
 use matseg_extract::material_library::find_materials;
 use matseg_image::io::find_files;
@@ -15,20 +16,6 @@ use matseg_render::mesh_io::MESH_EXTENSIONS;
 use matseg_scene::{Recipe3d, Sources3d};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
-
-/// The folders (or files) a user named for each kind; empty lists take the
-/// defaults.
-#[derive(Clone, Debug, Default)]
-pub struct Folders3d {
-    /// Photos (channel maps).
-    pub photos: Vec<PathBuf>,
-    /// Folders of PBR material folders.
-    pub materials: Vec<PathBuf>,
-    /// Mesh files or folders (OBJ, OFF, PLY).
-    pub meshes: Vec<PathBuf>,
-    /// HDRI files or folders (.hdr, .exr).
-    pub hdris: Vec<PathBuf>,
-}
 
 /// The checked files 3D scenes draw from.
 pub struct Files3d {
@@ -46,7 +33,7 @@ impl Files3d {
     /// default materials are made once from the default textures, with
     /// `progress` reporting it.
     pub fn load(
-        folders: &Folders3d,
+        folders: &SceneFolders,
         cache: &AssetCache,
         defaults: Defaults,
         licences: &LicenceFilter,

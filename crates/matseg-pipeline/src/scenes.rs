@@ -4,7 +4,7 @@
 //! files the recipe draws from and making the sample maker is done here.
 
 use crate::error::PipelineError;
-use crate::files3d::{Files3d, Folders3d};
+use crate::files3d::Files3d;
 use crate::progress::Progress;
 use crate::sources::{Defaults, Libraries};
 use matseg_data::{Generator2d, Generator3d, SampleMaker};
@@ -22,20 +22,21 @@ pub enum SceneRecipe {
     ThreeD(Recipe3d),
 }
 
-/// The folders scenes draw from; an empty list means the defaults (the
-/// fetched corpus, else the bundled assets). 2D scenes read `photos` and
-/// `textures`, 3D scenes `photos`, `materials`, `meshes` and `hdris`.
+/// The folders (or files) a user named for each kind of source; an empty
+/// list means the defaults (the fetched corpus, else the bundled assets).
+/// 2D scenes read `photos` and `textures`, 3D scenes `photos`,
+/// `materials`, `meshes` and `hdris`.
 #[derive(Clone, Debug, Default)]
 pub struct SceneFolders {
-    /// Photo folders.
+    /// Photos (backgrounds and soft maps in 2D, channel maps in 3D).
     pub photos: Vec<PathBuf>,
     /// Texture folders (2D).
     pub textures: Vec<PathBuf>,
-    /// PBR material folders (3D).
+    /// Folders of PBR material folders (3D).
     pub materials: Vec<PathBuf>,
-    /// Mesh folders (3D).
+    /// Mesh files or folders, OBJ/OFF/PLY (3D).
     pub meshes: Vec<PathBuf>,
-    /// HDRI folders (3D).
+    /// HDRI files or folders, .hdr/.exr (3D).
     pub hdris: Vec<PathBuf>,
 }
 
@@ -88,13 +89,7 @@ impl SceneSources {
             }
             SceneRecipe::ThreeD(recipe) => {
                 let cache = AssetCache::new(cache_mb.saturating_mul(1 << 20));
-                let folders = Folders3d {
-                    photos: folders.photos.clone(),
-                    materials: folders.materials.clone(),
-                    meshes: folders.meshes.clone(),
-                    hdris: folders.hdris.clone(),
-                };
-                let files = Files3d::load(&folders, &cache, defaults, licences, progress)?;
+                let files = Files3d::load(folders, &cache, defaults, licences, progress)?;
                 for s in &files.skipped {
                     progress.warn(s);
                 }
@@ -132,17 +127,11 @@ impl SceneSources {
         }
     }
 
-    /// The source files skipped so far as "PATH: reason": those reported
-    /// at load, then the photos that failed to decode since.
-    pub fn skipped(&self) -> Vec<String> {
+    /// How many source files were reported unreadable at load.
+    pub fn skipped_at_load(&self) -> usize {
         match self {
-            Self::TwoD { libraries, .. } => libraries
-                .skipped_at_scan()
-                .iter()
-                .chain(&libraries.failed_since_scan())
-                .map(|s| format!("{}: {}", s.path.display(), s.reason))
-                .collect(),
-            Self::ThreeD { files, .. } => files.skipped.clone(),
+            Self::TwoD { libraries, .. } => libraries.skipped_at_scan().len(),
+            Self::ThreeD { files, .. } => files.skipped.len(),
         }
     }
 

@@ -5,8 +5,9 @@
 use super::page::{sample_cards, STYLE};
 use crate::error::PipelineError;
 use crate::files::write_file;
-use crate::files3d::{recipe_3d, Files3d, Folders3d};
+use crate::files3d::{recipe_3d, Files3d};
 use crate::progress::Progress;
+use crate::scenes::SceneFolders;
 use crate::sources::Defaults;
 use matseg_data::{generate_with, Dataset, Format, GenerateOptions, Generator3d, JobSlice};
 use matseg_image::{LicenceFilter, MemoryBudget};
@@ -26,7 +27,7 @@ pub fn scenes_page(
     let recipe = recipe_3d(None, Some(size), None)?;
     let cache = AssetCache::sharing(budget);
     let files = Files3d::load(
-        &Folders3d::default(),
+        &SceneFolders::default(),
         &cache,
         Defaults::Bundled,
         &LicenceFilter::default(),
