@@ -10,7 +10,7 @@ use matseg_data::{
 use matseg_image::LicenceFilter;
 use matseg_net::data::GeneratorSource;
 use matseg_pipeline::files3d::recipe_3d;
-use matseg_pipeline::progress::Progress;
+use matseg_pipeline::progress::{Progress, Silent};
 use matseg_pipeline::scenes::{SceneFolders, SceneRecipe, SceneSources};
 use matseg_pipeline::sources::Defaults;
 use matseg_scene::Recipe2d;
@@ -198,7 +198,7 @@ impl PyGenerator {
         let report = py
             .detach(|| {
                 self.scenes
-                    .with_maker(None, |maker| generate_with(&opts, maker, &|_| {}))
+                    .with_maker(None, |maker| generate_with(&opts, maker, &Silent))
             })
             .map_err(matseg_error)?;
         Ok((report.generated, report.skipped, report.bytes))

@@ -8,6 +8,7 @@ use crate::catalog::{Catalog, PackageRecord, PACKAGES_DIR};
 use crate::error::AssetError;
 use crate::install::install;
 use crate::manifest::{Kind, Manifest, PackageSpec, Registry};
+use matseg_image::progress::Progress;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -57,49 +58,24 @@ pub struct FetchReport {
     pub failed: Vec<(String, AssetError)>,
 }
 
-/// What happens to one package, for progress displays.
-pub enum Progress<'a> {
-    /// Starting package `index` of `total`.
-    Start {
-        /// Its place in the fetch, from 0.
-        index: usize,
-        /// Packages in the fetch.
-        total: usize,
-        /// Its name.
-        name: &'a str,
-    },
-    /// Its package file is here (downloaded, or from an earlier run): now
-    /// unpacking, converting and checking it.
-    Unpacking {
-        /// Its name.
-        name: &'a str,
-        /// The package file's size.
-        bytes: u64,
-    },
-    /// Done with it.
-    Done,
-}
-
 /// Fetches and installs the packages of `manifest` holding `kinds` (all when
 /// empty) into the cache `layout`: those not yet installed, and those whose
 /// manifest entry has changed since; `force` redoes complete ones too. Writes the
-/// catalogue at the end, whatever failed.
+/// catalogue at the end, whatever failed. `progress` counts packages, with
+/// the package at hand (and its unpacking) as the status.
 pub fn fetch(
     manifest: &Manifest,
     kinds: &[Kind],
     force: bool,
     layout: &CacheLayout,
     downloader: &dyn Downloader,
-    progress: &mut dyn FnMut(Progress<'_>),
+    progress: &dyn Progress,
 ) -> Result<FetchReport, AssetError> {
     let selected = manifest.select(kinds);
     let mut report = FetchReport::default();
-    for (index, spec) in selected.iter().enumerate() {
-        progress(Progress::Start {
-            index,
-            total: selected.len(),
-            name: &spec.name,
-        });
+    progress.start(selected.len() as u64, "packages");
+    for spec in &selected {
+        progress.status(&spec.name);
         let record = layout
             .corpus
             .join(PACKAGES_DIR)
@@ -112,10 +88,12 @@ pub fn fetch(
                 .map_err(|e| AssetError::File(format!("{}: {e}", dir.display())))
                 .and_then(|()| downloader.download(spec, &dir));
             let result = downloaded.and_then(|(file, version)| {
-                progress(Progress::Unpacking {
-                    name: &spec.name,
-                    bytes: file.metadata().map_or(0, |m| m.len()),
-                });
+                let bytes = file.metadata().map_or(0, |m| m.len());
+                progress.status(&format!(
+                    "{}: unpacking {} MB",
+                    spec.name,
+                    bytes.div_ceil(1 << 20)
+                ));
                 install(spec, &file, &version, &layout.corpus)
             });
             match result {
@@ -123,8 +101,9 @@ pub fn fetch(
                 Err(e) => report.failed.push((spec.name.clone(), e)),
             }
         }
-        progress(Progress::Done);
+        progress.advance();
     }
+    progress.finish();
     std::fs::create_dir_all(&layout.corpus)
         .map_err(|e| AssetError::File(format!("{}: {e}", layout.corpus.display())))?;
     Catalog::from_records(&layout.corpus)?.write(&layout.corpus)?;

@@ -23,5 +23,5 @@ pub mod manifest;
 
 pub use catalog::{Catalog, CatalogEntry, PackageRecord};
 pub use error::AssetError;
-pub use fetch::{fetch, CacheLayout, Downloader, FetchReport, Progress, RegistryClients};
+pub use fetch::{fetch, CacheLayout, Downloader, FetchReport, RegistryClients};
 pub use manifest::{Kind, Manifest, PackageSpec, Registry};

@@ -8,13 +8,15 @@
 use matseg_assets::archive::fixtures::{self as archive_fixtures, gzip, tar};
 use matseg_assets::fetch::CacheLayout;
 use matseg_assets::{
-    fetch, AssetError, Catalog, Downloader, Kind, Manifest, PackageSpec, Progress, RegistryClients,
+    fetch, AssetError, Catalog, Downloader, Kind, Manifest, PackageSpec, RegistryClients,
 };
+use matseg_image::progress::{Progress, Silent};
 use matseg_weights::fixtures::{legacy, Storage};
 use matseg_weights::zip::write_stored;
 use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
 /// Borrowed (path, bytes) pairs, as the archive fixtures take them.
 fn borrowed<'a>(files: &'a [(&'a str, Vec<u8>)]) -> Vec<(&'a str, &'a [u8])> {
@@ -260,6 +262,34 @@ fn assert_warnings(warnings: &[String], starts: &[&str]) {
     }
 }
 
+/// Progress that records each report as a line.
+#[derive(Default)]
+struct Events(Mutex<Vec<String>>);
+
+impl Events {
+    fn push(&self, event: String) {
+        self.0.lock().unwrap().push(event);
+    }
+}
+
+impl Progress for Events {
+    fn start(&self, total: u64, what: &str) {
+        self.push(format!("start {total} {what}"));
+    }
+    fn advance(&self) {
+        self.push("advance".into());
+    }
+    fn status(&self, message: &str) {
+        self.push(format!("status {message}"));
+    }
+    fn finish(&self) {
+        self.push("finish".into());
+    }
+    fn warn(&self, message: &str) {
+        self.push(format!("warn {message}"));
+    }
+}
+
 fn licence_list(dir: &Path) -> BTreeMap<String, String> {
     serde_json::from_slice(&std::fs::read(dir.join("licenses.json")).unwrap()).unwrap()
 }
@@ -270,18 +300,8 @@ fn fetch_builds_the_corpus_with_licences_and_a_catalogue() {
     let layout = CacheLayout::new(cache.path());
     let manifest = Manifest::parse(MANIFEST, "test manifest").unwrap();
     let downloader = fixtures(cache.path());
-    let mut events = Vec::new();
-    let report = fetch(&manifest, &[], false, &layout, &downloader, &mut |p| {
-        events.push(match p {
-            Progress::Start { name, .. } => format!("start {name}"),
-            Progress::Unpacking { name, bytes } => {
-                let served = downloader.files[name].1.len() as u64;
-                format!("unpack {name} {}", bytes > 0 && bytes == served)
-            }
-            Progress::Done => "done".into(),
-        })
-    })
-    .unwrap();
+    let events = Events::default();
+    let report = fetch(&manifest, &[], false, &layout, &downloader, &events).unwrap();
     assert!(report.failed.is_empty(), "{:?}", report.failed);
     let names = [
         "wallpapers",
@@ -290,17 +310,19 @@ fn fetch_builds_the_corpus_with_licences_and_a_catalogue() {
         "shapes",
         "net-weights",
     ];
-    let want: Vec<String> = names
-        .iter()
-        .flat_map(|n| {
-            [
-                format!("start {n}"),
-                format!("unpack {n} true"),
-                "done".into(),
-            ]
-        })
+    let per_package = names.iter().flat_map(|n| {
+        let mb = (downloader.files[*n].1.len() as u64).div_ceil(1 << 20);
+        [
+            format!("status {n}"),
+            format!("status {n}: unpacking {mb} MB"),
+            "advance".into(),
+        ]
+    });
+    let want: Vec<String> = std::iter::once("start 5 packages".to_string())
+        .chain(per_package)
+        .chain(["finish".to_string()])
         .collect();
-    assert_eq!(events, want);
+    assert_eq!(*events.0.lock().unwrap(), want);
 
     let catalog = Catalog::read(&layout.corpus).unwrap();
     let rows: Vec<(&str, &str, &str, &str)> = catalog
@@ -445,7 +467,7 @@ fn fetch_builds_the_corpus_with_licences_and_a_catalogue() {
     );
 
     // Fetching again downloads nothing and leaves the same catalogue.
-    let again = fetch(&manifest, &[], false, &layout, &downloader, &mut |_| {}).unwrap();
+    let again = fetch(&manifest, &[], false, &layout, &downloader, &Silent).unwrap();
     assert_eq!(again.already.len(), 5);
     assert_eq!(*downloader.downloads.borrow(), 5);
     assert_eq!(Catalog::read(&layout.corpus).unwrap(), catalog);
@@ -456,7 +478,7 @@ fn fetch_builds_the_corpus_with_licences_and_a_catalogue() {
         true,
         &layout,
         &downloader,
-        &mut |_| {},
+        &Silent,
     )
     .unwrap();
     assert_eq!(
@@ -514,7 +536,7 @@ fn photos_are_checked_for_size_copies_and_benchmark_photos() {
         downloads: RefCell::new(0),
         fail: None,
     };
-    let report = fetch(&manifest, &[], false, &layout, &downloader, &mut |_| {}).unwrap();
+    let report = fetch(&manifest, &[], false, &layout, &downloader, &Silent).unwrap();
     let record = &report.installed[0];
     let kept: Vec<(&str, &serde_json::Value)> = record
         .files
@@ -544,14 +566,14 @@ fn photos_are_checked_for_size_copies_and_benchmark_photos() {
     assert_eq!((leaves.width(), leaves.height()), (320, 220));
 
     // The same manifest again: nothing to do; a changed entry: installed again.
-    let again = fetch(&manifest, &[], false, &layout, &downloader, &mut |_| {}).unwrap();
+    let again = fetch(&manifest, &[], false, &layout, &downloader, &Silent).unwrap();
     assert_eq!((again.already.len(), again.installed.len()), (1, 0));
     let changed = Manifest::parse(
         &PHOTO_MANIFEST.replace("CC0-1.0", "CC-BY-4.0"),
         "test manifest",
     )
     .unwrap();
-    let again = fetch(&changed, &[], false, &layout, &downloader, &mut |_| {}).unwrap();
+    let again = fetch(&changed, &[], false, &layout, &downloader, &Silent).unwrap();
     assert_eq!((again.already.len(), again.installed.len()), (0, 1));
     assert_eq!(again.installed[0].files[0].licence, "CC-BY-4.0");
 }
@@ -577,7 +599,7 @@ fn a_failing_package_is_named_and_the_others_still_land() {
         false,
         &layout,
         &downloader,
-        &mut |_| {},
+        &Silent,
     )
     .unwrap();
     let failed: Vec<&str> = report.failed.iter().map(|(n, _)| n.as_str()).collect();
@@ -698,7 +720,7 @@ fn game_textures_are_streamed_skipped_converted_and_checked() {
         downloads: RefCell::new(0),
         fail: None,
     };
-    let report = fetch(&manifest, &[], false, &layout, &downloader, &mut |_| {}).unwrap();
+    let report = fetch(&manifest, &[], false, &layout, &downloader, &Silent).unwrap();
     assert!(report.failed.is_empty(), "{:?}", report.failed);
 
     let catalog = Catalog::read(&layout.corpus).unwrap();
@@ -772,7 +794,7 @@ fn the_builtin_manifest_fetches_from_the_registries() {
         false,
         &layout,
         &clients,
-        &mut |_| {},
+        &Silent,
     )
     .unwrap();
     assert!(report.failed.is_empty(), "{:?}", report.failed);

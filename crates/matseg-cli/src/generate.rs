@@ -1,12 +1,11 @@
 //! `matseg generate`.
 
 use crate::common::{
-    init_threads, load_recipe, progress_bar, report_skipped, BarProgress, LicenceArgs,
-    SceneKind as Kind,
+    init_threads, load_recipe, report_skipped, BarProgress, LicenceArgs, SceneKind as Kind,
 };
 use anyhow::Result;
 use clap::ValueEnum;
-use matseg_data::{generate_with, Format, GenerateOptions, GenerateReport, JobSlice, SampleMaker};
+use matseg_data::{generate_with, Format, GenerateOptions, JobSlice};
 use matseg_pipeline::files3d::recipe_3d;
 use matseg_pipeline::scenes::{SceneFolders, SceneRecipe, SceneSources};
 use matseg_pipeline::sources::{Defaults, DEFAULT_CACHE_MB};
@@ -155,7 +154,9 @@ pub fn run(args: Args) -> Result<()> {
         &licences,
         &BarProgress::default(),
     )?;
-    let report = sources.with_maker(camera_path.as_ref(), |maker| with_progress(&opts, maker))?;
+    let report = sources.with_maker(camera_path.as_ref(), |maker| {
+        generate_with(&opts, maker, &BarProgress::default())
+    })?;
     report_skipped(&sources);
     let secs = start.elapsed().as_secs_f64();
     eprintln!(
@@ -189,12 +190,4 @@ fn camera_path(args: &Args) -> Result<Option<CameraPath>> {
     path.validate()
         .map_err(|e| anyhow::anyhow!("--frames: {}", e.0))?;
     Ok(Some(path))
-}
-
-/// Writes the dataset with a progress bar.
-fn with_progress(opts: &GenerateOptions, maker: &dyn SampleMaker) -> Result<GenerateReport> {
-    let bar = progress_bar(opts.samples_in_job(), "samples");
-    let report = generate_with(opts, maker, &|k| bar.inc(k))?;
-    bar.finish_and_clear();
-    Ok(report)
 }

@@ -5,6 +5,7 @@ use crate::encode::EncodedSample;
 use crate::folders;
 use crate::maker::{Generator2d, SampleMaker};
 use crate::wds::{shard_path, ShardWriter};
+use matseg_image::progress::Progress;
 use matseg_scene::{Recipe2d, Sources};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -313,18 +314,19 @@ pub fn generate_dataset(
     opts: &GenerateOptions,
     recipe: &Recipe2d,
     sources: Sources<'_>,
-    progress: &(dyn Fn(u64) + Sync),
+    progress: &dyn Progress,
 ) -> Result<GenerateReport, GenerateError> {
     generate_with(opts, &Generator2d { recipe, sources }, progress)
 }
 
 /// Writes the samples of `opts.job`'s slice of the dataset `maker` makes,
-/// skipping complete ones, on the current rayon pool. `progress(k)` is
-/// called as `k` more samples are done (skipped ones included).
+/// skipping complete ones, on the current rayon pool. `progress` is started
+/// with the job's sample count and advanced as samples are done (skipped
+/// ones included).
 pub fn generate_with(
     opts: &GenerateOptions,
     maker: &dyn SampleMaker,
-    progress: &(dyn Fn(u64) + Sync),
+    progress: &dyn Progress,
 ) -> Result<GenerateReport, GenerateError> {
     opts.job.validate()?;
     if opts.format == Format::Wds && opts.shard_size == 0 {
@@ -347,10 +349,13 @@ pub fn generate_with(
             .make(opts.seed, index)
             .map_err(|error| GenerateError::Scene { index, error })
     };
-    match opts.format {
+    progress.start(opts.samples_in_job(), "samples");
+    let report = match opts.format {
         Format::Folders => generate_folders(opts, &make, progress, &mine),
         Format::Wds => generate_shards(opts, &make, progress, &mine),
-    }
+    };
+    progress.finish();
+    report
 }
 
 /// Makes sample `index`.
@@ -359,21 +364,21 @@ type Make<'a> = dyn Fn(u64) -> Result<EncodedSample, GenerateError> + Sync + 'a;
 fn generate_folders(
     opts: &GenerateOptions,
     make: &Make<'_>,
-    progress: &(dyn Fn(u64) + Sync),
+    progress: &dyn Progress,
     mine: &(dyn Fn(u64) -> bool + Sync),
 ) -> Result<GenerateReport, GenerateError> {
     folders::remove_stale_partials(&opts.out, mine).map_err(io_err(&opts.out))?;
     let (done, pending): (Vec<u64>, Vec<u64>) = (0..opts.n)
         .filter(|&i| mine(i))
         .partition(|&i| folders::is_complete(&opts.out, i));
-    progress(done.len() as u64);
+    progress.advance_by(done.len() as u64);
     let bytes = pending
         .par_iter()
         .map(|&index| {
             let sample = make(index)?;
             folders::write_sample(&opts.out, &sample)
                 .map_err(io_err(&folders::sample_dir(&opts.out, index)))?;
-            progress(1);
+            progress.advance();
             Ok::<u64, GenerateError>(sample.bytes() as u64)
         })
         .try_reduce(|| 0, |a, b| Ok(a + b))?;
@@ -387,7 +392,7 @@ fn generate_folders(
 fn generate_shards(
     opts: &GenerateOptions,
     make: &Make<'_>,
-    progress: &(dyn Fn(u64) + Sync),
+    progress: &dyn Progress,
     mine: &(dyn Fn(u64) -> bool + Sync),
 ) -> Result<GenerateReport, GenerateError> {
     let shards = opts.n.div_ceil(opts.shard_size);
@@ -399,7 +404,7 @@ fn generate_shards(
         let path = shard_path(&opts.out, shard);
         if path.is_file() {
             report.skipped += end - start;
-            progress(end - start);
+            progress.advance_by(end - start);
             continue;
         }
         let mut writer = ShardWriter::create(path.clone()).map_err(io_err(&path))?;
@@ -414,7 +419,7 @@ fn generate_shards(
                 writer.append(sample).map_err(io_err(&path))?;
                 report.bytes += sample.bytes() as u64;
             }
-            progress(last - first);
+            progress.advance_by(last - first);
             first = last;
         }
         writer.finish().map_err(io_err(&path))?;

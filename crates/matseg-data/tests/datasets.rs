@@ -4,6 +4,7 @@
 use matseg_data::{
     encode_scene, generate_dataset, sample_rng, Dataset, Format, GenerateOptions, JobSlice,
 };
+use matseg_image::progress::Silent;
 use matseg_image::PhotoLibrary;
 use matseg_scene::{generate_2d, quantise_weights, Recipe2d, Sources};
 use std::collections::BTreeMap;
@@ -48,7 +49,7 @@ fn run(opts: &GenerateOptions, threads: usize) -> matseg_data::GenerateReport {
         .num_threads(threads)
         .build()
         .unwrap();
-    pool.install(|| generate_dataset(opts, &small_recipe(), sources, &|_| {}))
+    pool.install(|| generate_dataset(opts, &small_recipe(), sources, &Silent))
         .unwrap()
 }
 
@@ -113,7 +114,7 @@ fn folders_and_shards_read_back_to_the_generated_scenes() {
     for format in [Format::Folders, Format::Wds] {
         let dir = tempfile::tempdir().unwrap();
         let opts = options(dir.path(), 5, format, JobSlice::ALL);
-        generate_dataset(&opts, &recipe, sources, &|_| {}).unwrap();
+        generate_dataset(&opts, &recipe, sources, &Silent).unwrap();
         let ds = Dataset::open(dir.path()).unwrap();
         assert_eq!(ds.len(), 5);
         for i in 0..5u64 {
@@ -216,7 +217,7 @@ fn other_settings_in_the_same_folder_are_refused() {
     };
     let mut opts = options(dir.path(), 2, Format::Folders, JobSlice::ALL);
     opts.seed = 43;
-    let err = generate_dataset(&opts, &small_recipe(), sources, &|_| {})
+    let err = generate_dataset(&opts, &small_recipe(), sources, &Silent)
         .unwrap_err()
         .to_string();
     assert!(
@@ -230,7 +231,7 @@ fn other_settings_in_the_same_folder_are_refused() {
         Format::Folders,
         JobSlice { count: 2, index: 2 },
     );
-    let err = generate_dataset(&opts, &small_recipe(), sources, &|_| {})
+    let err = generate_dataset(&opts, &small_recipe(), sources, &Silent)
         .unwrap_err()
         .to_string();
     assert_eq!(err, "shard index 2 is not below the number of shards 2");

@@ -3,7 +3,8 @@
 //! threshold ramps, Gaussian blur, mip-pyramid resampling, image I/O and the
 //! bounded, decode-once photo library every generator draws from; per-pixel
 //! descriptor maps (the interface every model, trained or not, implements)
-//! and the CIE L*a*b* conversion; photo fingerprints.
+//! and the CIE L*a*b* conversion; photo fingerprints; the progress
+//! reports of long jobs.
 
 #![warn(missing_docs)]
 
@@ -23,6 +24,7 @@ pub mod library;
 pub mod licence;
 pub mod mirrors;
 pub mod plane;
+pub mod progress;
 pub mod ramp;
 pub mod resample;
 pub mod rgb;

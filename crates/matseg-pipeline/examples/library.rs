@@ -3,7 +3,7 @@
 //! `cargo run --release -p matseg-pipeline --features net --example library -- OUT`
 
 use matseg_data::{generate_dataset, GenerateOptions};
-use matseg_image::{io::read_rgb, LicenceFilter};
+use matseg_image::{io::read_rgb, progress::Silent, LicenceFilter};
 use matseg_pipeline::segment::{describe, write_point_maps, Model, DEFAULT_RADIUS};
 use matseg_pipeline::sources::{assets_dir, Defaults, Libraries};
 use matseg_pipeline::train::{start, TrainConfig, TrainData, TrainInputs};
@@ -16,7 +16,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // 10 synthetic scenes with exact soft annotations.
     let data = out.join("data");
     let scenes = GenerateOptions::folders(&data, 10, 0);
-    generate_dataset(&scenes, &Recipe2d::default(), libraries.sources(), &|_| {})?;
+    generate_dataset(&scenes, &Recipe2d::default(), libraries.sources(), &Silent)?;
     // A net trained on them for 5 steps (from scratch: nothing to fetch).
     let config = TrainConfig::new(out.join("run"), TrainData::Dataset(data));
     let config = TrainConfig {

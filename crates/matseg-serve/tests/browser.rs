@@ -18,6 +18,7 @@ mod ffmpeg;
 use cdp::{Browser, ALT, SHIFT};
 use ffmpeg::run_ffmpeg;
 use matseg_data::{generate_dataset, GenerateOptions};
+use matseg_image::progress::Silent;
 use matseg_image::LicenceFilter;
 use matseg_pipeline::sources::{assets_dir, Defaults, Libraries};
 use matseg_scene::{Recipe2d, PALETTE};
@@ -85,7 +86,7 @@ fn every_page_works_in_a_real_browser() {
     )
     .unwrap();
     let scenes = GenerateOptions::folders(data.path(), 12, 0);
-    generate_dataset(&scenes, &Recipe2d::default(), libraries.sources(), &|_| {}).unwrap();
+    generate_dataset(&scenes, &Recipe2d::default(), libraries.sources(), &Silent).unwrap();
     let bench = tempfile::tempdir().unwrap();
     std::fs::create_dir(bench.path().join("images")).unwrap();
     for name in ["coffee.jpg", "chelsea.jpg"] {

@@ -4,6 +4,7 @@
 
 use super::clock::{process_cpu_seconds, Clock};
 use crate::error::PipelineError;
+use crate::progress::Silent;
 use crate::sources::Libraries;
 use matseg_data::{encode_scene, generate_dataset, sample_rng, Format, GenerateOptions, JobSlice};
 use matseg_extract::make_soft_maps;
@@ -200,7 +201,7 @@ impl GeneratorBench {
                 .build()
                 .map_err(|e| PipelineError::Settings(format!("threads {t}: {e}")))?;
             let start = Clock::now();
-            let written = pool.install(|| generate_dataset(&opts, &recipe, sources, &|_| {}));
+            let written = pool.install(|| generate_dataset(&opts, &recipe, sources, &Silent));
             let (wall, cpu) = start.elapsed(t);
             let _ = std::fs::remove_dir_all(&dir);
             rows.push(BenchRow {

@@ -77,11 +77,7 @@ pub fn run(options: &DemoOptions, progress: &dyn Progress) -> Result<DemoReport,
         shard_size: 1,
         job: JobSlice::ALL,
     };
-    progress.start(options.samples_2d, "2D samples");
-    generate_dataset(&opts, &Recipe2d::default(), libs.sources(), &|k| {
-        (0..k).for_each(|_| progress.advance())
-    })?;
-    progress.finish();
+    generate_dataset(&opts, &Recipe2d::default(), libs.sources(), progress)?;
     for s in libs
         .skipped_at_scan()
         .iter()

@@ -45,15 +45,13 @@ pub fn scenes_page(
         shard_size: 1,
         job: JobSlice::ALL,
     };
-    progress.start(n, "3D samples");
     let maker = Generator3d {
         recipe: &recipe,
         sources: files.sources(),
         cache: &cache,
         path: None,
     };
-    generate_with(&opts, &maker, &|k| (0..k).for_each(|_| progress.advance()))?;
-    progress.finish();
+    generate_with(&opts, &maker, progress)?;
     let dataset = Dataset::open(&samples)?;
     let cards = sample_cards(&dataset, out, "samples-3d", "samples-3d_", |meta| {
         let scene = &meta["scene"];
