@@ -5,6 +5,7 @@ use crate::errors::matseg_error;
 use crate::samples::f32_bytes;
 use image::RgbImage;
 use matseg_eval::ClusterOptions;
+use matseg_image::device::ComputeDevice;
 use matseg_image::tracking::TrackOptions;
 use matseg_net::infer::resolve_model as resolve;
 use matseg_net::infer::NetModel;
@@ -15,7 +16,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 use std::path::{Path, PathBuf};
 use std::sync::{Mutex, MutexGuard};
-use tch::{Device, Tensor};
+use tch::Tensor;
 
 /// The folder or weights file a model name stands for (`default`: the
 /// shipped model).
@@ -148,7 +149,7 @@ pub fn score_points(
     use matseg_pipeline::train::point_score;
     py.detach(|| {
         let points = load_point_benchmark(&bench, false).map_err(|e| e.to_string())?;
-        let net = TrainedNet::load(&model, Device::Cpu).map_err(|e| e.to_string())?;
+        let net = TrainedNet::load(&model, ComputeDevice::Cpu).map_err(|e| e.to_string())?;
         point_score(net, &points, max_side).map_err(|e| format!("{}: {e}", bench.display()))
     })
     .map_err(matseg_error)
@@ -205,7 +206,7 @@ impl PyModel {
     #[new]
     fn new(py: Python<'_>, name: PathBuf) -> PyResult<Self> {
         let net = py
-            .detach(|| NetModel::load(Path::new(&name), Device::Cpu))
+            .detach(|| NetModel::load(Path::new(&name), ComputeDevice::Cpu))
             .map_err(matseg_error)?;
         Ok(Self { net })
     }

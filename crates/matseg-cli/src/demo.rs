@@ -28,11 +28,18 @@ pub struct Args {
     #[arg(long)]
     threads: Option<usize>,
     /// Steps of the demo's training demonstration (0: none; the net page
-    /// still shows the shipped model).
-    #[cfg(feature = "net")]
-    #[arg(long, default_value_t = 150)]
+    /// still shows the shipped model). A build without the net has no net
+    /// page and takes only 0.
+    #[arg(long, default_value_t = DEFAULT_TRAIN_STEPS)]
     train_steps: u64,
 }
+
+/// Training steps of the demo's net page by default (none without the net).
+#[cfg(feature = "net")]
+const DEFAULT_TRAIN_STEPS: u64 = 150;
+/// Training steps of the demo's net page by default (none without the net).
+#[cfg(not(feature = "net"))]
+const DEFAULT_TRAIN_STEPS: u64 = 0;
 
 /// Runs `matseg demo`: generates samples from the bundled assets and writes the HTML report.
 pub fn run(args: Args) -> Result<()> {
@@ -43,7 +50,6 @@ pub fn run(args: Args) -> Result<()> {
         samples_3d: args.samples_3d,
         size_3d: args.size_3d,
         seed: args.seed,
-        #[cfg(feature = "net")]
         train_steps: args.train_steps,
     };
     let report = run_demo(&options, &BarProgress::default())?;

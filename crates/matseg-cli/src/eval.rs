@@ -32,18 +32,15 @@ pub struct ModelArgs {
     /// Trained nets to score: `default` (the shipped model), run folders
     /// of `matseg train` or their weights files (model.safetensors,
     /// best.safetensors), or `none`; repeatable.
-    #[cfg(feature = "net")]
-    #[arg(long = "model", num_args = 1.., default_value = "default")]
+    #[arg(long = "model", num_args = 1.., default_value = crate::net_args::DEFAULT_NETS)]
     nets: Vec<PathBuf>,
     /// Describe photos with the nets at this longer side at most (photos
     /// are scored at --max-side all the same), instead of each run's own
     /// setting (its run.json's inference_side); several sides (`320,256`)
     /// average the descriptors of each.
-    #[cfg(feature = "net")]
     #[arg(long, value_name = "PIXELS", value_delimiter = ',')]
     net_side: Vec<u32>,
-    /// Device the nets run on: cpu or cuda.
-    #[cfg(feature = "net")]
+    /// Device the nets run on: cpu, cuda or cuda:N.
     #[arg(long, default_value = "cpu")]
     device: String,
     /// Longer side of the evaluated images, in pixels (0: as they are).
@@ -109,11 +106,8 @@ pub fn run(command: Command) -> Result<()> {
 fn models(args: &ModelArgs) -> Result<Vec<Box<dyn DescriptorModel>>> {
     let choice = ModelChoice {
         baselines: args.baselines.clone(),
-        #[cfg(feature = "net")]
         nets: args.nets.clone(),
-        #[cfg(feature = "net")]
         net_sides: args.net_side.clone(),
-        #[cfg(feature = "net")]
         device: crate::net_args::parse_device(&args.device)?,
     };
     Ok(matseg_pipeline::models::models(&choice)?)

@@ -71,7 +71,7 @@ pub struct Args {
     /// The share of samples augmented (flips, blur, brightness, greyscale, noise).
     #[arg(long, default_value_t = 0.5)]
     augment: f64,
-    /// cpu or cuda.
+    /// cpu, cuda or cuda:N.
     #[arg(long, default_value = "cpu")]
     device: String,
     /// Threads making the scenes while the encoder runs (the cache is the

@@ -19,7 +19,6 @@ mod eval;
 mod features;
 mod generate;
 mod maps;
-#[cfg(feature = "net")]
 mod net_args;
 mod pbr;
 mod pbr_mix;

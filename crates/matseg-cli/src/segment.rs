@@ -35,7 +35,7 @@ pub struct Args {
     /// Radius of each point's disc in pixels.
     #[arg(long, default_value_t = DEFAULT_RADIUS)]
     radius: f32,
-    /// cpu or cuda.
+    /// cpu, cuda or cuda:N.
     #[arg(long, default_value = "cpu")]
     device: String,
     /// Output folder.

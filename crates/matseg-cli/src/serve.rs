@@ -33,7 +33,7 @@ pub struct Args {
     /// Bound on the described photos kept in memory, in MiB.
     #[arg(long, default_value_t = 1024)]
     cache_mb: usize,
-    /// cpu or cuda.
+    /// cpu, cuda or cuda:N.
     #[arg(long, default_value = "cpu")]
     device: String,
     /// Announce the address as one JSON line, `{"address": "HOST:PORT",

@@ -39,7 +39,7 @@ pub struct Args {
     /// Write the overlay as an animated PNG preview even where ffmpeg could encode an MP4.
     #[arg(long)]
     preview: bool,
-    /// cpu or cuda.
+    /// cpu, cuda or cuda:N.
     #[arg(long, default_value = "cpu")]
     device: String,
     /// Output folder (replaced when it holds an earlier track output).
@@ -132,7 +132,7 @@ pub struct EvalArgs {
     side: u32,
     #[command(flatten)]
     tracker: TrackerArgs,
-    /// cpu or cuda.
+    /// cpu, cuda or cuda:N.
     #[arg(long, default_value = "cpu")]
     device: String,
     /// Print JSON (stable field names, every query's per-frame IoUs) instead of a table.

@@ -70,7 +70,7 @@ pub struct Args {
     /// given (which must be the same encoder). Default: imagenet.
     #[arg(long)]
     init: Option<String>,
-    /// cpu or cuda.
+    /// cpu, cuda or cuda:N.
     #[arg(long, default_value = "cpu")]
     device: String,
     /// Steps (batches) in all.

@@ -299,26 +299,40 @@ fn demo_writes_a_page_showing_each_sample_and_its_annotation() {
     let dir = tempfile::tempdir().unwrap();
     // The demo's `--init imagenet` finds the weights in MATSEG_CACHE.
     let cache = dir.path().join("cache");
-    import_imagenet_mobilenet_v2(&cache.join("weights/mobilenet-v2.safetensors"));
     let out = dir.path().join("demo");
-    let demo = Command::new(env!("CARGO_BIN_EXE_matseg"))
-        .args(["demo", "--out", out.to_str().unwrap(), "-n", "2"])
-        .args(["--train-steps", "2", "--samples-3d", "1", "--size-3d", "32"])
-        .env("MATSEG_CACHE", &cache)
-        .output()
-        .unwrap();
-    assert!(demo.status.success(), "{}", stderr(&demo));
-    let net = std::fs::read_to_string(out.join("net.html")).unwrap();
-    let mut images = 0;
-    for src in net.split("src=\"").skip(1) {
-        let src = &src[..src.find('"').unwrap()];
-        assert!(out.join(src).is_file(), "{src} missing");
-        images += 1;
+    let mut demo = Command::new(env!("CARGO_BIN_EXE_matseg"));
+    demo.args(["demo", "--out", out.to_str().unwrap(), "-n", "2"])
+        .args(["--samples-3d", "1", "--size-3d", "32"])
+        .env("MATSEG_CACHE", &cache);
+    if cfg!(feature = "net") {
+        import_imagenet_mobilenet_v2(&cache.join("weights/mobilenet-v2.safetensors"));
+        demo.args(["--train-steps", "2"]);
+    } else {
+        // A build without the net has no training demonstration.
+        let refused = matseg(&["demo", "--out", out.to_str().unwrap(), "--train-steps", "2"]);
+        assert_one_line_error(
+            &refused,
+            "--train-steps 2: this matseg was built without the net (cargo feature `net`)",
+        );
+        assert!(!out.exists(), "a refused demo writes nothing");
     }
-    // The shipped model's 13 points and 2 segmentations for each of 4
-    // photos, then the training demonstration's loss plot and the same.
-    assert!(net.contains("The shipped model") && net.contains("A training demonstration"));
-    assert_eq!(images, (13 + 2 * 4) + 1 + (13 + 2 * 4));
+    let demo = demo.output().unwrap();
+    assert!(demo.status.success(), "{}", stderr(&demo));
+    if cfg!(feature = "net") {
+        let net = std::fs::read_to_string(out.join("net.html")).unwrap();
+        let mut images = 0;
+        for src in net.split("src=\"").skip(1) {
+            let src = &src[..src.find('"').unwrap()];
+            assert!(out.join(src).is_file(), "{src} missing");
+            images += 1;
+        }
+        // The shipped model's 13 points and 2 segmentations for each of 4
+        // photos, then the training demonstration's loss plot and the same.
+        assert!(net.contains("The shipped model") && net.contains("A training demonstration"));
+        assert_eq!(images, (13 + 2 * 4) + 1 + (13 + 2 * 4));
+    } else {
+        assert!(!out.join("net.html").exists());
+    }
     let dir = out;
     let html = std::fs::read_to_string(dir.join("index.html")).unwrap();
     for key in ["00000000", "00000001"] {
@@ -388,6 +402,15 @@ fn a_synthetic_point_benchmark_evaluates_to_stable_json() {
         models[0]["images"].as_array().unwrap().len() as u64,
         models[0]["counts"]["images"].as_u64().unwrap()
     );
+    if !cfg!(feature = "net") {
+        // A build without the net scores baselines alone and says why a
+        // named net is refused.
+        let refused = matseg(&["eval", "points", bench, "--model", "default"]);
+        assert_one_line_error(
+            &refused,
+            "--model default: this matseg was built without the net (cargo feature `net`)",
+        );
+    }
 }
 
 #[test]
@@ -614,6 +637,7 @@ fn pbr_mixes_are_written_once_and_need_two_materials() {
     assert_one_line_error(&out, "at least two material folders");
 }
 
+#[cfg(feature = "net")]
 #[test]
 fn segment_refuses_points_outside_the_photo_and_missing_runs() {
     let dir = tempfile::tempdir().unwrap();
@@ -639,6 +663,7 @@ fn segment_refuses_points_outside_the_photo_and_missing_runs() {
     assert!(!out.exists(), "no output may be left behind");
 }
 
+#[cfg(feature = "net")]
 #[test]
 fn train_refuses_held_runs_unknown_encoders_and_devices() {
     let dir = tempfile::tempdir().unwrap();
@@ -667,9 +692,10 @@ fn train_refuses_held_runs_unknown_encoders_and_devices() {
         "--device cuda: this matseg was built without CUDA; build it with `--features cuda` (docs/gpu.md)",
     );
     let other = matseg(&["bench-net", "--device", "tpu"]);
-    assert_one_line_error(&other, "--device tpu: expected cpu or cuda");
+    assert_one_line_error(&other, "--device tpu: expected cpu, cuda or cuda:N");
 }
 
+#[cfg(feature = "net")]
 /// `matseg features` of 6 online scenes of the bundled assets at 64 px
 /// into `out`, with `extra` arguments.
 fn cache_features(out: &Path, extra: &[&str]) -> Output {
@@ -697,6 +723,7 @@ fn cache_features(out: &Path, extra: &[&str]) -> Output {
     matseg(&args)
 }
 
+#[cfg(feature = "net")]
 #[test]
 fn a_feature_cache_trains_resumes_and_refuses_other_encoders_and_caches() {
     let dir = tempfile::tempdir().unwrap();
@@ -846,6 +873,7 @@ fn grey_values(path: &Path) -> image::GrayImage {
     image::open(path).unwrap().to_luma8()
 }
 
+#[cfg(feature = "net")]
 #[test]
 fn a_trained_run_segments_photos_and_scores_on_a_point_benchmark() {
     let dir = tempfile::tempdir().unwrap();
@@ -963,6 +991,7 @@ fn a_trained_run_segments_photos_and_scores_on_a_point_benchmark() {
     assert!(!one.status.success() && stderr(&one).contains("--auto"));
 }
 
+#[cfg(feature = "net")]
 #[test]
 fn bench_net_reports_one_batch_and_refuses_odd_sides() {
     let out = matseg_ok(&[
@@ -1299,6 +1328,7 @@ fn generators_default_to_the_fetched_corpus_and_filter_its_licences() {
     assert_eq!(files, ["pkg/free.jpg"]);
 }
 
+#[cfg(feature = "net")]
 #[test]
 fn bench_serve_clicks_a_served_photo_without_errors() {
     let out = matseg_ok(&[
@@ -1334,6 +1364,7 @@ fn bench_serve_clicks_a_served_photo_without_errors() {
     assert_one_line_error(&zero, "must be positive");
 }
 
+#[cfg(feature = "net")]
 #[test]
 fn serve_refuses_an_open_address_without_a_token_and_a_bench_without_images() {
     let open = matseg(&["serve", "--host", "0.0.0.0", "--port", "0"]);

@@ -4,6 +4,8 @@
 //! Videos are made and read with the ffmpeg that scripts/ffmpeg-env.sh
 //! installs (as .ci/run does).
 
+#![cfg(feature = "net")]
+
 mod common;
 
 use common::*;

@@ -4,7 +4,7 @@
 //! bounded, decode-once photo library every generator draws from; per-pixel
 //! descriptor maps (the interface every model, trained or not, implements)
 //! and the CIE L*a*b* conversion; photo fingerprints; the progress
-//! reports of long jobs.
+//! reports of long jobs and the device a model runs on.
 
 #![warn(missing_docs)]
 
@@ -16,6 +16,7 @@ pub mod channel_rows;
 pub mod coarse;
 pub mod coverage;
 pub mod descriptor;
+pub mod device;
 pub mod fingerprint;
 pub mod io;
 pub mod lab;

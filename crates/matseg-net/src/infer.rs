@@ -6,11 +6,12 @@ use crate::blocks::nearest_multiple_of_32;
 use crate::net::{normalise_input, rgb8_to_tensor, MaterialNet};
 use crate::train::{read_run_config, Trainer, MODEL_FILE, RUN_FILE};
 use crate::weights::load_tensors;
-use crate::NetError;
+use crate::{torch_device, NetError};
 use image::imageops::FilterType;
 use image::RgbImage;
 use matseg_image::coarse::CoarseDescriptors;
 use matseg_image::descriptor::{Comparison, DescriptorMap, DescriptorModel};
+use matseg_image::device::ComputeDevice;
 use std::path::{Path, PathBuf};
 use std::sync::{Mutex, MutexGuard, PoisonError};
 use tch::{nn, Device, Tensor};
@@ -82,8 +83,8 @@ fn net_size(width: u32, height: u32, side: Option<u32>) -> (u32, u32) {
 impl TrainedNet {
     /// Loads `model`: a run folder, a weights file (`model.safetensors`,
     /// `best.safetensors`, in 32- or 16-bit floats) with the run's
-    /// `run.json` beside it, or [`DEFAULT_MODEL`].
-    pub fn load(model: &Path, device: Device) -> Result<Self, NetError> {
+    /// `run.json` beside it, or [`DEFAULT_MODEL`], onto `device`.
+    pub fn load(model: &Path, device: ComputeDevice) -> Result<Self, NetError> {
         let model = &resolve_model(model)?;
         let (dir, weights) = run_files(model);
         if !dir.join(RUN_FILE).is_file() {
@@ -93,7 +94,7 @@ impl TrainedNet {
             });
         }
         let config = read_run_config(dir)?;
-        let vs = nn::VarStore::new(device);
+        let vs = nn::VarStore::new(torch_device(device));
         let net = MaterialNet::new(&vs.root(), config.net);
         let saved = Tensor::read_safetensors(&weights).map_err(|source| NetError::Torch {
             file: weights.display().to_string(),
@@ -329,7 +330,7 @@ pub type NetModel = TorchModel<TrainedNet>;
 impl NetModel {
     /// Loads `model` as [`TrainedNet::load`] does, named after its run
     /// folder (`default` for the shipped model).
-    pub fn load(model: &Path, device: Device) -> Result<Self, NetError> {
+    pub fn load(model: &Path, device: ComputeDevice) -> Result<Self, NetError> {
         if model == Path::new(DEFAULT_MODEL) {
             return Ok(Self::new(DEFAULT_MODEL, TrainedNet::load(model, device)?));
         }

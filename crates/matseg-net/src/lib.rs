@@ -38,6 +38,16 @@ pub use mobilenet_v2::{MobileNetV2, MobileNetV2Classifier};
 pub use net::{normalise_input, rgb8_to_tensor, MaterialNet, NetConfig, PRESETS};
 pub use weights::{load_named, load_net_adding};
 
+use matseg_image::device::ComputeDevice;
+
+/// The libtorch device of `device`.
+pub fn torch_device(device: ComputeDevice) -> tch::Device {
+    match device {
+        ComputeDevice::Cpu => tch::Device::Cpu,
+        ComputeDevice::Cuda(index) => tch::Device::Cuda(index),
+    }
+}
+
 /// Errors of the net crate: each names the file involved.
 #[derive(Debug, thiserror::Error)]
 pub enum NetError {

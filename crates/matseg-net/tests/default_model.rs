@@ -3,9 +3,9 @@
 //! one material are more alike than points on two materials.
 
 use matseg_image::descriptor::{Comparison, DescriptorModel};
+use matseg_image::device::ComputeDevice;
 use matseg_net::infer::{default_model_dir, NetModel, DEFAULT_MODEL};
 use std::path::Path;
-use tch::Device;
 
 #[test]
 fn the_default_model_separates_the_materials_of_a_bundled_photo() {
@@ -13,7 +13,7 @@ fn the_default_model_separates_the_materials_of_a_bundled_photo() {
         default_model_dir().is_some(),
         "models/default is missing from the checkout"
     );
-    let model = NetModel::load(Path::new(DEFAULT_MODEL), Device::Cpu).unwrap();
+    let model = NetModel::load(Path::new(DEFAULT_MODEL), ComputeDevice::Cpu).unwrap();
     assert_eq!(model.name(), "default");
     let photo =
         image::open(Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/photos/coffee.jpg"))

@@ -5,6 +5,7 @@
 mod common;
 
 use matseg_image::descriptor::Comparison;
+use matseg_image::device::ComputeDevice;
 use matseg_net::colour::COLOUR_PART;
 use matseg_net::data::{batch_samples, BatchPlan, GeneratorSource};
 use matseg_net::infer::{PixelDescriptors, TrainedNet};
@@ -213,7 +214,7 @@ fn a_snapshot_describes_like_the_saved_model() {
     let live = TrainedNet::snapshot(&trainer)
         .unwrap()
         .descriptor_map(&photo());
-    let saved = TrainedNet::load(dir.path(), Device::Cpu)
+    let saved = TrainedNet::load(dir.path(), ComputeDevice::Cpu)
         .unwrap()
         .descriptor_map(&photo());
     assert_eq!((live.width, live.height, live.dim), (64, 48, 8));

@@ -3,12 +3,11 @@
 //! `cargo run --release -p matseg-pipeline --features net --example library -- OUT`
 
 use matseg_data::{generate_dataset, GenerateOptions};
-use matseg_image::{io::read_rgb, progress::Silent, LicenceFilter};
+use matseg_image::{device::ComputeDevice, io::read_rgb, progress::Silent, LicenceFilter};
 use matseg_pipeline::segment::{describe, write_point_maps, Model, DEFAULT_RADIUS};
 use matseg_pipeline::sources::{assets_dir, Defaults, Libraries};
 use matseg_pipeline::train::{start, TrainConfig, TrainData, TrainInputs};
 use matseg_scene::Recipe2d;
-use tch::Device;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let out = std::path::PathBuf::from(std::env::args().nth(1).unwrap_or("library-out".into()));
@@ -24,12 +23,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         init: "scratch".into(),
         ..config
     };
-    let mut run = start(&config, Device::Cpu)?;
+    let mut run = start(&config, ComputeDevice::Cpu)?;
     run.train(&TrainInputs::new(&libraries), |m| {
         println!("step {}: loss {:?}", m.step, m.loss)
     })?;
     // Where else in the photo is the material under this point?
-    let model = Model::load(&run.model_file(), Device::Cpu)?;
+    let model = Model::load(&run.model_file(), ComputeDevice::Cpu)?;
     let photo = read_rgb(&assets_dir().join("photos/coffee.jpg"))?;
     let map = describe(&model, &photo);
     write_point_maps(

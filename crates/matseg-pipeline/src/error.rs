@@ -7,6 +7,10 @@ use matseg_eval::BenchError;
 use matseg_extract::material_library::MaterialError;
 use matseg_image::ImageIoError;
 
+/// Why a setting that needs the net is refused in a build without it.
+#[cfg(not(feature = "net"))]
+pub const NO_NET: &str = "this matseg was built without the net (cargo feature `net`)";
+
 /// Why a pipeline job failed.
 #[derive(Debug, thiserror::Error)]
 pub enum PipelineError {

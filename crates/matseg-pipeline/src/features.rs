@@ -11,19 +11,21 @@ use crate::train::{dataset_source, MixIn, TrainData, ONLINE};
 use crate::weights::{imagenet_weights, read_weights};
 use matseg_data::generate::sources_fingerprint;
 use matseg_data::wds::shard_path;
+use matseg_image::device::ComputeDevice;
 use matseg_net::data::{cached_view, GeneratorSource, MixedSource, SampleSource, Zoom};
 use matseg_net::features::{
     encode_samples, encoder_digest, CacheManifest, CacheWriter, CACHE_FORMAT, CACHE_VERSION,
 };
 use matseg_net::infer::{resolve_model, TrainedNet};
 use matseg_net::loader::BatchLoader;
+use matseg_net::torch_device;
 use matseg_net::train::Mix;
 use matseg_net::{load_named, MaterialNet, NetConfig};
 use matseg_scene::Recipe2d;
 use matseg_weights::Arch;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use tch::{nn, Device};
+use tch::nn;
 
 /// Everything a cache is made from; [`FeaturesConfig::new`] gives the
 /// defaults of `matseg features`.
@@ -143,10 +145,10 @@ const ENCODE_BATCH: u64 = 8;
 /// ([`FeaturesConfig::model`]), and how it is named in the manifest.
 pub fn encoder_net(
     model: &str,
-    device: Device,
+    device: ComputeDevice,
 ) -> Result<(nn::VarStore, MaterialNet, String), PipelineError> {
     if model == "imagenet" {
-        let vs = nn::VarStore::new(device);
+        let vs = nn::VarStore::new(torch_device(device));
         let config = NetConfig::preset("mobilenet-v2").expect("a preset");
         let net = MaterialNet::new(&vs.root(), config);
         let path = imagenet_weights(Arch::MobilenetV2, None)?.path;
@@ -155,7 +157,7 @@ pub fn encoder_net(
         return Ok((vs, net, model.to_string()));
     }
     let trained = TrainedNet::load(Path::new(model), device)?;
-    let mut vs = nn::VarStore::new(device);
+    let mut vs = nn::VarStore::new(torch_device(device));
     let net = MaterialNet::new(&vs.root(), trained.net().config);
     vs.copy(trained.vs())
         .map_err(|source| matseg_net::NetError::Torch {
@@ -177,7 +179,7 @@ pub fn encoder_net(
 pub fn make_features(
     config: &FeaturesConfig,
     libraries: &Libraries,
-    device: Device,
+    device: ComputeDevice,
     loader_threads: usize,
     progress: &dyn Progress,
 ) -> Result<FeaturesReport, PipelineError> {
@@ -274,10 +276,8 @@ pub fn make_features(
                 let chunk = next_chunk;
                 next_chunk += 1;
                 let batch = loader.batch(chunk);
-                let samples = batch.map(|fitted| encode_samples(&net, &fitted, device));
-                for _ in 0..(chunks[chunk as usize].1 - chunks[chunk as usize].0) {
-                    progress.advance();
-                }
+                let samples = batch.map(|fitted| encode_samples(&net, &fitted, vs.device()));
+                progress.advance_by(chunks[chunk as usize].1 - chunks[chunk as usize].0);
                 match samples {
                     Ok(samples) => samples.into_iter().map(Ok).collect::<Vec<_>>(),
                     Err(e) => vec![Err(e)],

@@ -69,6 +69,7 @@ pub mod track;
 pub mod track_bench;
 #[cfg(feature = "net")]
 pub mod train;
+pub mod train_summary;
 pub mod weights;
 
 pub use matseg_image::progress;

@@ -5,7 +5,7 @@
 use crate::error::PipelineError;
 use matseg_eval::baselines::{baseline, BASELINES};
 use matseg_image::descriptor::DescriptorModel;
-#[cfg(feature = "net")]
+use matseg_image::device::ComputeDevice;
 use std::path::PathBuf;
 
 /// Which models to build.
@@ -14,16 +14,14 @@ pub struct ModelChoice {
     /// Baselines by name (see [`known_baselines`]; `all` for every one).
     pub baselines: Vec<String>,
     /// Trained nets: `default` (the shipped model), run folders or weights
-    /// files; `none` stands for no net.
-    #[cfg(feature = "net")]
+    /// files; `none` stands for no net. A build without the net refuses
+    /// any other.
     pub nets: Vec<PathBuf>,
     /// Longer sides the nets describe photos at instead of their runs' own
     /// setting (empty: their own); several sides average the descriptors.
-    #[cfg(feature = "net")]
     pub net_sides: Vec<u32>,
     /// The device the nets and the ImageNet baseline run on.
-    #[cfg(feature = "net")]
-    pub device: tch::Device,
+    pub device: ComputeDevice,
 }
 
 /// Baseline names, in table order: the colour and texture statistics, then
@@ -41,9 +39,7 @@ const NET_BASELINES: &[&str] = &[];
 /// The chosen baselines (in table order), then the nets (each named after
 /// its run folder); at least one model.
 pub fn models(choice: &ModelChoice) -> Result<Vec<Box<dyn DescriptorModel>>, PipelineError> {
-    #[allow(unused_mut)]
     let mut models = baselines(choice)?;
-    #[cfg(feature = "net")]
     models.extend(nets(choice)?);
     if models.is_empty() {
         return Err(PipelineError::Settings(
@@ -86,14 +82,16 @@ pub fn baselines(choice: &ModelChoice) -> Result<Vec<Box<dyn DescriptorModel>>, 
 /// registry's weights (fetched into the cache the first time).
 #[cfg(feature = "net")]
 pub fn imagenet_baseline(
-    device: tch::Device,
+    device: ComputeDevice,
 ) -> Result<matseg_net::imagenet::ImagenetBaseline, PipelineError> {
     use matseg_net::imagenet::{ImagenetBaseline, ImagenetFeatures};
     let path = crate::weights::imagenet_weights(matseg_weights::Arch::MobilenetV2, None)?.path;
     let label = path.display().to_string();
     let (tensors, _) = crate::weights::read_weights(&path)?;
     Ok(ImagenetBaseline::imagenet(ImagenetFeatures::new(
-        &tensors, &label, device,
+        &tensors,
+        &label,
+        matseg_net::torch_device(device),
     )?))
 }
 
@@ -113,6 +111,19 @@ fn nets(choice: &ModelChoice) -> Result<Vec<Box<dyn DescriptorModel>>, PipelineE
     Ok(nets)
 }
 
+/// No trained nets in a build without the net: naming one is refused.
+#[cfg(not(feature = "net"))]
+fn nets(choice: &ModelChoice) -> Result<Vec<Box<dyn DescriptorModel>>, PipelineError> {
+    match choice.nets.iter().find(|p| p.as_os_str() != "none") {
+        Some(path) => Err(PipelineError::setting(
+            "model",
+            Some(path.display()),
+            crate::error::NO_NET,
+        )),
+        None => Ok(Vec::new()),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -120,12 +131,9 @@ mod tests {
     fn choice(baselines: &[&str]) -> ModelChoice {
         ModelChoice {
             baselines: baselines.iter().map(|b| b.to_string()).collect(),
-            #[cfg(feature = "net")]
             nets: vec!["none".into()],
-            #[cfg(feature = "net")]
             net_sides: Vec::new(),
-            #[cfg(feature = "net")]
-            device: tch::Device::Cpu,
+            device: ComputeDevice::Cpu,
         }
     }
 

@@ -24,7 +24,10 @@ use matseg_scene::Recipe2d;
 use matseg_weights::Arch;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use tch::Device;
+
+pub use crate::train_summary::TrainSummary;
+use matseg_image::device::ComputeDevice;
+use matseg_net::torch_device;
 
 /// Where a new run's training samples come from.
 #[derive(Clone, Debug, PartialEq)]
@@ -269,7 +272,7 @@ pub struct TrainingRun {
 /// Starts a new run: checks `config`, makes the net on `device`, loads its
 /// initial weights (fetching the ImageNet ones once when needed), and
 /// writes the run folder's `run.json`.
-pub fn start(config: &TrainConfig, device: Device) -> Result<TrainingRun, PipelineError> {
+pub fn start(config: &TrainConfig, device: ComputeDevice) -> Result<TrainingRun, PipelineError> {
     let dir = config.out.clone();
     if dir.join(train::RUN_FILE).exists() {
         return Err(PipelineError::file(
@@ -277,7 +280,7 @@ pub fn start(config: &TrainConfig, device: Device) -> Result<TrainingRun, Pipeli
             "already holds a run; resume it (matseg train --resume), or choose another folder",
         ));
     }
-    let trainer = Trainer::new(config.run_config()?, device);
+    let trainer = Trainer::new(config.run_config()?, torch_device(device));
     for group in &config.lr_scales {
         if !trainer
             .vs
@@ -349,9 +352,9 @@ fn check_cache_encoder(
 }
 
 /// Continues the run in `dir` from its last checkpoint, on `device`.
-pub fn resume(dir: &Path, device: Device) -> Result<TrainingRun, PipelineError> {
+pub fn resume(dir: &Path, device: ComputeDevice) -> Result<TrainingRun, PipelineError> {
     Ok(TrainingRun {
-        trainer: Trainer::resume(dir, device)?,
+        trainer: Trainer::resume(dir, torch_device(device))?,
         dir: dir.to_path_buf(),
         initial_weights: None,
     })
@@ -383,23 +386,6 @@ impl<'a> TrainInputs<'a> {
             loader_threads: None,
         }
     }
-}
-
-/// What one call of [`TrainingRun::train`] did.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct TrainSummary {
-    /// Steps trained in this call.
-    pub steps: u64,
-    /// Images in those steps.
-    pub images: usize,
-    /// Pixels in those steps.
-    pub pixels: usize,
-    /// Wall seconds, checkpoints and validation included.
-    pub seconds: f64,
-    /// Seconds the trainer waited for batches.
-    pub waited: f64,
-    /// Loader threads used.
-    pub loader_threads: usize,
 }
 
 impl TrainingRun {
@@ -645,7 +631,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         std::fs::write(dir.path().join(train::RUN_FILE), "{}").unwrap();
         let config = TrainConfig::new(dir.path(), TrainData::Online);
-        let e = start(&config, Device::Cpu).err().expect("refused");
+        let e = start(&config, ComputeDevice::Cpu).err().expect("refused");
         assert!(e.to_string().contains("already holds a run"), "{e}");
     }
 }

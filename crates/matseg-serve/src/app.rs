@@ -26,7 +26,7 @@ pub struct AppState {
     /// named after its run folder (`default` for the shipped model).
     pub model: NetModel,
     /// The device the model runs on.
-    pub device: tch::Device,
+    pub device: matseg_image::device::ComputeDevice,
     /// The folders photos come from.
     pub roots: Roots,
     /// Photos described so far.

@@ -84,7 +84,7 @@ pub struct ServeOptions {
     /// Bound on the described photos kept, in MiB.
     pub cache_mb: usize,
     /// The device the model runs on.
-    pub device: tch::Device,
+    pub device: matseg_image::device::ComputeDevice,
 }
 
 /// Whether `host` is this machine only.

@@ -17,7 +17,7 @@ fn options() -> ServeOptions {
         port: 0,
         token: None,
         cache_mb: 64,
-        device: tch::Device::Cpu,
+        device: matseg_image::device::ComputeDevice::Cpu,
     }
 }
 

@@ -36,7 +36,7 @@ fn start_server(data: Vec<PathBuf>, bench: PathBuf) -> String {
         port: 0,
         token: None,
         cache_mb: 256,
-        device: tch::Device::Cpu,
+        device: matseg_image::device::ComputeDevice::Cpu,
     };
     let (ready, address) = std::sync::mpsc::channel();
     std::thread::spawn(move || {

@@ -23,7 +23,7 @@ fn options(data: Vec<PathBuf>, bench: Vec<PathBuf>) -> ServeOptions {
         port: 0,
         token: None,
         cache_mb: 64,
-        device: tch::Device::Cpu,
+        device: matseg_image::device::ComputeDevice::Cpu,
     }
 }
 

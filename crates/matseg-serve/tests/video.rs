@@ -68,7 +68,7 @@ async fn a_video_is_tracked_and_its_labels_served() {
         port: 0,
         token: None,
         cache_mb: 64,
-        device: tch::Device::Cpu,
+        device: matseg_image::device::ComputeDevice::Cpu,
     };
     let app = router(state(&options).unwrap());
     for page in ["/video", "/video.js"] {

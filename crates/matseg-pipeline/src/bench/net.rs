@@ -5,8 +5,10 @@
 
 use super::clock::{median, peak_rss_mib};
 use crate::error::PipelineError;
+use matseg_image::device::ComputeDevice;
 use matseg_net::batch::{Batch, TrainingSample};
 use matseg_net::data::BatchPlan;
+use matseg_net::torch_device;
 use matseg_net::train::{RunConfig, TrainOptions, Trainer};
 use matseg_net::{NetConfig, PRESETS};
 use rand::{Rng, SeedableRng};
@@ -27,7 +29,7 @@ pub struct NetBench {
     /// Untimed repetitions first.
     pub warmup: usize,
     /// The device.
-    pub device: Device,
+    pub device: ComputeDevice,
 }
 
 /// Median milliseconds of a forward pass and of a training step.
@@ -62,7 +64,7 @@ impl NetBench {
                     .into(),
             ));
         }
-        let device = self.device;
+        let device = torch_device(self.device);
         tch::manual_seed(0);
         let mut trainer = Trainer::new(
             RunConfig {

@@ -14,14 +14,13 @@ use crate::error::PipelineError;
 use crate::files::{create_folder, write_file};
 use crate::progress::Progress;
 use crate::sources::{assets_dir, Defaults, Libraries, DEFAULT_CACHE_MB};
+use crate::train_summary::TrainSummary;
 use matseg_data::{generate_dataset, sample_rng, Dataset, Format, GenerateOptions, JobSlice};
 use matseg_extract::pbr::{make_pbr, preview_sphere, PbrRecipe};
 use matseg_extract::textures::{extract_textures, TextureOptions};
 use matseg_image::io::{encode_png_gray, encode_png_rgb, read_rgb};
 use matseg_image::{LicenceFilter, PhotoLibrary};
 use matseg_scene::Recipe2d;
-#[cfg(feature = "net")]
-pub use net::DemoTraining;
 use page::{sample_cards, STYLE};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -40,8 +39,8 @@ pub struct DemoOptions {
     /// Seed.
     pub seed: u64,
     /// Steps of the training demonstration (0: none; the net page still
-    /// shows the shipped model).
-    #[cfg(feature = "net")]
+    /// shows the shipped model). A build without the net has no net page
+    /// and refuses any other number.
     pub train_steps: u64,
 }
 
@@ -52,15 +51,38 @@ pub struct DemoReport {
     pub index: PathBuf,
     /// 2D samples on it.
     pub samples: usize,
-    /// The training demonstration, when one ran.
-    #[cfg(feature = "net")]
+    /// The training demonstration, when one ran (never in a build without
+    /// the net).
     pub training: Option<DemoTraining>,
+}
+
+/// The demo's training run, when it trained.
+#[derive(Clone, Debug)]
+pub struct DemoTraining {
+    /// The run folder.
+    pub dir: PathBuf,
+    /// Steps trained in all.
+    pub step: u64,
+    /// The run's latest weights.
+    pub model_file: PathBuf,
+    /// Where its initial weights came from (a new run).
+    pub initial_weights: Option<String>,
+    /// What this call of the training did.
+    pub summary: TrainSummary,
 }
 
 /// Runs the demo: generates samples from the bundled assets and writes
 /// the HTML report, reporting each long step (2D and 3D samples, training
 /// steps) and each unreadable file to `progress`.
 pub fn run(options: &DemoOptions, progress: &dyn Progress) -> Result<DemoReport, PipelineError> {
+    #[cfg(not(feature = "net"))]
+    if options.train_steps > 0 {
+        return Err(PipelineError::setting(
+            "train steps",
+            Some(options.train_steps),
+            crate::error::NO_NET,
+        ));
+    }
     let libs = Libraries::load(
         &[],
         &[],
@@ -138,10 +160,11 @@ Samples are in MatSeg folder layout under <code>samples-2d/</code>.</p>
         libs.budget(),
         progress,
     )?;
+    #[cfg(not(feature = "net"))]
+    let training = None;
     Ok(DemoReport {
         index,
         samples: dataset.len(),
-        #[cfg(feature = "net")]
         training,
     })
 }

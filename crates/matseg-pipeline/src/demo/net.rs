@@ -5,13 +5,15 @@
 //! the same maps from it. The page lists the `matseg` commands that redo
 //! each step by hand.
 
+use super::DemoTraining;
 use crate::error::PipelineError;
 use crate::files::write_file;
 use crate::progress::Progress;
 use crate::segment::{describe, write_clusters, write_point_maps, Model, DEFAULT_RADIUS};
 use crate::sources::{assets_dir, Defaults, Libraries};
-use crate::train::{resume, start, TrainConfig, TrainData, TrainInputs, TrainSummary};
+use crate::train::{resume, start, TrainConfig, TrainData, TrainInputs};
 use matseg_eval::ClusterOptions;
+use matseg_image::device::ComputeDevice;
 use matseg_image::io::read_rgb;
 use matseg_image::{LicenceFilter, MemoryBudget};
 use matseg_net::data::BatchPlan;
@@ -20,7 +22,6 @@ use matseg_net::train::{read_run_config, RUN_FILE};
 use std::fmt::Write as _;
 use std::path::Path;
 use std::sync::Arc;
-use tch::Device;
 
 /// Bundled photos on the page, and the points clicked on each (pixels),
 /// one per material.
@@ -51,21 +52,6 @@ const CLICKS: [(&str, &[(f32, f32)]); 4] = [
 /// Clusters of the automatic segmentations.
 const AUTO_K: usize = 4;
 
-/// The demo's training run, when it trained.
-#[derive(Clone, Debug)]
-pub struct DemoTraining {
-    /// The run folder.
-    pub dir: std::path::PathBuf,
-    /// Steps trained in all.
-    pub step: u64,
-    /// The run's latest weights.
-    pub model_file: std::path::PathBuf,
-    /// Where its initial weights came from (a new run).
-    pub initial_weights: Option<String>,
-    /// What this call of the training did.
-    pub summary: TrainSummary,
-}
-
 /// Writes `OUT/net.html`: the shipped default model's similarity maps and
 /// segmentations of the bundled photos, then, with `steps > 0`, a
 /// training demonstration: `OUT/net-run` trained for `steps` steps (or
@@ -81,7 +67,7 @@ pub fn net_page(
     let mut commands = Vec::new();
     let shipped = match default_model_dir() {
         Some(dir) => {
-            let net = Model::load(&dir, Device::Cpu)?;
+            let net = Model::load(&dir, ComputeDevice::Cpu)?;
             let rows = segmentation_rows(&net, DEFAULT_MODEL, "net/default", out, &mut commands)?;
             format!(
                 r#"<h2>The shipped model</h2>
@@ -161,14 +147,14 @@ fn training_demonstration(
                 format!("holds a demo run of {planned} steps; pass --train-steps {planned}, or remove it"),
             ));
         }
-        (resume(&run, Device::Cpu)?, "--resume".to_string())
+        (resume(&run, ComputeDevice::Cpu)?, "--resume".to_string())
     } else {
         let arguments = format!(
             "--online --init imagenet --min-side 224 --max-side 224 --batch-pixels 200704 \
              --lr 1e-4 --warmup 30 --validation-batches 2 --steps {steps} \
              --checkpoint-every {steps} --seed {seed} --out"
         );
-        (start(&config, Device::Cpu)?, arguments)
+        (start(&config, ComputeDevice::Cpu)?, arguments)
     };
     let libraries = Libraries::load_within(
         &[],
@@ -184,7 +170,7 @@ fn training_demonstration(
     let summary = training.train(&TrainInputs::new(&libraries), |_| progress.advance())?;
     progress.finish();
     commands.push(format!("matseg train {arguments} {run_arg}"));
-    let net = Model::load(&run, Device::Cpu)?;
+    let net = Model::load(&run, ComputeDevice::Cpu)?;
     let rows = segmentation_rows(&net, &run_arg, "net/demo-run", out, commands)?;
     let section = format!(
         r#"<h2>A training demonstration</h2>
