@@ -2,7 +2,8 @@
 # Prepares the project's git-ignored .venv for the Python package's tests
 # (python/tests): the whole torch 2.11.0 (`import torch` needs its CUDA
 # libraries even on a CPU: scripts/torch-env.sh --cuda) and the packages
-# the tests exercise, pinned. A no-op once done.
+# the tests exercise, and the linter and type checker, pinned. A no-op
+# once done.
 #
 # The package itself is built and installed by `.ci/run` after the Rust
 # tests (`pip install ./python`, reusing their build folder).
@@ -18,6 +19,9 @@ PACKAGES=(
     "onnxscript==0.7.2"
     "onnxruntime==1.32.0"
     "ray==2.60.0"
+    # The package's linter and type checker (.ci/run runs both).
+    "ruff==0.17.6"
+    "mypy==2.4.1"
 )
 STAMP=".venv/matseg-python-test-deps-$(printf '%s\n' "${PACKAGES[@]}" | sha256sum | cut -c1-12)"
 if [ ! -f "$STAMP" ]; then

@@ -7,12 +7,14 @@ the stream: next_step times the processes that trained; absent in
 `matseg train`'s, which trains one batch a step)."""
 
 import os
+from typing import Any
 
 import numpy as np
 import torch
+from numpy.typing import NDArray
 
 from . import net as netlib
-from . import safetensors
+from . import tensor_files
 
 CHECKPOINT_FILE = netlib.CONSTANTS["checkpoint_file"]
 # The tensors' names, as `matseg train` writes and reads them.
@@ -23,7 +25,8 @@ _STEPS = _OPTIM + _KEYS["optimizer_steps"]
 _NEXT_STEP, _NEXT_BATCH = _KEYS["next_step"], _KEYS["next_batch"]
 
 
-def write(folder, arrays, net, optimizer, updates, next_step, next_batch):
+def write(folder: str | os.PathLike[str], arrays: dict[str, NDArray[Any]], net: torch.nn.Module,
+          optimizer: torch.optim.Optimizer, updates: int, next_step: int, next_batch: int) -> None:
     """Writes `folder/checkpoint.safetensors` (through a temporary file):
     `arrays`, the net's `state_arrays`, and the optimizer's state of the
     net's parameters."""
@@ -37,19 +40,20 @@ def write(folder, arrays, net, optimizer, updates, next_step, next_batch):
     tensors[_STEPS] = np.array([updates], np.int64)
     tensors[_NEXT_STEP] = np.array([next_step], np.int64)
     tensors[_NEXT_BATCH] = np.array([next_batch], np.int64)
-    safetensors.write(os.path.join(folder, CHECKPOINT_FILE), tensors)
+    tensor_files.write(os.path.join(folder, CHECKPOINT_FILE), tensors)
 
 
-def read(folder, net, optimizer):
+def read(folder: str | os.PathLike[str], net: torch.nn.Module,
+         optimizer: torch.optim.Optimizer) -> tuple[int, int, int]:
     """Loads `folder/checkpoint.safetensors` into `net` and the AdamW
     `optimizer` over its parameters; returns (updates, next_step,
     next_batch). Errors name the file and what is missing or misshapen."""
     path = os.path.join(folder, CHECKPOINT_FILE)
     if not os.path.isfile(path):
         raise FileNotFoundError(f"{path}: no such file: the run has no checkpoint to resume from")
-    tensors, _ = safetensors.read(path)
+    tensors, _ = tensor_files.read(path)
 
-    def scalar(key):
+    def scalar(key: str) -> int:
         if key not in tensors or tensors[key].size != 1:
             raise ValueError(f"{path}: no {key}")
         return int(tensors[key].reshape(-1)[0])
@@ -58,7 +62,7 @@ def read(folder, net, optimizer):
     next_batch = scalar(_NEXT_BATCH) if _NEXT_BATCH in tensors else next_step
     netlib.load_arrays(net, {k[len(_MODEL):]: v for k, v in tensors.items() if k.startswith(_MODEL)}, path)
     for name, p in net.named_parameters():
-        moments = {}
+        moments: dict[str, Any] = {}
         for key, moment in _MOMENTS:
             value = tensors.get(_OPTIM + key + name)
             if value is None:

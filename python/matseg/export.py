@@ -28,6 +28,7 @@ class RgbToDescriptors(nn.Module):
         self.net = net
 
     def forward(self, image):
+        """Unit descriptors of 0..255 RGB images Bx3xHxW."""
         return self.net(netlib.normalise(image))
 
 
@@ -67,6 +68,7 @@ def export_onnx(model, out, opset=18, max_side=4096):
 
 
 def main(argv=None):
+    """`python -m matseg.export`: parses `argv` (default: the command line) and exports."""
     p = argparse.ArgumentParser(prog="python -m matseg.export", description="Export the matseg net.")
     sub = p.add_subparsers(dest="format", required=True)
     onnx = sub.add_parser("onnx", help="ONNX graph with dynamic batch, height and width")

@@ -2,11 +2,17 @@
 clicked points, segmentation by points or by clustering."""
 
 import os
-from typing import NamedTuple
+from collections.abc import Iterable, Iterator, Sequence
+from typing import Any, NamedTuple
 
 import numpy as np
+from numpy.typing import NDArray
 
 from . import _core
+from ._arrays import view
+
+#: Points as (x, y) pixel pairs.
+Points = Sequence[tuple[float, float]] | NDArray[Any]
 
 #: Radius of a query point's disc, in pixels (as `matseg segment`).
 DEFAULT_RADIUS = _core.DEFAULT_RADIUS
@@ -21,14 +27,14 @@ class TrackedFrame(NamedTuple):
     """One frame of `Model.track`: what `matseg track` writes for it."""
 
     #: HxW uint8: 0 where no clicked material is, k where point k - 1's is.
-    labels: np.ndarray
+    labels: NDArray[np.uint8]
     #: KxHxW float32: per point, each pixel's probability of its material.
-    probability: np.ndarray
+    probability: NDArray[np.float32]
     #: Per point, the share of the frame labelled with it.
-    areas: list
+    areas: list[float]
 
 
-def check_image(image):
+def check_image(image: object) -> NDArray[np.uint8]:
     """`image` as a C-contiguous HxWx3 uint8 array, or TypeError/ValueError
     saying what is wrong."""
     if not isinstance(image, np.ndarray):
@@ -40,7 +46,7 @@ def check_image(image):
     return np.ascontiguousarray(image)
 
 
-def check_points(points):
+def check_points(points: Points) -> list[tuple[float, float]]:
     """`points` as a list of (x, y) float pairs."""
     try:
         pts = np.asarray(points, dtype=np.float64)
@@ -58,12 +64,14 @@ class Model:
     model; a run folder of `matseg train` or `python -m matseg.train`, or
     its weights file, loads the same way."""
 
-    def __init__(self, native, path):
+    def __init__(self, native: _core.Model, path: str) -> None:
         self._native = native
         self.path = path
 
     @classmethod
-    def load(cls, name="default"):
+    def load(cls, name: str | os.PathLike[str] = "default") -> "Model":
+        """Loads `default` (the shipped model), a run folder or a weights
+        file; FileNotFoundError when there is none."""
         name = os.fspath(name)
         path = os.path.normpath(os.fspath(_core.resolve_model(name)))
         if name != "default" and not os.path.exists(path):
@@ -71,35 +79,37 @@ class Model:
         return cls(_core.Model(path), path)
 
     @property
-    def dim(self):
+    def dim(self) -> int:
         """Descriptor channels."""
         return self._native.dim()
 
-    def describe(self, image):
+    def describe(self, image: NDArray[np.uint8]) -> NDArray[np.float32]:
         """Unit descriptors DxHxW float32 of `image` (HxWx3 uint8), as
         `matseg segment` computes them."""
         image = check_image(image)
         h, w = image.shape[:2]
-        raw = self._native.describe(image.tobytes(), w, h)
-        return np.frombuffer(raw, "<f4").reshape(-1, h, w).copy()
+        raw = self._native.describe(image, w, h)
+        return view(raw, "<f4", (-1, h, w))
 
-    def describe_at_own_size(self, image):
+    def describe_at_own_size(self, image: NDArray[np.uint8]) -> NDArray[np.float32]:
         """The net alone on `image` (sides multiples of 32) at its own size
         and one scale: what the PyTorch and ONNX copies of the net compute."""
         image = check_image(image)
         h, w = image.shape[:2]
-        raw = self._native.describe_at_own_size(image.tobytes(), w, h)
-        return np.frombuffer(raw, "<f4").reshape(-1, h, w).copy()
+        raw = self._native.describe_at_own_size(image, w, h)
+        return view(raw, "<f4", (-1, h, w))
 
-    def similarity(self, image, points, radius=DEFAULT_RADIUS):
+    def similarity(self, image: NDArray[np.uint8], points: Points,
+                   radius: float = DEFAULT_RADIUS) -> NDArray[np.float32]:
         """Each point's similarity map, KxHxW float32 (cosine, 1 = the
         point's material), for points (x, y) in pixels."""
         image = check_image(image)
         h, w = image.shape[:2]
-        maps, _ = self._native.similarity(image.tobytes(), w, h, check_points(points), float(radius))
-        return np.frombuffer(maps, "<f4").reshape(-1, h, w).copy()
+        maps, _ = self._native.similarity(image, w, h, check_points(points), float(radius))
+        return view(maps, "<f4", (-1, h, w))
 
-    def segment(self, image, points=None, k=None, radius=DEFAULT_RADIUS, seed=0):
+    def segment(self, image: NDArray[np.uint8], points: Points | None = None, k: int | None = None,
+                radius: float = DEFAULT_RADIUS, seed: int = 0) -> NDArray[np.int32]:
         """HxW int32 labels: each pixel's most similar point (two points or
         more), or with `k` the photo split into k materials by clustering
         its descriptors (labels 0..k-1)."""
@@ -107,20 +117,22 @@ class Model:
         h, w = image.shape[:2]
         if (points is None) == (k is None):
             raise ValueError("segment: give either points or k")
-        if k is not None:
+        if points is None:
             if isinstance(k, bool) or not isinstance(k, (int, np.integer)):
                 raise TypeError(f"k: expected a whole number, got {type(k).__name__}")
-            labels, _ = self._native.cluster(image.tobytes(), w, h, int(k), int(seed))
-        else:
-            pts = check_points(points)
-            if len(pts) < 2:
-                raise ValueError("segment: two points or more (one point: use similarity)")
-            _, labels = self._native.similarity(image.tobytes(), w, h, pts, float(radius))
-        return np.frombuffer(labels, "<i4").reshape(h, w).copy()
+            clusters, _ = self._native.cluster(image, w, h, int(k), int(seed))
+            return view(clusters, "<i4", (h, w))
+        pts = check_points(points)
+        if len(pts) < 2:
+            raise ValueError("segment: two points or more (one point: use similarity)")
+        _, nearest = self._native.similarity(image, w, h, pts, float(radius))
+        assert nearest is not None, "two points or more have nearest-point labels"
+        return view(nearest, "<i4", (h, w))
 
-    def track(self, frames, points, frame=0, radius=DEFAULT_RADIUS, side=DEFAULT_TRACK_SIDE,
-              memory=_MEMORY, samples=_SAMPLES, confident=_CONFIDENT, prior=_PRIOR,
-              temperature=_TEMPERATURE):
+    def track(self, frames: Iterable[NDArray[np.uint8]], points: Points, frame: int = 0,
+              radius: float = DEFAULT_RADIUS, side: int = DEFAULT_TRACK_SIDE, memory: int = _MEMORY,
+              samples: int = _SAMPLES, confident: float = _CONFIDENT, prior: float = _PRIOR,
+              temperature: float = _TEMPERATURE) -> Iterator[TrackedFrame]:
         """Follows the materials under `points` ((x, y) pixels, clicked on
         frame number `frame`) through `frames`, an iterable of HxWx3 uint8
         arrays of one size (a list, or a generator decoding a video): yields
@@ -141,19 +153,19 @@ class Model:
                 raise IndexError(f"frame {frame}: past the end: the frames are {index}") from None
         clicked = held[-1]
         h, w = clicked.shape[:2]
-        tracker = _core.Tracker(self._native, clicked.tobytes(), w, h, pts, float(radius),
+        tracker = _core.Tracker(self._native, clicked, w, h, pts, float(radius),
                                 int(side), settings)
 
-        def step(image):
+        def step(image: NDArray[np.uint8]) -> TrackedFrame:
             fh, fw = image.shape[:2]
-            probability, labels, areas = tracker.step(image.tobytes(), fw, fh)
+            probability, labels, areas = tracker.step(image, fw, fh)
             return TrackedFrame(
-                labels=np.frombuffer(labels, np.uint8).reshape(fh, fw).copy(),
-                probability=np.frombuffer(probability, "<f4").reshape(-1, fh, fw).copy(),
+                labels=view(labels, np.uint8, (fh, fw)),
+                probability=view(probability, "<f4", (-1, fh, fw)),
                 areas=list(areas),
             )
 
-        def tracked():
+        def tracked() -> Iterator[TrackedFrame]:
             while held:
                 yield step(held.pop(0))
             for image in frames:
@@ -161,5 +173,5 @@ class Model:
 
         return tracked()
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return f"Model({self.path!r})"

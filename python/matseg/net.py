@@ -13,12 +13,11 @@ import os
 import struct
 
 import numpy as np
-
 import torch
 import torch.nn.functional as F
 from torch import nn
 
-from . import _core, safetensors
+from . import _core, tensor_files
 
 CONSTANTS = _core.net_constants()
 MODEL_FILE = CONSTANTS["model_file"]
@@ -26,6 +25,7 @@ RUN_FILE = CONSTANTS["run_file"]
 
 
 def l2_normalise(x, dim=1):
+    """`x` scaled to unit length along `dim` (zero vectors stay zero)."""
     return F.normalize(x, dim=dim, eps=1e-12)
 
 
@@ -43,16 +43,22 @@ class ConvBnGelu(nn.Module):
         self.bn = nn.BatchNorm2d(c_out)
 
     def forward(self, x):
+        """Convolution, batch norm, GELU."""
         return F.gelu(self.bn(self.conv(x)))
 
 
 class ConvBnRelu6(nn.Sequential):
+    """Convolution, batch norm and ReLU6, as torchvision's MobileNetV2."""
+
     def __init__(self, c_in, c_out, k, stride=1, groups=1):
         super().__init__(nn.Conv2d(c_in, c_out, k, stride, k // 2, groups=groups, bias=False),
                          nn.BatchNorm2d(c_out), nn.Hardtanh(0.0, 6.0))
 
 
 class InvertedResidual(nn.Module):
+    """MobileNetV2's block: expand, depthwise 3x3, project; residual when
+    the shape is kept."""
+
     def __init__(self, c_in, c_out, stride, expand):
         super().__init__()
         hidden = c_in * expand
@@ -63,6 +69,7 @@ class InvertedResidual(nn.Module):
         self.residual = stride == 1 and c_in == c_out
 
     def forward(self, x):
+        """The block on `x`."""
         y = self.conv(x)
         return x + y if self.residual else y
 
@@ -86,6 +93,7 @@ class MobileNetV2(nn.Module):
         self.features = nn.Sequential(*layers)
 
     def forward(self, x):
+        """The four taps of RGB input `x`, finest first."""
         taps = []
         for i, layer in enumerate(self.features):
             x = layer(x)
@@ -98,10 +106,13 @@ class ChannelNorm(nn.LayerNorm):
     """LayerNorm over the channels of an NCHW tensor."""
 
     def forward(self, x):
+        """`x` normalised over its channels."""
         return super().forward(x.permute(0, 2, 3, 1)).permute(0, 3, 1, 2)
 
 
 class ConvNextBlock(nn.Module):
+    """ConvNeXt's block: depthwise 7x7, LayerNorm, MLP, layer scale, residual."""
+
     def __init__(self, dim):
         super().__init__()
         self.dwconv = nn.Conv2d(dim, dim, 7, padding=3, groups=dim)
@@ -111,11 +122,14 @@ class ConvNextBlock(nn.Module):
         self.gamma = nn.Parameter(torch.full((dim,), 1e-6))
 
     def forward(self, x):
+        """The block on `x`."""
         y = self.pwconv2(F.gelu(self.pwconv1(self.norm(self.dwconv(x).permute(0, 2, 3, 1)))))
         return x + (y * self.gamma).permute(0, 3, 1, 2)
 
 
 class ConvNext(nn.Module):
+    """The ConvNeXt encoder: four stages of `depths` blocks at widths `dims`."""
+
     def __init__(self, depths, dims):
         super().__init__()
         self.downsample_layers = nn.ModuleList()
@@ -130,8 +144,9 @@ class ConvNext(nn.Module):
         self.channels = tuple(dims)
 
     def forward(self, x):
+        """The four stages' outputs of RGB input `x`, finest first."""
         taps = []
-        for down, stage in zip(self.downsample_layers, self.stages):
+        for down, stage in zip(self.downsample_layers, self.stages, strict=True):
             x = stage(down(x))
             taps.append(x)
         return taps
@@ -163,6 +178,9 @@ def adaptive_avg_pool(x, h, w):
 
 
 class Psp(nn.Module):
+    """The pyramid pooling module: branches at 1, 1/2, 1/4 and 1/8 of the
+    coarsest tap, resized back and fused."""
+
     DIVISORS = (1, 2, 4, 8)
 
     def __init__(self, c_in, branch, c_out):
@@ -171,9 +189,10 @@ class Psp(nn.Module):
         self.fuse = ConvBnGelu(branch * len(self.DIVISORS), c_out, 3)
 
     def forward(self, x):
+        """The fused pyramid of `x`."""
         h, w = x.shape[2:]
         outs = []
-        for branch, divisor in zip(self.branches, self.DIVISORS):
+        for branch, divisor in zip(self.branches, self.DIVISORS, strict=True):
             if divisor == 1:
                 outs.append(branch(x))
                 continue
@@ -183,6 +202,9 @@ class Psp(nn.Module):
 
 
 class DecoderStep(nn.Module):
+    """One decoder step: the coarser features convolved and upsampled, plus
+    a 1x1 of the skip tap."""
+
     def __init__(self, c_in, width, skip):
         super().__init__()
         self.conv = ConvBnGelu(c_in, width, 3)
@@ -190,16 +212,19 @@ class DecoderStep(nn.Module):
 
 
 class Decoder(nn.Module):
+    """The decoder: from the PSP output up through the three finer taps."""
+
     def __init__(self, c_in, widths, taps):
         super().__init__()
         self.steps = nn.ModuleList()
-        for width, skip in zip(widths, (taps[2], taps[1], taps[0])):
+        for width, skip in zip(widths, (taps[2], taps[1], taps[0]), strict=True):
             self.steps.append(DecoderStep(c_in, width, skip))
             c_in = width
 
     def forward(self, psp, taps):
+        """Features at the finest tap's stride."""
         x = psp
-        for step, skip in zip(self.steps, (taps[2], taps[1], taps[0])):
+        for step, skip in zip(self.steps, (taps[2], taps[1], taps[0]), strict=True):
             x = resize(step.conv(x), *skip.shape[2:]) + step.skip(skip)
         return x
 
@@ -213,6 +238,7 @@ class SplitMix64:
         self.state = seed
 
     def next(self):
+        """The next 64-bit draw."""
         self.state = (self.state + 0x9E3779B97F4A7C15) & self.MASK
         z = self.state
         z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & self.MASK
@@ -220,9 +246,11 @@ class SplitMix64:
         return z ^ (z >> 31)
 
     def uniform(self):
+        """A uniform draw in (0, 1)."""
         return ((self.next() >> 11) + 0.5) / float(1 << 53)
 
     def standard_normal(self):
+        """A standard normal draw (Box-Muller)."""
         u, v = self.uniform(), self.uniform()
         return math.sqrt(-2.0 * math.log(u)) * math.cos(2 * math.pi * v)
 
@@ -263,6 +291,7 @@ class ColourPart(nn.Module):
         self.log_bandwidth = nn.Parameter(torch.full((1,), math.log(CONSTANTS["colour_initial_bandwidth"])))
 
     def forward(self, x, h4, w4):
+        """The colour part of 0..255 RGB `x` on its h4 x w4 stride-4 grid."""
         return self.from_cells(cell_lab(x, h4, w4))
 
     def from_cells(self, lab):
@@ -283,6 +312,7 @@ def normalise(rgb):
 
 
 def denormalise(x):
+    """0..255 RGB back from the net's input: the inverse of `normalise`."""
     return x * CONSTANTS["input_scale"] + _mean(x)
 
 
@@ -381,7 +411,7 @@ def run_files(name):
 
 def load_weights(net, path):
     """Loads a safetensors file into `net` (every variable, no others)."""
-    tensors, _ = safetensors.read(path)
+    tensors, _ = tensor_files.read(path)
     load_arrays(net, tensors, path)
 
 
@@ -418,7 +448,7 @@ def save(net, run, folder, arrays=None):
     """Writes `folder/model.safetensors` (32-bit floats) and `run.json`;
     `arrays`: the net's `state_arrays` when the caller has them already."""
     os.makedirs(folder, exist_ok=True)
-    safetensors.write(os.path.join(folder, MODEL_FILE), state_arrays(net) if arrays is None else arrays)
+    tensor_files.write(os.path.join(folder, MODEL_FILE), state_arrays(net) if arrays is None else arrays)
     tmp = os.path.join(folder, f"{RUN_FILE}.{os.getpid()}.tmp")
     with open(tmp, "w") as f:
         json.dump(run, f, indent=2)

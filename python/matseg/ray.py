@@ -14,6 +14,7 @@ import time
 
 
 def parse_args(argv):
+    """The arguments of `python -m matseg.ray`."""
     p = argparse.ArgumentParser(prog="python -m matseg.ray", description="matseg on a Ray cluster.")
     sub = p.add_subparsers(dest="command", required=True)
     g = sub.add_parser("generate", help="write a dataset as Ray tasks")
@@ -40,6 +41,7 @@ def parse_args(argv):
 
 
 def generator_args(args):
+    """The `matseg.Generator` keyword arguments the command line gives."""
     return dict(kind=args.kind, sources=args.sources, seed=args.seed, recipe=args.recipe,
                 samples=args.samples, textures=args.textures, materials=args.materials,
                 meshes=args.meshes, hdris=args.hdris, size=args.size, spp=args.spp)
@@ -55,6 +57,7 @@ def run_job(gen_args, out, format, shard_size, num_shards, index):
 
 
 def generate(args):
+    """`python -m matseg.ray generate`: the dataset's jobs spread over the cluster's workers."""
     import ray
 
     import matseg
@@ -89,6 +92,7 @@ def generate(args):
 
 
 def main(argv=None):
+    """`python -m matseg.ray`: parses `argv` (default: the command line) and runs the command."""
     args = parse_args(sys.argv[1:] if argv is None else argv)
     if args.command == "generate":
         generate(args)

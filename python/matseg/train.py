@@ -31,7 +31,7 @@ from torch.utils.data import DataLoader
 from . import _core, checkpoint
 from . import net as netlib
 from .data import BatchPlan, Dataset, FeatureCache, Generator
-from .torch import BatchStream, FeatureStream
+from .streams import BatchStream, FeatureStream
 
 DEFAULTS = _core.train_defaults()
 METRICS_FILE = netlib.CONSTANTS["metrics_file"]
@@ -40,6 +40,7 @@ BEST_MODEL_FILE = netlib.CONSTANTS["best_model_file"]
 
 
 def parse_args(argv):
+    """The arguments of `python -m matseg.train`."""
     p = argparse.ArgumentParser(prog="python -m matseg.train", description=__doc__.split("\n\n")[0])
     p.add_argument("--out", help="run folder to write (a new one)")
     p.add_argument("--resume", metavar="RUN",
@@ -96,6 +97,7 @@ class FromTaps(torch.nn.Module):
         self.net = net
 
     def forward(self, taps, lab):
+        """Unit descriptors of the encoder's taps and the cells' L*a*b* colours."""
         return netlib.l2_normalise(self.net.coarse_from_taps(taps, lab))
 
 
@@ -123,7 +125,7 @@ def open_cache(run):
 
 def param_groups(net, lr_scales):
     """One group per learning-rate factor (later prefixes win, as matseg train)."""
-    groups = {}
+    groups: dict[float, list[object]] = {}
     for name, p in net.named_parameters():
         scale = 1.0
         for rule in lr_scales:
@@ -213,6 +215,7 @@ def batch_stream(run, args, first_batch):
     if "features" in run:
         return FeatureStream(open_cache(run), BatchPlan(**options["plan"]), options["seed"],
                              first_step=first_batch)
+    source: Dataset | Generator
     if run["data"] != "online":
         source = Dataset(run["data"])
     else:
@@ -242,7 +245,7 @@ def validation_loss(net, batches, device):
         losses = [netlib.matseg_loss(net(b["images"].to(device)), b["weights"].to(device), b["roi"].to(device))
                   for b in batches]
     net.train()
-    losses = [float(l) for l in losses if l is not None]
+    losses = [float(loss) for loss in losses if loss is not None]
     return sum(losses) / len(losses) if losses else None
 
 
@@ -264,6 +267,7 @@ def open_metrics(folder, next_step):
 
 
 def main(argv=None):
+    """`python -m matseg.train`: parses `argv` (default: the command line) and trains."""
     args = parse_args(sys.argv[1:] if argv is None else argv)
     world = int(os.environ.get("WORLD_SIZE", "1"))
     rank = int(os.environ.get("RANK", "0"))
@@ -303,7 +307,8 @@ def main(argv=None):
         return
     net.train()
     module = FromTaps(net) if features else net
-    model = DistributedDataParallel(module, device_ids=[local] if device.type == "cuda" else None) if world > 1 else module
+    device_ids = [local] if device.type == "cuda" else None
+    model = DistributedDataParallel(module, device_ids=device_ids) if world > 1 else module
     loader = DataLoader(batch_stream(run, args, first_batch), batch_size=None, num_workers=args.workers,
                         persistent_workers=args.workers > 0)
 
@@ -350,8 +355,8 @@ def main(argv=None):
         images += count
         done = step + 1
         at_checkpoint = done % options["checkpoint_every"] == 0 or done == steps
-        if rank == 0:
-            # matseg train's fields (StepMetrics), and the batch's index in the stream.
+        if metrics is not None:
+            # Rank 0 alone: matseg train's fields (StepMetrics), and the batch's index in the stream.
             record = {"step": step, "loss": loss_value, "lr": lr, "images": count,
                       "width": int(width), "height": int(height), "seconds": step_seconds,
                       "data_seconds": data_seconds, "batch": batch["step"]}
@@ -366,7 +371,8 @@ def main(argv=None):
             metrics.write(json.dumps(record) + "\n")
             metrics.flush()
             if at_checkpoint:
-                checkpoint.write(folder, arrays, net, optimizer, updates, done, first_batch + world * (done - first_step))
+                next_batch = first_batch + world * (done - first_step)
+                checkpoint.write(folder, arrays, net, optimizer, updates, done, next_batch)
                 if record.get("val_points", float("-inf")) > best:
                     best = record["val_points"]
                     best_path = os.path.join(folder, BEST_MODEL_FILE)
@@ -384,7 +390,7 @@ def main(argv=None):
         dist.all_reduce(totals)
         images = int(totals.item())
     print(f"rank {rank}: weights sha256 {state_digest(net)}", flush=True)
-    if rank == 0:
+    if metrics is not None:
         trained = steps - first_step
         metrics.close()
         print(f"{folder}: {trained} steps x {world} process(es), {images} images in {seconds:.1f} s "

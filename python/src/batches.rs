@@ -1,13 +1,13 @@
 //! Training batches as `matseg train` draws them (the batch plan: one
 //! random size per batch, samples fitted and augmented), for PyTorch.
 
+use crate::buffer::{contiguous, Buffer};
 use crate::dataset::PyDataset;
 use crate::errors::matseg_error;
-use crate::samples::f32_bytes;
 use matseg_net::data::{batch_samples, BatchPlan, MixedSource, SampleSource};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyDict, PyList};
+use pyo3::types::{PyDict, PyList};
 
 /// The paper's batch plan as JSON (the defaults of `matseg.BatchPlan`).
 #[pyfunction]
@@ -17,15 +17,15 @@ pub fn default_plan() -> String {
 
 /// A stored dataset mixed into a batch source and the share of samples
 /// taken from it (`matseg train --mix-data`, `--mix-fraction`).
-pub type Mix<'py> = Option<(PyRef<'py, PyDataset>, f64)>;
+pub type MixedDataset<'py> = Option<(PyRef<'py, PyDataset>, f64)>;
 
 /// Batch `step` of `source` (with `mix`) under `plan` (JSON) and `seed`: a
-/// list of `{"width", "height", "image": RGB bytes, "weights": [f32
-/// bytes], "roi": f32 bytes}`, all images of one size.
+/// list of `{"width", "height", "image": RGB buffer, "weights": [little-endian
+/// f32 buffer], "roi": little-endian f32 buffer}`, all images of one size.
 pub fn batch_list<'py>(
     py: Python<'py>,
     source: &dyn SampleSource,
-    mix: Mix<'_>,
+    mix: MixedDataset<'_>,
     plan: &str,
     seed: u64,
     step: u64,
@@ -58,51 +58,39 @@ pub fn batch_list<'py>(
         let d = PyDict::new(py);
         d.set_item("width", s.width)?;
         d.set_item("height", s.height)?;
-        d.set_item("image", PyBytes::new(py, &s.rgb))?;
+        d.set_item("image", Buffer::new(s.rgb))?;
         let weights = PyList::empty(py);
         for w in &s.weights {
-            weights.append(PyBytes::new(py, &f32_bytes(w)))?;
+            weights.append(Buffer::f32s(w))?;
         }
         d.set_item("weights", weights)?;
-        d.set_item("roi", PyBytes::new(py, &f32_bytes(&s.roi)))?;
+        d.set_item("roi", Buffer::f32s(&s.roi))?;
         list.append(d)?;
     }
     Ok(list)
 }
 
-/// Little-endian f32 bytes as floats, checked to hold `count` of them.
-fn floats(bytes: &[u8], count: usize, what: &str) -> PyResult<Vec<f32>> {
-    if bytes.len() != count * 4 {
-        return Err(PyValueError::new_err(format!(
-            "{what}: {} bytes, expected {count} float32 values",
-            bytes.len()
-        )));
-    }
-    Ok(bytes
-        .chunks_exact(4)
-        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-        .collect())
-}
-
 /// The MatSeg loss as `matseg train` computes it, of unit descriptors
-/// `[B, D, H, W]`, weights `[B, K, H, W]` and ROI `[B, H, W]` (f32 bytes):
+/// `[B, D, H, W]`, weights `[B, K, H, W]` and ROI `[B, H, W]` (C-contiguous
+/// float32 arrays):
 /// the reference other implementations (the PyTorch trainer) are tested
 /// against. `None` when the batch has fewer than two materials.
 #[pyfunction]
 #[pyo3(signature = (descriptors, weights, roi, shape, materials))]
 pub fn matseg_loss(
-    descriptors: &[u8],
-    weights: &[u8],
-    roi: &[u8],
+    py: Python<'_>,
+    descriptors: &Bound<'_, PyAny>,
+    weights: &Bound<'_, PyAny>,
+    roi: &Bound<'_, PyAny>,
     shape: (usize, usize, usize, usize),
     materials: usize,
 ) -> PyResult<Option<f64>> {
     use matseg_net::{matseg_loss, ImageTargets};
     use tch::Tensor;
     let (b, d, h, w) = shape;
-    let desc = floats(descriptors, b * d * h * w, "descriptors")?;
-    let weights = floats(weights, b * materials * h * w, "weights")?;
-    let roi = floats(roi, b * h * w, "roi")?;
+    let desc: Vec<f32> = contiguous(py, descriptors, b * d * h * w, "descriptors")?;
+    let weights: Vec<f32> = contiguous(py, weights, b * materials * h * w, "weights")?;
+    let roi: Vec<f32> = contiguous(py, roi, b * h * w, "roi")?;
     let [b, d, h, w, k] = [b, d, h, w, materials].map(|n| n as i64);
     let desc = Tensor::from_slice(&desc).view([b, d, h, w]);
     let weights = Tensor::from_slice(&weights).view([b, k, h, w]);

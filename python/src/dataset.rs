@@ -1,7 +1,7 @@
 //! `matseg.Dataset`: random access to stored samples (MatSeg folders or
 //! WebDataset shards).
 
-use crate::batches::{batch_list, Mix};
+use crate::batches::{batch_list, MixedDataset};
 use crate::errors::matseg_error;
 use crate::samples::sample_dict;
 use matseg_data::Dataset;
@@ -76,7 +76,7 @@ impl PyDataset {
         plan: &str,
         seed: u64,
         step: u64,
-        mix: Mix<'_>,
+        mix: MixedDataset<'_>,
     ) -> PyResult<Bound<'py, PyList>> {
         batch_list(py, &self.source, mix, plan, seed, step)
     }

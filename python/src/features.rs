@@ -1,13 +1,14 @@
 //! `matseg.FeatureCache`: a feature cache made by `matseg features`, and
 //! its training batches as `matseg train --features` draws them.
 
+use crate::buffer::Buffer;
 use crate::errors::matseg_error;
 use matseg_net::data::BatchPlan;
 use matseg_net::features::{CacheManifest, FeatureCache};
 use matseg_net::train::cached_batch;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyDict, PyList};
+use pyo3::types::{PyDict, PyList};
 use std::path::PathBuf;
 
 /// An opened feature cache.
@@ -64,7 +65,7 @@ impl PyFeatureCache {
         for sample in samples {
             let d = PyDict::new(py);
             for t in sample.stored() {
-                d.set_item(&t.name, (t.shape.clone(), PyBytes::new(py, &t.data)))?;
+                d.set_item(&t.name, (t.shape.clone(), Buffer::new(t.data.clone())))?;
             }
             list.append(d)?;
         }

@@ -1,7 +1,7 @@
 //! `matseg.Generator`: sample `i` of a 2D or 3D dataset made in memory,
 //! exactly as `matseg generate` with the same seed and sources writes it.
 
-use crate::batches::{batch_list, Mix};
+use crate::batches::{batch_list, MixedDataset};
 use crate::errors::matseg_error;
 use crate::samples::sample_dict;
 use matseg_data::{
@@ -145,7 +145,7 @@ impl PyGenerator {
         plan: &str,
         seed: u64,
         step: u64,
-        mix: Mix<'_>,
+        mix: MixedDataset<'_>,
     ) -> PyResult<Bound<'py, PyList>> {
         let SceneSources::TwoD { libraries, recipe } = &self.scenes else {
             return Err(PyValueError::new_err(

@@ -1,9 +1,10 @@
 //! `matseg._core`: the native half of the `matseg` Python package. It hands
-//! Python plain values (bytes, sizes, strings); `python/matseg` turns them
-//! into numpy arrays and gives the classes their Python manners (pickling,
+//! Python plain values (sizes, strings, and arrays as buffers numpy wraps
+//! without a copy); `python/matseg` turns them into numpy arrays and gives the classes their Python manners (pickling,
 //! argument checks, exceptions named after the problem).
 
 mod batches;
+mod buffer;
 mod dataset;
 mod errors;
 mod features;
@@ -17,6 +18,7 @@ use pyo3::prelude::*;
 /// The module's classes and functions.
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<buffer::Buffer>()?;
     m.add_class::<generator::PyGenerator>()?;
     m.add_class::<dataset::PyDataset>()?;
     m.add_class::<features::PyFeatureCache>()?;

@@ -1,8 +1,8 @@
 //! `matseg.Model`: a trained net answering "where else is this material?"
 //! as `matseg segment` does.
 
+use crate::buffer::{contiguous, Buffer};
 use crate::errors::matseg_error;
-use crate::samples::f32_bytes;
 use image::RgbImage;
 use matseg_eval::ClusterOptions;
 use matseg_image::device::ComputeDevice;
@@ -13,7 +13,7 @@ use matseg_pipeline::segment::{check_points, cluster, describe, query_points, Mo
 use matseg_pipeline::track::{TrackSettings, Tracking};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyDict};
+use pyo3::types::PyDict;
 use std::path::{Path, PathBuf};
 use std::sync::{Mutex, MutexGuard};
 use tch::Tensor;
@@ -169,29 +169,27 @@ pub struct PyModel {
     net: NetModel,
 }
 
-/// An RGB image from its bytes, checked against its size.
-fn photo(rgb: &[u8], width: u32, height: u32) -> PyResult<RgbImage> {
-    RgbImage::from_raw(width, height, rgb.to_vec()).ok_or_else(|| {
-        PyValueError::new_err(format!(
-            "image: {} bytes are not {width}x{height} RGB",
-            rgb.len()
-        ))
-    })
+/// An RGB image from a C-contiguous `height` x `width` x 3 uint8 array.
+fn photo(py: Python<'_>, rgb: &Bound<'_, PyAny>, width: u32, height: u32) -> PyResult<RgbImage> {
+    let expected = width as usize * height as usize * 3;
+    let bytes = contiguous(py, rgb, expected, &format!("image {width}x{height} RGB"))?;
+    Ok(RgbImage::from_raw(width, height, bytes).expect("the size was checked"))
 }
 
-/// `values` as little-endian f32 bytes.
-fn tensor_bytes<'py>(py: Python<'py>, t: &Tensor) -> PyResult<Bound<'py, PyBytes>> {
+/// `t`'s values as little-endian f32.
+fn tensor_buffer(t: &Tensor) -> PyResult<Buffer> {
     let values = Vec::<f32>::try_from(t.contiguous().flatten(0, -1)).map_err(matseg_error)?;
-    Ok(PyBytes::new(py, &f32_bytes(&values)))
+    Ok(Buffer::f32s(&values))
 }
 
-/// Labels as little-endian i32 bytes.
-fn label_bytes<'py>(py: Python<'py>, labels: &[u32]) -> Bound<'py, PyBytes> {
-    let bytes: Vec<u8> = labels
-        .iter()
-        .flat_map(|&l| (l as i32).to_le_bytes())
-        .collect();
-    PyBytes::new(py, &bytes)
+/// Labels as little-endian i32.
+fn label_buffer(labels: &[u32]) -> Buffer {
+    Buffer::new(
+        labels
+            .iter()
+            .flat_map(|&l| (l as i32).to_le_bytes())
+            .collect(),
+    )
 }
 
 impl PyModel {
@@ -221,16 +219,16 @@ impl PyModel {
     fn describe<'py>(
         &self,
         py: Python<'py>,
-        rgb: &[u8],
+        rgb: &Bound<'_, PyAny>,
         width: u32,
         height: u32,
-    ) -> PyResult<Bound<'py, PyBytes>> {
-        let photo = photo(rgb, width, height)?;
+    ) -> PyResult<Buffer> {
+        let photo = photo(py, rgb, width, height)?;
         let d = py.detach(|| {
             self.net()
                 .describe(photo.as_raw(), width as usize, height as usize)
         });
-        tensor_bytes(py, &d)
+        tensor_buffer(&d)
     }
 
     /// Unit descriptors `[D, height, width]` of the net alone at the
@@ -238,18 +236,18 @@ impl PyModel {
     fn describe_at_own_size<'py>(
         &self,
         py: Python<'py>,
-        rgb: &[u8],
+        rgb: &Bound<'_, PyAny>,
         width: u32,
         height: u32,
-    ) -> PyResult<Bound<'py, PyBytes>> {
-        let photo = photo(rgb, width, height)?;
+    ) -> PyResult<Buffer> {
+        let photo = photo(py, rgb, width, height)?;
         let d = py
             .detach(|| {
                 self.net()
                     .describe_at_own_size(photo.as_raw(), width as usize, height as usize)
             })
             .map_err(|e| PyValueError::new_err(e.to_string()))?;
-        tensor_bytes(py, &d)
+        tensor_buffer(&d)
     }
 
     /// Each point's similarity map `[K, height, width]` (f32 bytes) and,
@@ -257,21 +255,18 @@ impl PyModel {
     fn similarity<'py>(
         &self,
         py: Python<'py>,
-        rgb: &[u8],
+        rgb: &Bound<'_, PyAny>,
         width: u32,
         height: u32,
         points: Vec<(f32, f32)>,
         radius: f32,
-    ) -> PyResult<(Bound<'py, PyBytes>, Option<Bound<'py, PyBytes>>)> {
-        let photo = photo(rgb, width, height)?;
+    ) -> PyResult<(Buffer, Option<Buffer>)> {
+        let photo = photo(py, rgb, width, height)?;
         check_points(&photo, &points, "the image")
             .map_err(|e| PyValueError::new_err(e.to_string()))?;
         let maps = py.detach(|| query_points(&describe(&self.net(), &photo), &points, radius));
         let flat: Vec<f32> = maps.similarity.concat();
-        Ok((
-            PyBytes::new(py, &f32_bytes(&flat)),
-            maps.labels.map(|l| label_bytes(py, &l)),
-        ))
+        Ok((Buffer::f32s(&flat), maps.labels.map(|l| label_buffer(&l))))
     }
 
     /// The photo split into `k` materials by clustering its descriptors:
@@ -279,24 +274,24 @@ impl PyModel {
     fn cluster<'py>(
         &self,
         py: Python<'py>,
-        rgb: &[u8],
+        rgb: &Bound<'_, PyAny>,
         width: u32,
         height: u32,
         k: usize,
         seed: u64,
-    ) -> PyResult<(Bound<'py, PyBytes>, usize)> {
+    ) -> PyResult<(Buffer, usize)> {
         if !(2..=MAX_POINTS).contains(&k) {
             return Err(PyValueError::new_err(format!(
                 "k: {k} clusters; between 2 and {MAX_POINTS}"
             )));
         }
-        let photo = photo(rgb, width, height)?;
+        let photo = photo(py, rgb, width, height)?;
         let options = ClusterOptions {
             seed,
             ..ClusterOptions::new(k)
         };
         let (labels, n) = py.detach(|| cluster(&describe(&self.net(), &photo), &options));
-        Ok((label_bytes(py, &labels), n))
+        Ok((label_buffer(&labels), n))
     }
 }
 
@@ -318,7 +313,7 @@ impl PyTracker {
     fn new(
         py: Python<'_>,
         model: Py<PyModel>,
-        rgb: &[u8],
+        rgb: &Bound<'_, PyAny>,
         width: u32,
         height: u32,
         points: Vec<(f32, f32)>,
@@ -326,7 +321,7 @@ impl PyTracker {
         side: u32,
         tracker: (usize, usize, f32, f32, f32),
     ) -> PyResult<Self> {
-        let clicked = photo(rgb, width, height)?;
+        let clicked = photo(py, rgb, width, height)?;
         let (memory, samples, confident, prior, temperature) = tracker;
         let settings = TrackSettings {
             points,
@@ -357,11 +352,11 @@ impl PyTracker {
     fn step<'py>(
         &self,
         py: Python<'py>,
-        rgb: &[u8],
+        rgb: &Bound<'_, PyAny>,
         width: u32,
         height: u32,
-    ) -> PyResult<(Bound<'py, PyBytes>, Bound<'py, PyBytes>, Vec<f64>)> {
-        let frame = photo(rgb, width, height)?;
+    ) -> PyResult<(Buffer, Buffer, Vec<f64>)> {
+        let frame = photo(py, rgb, width, height)?;
         let net = &self.model.get().net;
         let mut tracking = matseg_image::sync::lock(&self.tracking);
         let tracking = &mut *tracking;
@@ -369,8 +364,8 @@ impl PyTracker {
             .detach(|| tracking.step(net, &frame))
             .map_err(|e| PyValueError::new_err(e.to_string()))?;
         Ok((
-            PyBytes::new(py, &f32_bytes(&tracked.similarity.concat())),
-            PyBytes::new(py, &tracked.labels),
+            Buffer::f32s(&tracked.similarity.concat()),
+            Buffer::new(tracked.labels),
             tracked.areas,
         ))
     }

@@ -4,10 +4,9 @@ import pickle
 
 import numpy as np
 import pytest
+from conftest import run
 
 import matseg
-
-from conftest import run
 
 
 def folder_files(folder):
@@ -85,7 +84,7 @@ def test_bad_input_raises_clear_python_errors(tmp_path):
     with pytest.raises(IndexError, match="sample 3 is out of range"):
         gen[3]
     with pytest.raises(TypeError, match="integers"):
-        gen["0"]
+        gen["0"]  # type: ignore[index]
     with pytest.raises(ValueError, match="licence"):
         matseg.Generator("2d", licences="not-a-licence")
     with pytest.raises(ValueError, match="3d scenes"):

@@ -2,11 +2,10 @@
 
 import numpy as np
 import pytest
+from conftest import ROOT, run
 from PIL import Image
 
 import matseg
-
-from conftest import ROOT, run
 
 PHOTO = ROOT / "assets" / "photos" / "astronaut.jpg"
 
@@ -69,3 +68,28 @@ def test_bad_images_and_points_raise(model, photo):
         matseg.Model.load("/nonexistent/run")
     with pytest.raises(FileNotFoundError, match="no such file"):
         matseg.read_image("/nonexistent.jpg")
+
+
+def test_arrays_cross_as_buffers_with_no_copy(model, photo):
+    # A photo and the model's answers are numpy views of the native
+    # module's buffers: writable, and kept alive by the array.
+    from matseg import _core
+
+    def owner(array):
+        while isinstance(array, np.ndarray) and array.base is not None:
+            array = array.base
+        return array.obj if isinstance(array, memoryview) else array
+
+    assert photo.flags.writeable and photo.flags.c_contiguous
+    assert isinstance(owner(photo), _core.Buffer) and len(owner(photo)) == photo.nbytes
+    maps = model.similarity(photo[:64, :96], [(10.0, 10.0)])
+    assert maps.flags.writeable
+    assert isinstance(owner(maps), _core.Buffer) and len(owner(maps)) == maps.nbytes
+    maps[0, 0, 0] = 2.0
+    assert maps[0, 0, 0] == 2.0
+    # A non-contiguous view is made contiguous before it crosses; a size
+    # that does not match the array is refused by the native module.
+    flipped = photo[::-1]
+    assert np.array_equal(model.describe(flipped[:64, :96]), model.describe(np.ascontiguousarray(flipped[:64, :96])))
+    with pytest.raises(ValueError, match="values, expected"):
+        model._native.describe(photo[:64, :96].copy(), 97, 64)

@@ -1,6 +1,7 @@
 """The PyTorch net against the Rust one: same weights files, same descriptors."""
 
 import numpy as np
+import pytest
 import torch
 
 import matseg
@@ -48,8 +49,8 @@ def test_a_pytorch_checkpoint_loads_in_rust_with_the_same_descriptors(tmp_path):
 
 
 def test_safetensors_round_trip(tmp_path):
-    tensors = {"a.weight": np.arange(12, dtype=np.float32).reshape(3, 4), "b": np.array([1.5], np.float16),
-               "c": np.array([7, -2], np.int64)}
+    tensors: dict[str, np.ndarray] = {"a.weight": np.arange(12, dtype=np.float32).reshape(3, 4),
+                                      "b": np.array([1.5], np.float16), "c": np.array([7, -2], np.int64)}
     safetensors.write(tmp_path / "t.safetensors", tensors, {"source": "test"})
     back, meta = safetensors.read(tmp_path / "t.safetensors")
     assert meta == {"source": "test"}
@@ -79,13 +80,15 @@ def test_the_pytorch_loss_is_the_rust_loss():
             d = net(b["images"])
         ours = float(mn.matseg_loss(d, b["weights"], b["roi"]))
         k = b["weights"].shape[1]
-        rust = _core.matseg_loss(d.numpy().tobytes(), b["weights"].numpy().tobytes(), b["roi"].numpy().tobytes(),
-                                 tuple(d.shape), k)
+        desc, weights, roi = (np.ascontiguousarray(t.numpy(), np.float32) for t in (d, b["weights"], b["roi"]))
+        rust = _core.matseg_loss(desc, weights, roi, tuple(d.shape), k)
         assert rust is not None and abs(ours - rust) < 1e-5 * max(1.0, abs(rust))
     # Fewer than two materials: no loss on either side.
     one = torch.zeros(1, 1, 4, 4)
     one[0, 0] = 1.0
     d = mn.l2_normalise(torch.randn(1, 8, 4, 4))
     assert mn.matseg_loss(d, one, torch.ones(1, 4, 4)) is None
-    assert _core.matseg_loss(d.numpy().tobytes(), one.numpy().tobytes(), torch.ones(1, 4, 4).numpy().tobytes(),
-                             (1, 8, 4, 4), 1) is None
+    assert _core.matseg_loss(d.numpy(), one.numpy(), torch.ones(1, 4, 4).numpy(), (1, 8, 4, 4), 1) is None
+    # The arrays cross as buffers: bytes are not float32 values.
+    with pytest.raises(ValueError, match="descriptors: not an array of f32"):
+        _core.matseg_loss(d.numpy().tobytes(), one.numpy(), torch.ones(1, 4, 4).numpy(), (1, 8, 4, 4), 1)

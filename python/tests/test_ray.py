@@ -12,7 +12,8 @@ def same_tree(a, b):
     if cmp.left_only or cmp.right_only or cmp.funny_files:
         return False
     _, mismatch, errors = filecmp.cmpfiles(a, b, cmp.common_files, shallow=False)
-    return not mismatch and not errors and all(same_tree(os.path.join(a, d), os.path.join(b, d)) for d in cmp.common_dirs)
+    same_dirs = all(same_tree(os.path.join(a, d), os.path.join(b, d)) for d in cmp.common_dirs)
+    return not mismatch and not errors and same_dirs
 
 
 def test_ray_tasks_write_what_one_matseg_generate_writes_and_resume(tmp_path, matseg_bin):

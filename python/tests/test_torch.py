@@ -22,7 +22,10 @@ def test_consumers_span_ranks_and_workers(monkeypatch):
     monkeypatch.setattr(torch.distributed, "get_rank", lambda: 1)
     monkeypatch.setattr(torch.distributed, "get_world_size", lambda: 2)
     info = type("Info", (), {"id": 1, "num_workers": 3})()
-    monkeypatch.setattr(mt, "get_worker_info", lambda: info)
+    # The streams look the worker up where they are defined.
+    import matseg.streams
+
+    monkeypatch.setattr(matseg.streams, "get_worker_info", lambda: info)
     assert mt.consumer() == (3, 6)
 
 
@@ -87,9 +90,30 @@ def test_a_mixed_in_dataset_takes_its_share_of_the_samples(folders_2d):
     with pytest.raises(ValueError, match="mix fraction 1.5: expected 0..1"):
         gen.batch(0, PLAN, 3, mix=(ds, 1.5))
     with pytest.raises(TypeError, match="matseg.Dataset"):
-        gen.batch(0, PLAN, 3, mix=(gen, 0.5))
+        gen.batch(0, PLAN, 3, mix=(gen, 0.5))  # type: ignore[arg-type]
 
 
 def test_stored_datasets_give_batches_too(folders_2d):
     b = mt.BatchStream(matseg.Dataset(folders_2d), PLAN, seed=0).batch(0)
     assert b["images"].dtype == torch.float32 and b["images"].shape[0] >= 2
+
+
+def test_the_public_module_names_do_not_shadow_pypi_inside_the_package():
+    # matseg.torch and matseg.safetensors are what users import; the package
+    # imports their implementations by names no PyPI package has.
+    import pathlib
+
+    import matseg.safetensors
+    import matseg.streams
+    import matseg.tensor_files
+
+    assert mt.BatchStream is matseg.streams.BatchStream
+    assert matseg.safetensors.read is matseg.tensor_files.read
+    package = pathlib.Path(matseg.__file__).parent
+    for source in package.glob("*.py"):
+        if source.name in ("torch.py", "safetensors.py"):
+            continue
+        text = source.read_text()
+        for shadowing in ("from .torch import", "from . import torch", "from .safetensors import",
+                          "from . import safetensors"):
+            assert shadowing not in text, f"{source.name}: {shadowing}"

@@ -3,11 +3,10 @@ errors."""
 
 import numpy as np
 import pytest
+from conftest import ROOT, run
 from PIL import Image
 
 import matseg
-
-from conftest import ROOT, run
 
 TEXTURES = ROOT / "assets" / "textures"
 FRAMES = 8
