@@ -9,14 +9,14 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 /// The catalogue's file name in the corpus folder.
-pub const CATALOG_FILE: &str = "catalog.json";
+pub const CATALOGUE_FILE: &str = "catalog.json";
 
 /// The folder of per-package records in the corpus folder.
 pub const PACKAGES_DIR: &str = "packages";
 
 /// One corpus file.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct CatalogEntry {
+pub struct CatalogueEntry {
     /// Path relative to the corpus folder (`photos/mate-backgrounds/Dune.jpg`).
     pub path: String,
     /// What it is.
@@ -56,7 +56,7 @@ pub struct PackageRecord {
     /// The kind of its files.
     pub kind: Kind,
     /// The corpus files made from it.
-    pub files: Vec<CatalogEntry>,
+    pub files: Vec<CatalogueEntry>,
     /// Files left out, each with why.
     pub warnings: Vec<String>,
     /// The manifest's entry it was installed by: a package whose entry has
@@ -88,12 +88,12 @@ impl PackageRecord {
 
 /// The whole catalogue.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct Catalog {
+pub struct Catalogue {
     /// Every corpus file, sorted by path.
-    pub files: Vec<CatalogEntry>,
+    pub files: Vec<CatalogueEntry>,
 }
 
-impl Catalog {
+impl Catalogue {
     /// The catalogue of every package record under `corpus`.
     pub fn from_records(corpus: &Path) -> Result<Self, AssetError> {
         let dir = corpus.join(PACKAGES_DIR);
@@ -114,7 +114,7 @@ impl Catalog {
 
     /// Reads `catalog.json` from `corpus`.
     pub fn read(corpus: &Path) -> Result<Self, AssetError> {
-        let path = corpus.join(CATALOG_FILE);
+        let path = corpus.join(CATALOGUE_FILE);
         let text = std::fs::read_to_string(&path)
             .map_err(|e| AssetError::File(format!("{}: cannot read: {e}", path.display())))?;
         serde_json::from_str(&text)
@@ -123,7 +123,7 @@ impl Catalog {
 
     /// Writes `catalog.json` into `corpus` (atomically).
     pub fn write(&self, corpus: &Path) -> Result<(), AssetError> {
-        let path = corpus.join(CATALOG_FILE);
+        let path = corpus.join(CATALOGUE_FILE);
         let text = serde_json::to_vec_pretty(self).expect("serialisable");
         matseg_image::io::write_atomic(&path, &text)
             .map_err(|e| AssetError::File(format!("{}: cannot write: {e}", path.display())))

@@ -4,7 +4,7 @@
 //! Idempotent and resumable by package: a package whose record exists is
 //! not fetched again; an interrupted one is redone from its download.
 
-use crate::catalog::{Catalog, PackageRecord, PACKAGES_DIR};
+use crate::catalogue::{Catalogue, PackageRecord, PACKAGES_DIR};
 use crate::error::AssetError;
 use crate::install::install;
 use crate::manifest::{Kind, Manifest, PackageSpec, Registry};
@@ -106,7 +106,7 @@ pub fn fetch(
     progress.finish();
     std::fs::create_dir_all(&layout.corpus)
         .map_err(|e| AssetError::File(format!("{}: {e}", layout.corpus.display())))?;
-    Catalog::from_records(&layout.corpus)?.write(&layout.corpus)?;
+    Catalogue::from_records(&layout.corpus)?.write(&layout.corpus)?;
     Ok(report)
 }
 

@@ -5,7 +5,7 @@
 
 use crate::archive::{extract_from, visit, Entry};
 use crate::benchmark_photos::benchmark_photo_of;
-use crate::catalog::{CatalogEntry, PackageRecord, PACKAGES_DIR};
+use crate::catalogue::{CatalogueEntry, PackageRecord, PACKAGES_DIR};
 use crate::convert::convert;
 use crate::dep5::Copyright;
 use crate::error::AssetError;
@@ -138,7 +138,7 @@ pub fn install(
     let corpus_path = |name: &str| format!("{}/{folder}/{name}", spec.kind);
     let files = staged
         .iter()
-        .map(|s| CatalogEntry {
+        .map(|s| CatalogueEntry {
             path: corpus_path(&s.name),
             part_of: s.part_of.as_deref().map(corpus_path),
             kind: spec.kind,

@@ -10,7 +10,7 @@
 
 pub mod archive;
 pub mod benchmark_photos;
-pub mod catalog;
+pub mod catalogue;
 pub mod convert;
 pub mod dds;
 pub mod dep5;
@@ -21,7 +21,7 @@ pub mod glob;
 pub mod install;
 pub mod manifest;
 
-pub use catalog::{Catalog, CatalogEntry, PackageRecord};
+pub use catalogue::{Catalogue, CatalogueEntry, PackageRecord};
 pub use error::AssetError;
 pub use fetch::{fetch, CacheLayout, Downloader, FetchReport, RegistryClients};
 pub use manifest::{Kind, Manifest, PackageSpec, Registry};

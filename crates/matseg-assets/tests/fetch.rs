@@ -8,7 +8,7 @@
 use matseg_assets::archive::fixtures::{self as archive_fixtures, gzip, tar};
 use matseg_assets::fetch::CacheLayout;
 use matseg_assets::{
-    fetch, AssetError, Catalog, Downloader, Kind, Manifest, PackageSpec, RegistryClients,
+    fetch, AssetError, Catalogue, Downloader, Kind, Manifest, PackageSpec, RegistryClients,
 };
 use matseg_image::progress::{Progress, Silent};
 use matseg_weights::fixtures::{legacy, Storage};
@@ -324,8 +324,8 @@ fn fetch_builds_the_corpus_with_licences_and_a_catalogue() {
         .collect();
     assert_eq!(*events.0.lock().unwrap(), want);
 
-    let catalog = Catalog::read(&layout.corpus).unwrap();
-    let rows: Vec<(&str, &str, &str, &str)> = catalog
+    let catalogue = Catalogue::read(&layout.corpus).unwrap();
+    let rows: Vec<(&str, &str, &str, &str)> = catalogue
         .files
         .iter()
         .map(|f| {
@@ -372,13 +372,13 @@ fn fetch_builds_the_corpus_with_licences_and_a_catalogue() {
             ),
         ]
     );
-    for f in &catalog.files {
+    for f in &catalogue.files {
         let on_disk = std::fs::metadata(layout.corpus.join(&f.path))
             .unwrap()
             .len();
         assert_eq!(on_disk, f.bytes, "{}", f.path);
     }
-    let by_path = |p: &str| catalog.files.iter().find(|f| f.path == p).unwrap();
+    let by_path = |p: &str| catalogue.files.iter().find(|f| f.path == p).unwrap();
     // A model's material library and texture are listed as its parts, and
     // the summary counts the model once with the bytes of all three.
     let chair = "meshes/shapes/Free/free/chair/chair.obj";
@@ -387,13 +387,13 @@ fn fetch_builds_the_corpus_with_licences_and_a_catalogue() {
         let entry = by_path(&format!("meshes/shapes/Free/free/chair/{part}"));
         assert_eq!(entry.part_of.as_deref(), Some(chair), "{part}");
     }
-    let chair_bytes: u64 = catalog
+    let chair_bytes: u64 = catalogue
         .files
         .iter()
         .filter(|f| f.path.starts_with("meshes/shapes/Free/"))
         .map(|f| f.bytes)
         .sum();
-    let summary = catalog.summary();
+    let summary = catalogue.summary();
     assert_eq!(
         summary[&(matseg_assets::manifest::Kind::Meshes, "cc0".to_string())],
         (1, chair_bytes)
@@ -470,7 +470,7 @@ fn fetch_builds_the_corpus_with_licences_and_a_catalogue() {
     let again = fetch(&manifest, &[], false, &layout, &downloader, &Silent).unwrap();
     assert_eq!(again.already.len(), 5);
     assert_eq!(*downloader.downloads.borrow(), 5);
-    assert_eq!(Catalog::read(&layout.corpus).unwrap(), catalog);
+    assert_eq!(Catalogue::read(&layout.corpus).unwrap(), catalogue);
     // Only the photos, forced: one download more, same files.
     let forced = fetch(
         &manifest,
@@ -485,7 +485,7 @@ fn fetch_builds_the_corpus_with_licences_and_a_catalogue() {
         (forced.installed.len(), *downloader.downloads.borrow()),
         (1, 6)
     );
-    assert_eq!(Catalog::read(&layout.corpus).unwrap(), catalog);
+    assert_eq!(Catalogue::read(&layout.corpus).unwrap(), catalogue);
     assert!(!layout.corpus.join(".staging/photos-wallpapers").exists());
 }
 
@@ -618,8 +618,8 @@ fn a_failing_package_is_named_and_the_others_still_land() {
         "{:?}",
         report.failed
     );
-    let catalog = Catalog::read(&layout.corpus).unwrap();
-    assert_eq!(catalog.files.len(), 1);
+    let catalogue = Catalogue::read(&layout.corpus).unwrap();
+    assert_eq!(catalogue.files.len(), 1);
     assert!(
         !layout.corpus.join("photos/wallpapers").exists(),
         "nothing half-made is left"
@@ -723,8 +723,8 @@ fn game_textures_are_streamed_skipped_converted_and_checked() {
     let report = fetch(&manifest, &[], false, &layout, &downloader, &Silent).unwrap();
     assert!(report.failed.is_empty(), "{:?}", report.failed);
 
-    let catalog = Catalog::read(&layout.corpus).unwrap();
-    let rows: Vec<(&str, &str, &str)> = catalog
+    let catalogue = Catalogue::read(&layout.corpus).unwrap();
+    let rows: Vec<(&str, &str, &str)> = catalogue
         .files
         .iter()
         .map(|f| (f.path.as_str(), f.source.as_str(), f.licence.as_str()))
@@ -790,12 +790,12 @@ fn the_builtin_manifest_fetches_from_the_registries() {
     };
     let report = fetch(&Manifest::builtin(), &[], false, &layout, &clients, &Silent).unwrap();
     assert!(report.failed.is_empty(), "{:?}", report.failed);
-    let catalog = Catalog::read(&layout.corpus).unwrap();
+    let catalogue = Catalogue::read(&layout.corpus).unwrap();
     for kind in Kind::ALL {
-        assert!(catalog.files.iter().any(|f| f.kind == kind), "{kind}");
+        assert!(catalogue.files.iter().any(|f| f.kind == kind), "{kind}");
     }
     assert!(
-        catalog.files.iter().all(|f| f.family != "unknown"),
+        catalogue.files.iter().all(|f| f.family != "unknown"),
         "every file has a known licence"
     );
 }

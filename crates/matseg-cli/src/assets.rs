@@ -5,7 +5,7 @@ use crate::common::BarProgress;
 use anyhow::{bail, Context, Result};
 use clap::Subcommand;
 use matseg_assets::fetch::CacheLayout;
-use matseg_assets::{fetch, Catalog, Kind, Manifest, RegistryClients};
+use matseg_assets::{fetch, Catalogue, Kind, Manifest, RegistryClients};
 use matseg_pipeline::sources::cache_root;
 use std::path::{Path, PathBuf};
 
@@ -142,7 +142,10 @@ fn run_fetch(args: FetchArgs) -> Result<()> {
 
 fn run_list(args: ListArgs) -> Result<()> {
     let corpus = CacheLayout::new(&cache(args.cache)?).corpus;
-    if !corpus.join(matseg_assets::catalog::CATALOG_FILE).is_file() {
+    if !corpus
+        .join(matseg_assets::catalogue::CATALOGUE_FILE)
+        .is_file()
+    {
         bail!(
             "{}: no corpus yet; run `matseg assets fetch`",
             corpus.display()
@@ -157,9 +160,9 @@ fn run_list(args: ListArgs) -> Result<()> {
 /// The catalogue's files of `kinds` (their own, not models' parts), a
 /// tab-separated line each.
 fn print_files(corpus: &Path, kinds: Vec<Kind>) -> Result<()> {
-    let catalog = Catalog::read(corpus)?;
+    let catalogue = Catalogue::read(corpus)?;
     println!("path\tpackage\tversion\tlicence\tfamily\tfingerprint");
-    for f in catalog
+    for f in catalogue
         .files
         .iter()
         .filter(|f| f.part_of.is_none() && kinds.contains(&f.kind))
@@ -175,16 +178,20 @@ fn print_files(corpus: &Path, kinds: Vec<Kind>) -> Result<()> {
 
 /// The table of files and megabytes per kind and licence family.
 fn print_summary(corpus: &Path) -> Result<()> {
-    let catalog = Catalog::read(corpus)?;
-    let parts = catalog.files.iter().filter(|f| f.part_of.is_some()).count();
+    let catalogue = Catalogue::read(corpus)?;
+    let parts = catalogue
+        .files
+        .iter()
+        .filter(|f| f.part_of.is_some())
+        .count();
     println!(
         "{}: {} files, and {parts} materials and textures of models",
         corpus.display(),
-        catalog.files.len() - parts
+        catalogue.files.len() - parts
     );
     println!("| kind | licence | files | MB (with their parts) |");
     println!("|---|---|---|---|");
-    for ((kind, family), (count, bytes)) in catalog.summary() {
+    for ((kind, family), (count, bytes)) in catalogue.summary() {
         println!(
             "| {kind} | {family} | {count} | {:.1} |",
             bytes as f64 / 1e6

@@ -1,7 +1,7 @@
 //! A scene turned into the bytes of one sample: JPEG image, PNG masks and ROI,
 //! and the JSON sidecar.
 
-use matseg_image::io::{encode_jpeg, encode_png_gray};
+use matseg_image::io::{encode_jpeg, encode_png_grey};
 use matseg_scene::{quantise_weights, QuantisedAnnotation, Scene2d, SourceRef, Sources};
 use serde::{Deserialize, Serialize};
 
@@ -108,9 +108,9 @@ pub fn encode_sample(
         masks: annotation
             .masks
             .iter()
-            .map(|m| encode_png_gray(w, h, m))
+            .map(|m| encode_png_grey(w, h, m))
             .collect(),
-        roi: encode_png_gray(w, h, &annotation.roi),
+        roi: encode_png_grey(w, h, &annotation.roi),
         json: serde_json::to_vec_pretty(meta).expect("sidecar serialises"),
     }
 }

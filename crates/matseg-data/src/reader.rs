@@ -4,7 +4,7 @@
 use crate::encode::EncodedSample;
 use crate::folders::{FINISHED_FILE, IMAGE_FILE, META_FILE, PARTIAL_SUFFIX, ROI_FILE};
 use image::{GrayImage, RgbImage};
-use matseg_image::io::{decode_gray, decode_rgb};
+use matseg_image::io::{decode_grey, decode_rgb};
 use matseg_image::{ImageIoError, Plane};
 use std::io::{Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
@@ -237,13 +237,13 @@ pub fn read_folder_sample(dir: &Path) -> Result<Sample, ReadError> {
         .iter()
         .map(|(_, p)| {
             let bytes = std::fs::read(p).map_err(io_err(p))?;
-            let m = decode_gray(&bytes, p)?;
+            let m = decode_grey(&bytes, p)?;
             check_size(p, m.dimensions(), image.dimensions())?;
             Ok(m)
         })
         .collect::<Result<Vec<_>, ReadError>>()?;
     let roi = if dir.join(ROI_FILE).is_file() {
-        Some(decode_gray(&read(ROI_FILE)?, &dir.join(ROI_FILE))?)
+        Some(decode_grey(&read(ROI_FILE)?, &dir.join(ROI_FILE))?)
     } else {
         None
     };
@@ -284,9 +284,9 @@ pub fn decode_encoded(sample: &EncodedSample) -> Result<Sample, ReadError> {
         .masks
         .iter()
         .enumerate()
-        .map(|(k, bytes)| decode_gray(bytes, &name(&crate::folders::mask_file(k))))
+        .map(|(k, bytes)| decode_grey(bytes, &name(&crate::folders::mask_file(k))))
         .collect::<Result<Vec<_>, _>>()?;
-    let roi = decode_gray(&sample.roi, &name(ROI_FILE))?;
+    let roi = decode_grey(&sample.roi, &name(ROI_FILE))?;
     let meta = serde_json::from_slice(&sample.json).map_err(|e| ReadError::Format {
         path: name(META_FILE),
         reason: e.to_string(),
@@ -396,7 +396,7 @@ fn read_shard_sample(path: &Path, key: &str, members: &[Member]) -> Result<Sampl
         let name = path.join(format!("{key}.{}", m.suffix));
         match m.suffix.as_str() {
             "jpg" | "jpeg" | "png" => image = Some(decode_rgb(&bytes, &name)?),
-            "roi.png" => roi = Some(decode_gray(&bytes, &name)?),
+            "roi.png" => roi = Some(decode_grey(&bytes, &name)?),
             "json" => {
                 meta = Some(
                     serde_json::from_slice(&bytes).map_err(|e| ReadError::Format {
@@ -411,7 +411,7 @@ fn read_shard_sample(path: &Path, key: &str, members: &[Member]) -> Result<Sampl
                     .and_then(|r| r.strip_suffix(".png"))
                     .and_then(|k| k.parse().ok())
                 {
-                    masks.push((k, decode_gray(&bytes, &name)?));
+                    masks.push((k, decode_grey(&bytes, &name)?));
                 }
             }
         }

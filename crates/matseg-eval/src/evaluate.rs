@@ -7,7 +7,7 @@ use crate::points::{flatten, BenchError, PointBenchmark};
 use crate::triplet::{score_image, ImageScores, PointScores};
 use image::{GrayImage, RgbImage};
 use matseg_image::descriptor::DescriptorModel;
-use matseg_image::io::{decode_gray, read_rgb};
+use matseg_image::io::{decode_grey, read_rgb};
 use matseg_image::Pyramid;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -190,7 +190,7 @@ fn load_mask(path: &Path, w: u32, h: u32) -> Result<GrayImage, BenchError> {
         line: None,
         message: format!("cannot read: {e}"),
     })?;
-    let mask = decode_gray(&bytes, path)?;
+    let mask = decode_grey(&bytes, path)?;
     if mask.dimensions() == (w, h) {
         Ok(mask)
     } else {

@@ -3,7 +3,7 @@
 //! and rescaled; normals come from the height map (OpenGL convention).
 
 use image::{GrayImage, RgbImage};
-use matseg_image::io::{encode_png_gray, encode_png_rgb};
+use matseg_image::io::{encode_png_grey, encode_png_rgb};
 use matseg_image::plane::round_to_u8;
 use matseg_image::rgb::rotate_hue;
 use matseg_image::{gaussian_blur, Plane};
@@ -244,7 +244,7 @@ impl PbrMaterial {
             let (w, h) = map.dimensions();
             std::fs::write(
                 dir.join(format!("{}.png", kind.file_stem())),
-                encode_png_gray(w, h, map.as_raw()),
+                encode_png_grey(w, h, map.as_raw()),
             )?;
         }
         Ok(())

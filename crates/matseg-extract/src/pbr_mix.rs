@@ -7,7 +7,7 @@ use crate::material_library::{MaterialError, MaterialMaps};
 use crate::pbr::{decode_normal, encode_normal};
 use crate::soft_maps::{check_probabilities, OutOfRange};
 use image::{GrayImage, RgbImage};
-use matseg_image::io::{encode_png_gray, encode_png_rgb};
+use matseg_image::io::{encode_png_grey, encode_png_rgb};
 use matseg_image::plane::round_to_u8;
 use rand::seq::index::sample;
 use rand::Rng;
@@ -94,7 +94,7 @@ impl MixedMaterial {
             let (w, h) = map.dimensions();
             std::fs::write(
                 dir.join(format!("{name}.png")),
-                encode_png_gray(w, h, map.as_raw()),
+                encode_png_grey(w, h, map.as_raw()),
             )?;
         }
         Ok(())

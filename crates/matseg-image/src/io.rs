@@ -104,7 +104,7 @@ pub fn decode_rgb(bytes: &[u8], name: &Path) -> Result<RgbImage, ImageIoError> {
 }
 
 /// Decodes in-memory image bytes to 8-bit grey; `name` is used in errors.
-pub fn decode_gray(bytes: &[u8], name: &Path) -> Result<GrayImage, ImageIoError> {
+pub fn decode_grey(bytes: &[u8], name: &Path) -> Result<GrayImage, ImageIoError> {
     let img = ImageReader::new(Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| ImageIoError::new(name, e))?
@@ -140,7 +140,7 @@ fn encode_png(data: &[u8], w: u32, h: u32, colour: ExtendedColorType) -> Vec<u8>
 }
 
 /// PNG bytes of an 8-bit grey image given as raw row-major pixels.
-pub fn encode_png_gray(w: u32, h: u32, data: &[u8]) -> Vec<u8> {
+pub fn encode_png_grey(w: u32, h: u32, data: &[u8]) -> Vec<u8> {
     encode_png(data, w, h, ExtendedColorType::L8)
 }
 
@@ -210,7 +210,7 @@ mod tests {
         assert_eq!(decode_rgb(&png, Path::new("mem.png")).unwrap(), img);
 
         let gray: Vec<u8> = (0..33 * 17).map(|i| (i % 256) as u8).collect();
-        let back = decode_gray(&encode_png_gray(33, 17, &gray), Path::new("g.png")).unwrap();
+        let back = decode_grey(&encode_png_grey(33, 17, &gray), Path::new("g.png")).unwrap();
         assert_eq!(back.as_raw(), &gray);
 
         let jpg = encode_jpeg(&img, 95);

@@ -4,7 +4,7 @@
 use crate::bench::clock::process_cpu_seconds;
 use crate::error::PipelineError;
 use crate::files::{create_folder, write_file};
-use matseg_image::io::{encode_png_gray, encode_png_rgb};
+use matseg_image::io::{encode_png_grey, encode_png_rgb};
 use matseg_render::hdr_io::{encode_radiance, HdrImage};
 use matseg_render::{render, tone_map, SceneDescription};
 use matseg_scene::{colourise, quantise_fractions};
@@ -110,10 +110,10 @@ pub fn render_scene_file(
     for (k, mask) in masks.masks.iter().enumerate() {
         write(
             &format!("mask{k}.png"),
-            encode_png_gray(w as u32, h as u32, mask),
+            encode_png_grey(w as u32, h as u32, mask),
         )?;
     }
-    write("roi.png", encode_png_gray(w as u32, h as u32, &masks.roi))?;
+    write("roi.png", encode_png_grey(w as u32, h as u32, &masks.roi))?;
     let planes: Vec<&[f32]> = rendered.fractions.iter().map(|f| f.as_slice()).collect();
     write("annotation.png", encode_png_rgb(&colourise(w, h, &planes)))?;
     let report = RenderReport {

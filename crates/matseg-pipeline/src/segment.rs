@@ -9,7 +9,7 @@ use crate::files::{create_folder, write_file};
 use image::RgbImage;
 use matseg_eval::{cluster_descriptors, ClusterOptions};
 use matseg_image::coarse::CoarseDescriptors;
-use matseg_image::io::{encode_png_gray, encode_png_rgb};
+use matseg_image::io::{encode_png_grey, encode_png_rgb};
 use matseg_net::TEMPERATURE;
 use matseg_scene::{blend_annotation_colour, PALETTE};
 use std::path::Path;
@@ -162,7 +162,7 @@ pub fn write_point_maps(
         let grey = similarity_grey(similarity);
         write_file(
             &out.join(format!("similarity_{i}.png")),
-            &encode_png_gray(w, h, &grey),
+            &encode_png_grey(w, h, &grey),
         )?;
         let overlay = similarity_overlay(photo, similarity, point, radius);
         write_file(
@@ -202,7 +202,7 @@ fn write_segmentation(photo: &RgbImage, labels: &[u32], out: &Path) -> Result<()
     let grey: Vec<u8> = labels.iter().map(|&l| l as u8).collect();
     write_file(
         &out.join("labels.png"),
-        &encode_png_gray(photo.width(), photo.height(), &grey),
+        &encode_png_grey(photo.width(), photo.height(), &grey),
     )
 }
 

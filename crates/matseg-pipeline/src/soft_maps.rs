@@ -5,7 +5,7 @@ use crate::error::PipelineError;
 use crate::files::{create_folder, write_file};
 use matseg_data::sample_rng;
 use matseg_extract::{combine_maps, draw_channel_map, CombinedMaps, MapRecord, MAX_MAPS};
-use matseg_image::io::{encode_png_gray, encode_png_rgb, read_rgb};
+use matseg_image::io::{encode_png_grey, encode_png_rgb, read_rgb};
 use matseg_image::{PhotoLibrary, Plane};
 use matseg_scene::{colourise, Recipe2d};
 use rand::Rng;
@@ -97,7 +97,7 @@ impl PhotoMaps {
         let weights: Vec<Plane> = weights.iter().map(|w| w.to_plane()).collect();
         create_folder(out)?;
         let write = |name: String, bytes: Vec<u8>| write_file(&out.join(name), &bytes);
-        let grey = |plane: &Plane| encode_png_gray(w as u32, h as u32, &plane.to_u8());
+        let grey = |plane: &Plane| encode_png_grey(w as u32, h as u32, &plane.to_u8());
         for (k, (r, wgt)) in raw_planes.iter().zip(&weights).enumerate() {
             write(format!("raw_{k:02}.png"), grey(r))?;
             write(format!("weight_{k:02}.png"), grey(wgt))?;

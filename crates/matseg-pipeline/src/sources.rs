@@ -67,7 +67,7 @@ pub fn assets_dir() -> PathBuf {
 /// The fetched corpus (`CACHE/corpus`), when it has a catalogue.
 pub fn corpus_dir() -> Option<PathBuf> {
     let dir = cache_root().ok()?.join("corpus");
-    dir.join(matseg_assets::catalog::CATALOG_FILE)
+    dir.join(matseg_assets::catalogue::CATALOGUE_FILE)
         .is_file()
         .then_some(dir)
 }

@@ -15,7 +15,7 @@ use crate::progress::Progress;
 use crate::segment::{check_points, outline_disc, Model};
 use image::RgbImage;
 use matseg_image::coarse::CoarseDescriptors;
-use matseg_image::io::{encode_jpeg, encode_png_gray};
+use matseg_image::io::{encode_jpeg, encode_png_grey};
 use matseg_image::tracking::{MaterialTracker, TrackOptions};
 use matseg_scene::PALETTE;
 use rayon::prelude::*;
@@ -439,12 +439,12 @@ fn track_into(
         }
         write_file(
             &dir.join("labels").join(&name),
-            &encode_png_gray(size.0, size.1, &tracked.labels),
+            &encode_png_grey(size.0, size.1, &tracked.labels),
         )?;
         for (k, similarity) in tracked.similarity.iter().enumerate() {
             write_file(
                 &dir.join("similarity").join(k.to_string()).join(&name),
-                &encode_png_gray(size.0, size.1, &crate::segment::similarity_grey(similarity)),
+                &encode_png_grey(size.0, size.1, &crate::segment::similarity_grey(similarity)),
             )?;
         }
         let discs: &[(f32, f32)] = if i as u64 == settings.frame {

@@ -325,10 +325,10 @@ impl MaterialTextures {
         let maps = matseg_extract::material_library::read_material(dir)?;
         Ok(MaterialTextures {
             colour: Some(Texture::from_rgb(maps.colour)),
-            roughness: maps.roughness.map(Texture::from_gray),
-            metalness: maps.metalness.map(Texture::from_gray),
+            roughness: maps.roughness.map(Texture::from_grey),
+            metalness: maps.metalness.map(Texture::from_grey),
             normal: maps.normal.map(Texture::from_rgb),
-            height: maps.height.map(Texture::from_gray),
+            height: maps.height.map(Texture::from_grey),
         })
     }
 

@@ -32,7 +32,7 @@ impl Texture {
     }
 
     /// From a greyscale image (its pixels are moved, not copied).
-    pub fn from_gray(img: image::GrayImage) -> Self {
+    pub fn from_grey(img: image::GrayImage) -> Self {
         let (w, h) = (img.width() as usize, img.height() as usize);
         Texture::from_levels(w, h, img.into_raw())
     }

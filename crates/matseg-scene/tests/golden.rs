@@ -4,7 +4,7 @@
 
 mod common;
 
-use matseg_image::io::{decode_gray, decode_rgb, encode_png_gray, encode_png_rgb};
+use matseg_image::io::{decode_grey, decode_rgb, encode_png_grey, encode_png_rgb};
 use matseg_scene::{generate_2d, quantise_weights, Sources};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -31,7 +31,7 @@ fn seed_7_scene_matches_golden_files() {
     let mut files: Vec<(String, Vec<u8>)> =
         vec![("seed7.image.png".into(), encode_png_rgb(&scene.image))];
     for (k, m) in q.masks.iter().enumerate() {
-        files.push((format!("seed7.mask{k}.png"), encode_png_gray(w, h, m)));
+        files.push((format!("seed7.mask{k}.png"), encode_png_grey(w, h, m)));
     }
 
     if std::env::var_os("MATSEG_BLESS").is_some() {
@@ -49,7 +49,7 @@ fn seed_7_scene_matches_golden_files() {
             decode_rgb(&expected, &path).unwrap().as_raw() == scene.image.as_raw()
         } else {
             let k: usize = name["seed7.mask".len()..name.len() - 4].parse().unwrap();
-            decode_gray(&expected, &path).unwrap().as_raw() == &q.masks[k]
+            decode_grey(&expected, &path).unwrap().as_raw() == &q.masks[k]
         };
         if !same {
             std::fs::create_dir_all(&actual_dir).unwrap();

@@ -12,7 +12,7 @@ use axum::response::{IntoResponse, Response};
 use axum::Json;
 use image::RgbImage;
 use matseg_data::reader::{Dataset, Sample, TrainingTargets};
-use matseg_image::io::{encode_jpeg, encode_png_gray, encode_png_rgb};
+use matseg_image::io::{encode_jpeg, encode_png_grey, encode_png_rgb};
 use matseg_scene::{blend_annotation_colour, colourise};
 use serde::Deserialize;
 use std::path::PathBuf;
@@ -203,13 +203,13 @@ fn draw_part(
                     sample.masks.len()
                 ))
             })?;
-            png(encode_png_gray(w, h, m.as_raw()))
+            png(encode_png_grey(w, h, m.as_raw()))
         }
         "roi" => {
             let roi = sample.roi.as_ref().ok_or_else(|| {
                 ApiError::not_found(format!("sample {}: no ROI stored", sample.key))
             })?;
-            png(encode_png_gray(w, h, roi.as_raw()))
+            png(encode_png_grey(w, h, roi.as_raw()))
         }
         "annotation" => png(encode_png_rgb(&annotation(sample, &sample.targets()))),
         "overlay" => png(encode_png_rgb(&overlay(sample, &sample.targets()))),

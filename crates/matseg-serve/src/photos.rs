@@ -15,7 +15,7 @@ use axum::response::{IntoResponse, Response};
 use axum::Json;
 use image::RgbImage;
 use matseg_eval::cluster::ClusterOptions;
-use matseg_image::io::{decode_rgb, encode_png_gray, encode_png_rgb, read_rgb};
+use matseg_image::io::{decode_rgb, encode_png_grey, encode_png_rgb, read_rgb};
 use matseg_pipeline::segment::{
     check_points, cluster, describe, query_points, similarity_grey, DEFAULT_RADIUS,
 };
@@ -372,7 +372,7 @@ pub async fn similarity(
     );
     let grey = similarity_grey(&maps.similarity[0]);
     let (w, h) = described.photo.dimensions();
-    Ok(png(encode_png_gray(w, h, &grey)))
+    Ok(png(encode_png_grey(w, h, &grey)))
 }
 
 /// `GET /api/segment`: the segmentation by two points or more, each pixel

@@ -8,7 +8,7 @@ use axum::http::{Request, StatusCode};
 use image::{GrayImage, RgbImage};
 use matseg_data::encode::EncodedSample;
 use matseg_eval::Annotation;
-use matseg_image::io::{encode_jpeg, encode_png_gray};
+use matseg_image::io::{encode_jpeg, encode_png_grey};
 use matseg_serve::{app::router, state, ServeOptions};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -74,10 +74,10 @@ fn sample(index: u64) -> EncodedSample {
         index,
         jpg: encode_jpeg(&image, 90),
         masks: vec![
-            encode_png_gray(32, 24, ramp.as_raw()),
-            encode_png_gray(32, 24, rest.as_raw()),
+            encode_png_grey(32, 24, ramp.as_raw()),
+            encode_png_grey(32, 24, rest.as_raw()),
         ],
-        roi: encode_png_gray(32, 24, &[255; 32 * 24]),
+        roi: encode_png_grey(32, 24, &[255; 32 * 24]),
         json: format!("{{\"seed\": 7, \"index\": {index}}}").into_bytes(),
     }
 }

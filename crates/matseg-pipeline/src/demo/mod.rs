@@ -18,7 +18,7 @@ use crate::train_summary::TrainSummary;
 use matseg_data::{generate_dataset, sample_rng, Dataset, Format, GenerateOptions, JobSlice};
 use matseg_extract::pbr::{make_pbr, preview_sphere, PbrRecipe};
 use matseg_extract::textures::{extract_textures, TextureOptions};
-use matseg_image::io::{encode_png_gray, encode_png_rgb, read_rgb};
+use matseg_image::io::{encode_png_grey, encode_png_rgb, read_rgb};
 use matseg_image::{LicenceFilter, PhotoLibrary};
 use matseg_scene::Recipe2d;
 use page::{sample_cards, STYLE};
@@ -220,7 +220,7 @@ fn materials_page(out: &Path, seed: u64) -> Result<(), PipelineError> {
             let map = &m.maps[k].1;
             write_png(
                 &format!("pbr_{stem}_{what}.png"),
-                encode_png_gray(map.width(), map.height(), map.as_raw()),
+                encode_png_grey(map.width(), map.height(), map.as_raw()),
             )
         };
         let cells = [
