@@ -2,7 +2,7 @@
 //! descriptor maps, point descriptors, and the dataset means of the scores.
 
 use crate::iou::{best_iou, best_iou_on_grid};
-use crate::masks::{query_points, MaskImage, QueryOptions};
+use crate::masks::{draw_mask_points, MaskImage, QueryOptions};
 use crate::points::{flatten, BenchError, PointBenchmark};
 use crate::triplet::{score_image, ImageScores, PointScores};
 use image::{GrayImage, RgbImage};
@@ -247,7 +247,8 @@ pub fn evaluate_masks(
         let (mut sum, mut count) = (0.0, 0usize);
         for (k, path) in image.mask_paths.iter().enumerate() {
             let truth = inside(path)?;
-            let points = query_points(&truth, w as usize, h as usize, &options.queries, index, k);
+            let points =
+                draw_mask_points(&truth, w as usize, h as usize, &options.queries, index, k);
             if points.is_empty() {
                 report.skipped_masks += 1;
                 continue;

@@ -132,7 +132,7 @@ pub fn erode(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
 /// Up to `points_per_mask` query pixels `(x, y)` drawn uniformly from the
 /// eroded mask, or nothing when it is smaller than `min_area`. The draw
 /// depends only on the seed and the `(image, mask)` indices.
-pub fn query_points(
+pub fn draw_mask_points(
     mask: &[bool],
     w: usize,
     h: usize,
@@ -183,7 +183,7 @@ mod tests {
     }
 
     #[test]
-    fn query_points_lie_in_the_eroded_mask_and_are_seeded() {
+    fn drawn_mask_points_lie_in_the_eroded_mask_and_are_seeded() {
         let (w, h) = (60, 50);
         let mask: Vec<bool> = (0..w * h).map(|i| i % w < 40).collect();
         let options = QueryOptions {
@@ -191,17 +191,17 @@ mod tests {
             min_area: 100,
             ..QueryOptions::default()
         };
-        let points = query_points(&mask, w, h, &options, 3, 1);
+        let points = draw_mask_points(&mask, w, h, &options, 3, 1);
         assert_eq!(points.len(), 10);
         assert!(points
             .iter()
             .all(|&(x, y)| (5..35).contains(&x) && (5..45).contains(&y)));
-        assert_eq!(points, query_points(&mask, w, h, &options, 3, 1));
-        assert_ne!(points, query_points(&mask, w, h, &options, 3, 2));
+        assert_eq!(points, draw_mask_points(&mask, w, h, &options, 3, 1));
+        assert_ne!(points, draw_mask_points(&mask, w, h, &options, 3, 2));
         let strict = QueryOptions {
             min_area: 2000,
             ..options
         };
-        assert!(query_points(&mask, w, h, &strict, 3, 1).is_empty());
+        assert!(draw_mask_points(&mask, w, h, &strict, 3, 1).is_empty());
     }
 }

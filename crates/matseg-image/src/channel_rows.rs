@@ -46,7 +46,7 @@ enum Source<'a> {
     Whole(ChannelWindow),
     /// Hue and saturation of a colour image (boxed: its window reader
     /// holds the column taps).
-    Converted(Box<Converted<'a>>),
+    ConvertedRows(Box<ConvertedRows<'a>>),
     /// R, G or B (one lane), or V (the largest of the three), resampled
     /// run by run (boxed: its window reader holds the column taps).
     OnDemand(Box<OnDemand<'a>>),
@@ -93,7 +93,7 @@ impl<'a> OnDemand<'a> {
     /// largest level of the source rows it reads; rows are made in
     /// decreasing order of that bound until no other can exceed the largest
     /// level found. Only for R, G, B and V: hue and saturation have no
-    /// such bound (see [`Converted`]).
+    /// such bound (see [`ConvertedRows`]).
     fn max_level(&mut self, w: usize, h: usize) -> u8 {
         if w == 0 || h == 0 {
             return 0;
@@ -122,7 +122,7 @@ impl<'a> OnDemand<'a> {
 /// nine tenths of the saturation ones reach it, half of those within the
 /// first tenth of their rows); the rows below are made run by run as they
 /// are read. A window with no 255 is made whole.
-struct Converted<'a> {
+struct ConvertedRows<'a> {
     /// The rows below those made from the top.
     below: OnDemand<'a>,
     /// The levels of the rows made from the top.
@@ -152,7 +152,7 @@ impl<'a> ChannelRows<'a> {
                 None => {
                     let mut top = Vec::new();
                     let made = rows.reader.converted_rows(channel, Some(u8::MAX), &mut top);
-                    Source::Converted(Box::new(Converted {
+                    Source::ConvertedRows(Box::new(ConvertedRows {
                         max_level: highest(&top),
                         below: OnDemand::new(rows, channel, &[0, 1, 2]),
                         top,
@@ -174,7 +174,7 @@ impl<'a> ChannelRows<'a> {
     pub fn levels(&mut self, y: usize, x0: usize, n: usize) -> &[u8] {
         match &mut self.source {
             Source::Whole(window) => window.run(y, x0, n),
-            Source::Converted(converted) => {
+            Source::ConvertedRows(converted) => {
                 if y < converted.made {
                     return &converted.top[y * self.width + x0..][..n];
                 }
@@ -195,7 +195,7 @@ impl<'a> ChannelRows<'a> {
     pub fn max_level(&mut self) -> u8 {
         match &mut self.source {
             Source::Whole(window) => window.max_level(),
-            Source::Converted(converted) => converted.max_level,
+            Source::ConvertedRows(converted) => converted.max_level,
             Source::OnDemand(on_demand) => on_demand.max_level(self.width, self.height),
         }
     }
@@ -271,7 +271,7 @@ mod tests {
                     whole.max_level(),
                     "{channel:?} {placement:?}"
                 );
-                if let Source::Converted(converted) = &rows.source {
+                if let Source::ConvertedRows(converted) = &rows.source {
                     match channel {
                         Channel::H => made.0.push(converted.made),
                         _ => made.1.push(converted.made),
