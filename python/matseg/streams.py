@@ -75,7 +75,25 @@ class SampleStream(IterableDataset):
             yield sample_tensors(self.source[i])
 
 
-class BatchStream(IterableDataset):
+class _StepStream(IterableDataset):
+    """Steps first_step..first_step+steps (None: unbounded) split across
+    workers and ranks, each yielding `self.batch(step)`."""
+
+    def __init__(self, steps, first_step):
+        self.first_step = first_step
+        self.stop = None if steps is None else first_step + steps
+
+    def batch(self, step):
+        """Batch `step` as tensors."""
+        raise NotImplementedError
+
+    def __iter__(self):
+        number, count = consumer()
+        for step in my_indices(self.first_step, self.stop, number, count):
+            yield self.batch(step)
+
+
+class BatchStream(_StepStream):
     """Training batches as `matseg train` draws them (`BatchPlan`: one
     random size per batch, samples fitted and augmented; batch `s` depends
     only on (seed, s)), steps first_step..first_step+steps split across
@@ -84,9 +102,8 @@ class BatchStream(IterableDataset):
     (normalised, the net's input), weights BxKxHxW, roi BxHxW, step."""
 
     def __init__(self, source, plan=None, seed=0, steps=None, first_step=0, mix=None):
+        super().__init__(steps, first_step)
         self.source, self.plan, self.seed, self.mix = source, plan or BatchPlan.default(), seed, mix
-        self.first_step = first_step
-        self.stop = None if steps is None else first_step + steps
 
     def batch(self, step):
         """Batch `step` as tensors."""
@@ -98,13 +115,8 @@ class BatchStream(IterableDataset):
             "step": step,
         }
 
-    def __iter__(self):
-        number, count = consumer()
-        for step in my_indices(self.first_step, self.stop, number, count):
-            yield self.batch(step)
 
-
-class FeatureStream(IterableDataset):
+class FeatureStream(_StepStream):
     """The batches of `matseg train --features` on a `matseg.FeatureCache`
     (under `plan`, whose pixels set the images a batch, and `seed`), steps
     first_step..first_step+steps split across workers and ranks: taps (a
@@ -112,9 +124,8 @@ class FeatureStream(IterableDataset):
     stride-4 grid, step."""
 
     def __init__(self, cache, plan, seed=0, steps=None, first_step=0):
+        super().__init__(steps, first_step)
         self.cache, self.plan, self.seed = cache, plan, seed
-        self.first_step = first_step
-        self.stop = None if steps is None else first_step + steps
 
     def batch(self, step):
         """Batch `step` as tensors."""
@@ -126,8 +137,3 @@ class FeatureStream(IterableDataset):
             "roi": torch.from_numpy(b["roi"]),
             "step": step,
         }
-
-    def __iter__(self):
-        number, count = consumer()
-        for step in my_indices(self.first_step, self.stop, number, count):
-            yield self.batch(step)
