@@ -19,6 +19,14 @@ pub fn default_plan() -> String {
 /// taken from it (`matseg train --mix-data`, `--mix-fraction`).
 pub type MixedDataset<'py> = Option<(PyRef<'py, PyDataset>, f64)>;
 
+/// A batch plan from its JSON (`matseg.BatchPlan.to_json`), checked.
+pub fn parse_plan(plan: &str) -> PyResult<BatchPlan> {
+    let invalid = |e: &dyn std::fmt::Display| PyValueError::new_err(format!("batch plan: {e}"));
+    let plan: BatchPlan = serde_json::from_str(plan).map_err(|e| invalid(&e))?;
+    plan.validate().map_err(|e| invalid(&e))?;
+    Ok(plan)
+}
+
 /// Batch `step` of `source` (with `mix`) under `plan` (JSON) and `seed`: a
 /// list of `{"width", "height", "image": RGB buffer, "weights": [little-endian
 /// f32 buffer], "roi": little-endian f32 buffer}`, all images of one size.
@@ -30,10 +38,7 @@ pub fn batch_list<'py>(
     seed: u64,
     step: u64,
 ) -> PyResult<Bound<'py, PyList>> {
-    let plan: BatchPlan = serde_json::from_str(plan)
-        .map_err(|e| PyValueError::new_err(format!("batch plan: {e}")))?;
-    plan.validate()
-        .map_err(|e| PyValueError::new_err(format!("batch plan: {e}")))?;
+    let plan = parse_plan(plan)?;
     let mixed = match &mix {
         Some((other, fraction)) => {
             MixedSource::check_fraction(*fraction)

@@ -1,9 +1,9 @@
 //! `matseg.FeatureCache`: a feature cache made by `matseg features`, and
 //! its training batches as `matseg train --features` draws them.
 
+use crate::batches::parse_plan;
 use crate::buffer::Buffer;
 use crate::errors::matseg_error;
-use matseg_net::data::BatchPlan;
 use matseg_net::features::{CacheManifest, FeatureCache};
 use matseg_net::train::cached_batch;
 use pyo3::exceptions::PyValueError;
@@ -47,7 +47,7 @@ impl PyFeatureCache {
     }
 
     /// Batch `step` under `plan` (JSON) and `seed`: a list of samples, each
-    /// `{name: (shape, 16-bit float bytes)}` for `s4`, `s8`, `s16`, `s32`,
+    /// `{name: (shape, buffer of little-endian 16-bit floats)}` for `s4`, `s8`, `s16`, `s32`,
     /// `lab`, `weights` and `roi`.
     fn batch<'py>(
         &self,
@@ -56,8 +56,7 @@ impl PyFeatureCache {
         seed: u64,
         step: u64,
     ) -> PyResult<Bound<'py, PyList>> {
-        let plan: BatchPlan = serde_json::from_str(plan)
-            .map_err(|e| PyValueError::new_err(format!("batch plan: {e}")))?;
+        let plan = parse_plan(plan)?;
         let samples = py
             .detach(|| cached_batch(&self.cache, &plan, seed, step))
             .map_err(matseg_error)?;

@@ -3,11 +3,11 @@
 //! draw`: any point benchmark's annotations drawn on its photos
 //! (`matseg_pipeline::point_bench`).
 
-use crate::common::{load_libraries, LicenceArgs};
+use crate::common::LibraryArgs;
 use anyhow::Result;
 use clap::Subcommand;
 use matseg_pipeline::point_bench::{draw_point_benchmark, make_point_benchmark};
-use matseg_pipeline::sources::{Defaults, DEFAULT_CACHE_MB};
+use matseg_pipeline::sources::DEFAULT_CACHE_MB;
 use std::path::PathBuf;
 
 /// `matseg bench-set` subcommands.
@@ -49,14 +49,8 @@ pub struct MakeArgs {
     /// Points per material.
     #[arg(long, default_value_t = 5)]
     points: usize,
-    /// Folders of natural photos; default: the fetched corpus, else bundled assets.
-    #[arg(long, num_args = 1..)]
-    sources: Vec<PathBuf>,
-    /// Folders of textures; default: the fetched corpus, else bundled assets.
-    #[arg(long, num_args = 1..)]
-    textures: Vec<PathBuf>,
     #[command(flatten)]
-    licences: LicenceArgs,
+    libraries: LibraryArgs,
 }
 
 /// Runs `matseg bench-set`.
@@ -77,13 +71,7 @@ fn draw(args: DrawArgs) -> Result<()> {
 }
 
 fn make(args: MakeArgs) -> Result<()> {
-    let libraries = load_libraries(
-        &args.sources,
-        &args.textures,
-        DEFAULT_CACHE_MB,
-        Defaults::CorpusOrBundled,
-        &args.licences.filter()?,
-    )?;
+    let libraries = args.libraries.load(DEFAULT_CACHE_MB)?;
     let (written, left_out) =
         make_point_benchmark(&args.out, args.n, args.seed, args.points, &libraries)?;
     println!(

@@ -40,6 +40,36 @@ impl LicenceArgs {
     }
 }
 
+/// The source folders of the commands that make 2D scenes (`train
+/// --online`, `features`, `bench-set make`), with their licence filter.
+#[derive(clap::Args)]
+pub struct LibraryArgs {
+    /// Folders of natural photos the scenes are made from; default: the
+    /// fetched corpus, else the bundled assets.
+    #[arg(long, num_args = 1..)]
+    sources: Vec<PathBuf>,
+    /// Folders of textures the scenes are made from; default: the fetched
+    /// corpus, else the bundled assets.
+    #[arg(long, num_args = 1..)]
+    textures: Vec<PathBuf>,
+    #[command(flatten)]
+    licences: LicenceArgs,
+}
+
+impl LibraryArgs {
+    /// The libraries of these folders (or the defaults), decoded within
+    /// `cache_mb` MiB, with a warning for each unreadable file.
+    pub fn load(&self, cache_mb: usize) -> Result<Libraries> {
+        load_libraries(
+            &self.sources,
+            &self.textures,
+            cache_mb,
+            Defaults::CorpusOrBundled,
+            &self.licences.filter()?,
+        )
+    }
+}
+
 /// Scans the photo and texture libraries ([`Libraries::load`]) and prints
 /// a warning for each unreadable file.
 pub fn load_libraries(

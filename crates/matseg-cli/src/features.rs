@@ -1,12 +1,12 @@
 //! `matseg features`: a feature cache (training samples run once through a
 //! model's encoder) for `matseg train --features`.
 
-use crate::common::{load_libraries, BarProgress, LicenceArgs};
+use crate::common::{BarProgress, LibraryArgs};
 use crate::net_args::parse_device;
 use anyhow::{bail, Result};
 use matseg_net::data::Zoom;
 use matseg_pipeline::features::{make_features, FeaturesConfig};
-use matseg_pipeline::sources::{Defaults, DEFAULT_CACHE_MB};
+use matseg_pipeline::sources::DEFAULT_CACHE_MB;
 use matseg_pipeline::train::{MixIn, TrainConfig, TrainData};
 use std::path::PathBuf;
 
@@ -38,14 +38,8 @@ pub struct Args {
     /// The share of samples taken from --mix-data.
     #[arg(long, default_value_t = TrainConfig::MIX_FRACTION, requires = "mix_data")]
     mix_fraction: f64,
-    /// Photo folders for --online; default: the fetched corpus, else bundled assets.
-    #[arg(long, num_args = 1..)]
-    sources: Vec<PathBuf>,
-    /// Texture folders for --online; default: the fetched corpus, else bundled assets.
-    #[arg(long, num_args = 1..)]
-    textures: Vec<PathBuf>,
     #[command(flatten)]
-    licences: LicenceArgs,
+    libraries: LibraryArgs,
     /// The encoder's weights: default (the shipped model), imagenet, a run
     /// folder, or a whole net's weights file beside its run.json.
     #[arg(long, default_value = FeaturesConfig::MODEL)]
@@ -109,13 +103,7 @@ pub fn run(args: Args) -> Result<()> {
         p_augment: args.augment,
         ..FeaturesConfig::new(&args.out, data)
     };
-    let libraries = load_libraries(
-        &args.sources,
-        &args.textures,
-        args.cache_mb,
-        Defaults::CorpusOrBundled,
-        &args.licences.filter()?,
-    )?;
+    let libraries = args.libraries.load(args.cache_mb)?;
     let report = make_features(
         &config,
         &libraries,

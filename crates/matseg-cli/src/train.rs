@@ -2,13 +2,12 @@
 //! dataset or straight from the 2D generator, into a run folder that
 //! `--resume` continues exactly.
 
-use crate::common::{load_libraries, LicenceArgs};
+use crate::common::LibraryArgs;
 use crate::net_args::parse_device;
 use crate::training::train_with_bar;
 use anyhow::{bail, Result};
 use matseg_net::data::BatchPlan;
 use matseg_net::train::{self, LrScale};
-use matseg_pipeline::sources::Defaults;
 use matseg_pipeline::train::{resume, start, MixIn, TrainConfig, TrainData, TrainInputs};
 use std::path::PathBuf;
 
@@ -40,14 +39,8 @@ pub struct Args {
     /// The share of samples taken from --mix-data.
     #[arg(long, default_value_t = TrainConfig::MIX_FRACTION, requires = "mix_data")]
     mix_fraction: f64,
-    /// Photo folders for --online; default: the fetched corpus, else bundled assets.
-    #[arg(long, num_args = 1..)]
-    sources: Vec<PathBuf>,
-    /// Texture folders for --online; default: the fetched corpus, else bundled assets.
-    #[arg(long, num_args = 1..)]
-    textures: Vec<PathBuf>,
     #[command(flatten)]
-    licences: LicenceArgs,
+    libraries: LibraryArgs,
     /// Encoder: mobilenet-v2, convnext-tiny or convnext-base.
     #[arg(long, default_value = TrainConfig::ENCODER)]
     encoder: String,
@@ -158,13 +151,7 @@ pub fn run(args: Args) -> Result<()> {
         eprintln!("{loaded}");
     }
     // One scan of the libraries serves the online source and validation.
-    let libraries = load_libraries(
-        &args.sources,
-        &args.textures,
-        1024,
-        Defaults::CorpusOrBundled,
-        &args.licences.filter()?,
-    )?;
+    let libraries = args.libraries.load(1024)?;
     let inputs = TrainInputs {
         libraries: &libraries,
         val_points: args.val_points.as_deref(),
