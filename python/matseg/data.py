@@ -127,12 +127,13 @@ def native_batch(
     share of the samples taken from the dataset, as `matseg train
     --mix-data`), as `batch_arrays`."""
     plan = plan or BatchPlan.default()
+    native_mix = None
     if mix is not None:
         other, fraction = mix
         if not isinstance(other, Dataset):
             raise TypeError(f"mix: expected (matseg.Dataset, fraction), got {type(other).__name__}")
-        return batch_arrays(native.batch(plan.to_json(), int(seed), int(step), (other._native, float(fraction))))
-    return batch_arrays(native.batch(plan.to_json(), int(seed), int(step), None))
+        native_mix = (other._native, float(fraction))
+    return batch_arrays(native.batch(plan.to_json(), int(seed), int(step), native_mix))
 
 
 class Generator:

@@ -64,7 +64,7 @@ impl PyDataset {
         let sample = py
             .detach(|| self.source.0.get(index))
             .map_err(matseg_error)?;
-        sample_dict(py, &sample)
+        sample_dict(py, sample)
     }
 
     /// Training batch `step` drawn from the dataset (with `mix`, another

@@ -63,8 +63,8 @@ impl PyFeatureCache {
         let list = PyList::empty(py);
         for sample in samples {
             let d = PyDict::new(py);
-            for t in sample.stored() {
-                d.set_item(&t.name, (t.shape.clone(), Buffer::new(t.data.clone())))?;
+            for t in sample.into_stored() {
+                d.set_item(t.name, (t.shape, Buffer::new(t.data)))?;
             }
             list.append(d)?;
         }

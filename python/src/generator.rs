@@ -121,7 +121,7 @@ impl PyGenerator {
     fn sample<'py>(&self, py: Python<'py>, index: u64) -> PyResult<Bound<'py, PyDict>> {
         let encoded = self.make(py, index)?;
         let sample = decode_encoded(&encoded).map_err(matseg_error)?;
-        sample_dict(py, &sample)
+        sample_dict(py, sample)
     }
 
     /// The files of sample `index` as `matseg generate` writes them into

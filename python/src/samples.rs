@@ -8,22 +8,19 @@ use pyo3::types::{PyDict, PyList};
 /// `{"key", "width", "height", "image": RGB buffer, "masks": [buffer],
 /// "roi": buffer | None, "meta": JSON text | None}`: 8-bit planes row by
 /// row.
-pub fn sample_dict<'py>(py: Python<'py>, sample: &Sample) -> PyResult<Bound<'py, PyDict>> {
+pub fn sample_dict(py: Python<'_>, sample: Sample) -> PyResult<Bound<'_, PyDict>> {
     let d = PyDict::new(py);
     let (w, h) = sample.image.dimensions();
     d.set_item("key", &sample.key)?;
     d.set_item("width", w)?;
     d.set_item("height", h)?;
-    d.set_item("image", Buffer::new(sample.image.as_raw().clone()))?;
+    d.set_item("image", Buffer::new(sample.image.into_raw()))?;
     let masks = PyList::empty(py);
-    for m in &sample.masks {
-        masks.append(Buffer::new(m.as_raw().clone()))?;
+    for m in sample.masks {
+        masks.append(Buffer::new(m.into_raw()))?;
     }
     d.set_item("masks", masks)?;
-    d.set_item(
-        "roi",
-        sample.roi.as_ref().map(|r| Buffer::new(r.as_raw().clone())),
-    )?;
+    d.set_item("roi", sample.roi.map(|r| Buffer::new(r.into_raw())))?;
     d.set_item("meta", sample.meta.as_ref().map(|m| m.to_string()))?;
     Ok(d)
 }

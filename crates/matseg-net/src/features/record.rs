@@ -131,10 +131,10 @@ impl CachedSample {
         Ok(Self { tensors })
     }
 
-    /// The tensors as stored: `s4`, `s8`, `s16`, `s32`, `lab`, `weights`,
-    /// `roi`, each 16-bit floats with its shape.
-    pub fn stored(&self) -> &[Stored] {
-        &self.tensors
+    /// The tensors as stored, taken out of the sample: `s4`, `s8`, `s16`,
+    /// `s32`, `lab`, `weights`, `roi`, each 16-bit floats with its shape.
+    pub fn into_stored(self) -> Vec<Stored> {
+        self.tensors
     }
 
     /// Materials in the sample.
