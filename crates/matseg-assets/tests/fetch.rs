@@ -40,14 +40,9 @@ fn scene(w: u32, h: u32, k: f32) -> image::RgbImage {
     })
 }
 
+/// `img` as a JPEG at quality 90, as photo sources ship them.
 fn jpeg_of(img: &image::RgbImage) -> Vec<u8> {
-    let mut out = Vec::new();
-    img.write_to(
-        &mut std::io::Cursor::new(&mut out),
-        image::ImageFormat::Jpeg,
-    )
-    .unwrap();
-    out
+    matseg_image::io::encode_jpeg(img, 90)
 }
 
 fn gimp_pattern() -> Vec<u8> {

@@ -12,13 +12,8 @@ use std::path::{Path, PathBuf};
 
 fn libraries() -> (PhotoLibrary, PhotoLibrary) {
     let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets");
-    let photos = PhotoLibrary::scan(&[assets.join("photos")], 1 << 30)
-        .unwrap()
-        .0;
-    let textures = PhotoLibrary::scan(&[assets.join("textures")], 1 << 30)
-        .unwrap()
-        .0;
-    (photos, textures)
+    let scan = |sub: &str| PhotoLibrary::scan(&[assets.join(sub)], 1 << 30).unwrap().0;
+    (scan("photos"), scan("textures"))
 }
 
 fn small_recipe() -> Recipe2d {

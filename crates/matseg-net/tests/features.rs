@@ -15,7 +15,6 @@ use matseg_net::features::{
 use matseg_net::train::{
     self, CachedFeatures, RunConfig, StepMetrics, TrainOptions, Trainer, TrainingData, Validation,
 };
-use matseg_net::{ConvNextConfig, EncoderConfig, NetConfig};
 use matseg_scene::Recipe2d;
 use std::path::Path;
 use tch::Device;
@@ -23,24 +22,9 @@ use tch::Device;
 const SIDE: usize = 64;
 const SAMPLES: u64 = 6;
 
-fn net() -> NetConfig {
-    NetConfig {
-        encoder: EncoderConfig::Convnext(ConvNextConfig {
-            depths: [1, 1, 1, 1],
-            dims: [8, 16, 16, 24],
-        }),
-        psp_branch: 8,
-        psp_out: 16,
-        decoder: [16, 16, 8],
-        descriptor_dim: 8,
-        encoder_features: true,
-        colour_features: true,
-    }
-}
-
 fn run_config(steps: u64, cache: &Path, manifest: CacheManifest) -> RunConfig {
     RunConfig {
-        net: net(),
+        net: common::tiny_net(true),
         options: TrainOptions {
             steps,
             lr: 3e-3,
@@ -97,7 +81,7 @@ fn make_cache(dir: &Path) -> (CacheManifest, Trainer) {
         Device::Cpu,
     );
     let manifest = CacheManifest {
-        encoder: net().encoder,
+        encoder: common::tiny_net(true).encoder,
         encoder_digest: encoder_digest(&probe.vs),
         taps: probe.net.tap_channels(),
         ..placeholder()
@@ -121,7 +105,7 @@ fn placeholder() -> CacheManifest {
     CacheManifest {
         format: CACHE_FORMAT.into(),
         version: CACHE_VERSION,
-        encoder: net().encoder,
+        encoder: common::tiny_net(true).encoder,
         encoder_digest: String::new(),
         model: "scratch".into(),
         width: SIDE,

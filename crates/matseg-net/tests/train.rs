@@ -12,7 +12,7 @@ use matseg_net::infer::{PixelDescriptors, TrainedNet};
 use matseg_net::train::{
     self, RunConfig, StepMetrics, TrainOptions, Trainer, TrainingData, Validation,
 };
-use matseg_net::{load_net_adding, ConvNextConfig, EncoderConfig, NetConfig, NetError};
+use matseg_net::{load_net_adding, NetError};
 use matseg_scene::Recipe2d;
 use std::path::Path;
 use tch::Device;
@@ -35,18 +35,7 @@ const PLAN: BatchPlan = BatchPlan {
 
 fn config(steps: u64) -> RunConfig {
     RunConfig {
-        net: NetConfig {
-            encoder: EncoderConfig::Convnext(ConvNextConfig {
-                depths: [1, 1, 1, 1],
-                dims: [8, 16, 16, 24],
-            }),
-            psp_branch: 8,
-            psp_out: 16,
-            decoder: [16, 16, 8],
-            descriptor_dim: 8,
-            encoder_features: false,
-            colour_features: false,
-        },
+        net: common::tiny_net(false),
         options: TrainOptions {
             steps,
             lr: 1e-3,

@@ -4,15 +4,11 @@ use matseg_image::PhotoLibrary;
 use matseg_scene::Recipe2d;
 use std::path::Path;
 
+/// The bundled photos and textures.
 pub fn libraries() -> (PhotoLibrary, PhotoLibrary) {
     let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets");
-    let photos = PhotoLibrary::scan(&[assets.join("photos")], 1 << 30)
-        .unwrap()
-        .0;
-    let textures = PhotoLibrary::scan(&[assets.join("textures")], 1 << 30)
-        .unwrap()
-        .0;
-    (photos, textures)
+    let scan = |sub: &str| PhotoLibrary::scan(&[assets.join(sub)], 1 << 30).unwrap().0;
+    (scan("photos"), scan("textures"))
 }
 
 /// The default recipe with small scenes, so tests stay fast.
