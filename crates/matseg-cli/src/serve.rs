@@ -21,17 +21,17 @@ pub struct Args {
     #[arg(long, num_args = 1..)]
     bench: Vec<PathBuf>,
     /// Address to bind; any other than the loopback needs --token.
-    #[arg(long, default_value = "127.0.0.1")]
+    #[arg(long, default_value = ServeOptions::HOST)]
     host: String,
     /// Port (0: any free one).
-    #[arg(long, default_value_t = 8080)]
+    #[arg(long, default_value_t = ServeOptions::PORT)]
     port: u16,
     /// A token every API call must carry (header `x-matseg-token` or
     /// query `token`).
     #[arg(long)]
     token: Option<String>,
     /// Bound on the described photos kept in memory, in MiB.
-    #[arg(long, default_value_t = 1024)]
+    #[arg(long, default_value_t = ServeOptions::CACHE_MB)]
     cache_mb: usize,
     /// cpu, cuda or cuda:N.
     #[arg(long, default_value = "cpu")]

@@ -87,6 +87,32 @@ pub struct ServeOptions {
     pub device: matseg_image::device::ComputeDevice,
 }
 
+impl ServeOptions {
+    /// The address bound unless told otherwise: this machine only.
+    pub const HOST: &'static str = "127.0.0.1";
+    /// The port bound unless told otherwise.
+    pub const PORT: u16 = 8080;
+    /// The bound on described photos kept unless told otherwise, in MiB.
+    pub const CACHE_MB: usize = 1024;
+}
+
+impl Default for ServeOptions {
+    /// `matseg serve` with no arguments: the shipped model on the CPU, the
+    /// bundled photos only, on [`Self::HOST`]:[`Self::PORT`], no token.
+    fn default() -> Self {
+        Self {
+            model: "default".into(),
+            data: Vec::new(),
+            bench: Vec::new(),
+            host: Self::HOST.into(),
+            port: Self::PORT,
+            token: None,
+            cache_mb: Self::CACHE_MB,
+            device: matseg_image::device::ComputeDevice::Cpu,
+        }
+    }
+}
+
 /// Whether `host` is this machine only.
 fn is_loopback(host: &str) -> bool {
     matches!(host, "127.0.0.1" | "localhost" | "::1" | "[::1]")

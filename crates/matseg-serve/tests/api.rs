@@ -3,52 +3,19 @@
 //! by points and automatic ones, uploads (and the refused ones), refused
 //! paths, bad points and the token.
 
-use axum::body::Body;
-use axum::http::{Request, StatusCode};
-use matseg_serve::{app::router, state, ServeError, ServeOptions};
-use tower::ServiceExt;
+mod router;
 
+use axum::http::StatusCode;
+use matseg_serve::{app::router, state, ServeError, ServeOptions};
+use router::{error_of, get, json, post};
+
+/// The web app on the shipped model, as a test runs it.
 fn options() -> ServeOptions {
     ServeOptions {
-        model: "default".into(),
-        data: Vec::new(),
-        bench: Vec::new(),
-        host: "127.0.0.1".into(),
         port: 0,
-        token: None,
         cache_mb: 64,
-        device: matseg_image::device::ComputeDevice::Cpu,
+        ..ServeOptions::default()
     }
-}
-
-/// Status, content type and body of `GET uri`.
-async fn get(app: &axum::Router, uri: &str) -> (StatusCode, String, Vec<u8>) {
-    send(app, Request::get(uri).body(Body::empty()).unwrap()).await
-}
-
-/// Status, content type and body of `POST uri` with `body`.
-async fn post(app: &axum::Router, uri: &str, body: Vec<u8>) -> (StatusCode, String, Vec<u8>) {
-    send(app, Request::post(uri).body(Body::from(body)).unwrap()).await
-}
-
-async fn send(app: &axum::Router, request: Request<Body>) -> (StatusCode, String, Vec<u8>) {
-    let response = app.clone().oneshot(request).await.unwrap();
-    let status = response.status();
-    let kind = response
-        .headers()
-        .get("content-type")
-        .map(|v| v.to_str().unwrap().to_string())
-        .unwrap_or_default();
-    let body = axum::body::to_bytes(response.into_body(), usize::MAX)
-        .await
-        .unwrap()
-        .to_vec();
-    (status, kind, body)
-}
-
-fn error_of(body: &[u8]) -> String {
-    let json: serde_json::Value = serde_json::from_slice(body).unwrap();
-    json["error"].as_str().unwrap().to_string()
 }
 
 #[tokio::test(flavor = "multi_thread")]
@@ -74,7 +41,7 @@ async fn a_click_is_answered_with_the_material_under_it() {
 
     let (status, _, listing) = get(&app, "/api/photos").await;
     assert_eq!(status, StatusCode::OK);
-    let listing: serde_json::Value = serde_json::from_slice(&listing).unwrap();
+    let listing = json(&listing);
     let names: Vec<&str> = listing["photos"]
         .as_array()
         .unwrap()
@@ -151,7 +118,7 @@ async fn uploads_are_described_and_bad_ones_refused_with_a_reason() {
         std::fs::read(matseg_pipeline::sources::assets_dir().join("photos/coffee.jpg")).unwrap();
     let (status, _, body) = post(&app, "/api/upload?name=mine.jpg", coffee.clone()).await;
     assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
-    let upload: serde_json::Value = serde_json::from_slice(&body).unwrap();
+    let upload = json(&body);
     assert_eq!(
         (upload["width"].as_u64(), upload["height"].as_u64()),
         (Some(600), Some(400))

@@ -29,14 +29,11 @@ use std::path::{Path, PathBuf};
 /// Starts the server on a free port; its address.
 fn start_server(data: Vec<PathBuf>, bench: PathBuf) -> String {
     let options = ServeOptions {
-        model: "default".into(),
         data,
         bench: vec![bench],
-        host: "127.0.0.1".into(),
         port: 0,
-        token: None,
         cache_mb: 256,
-        device: matseg_image::device::ComputeDevice::Cpu,
+        ..ServeOptions::default()
     };
     let (ready, address) = std::sync::mpsc::channel();
     std::thread::spawn(move || {

@@ -3,63 +3,44 @@
 //! benchmark (saved files read back by the evaluation reader) and
 //! evaluating it (the same scores as the evaluation library).
 
-use axum::body::Body;
-use axum::http::{Request, StatusCode};
+mod router;
+
+use axum::http::StatusCode;
 use image::{GrayImage, RgbImage};
 use matseg_data::encode::EncodedSample;
 use matseg_eval::Annotation;
 use matseg_image::io::{encode_jpeg, encode_png_grey};
 use matseg_serve::{app::router, state, ServeOptions};
+use router::{get, json, post};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
-use tower::ServiceExt;
 
+/// The web app on the shipped model over `data` and `bench`.
 fn options(data: Vec<PathBuf>, bench: Vec<PathBuf>) -> ServeOptions {
     ServeOptions {
-        model: "default".into(),
         data,
         bench,
-        host: "127.0.0.1".into(),
         port: 0,
-        token: None,
         cache_mb: 64,
-        device: matseg_image::device::ComputeDevice::Cpu,
+        ..ServeOptions::default()
     }
 }
 
-async fn send(app: &axum::Router, request: Request<Body>) -> (StatusCode, Vec<u8>) {
-    let response = app.clone().oneshot(request).await.unwrap();
-    let status = response.status();
-    let body = axum::body::to_bytes(response.into_body(), usize::MAX)
-        .await
-        .unwrap();
-    (status, body.to_vec())
-}
-
-async fn get(app: &axum::Router, uri: &str) -> (StatusCode, Vec<u8>) {
-    send(app, Request::get(uri).body(Body::empty()).unwrap()).await
-}
-
 async fn get_json(app: &axum::Router, uri: &str) -> serde_json::Value {
-    let (status, body) = get(app, uri).await;
+    let (status, _, body) = get(app, uri).await;
     assert_eq!(
         status,
         StatusCode::OK,
         "{uri}: {}",
         String::from_utf8_lossy(&body)
     );
-    serde_json::from_slice(&body).unwrap()
+    json(&body)
 }
 
-async fn post(app: &axum::Router, uri: &str, body: &str) -> (StatusCode, serde_json::Value) {
-    let (status, body) = send(
-        app,
-        Request::post(uri)
-            .body(Body::from(body.to_string()))
-            .unwrap(),
-    )
-    .await;
-    (status, serde_json::from_slice(&body).unwrap())
+/// Status and JSON answer of `POST uri` with `body`.
+async fn post_json(app: &axum::Router, uri: &str, body: &str) -> (StatusCode, serde_json::Value) {
+    let (status, _, body) = post(app, uri, body.to_string()).await;
+    (status, json(&body))
 }
 
 /// Sample `index`: a 32 x 24 image, mask 0 a ramp left to right, mask 1
@@ -149,7 +130,7 @@ async fn datasets_are_browsed_a_page_at_a_time_from_folders_and_shards() {
             (Some(32), Some(24), Some(2))
         );
         assert_eq!(one["meta"]["index"], 2);
-        let (status, mask) = get(
+        let (status, _, mask) = get(
             &app,
             &format!("/api/sample/image?root={root}&index=2&part=mask&mask=1"),
         )
@@ -163,7 +144,7 @@ async fn datasets_are_browsed_a_page_at_a_time_from_folders_and_shards() {
             "masks come back losslessly"
         );
         for part in ["image", "thumbnail", "roi", "annotation", "overlay"] {
-            let (status, bytes) = get(
+            let (status, _, bytes) = get(
                 &app,
                 &format!("/api/sample/image?root={root}&index=2&part={part}"),
             )
@@ -173,7 +154,7 @@ async fn datasets_are_browsed_a_page_at_a_time_from_folders_and_shards() {
         }
         // The annotation: material 0's colour where mask 0 is full, 1's
         // where mask 1 is.
-        let (_, bytes) = get(
+        let (_, _, bytes) = get(
             &app,
             &format!("/api/sample/image?root={root}&index=2&part=annotation"),
         )
@@ -181,24 +162,24 @@ async fn datasets_are_browsed_a_page_at_a_time_from_folders_and_shards() {
         let annotation = png(&bytes).to_rgb8();
         assert_eq!(annotation.get_pixel(0, 5).0, matseg_scene::PALETTE[1]);
         // A sample opens on the segment page by index.
-        let (status, _) = get(
+        let (status, _, _) = get(
             &app,
             &format!("/api/similarity?root={root}&path=sample/2&points=3,3"),
         )
         .await;
         assert_eq!(status, StatusCode::OK);
     }
-    let (status, _) = get(&app, "/api/sample?root=data0&index=5").await;
+    let (status, _, _) = get(&app, "/api/sample?root=data0&index=5").await;
     assert_eq!(status, StatusCode::NOT_FOUND);
-    let (status, _) = get(
+    let (status, _, _) = get(
         &app,
         "/api/sample/image?root=data0&index=0&part=mask&mask=2",
     )
     .await;
     assert_eq!(status, StatusCode::NOT_FOUND);
-    let (status, _) = get(&app, "/api/sample/image?root=data0&index=0&part=nothing").await;
+    let (status, _, _) = get(&app, "/api/sample/image?root=data0&index=0&part=nothing").await;
     assert_eq!(status, StatusCode::BAD_REQUEST);
-    let (status, _) = get(&app, "/api/samples?root=photos").await;
+    let (status, _, _) = get(&app, "/api/samples?root=photos").await;
     assert_eq!(status, StatusCode::NOT_FOUND);
 }
 
@@ -240,9 +221,9 @@ async fn annotations_are_saved_in_the_benchmark_layout_and_evaluated() {
         .unwrap()
         .contains(&"rgb".into()));
 
-    let (status, saved) = post(&app, "/api/annotation?root=bench0&name=coffee", COFFEE).await;
+    let (status, saved) = post_json(&app, "/api/annotation?root=bench0&name=coffee", COFFEE).await;
     assert_eq!(status, StatusCode::OK, "{saved}");
-    let (status, _) = post(&app, "/api/annotation?root=bench0&name=chelsea", CHELSEA).await;
+    let (status, _) = post_json(&app, "/api/annotation?root=bench0&name=chelsea", CHELSEA).await;
     assert_eq!(status, StatusCode::OK);
     let data = bench.path().join("data");
     assert_eq!(
@@ -290,7 +271,8 @@ async fn annotations_are_saved_in_the_benchmark_layout_and_evaluated() {
             "group 4 unknown",
         ),
     ] {
-        let (status, error) = post(&app, "/api/annotation?root=bench0&name=coffee", body).await;
+        let (status, error) =
+            post_json(&app, "/api/annotation?root=bench0&name=coffee", body).await;
         assert_eq!(status, StatusCode::BAD_REQUEST, "{body}");
         assert!(
             error["error"].as_str().unwrap().contains(problem),
@@ -303,7 +285,7 @@ async fn annotations_are_saved_in_the_benchmark_layout_and_evaluated() {
     );
     // The same problem in a file written by hand: `matseg eval` refuses it
     // with the page's message.
-    let (_, refused) = post(
+    let (_, refused) = post_json(
         &app,
         "/api/annotation?root=bench0&name=chelsea",
         r#"{"groups": [{"id": "1", "points": [[6, 300, 5]]}]}"#,
@@ -330,7 +312,7 @@ async fn annotations_are_saved_in_the_benchmark_layout_and_evaluated() {
         format!("{}: {problem}", chelsea.join("data.json").display())
     );
     for name in ["../coffee", "nothing"] {
-        let (status, _) = post(
+        let (status, _) = post_json(
             &app,
             &format!("/api/annotation?root=bench0&name={name}"),
             COFFEE,
@@ -340,13 +322,13 @@ async fn annotations_are_saved_in_the_benchmark_layout_and_evaluated() {
     }
 
     // Evaluate: the model and the rgb baseline, scored as the library does.
-    let (status, error) = post(&app, "/api/evaluate?root=bench0&baselines=rgb,nope", "").await;
+    let (status, error) = post_json(&app, "/api/evaluate?root=bench0&baselines=rgb,nope", "").await;
     assert_eq!(status, StatusCode::BAD_REQUEST);
     assert!(error["error"]
         .as_str()
         .unwrap()
         .starts_with("baseline \"nope\""));
-    let (status, _) = post(&app, "/api/evaluate?root=bench0&baselines=rgb", "").await;
+    let (status, _) = post_json(&app, "/api/evaluate?root=bench0&baselines=rgb", "").await;
     assert_eq!(status, StatusCode::OK);
     let started = Instant::now();
     let report = loop {
@@ -383,7 +365,7 @@ async fn annotations_are_saved_in_the_benchmark_layout_and_evaluated() {
 
 /// Saving no groups removes an image's annotation.
 async fn empty_annotation_removes_it(app: &axum::Router, bench: &Path) {
-    let (status, _) = post(
+    let (status, _) = post_json(
         app,
         "/api/annotation?root=bench0&name=chelsea",
         r#"{"groups": []}"#,

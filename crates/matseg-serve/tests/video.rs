@@ -6,15 +6,15 @@
 //! with the ffmpeg that scripts/ffmpeg-env.sh installs (`make test` runs it).
 
 mod ffmpeg;
+mod router;
 
-use axum::body::Body;
-use axum::http::{Request, StatusCode};
+use axum::http::StatusCode;
 use ffmpeg::run_ffmpeg;
 use matseg_serve::{app::router, state, ServeOptions};
+use router::{error_of, get, json, post};
 use std::ffi::OsStr;
 use std::path::Path;
 use std::time::{Duration, Instant};
-use tower::ServiceExt;
 
 /// FFmpeg's test pattern, 160x120, 6 frames, lossless (FFV1 in MKV).
 fn write_test_pattern(file: &Path) {
@@ -29,67 +29,36 @@ fn write_test_pattern(file: &Path) {
     );
 }
 
-async fn send(app: &axum::Router, request: Request<Body>) -> (StatusCode, Vec<u8>) {
-    let response = app.clone().oneshot(request).await.unwrap();
-    let status = response.status();
-    let body = axum::body::to_bytes(response.into_body(), usize::MAX)
-        .await
-        .unwrap()
-        .to_vec();
-    (status, body)
-}
-
-async fn get(app: &axum::Router, uri: &str) -> (StatusCode, Vec<u8>) {
-    send(app, Request::get(uri).body(Body::empty()).unwrap()).await
-}
-
-async fn post(app: &axum::Router, uri: &str, body: Vec<u8>) -> (StatusCode, Vec<u8>) {
-    send(app, Request::post(uri).body(Body::from(body)).unwrap()).await
-}
-
-fn json(body: &[u8]) -> serde_json::Value {
-    serde_json::from_slice(body).unwrap()
-}
-
-/// The one-line error of a refused request.
-fn error_of(body: &[u8]) -> String {
-    json(body)["error"].as_str().unwrap().to_string()
-}
-
 #[tokio::test(flavor = "multi_thread")]
 async fn a_video_is_tracked_and_its_labels_served() {
     let videos = tempfile::tempdir().unwrap();
     write_test_pattern(&videos.path().join("clip.mkv"));
     let options = ServeOptions {
-        model: "default".into(),
         data: vec![videos.path().into()],
-        bench: Vec::new(),
-        host: "127.0.0.1".into(),
         port: 0,
-        token: None,
         cache_mb: 64,
-        device: matseg_image::device::ComputeDevice::Cpu,
+        ..ServeOptions::default()
     };
     let app = router(state(&options).unwrap());
     for page in ["/video", "/video.js"] {
         assert_eq!(get(&app, page).await.0, StatusCode::OK, "{page}");
     }
 
-    let (status, body) = get(&app, "/api/videos").await;
+    let (status, _, body) = get(&app, "/api/videos").await;
     assert_eq!(status, StatusCode::OK);
     assert_eq!(
         json(&body)["videos"],
         serde_json::json!([{ "root": "data0", "path": "clip.mkv" }])
     );
     let clip = "root=data0&path=clip.mkv";
-    let (status, body) = get(&app, &format!("/api/video?{clip}")).await;
+    let (status, _, body) = get(&app, &format!("/api/video?{clip}")).await;
     assert_eq!(status, StatusCode::OK);
     let info = json(&body);
     assert_eq!(
         (&info["width"], &info["height"], &info["frames"]),
         (&160.into(), &120.into(), &6.into())
     );
-    let (status, jpeg) = get(&app, &format!("/api/video/frame?{clip}&frame=5")).await;
+    let (status, _, jpeg) = get(&app, &format!("/api/video/frame?{clip}&frame=5")).await;
     assert_eq!(status, StatusCode::OK);
     assert_eq!(
         image::load_from_memory(&jpeg)
@@ -101,19 +70,19 @@ async fn a_video_is_tracked_and_its_labels_served() {
 
     // Refused: a frame past the end, a point outside, a file that is not a
     // video, a root that does not exist.
-    let (status, body) = get(&app, &format!("/api/video/frame?{clip}&frame=6")).await;
+    let (status, _, body) = get(&app, &format!("/api/video/frame?{clip}&frame=6")).await;
     assert_eq!(status, StatusCode::BAD_REQUEST);
     assert_eq!(
         error_of(&body),
         "frame 6: past the end: clip.mkv has 6 frames"
     );
-    let (status, body) = post(&app, &format!("/api/track?{clip}&points=10,500"), vec![]).await;
+    let (status, _, body) = post(&app, &format!("/api/track?{clip}&points=10,500"), vec![]).await;
     assert_eq!(status, StatusCode::BAD_REQUEST);
     assert_eq!(
         error_of(&body),
         "point 10,500: outside the 160x120 frames of clip.mkv"
     );
-    let (status, body) = post(
+    let (status, _, body) = post(
         &app,
         &format!("/api/track?{clip}&frame=9&points=10,10"),
         vec![],
@@ -124,11 +93,11 @@ async fn a_video_is_tracked_and_its_labels_served() {
         error_of(&body),
         "frame 9: past the end: clip.mkv has 6 frames"
     );
-    let (status, _) = get(&app, "/api/video?root=nothing&path=clip.mkv").await;
+    let (status, _, _) = get(&app, "/api/video?root=nothing&path=clip.mkv").await;
     assert_eq!(status, StatusCode::NOT_FOUND);
 
     // A track: started, polled (with a deadline) until done.
-    let (status, body) = post(
+    let (status, _, body) = post(
         &app,
         &format!("/api/track?{clip}&frame=2&points=20,30;140,100"),
         vec![],
@@ -138,7 +107,7 @@ async fn a_video_is_tracked_and_its_labels_served() {
     let job = json(&body)["job"].as_u64().unwrap();
     let started = Instant::now();
     let report = loop {
-        let (status, body) = get(&app, &format!("/api/track?job={job}")).await;
+        let (status, _, body) = get(&app, &format!("/api/track?job={job}")).await;
         assert_eq!(status, StatusCode::OK);
         let answer = json(&body);
         match answer["state"].as_str().unwrap() {
@@ -156,10 +125,11 @@ async fn a_video_is_tracked_and_its_labels_served() {
     // Its frames and labels, one a frame; the clicked points carry their
     // own labels on the clicked frame.
     for frame in 0..6 {
-        let (status, jpeg) = get(&app, &format!("/api/track/frame?job={job}&frame={frame}")).await;
+        let (status, _, jpeg) =
+            get(&app, &format!("/api/track/frame?job={job}&frame={frame}")).await;
         assert_eq!(status, StatusCode::OK);
         assert!(image::load_from_memory(&jpeg).is_ok());
-        let (status, png) = get(
+        let (status, _, png) = get(
             &app,
             &format!("/api/track/frame?job={job}&frame={frame}&part=labels"),
         )
@@ -174,7 +144,7 @@ async fn a_video_is_tracked_and_its_labels_served() {
             );
         }
     }
-    let (status, _) = get(
+    let (status, _, _) = get(
         &app,
         &format!("/api/track/frame?job={job}&frame=6&part=labels"),
     )
@@ -182,7 +152,7 @@ async fn a_video_is_tracked_and_its_labels_served() {
     assert_eq!(status, StatusCode::NOT_FOUND);
 
     // The archive: track.json and the six label PNGs, as served.
-    let (status, tar) = get(&app, &format!("/api/track/download?job={job}")).await;
+    let (status, _, tar) = get(&app, &format!("/api/track/download?job={job}")).await;
     assert_eq!(status, StatusCode::OK);
     let mut archive = tar::Archive::new(std::io::Cursor::new(tar));
     let names: Vec<String> = archive
@@ -194,17 +164,17 @@ async fn a_video_is_tracked_and_its_labels_served() {
         .chain((0..6).map(|i| format!("labels/{i:06}.png")))
         .collect();
     assert_eq!(names, expected);
-    let (status, overlay) = get(&app, &format!("/api/track/overlay?job={job}")).await;
+    let (status, _, overlay) = get(&app, &format!("/api/track/overlay?job={job}")).await;
     assert_eq!(status, StatusCode::OK);
     assert!(!overlay.is_empty());
 
-    let (status, body) = get(&app, "/api/track?job=999").await;
+    let (status, _, body) = get(&app, "/api/track?job=999").await;
     assert_eq!(status, StatusCode::NOT_FOUND);
     assert!(error_of(&body).starts_with("track job 999: no such job"));
 
     // Uploads: a corrupt video and a file name that is not a video's are
     // refused and nothing is kept; a real one is listed and opens.
-    let (status, body) = post(
+    let (status, _, body) = post(
         &app,
         "/api/video/upload?name=broken.mp4",
         b"not a video".to_vec(),
@@ -217,13 +187,13 @@ async fn a_video_is_tracked_and_its_labels_served() {
         error_of(&body)
     );
     let bytes = std::fs::read(videos.path().join("clip.mkv")).unwrap();
-    let (status, body) = post(&app, "/api/video/upload?name=notes.txt", bytes.clone()).await;
+    let (status, _, body) = post(&app, "/api/video/upload?name=notes.txt", bytes.clone()).await;
     assert_eq!(status, StatusCode::BAD_REQUEST);
     assert!(error_of(&body).starts_with("upload name \"notes.txt\""));
-    let (status, body) = post(&app, "/api/video/upload?name=mine.mkv", bytes).await;
+    let (status, _, body) = post(&app, "/api/video/upload?name=mine.mkv", bytes).await;
     assert_eq!(status, StatusCode::OK);
     assert_eq!(json(&body)["frames"], 6);
-    let (_, body) = get(&app, "/api/videos").await;
+    let (_, _, body) = get(&app, "/api/videos").await;
     assert_eq!(
         json(&body)["videos"],
         serde_json::json!([
@@ -231,6 +201,6 @@ async fn a_video_is_tracked_and_its_labels_served() {
             { "root": "upload", "path": "mine.mkv" }
         ])
     );
-    let (status, _) = get(&app, "/api/video/frame?root=upload&path=mine.mkv&frame=0").await;
+    let (status, _, _) = get(&app, "/api/video/frame?root=upload&path=mine.mkv&frame=0").await;
     assert_eq!(status, StatusCode::OK);
 }
