@@ -25,26 +25,41 @@ pub struct Args {
     /// The frame the points are clicked on (from 0).
     #[arg(long, default_value_t = 0)]
     frame: u64,
-    /// The model: `default` (the shipped one), a run folder or its weights file.
-    #[arg(long, default_value = "default")]
-    model: PathBuf,
-    /// Longer side frames are described at, in pixels (one net pass a frame).
-    #[arg(long, default_value_t = DEFAULT_TRACK_SIDE)]
-    side: u32,
     #[command(flatten)]
-    tracker: TrackerArgs,
+    tracking: TrackingArgs,
     /// Radius of each point's disc in pixels.
     #[arg(long, default_value_t = DEFAULT_RADIUS)]
     radius: f32,
     /// Write the overlay as an animated PNG preview even where ffmpeg could encode an MP4.
     #[arg(long)]
     preview: bool,
-    /// cpu, cuda or cuda:N.
-    #[arg(long, default_value = "cpu")]
-    device: String,
     /// Output folder (replaced when it holds an earlier track output).
     #[arg(long)]
     out: PathBuf,
+}
+
+/// The model, where it runs and how it follows a material: what `matseg
+/// track` and `matseg eval track` share.
+#[derive(clap::Args)]
+pub struct TrackingArgs {
+    /// The model: `default` (the shipped one), a run folder or its weights file.
+    #[arg(long, default_value = "default")]
+    model: PathBuf,
+    /// cpu, cuda or cuda:N.
+    #[arg(long, default_value = "cpu")]
+    device: String,
+    /// Longer side frames are described at, in pixels (one net pass a frame).
+    #[arg(long, default_value_t = DEFAULT_TRACK_SIDE)]
+    side: u32,
+    #[command(flatten)]
+    tracker: TrackerArgs,
+}
+
+impl TrackingArgs {
+    /// The model, loaded on its device.
+    fn load(&self) -> Result<Model> {
+        Ok(Model::load(&self.model, parse_device(&self.device)?)?)
+    }
 }
 
 /// The tracker's settings (docs/video.md).
@@ -84,13 +99,13 @@ impl TrackerArgs {
 /// Runs `matseg track`.
 pub fn run(args: Args) -> Result<()> {
     let source = FrameSource::open(&args.video)?;
-    let net = Model::load(&args.model, parse_device(&args.device)?)?;
+    let net = args.tracking.load()?;
     let settings = TrackSettings {
         points: args.points,
         frame: args.frame,
         radius: args.radius,
-        side: args.side,
-        options: args.tracker.options(),
+        side: args.tracking.side,
+        options: args.tracking.tracker.options(),
     };
     let report = track_to_folder(
         &net,
@@ -124,17 +139,8 @@ pub fn run(args: Args) -> Result<()> {
 pub struct EvalArgs {
     /// A dataset of sequences from `matseg generate --kind 3d --frames F`.
     bench: PathBuf,
-    /// The model: `default`, a run folder or its weights file.
-    #[arg(long, default_value = "default")]
-    model: PathBuf,
-    /// Longer side frames are described at, in pixels.
-    #[arg(long, default_value_t = DEFAULT_TRACK_SIDE)]
-    side: u32,
     #[command(flatten)]
-    tracker: TrackerArgs,
-    /// cpu, cuda or cuda:N.
-    #[arg(long, default_value = "cpu")]
-    device: String,
+    tracking: TrackingArgs,
     /// Print JSON (stable field names, every query's per-frame IoUs) instead of a table.
     #[arg(long)]
     json: bool,
@@ -142,10 +148,10 @@ pub struct EvalArgs {
 
 /// Runs `matseg eval track`.
 pub fn eval(args: EvalArgs) -> Result<()> {
-    let net = Model::load(&args.model, parse_device(&args.device)?)?;
+    let net = args.tracking.load()?;
     let settings = TrackBenchSettings {
-        side: args.side,
-        options: args.tracker.options(),
+        side: args.tracking.side,
+        options: args.tracking.tracker.options(),
         ..TrackBenchSettings::default()
     };
     let report = eval_track(&net, &args.bench, &settings)?;
