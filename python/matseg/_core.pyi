@@ -8,11 +8,14 @@ from collections.abc import Sequence
 from os import PathLike
 from typing import Any, final
 
+import numpy as np
 from numpy.typing import NDArray
 
 _Path = str | PathLike[str]
 #: An array going in: C-contiguous, of the dtype the method states.
 _BufferLike = NDArray[Any] | bytes | bytearray | memoryview
+#: An RGB image going in: a C-contiguous HxWx3 uint8 array.
+_Image = NDArray[np.uint8]
 #: A sample as the native module hands it over: sizes, buffers, JSON text.
 _SampleDict = dict[str, Any]
 #: A stored dataset mixed into batches, and the share taken from it.
@@ -74,27 +77,25 @@ class FeatureCache:
 class Model:
     def __init__(self, name: _Path) -> None: ...
     def dim(self) -> int: ...
-    def describe(self, rgb: _BufferLike, width: int, height: int) -> Buffer: ...
-    def describe_at_own_size(self, rgb: _BufferLike, width: int, height: int) -> Buffer: ...
+    def describe(self, image: _Image) -> Buffer: ...
+    def describe_at_own_size(self, image: _Image) -> Buffer: ...
     def similarity(
-        self, rgb: _BufferLike, width: int, height: int, points: list[tuple[float, float]], radius: float
+        self, image: _Image, points: list[tuple[float, float]], radius: float
     ) -> tuple[Buffer, Buffer | None]: ...
-    def cluster(self, rgb: _BufferLike, width: int, height: int, k: int, seed: int) -> tuple[Buffer, int]: ...
+    def cluster(self, image: _Image, k: int, seed: int) -> tuple[Buffer, int]: ...
 
 @final
 class Tracker:
     def __init__(
         self,
         model: Model,
-        rgb: _BufferLike,
-        width: int,
-        height: int,
+        image: _Image,
         points: list[tuple[float, float]],
         radius: float,
         side: int,
         tracker: tuple[int, int, float, float, float],
     ) -> None: ...
-    def step(self, rgb: _BufferLike, width: int, height: int) -> tuple[Buffer, Buffer, list[float]]: ...
+    def step(self, image: _Image) -> tuple[Buffer, Buffer, list[float]]: ...
 
 def default_plan() -> str: ...
 def matseg_loss(

@@ -88,7 +88,7 @@ class Model:
         `matseg segment` computes them."""
         image = check_image(image)
         h, w = image.shape[:2]
-        raw = self._native.describe(image, w, h)
+        raw = self._native.describe(image)
         return view(raw, "<f4", (-1, h, w))
 
     def describe_at_own_size(self, image: NDArray[np.uint8]) -> NDArray[np.float32]:
@@ -96,7 +96,7 @@ class Model:
         and one scale: what the PyTorch and ONNX copies of the net compute."""
         image = check_image(image)
         h, w = image.shape[:2]
-        raw = self._native.describe_at_own_size(image, w, h)
+        raw = self._native.describe_at_own_size(image)
         return view(raw, "<f4", (-1, h, w))
 
     def similarity(self, image: NDArray[np.uint8], points: Points,
@@ -105,7 +105,7 @@ class Model:
         point's material), for points (x, y) in pixels."""
         image = check_image(image)
         h, w = image.shape[:2]
-        maps, _ = self._native.similarity(image, w, h, check_points(points), float(radius))
+        maps, _ = self._native.similarity(image, check_points(points), float(radius))
         return view(maps, "<f4", (-1, h, w))
 
     def segment(self, image: NDArray[np.uint8], points: Points | None = None, k: int | None = None,
@@ -120,12 +120,12 @@ class Model:
         if points is None:
             if isinstance(k, bool) or not isinstance(k, (int, np.integer)):
                 raise TypeError(f"k: expected a whole number, got {type(k).__name__}")
-            clusters, _ = self._native.cluster(image, w, h, int(k), int(seed))
+            clusters, _ = self._native.cluster(image, int(k), int(seed))
             return view(clusters, "<i4", (h, w))
         pts = check_points(points)
         if len(pts) < 2:
             raise ValueError("segment: two points or more (one point: use similarity)")
-        _, nearest = self._native.similarity(image, w, h, pts, float(radius))
+        _, nearest = self._native.similarity(image, pts, float(radius))
         assert nearest is not None, "two points or more have nearest-point labels"
         return view(nearest, "<i4", (h, w))
 
@@ -152,13 +152,11 @@ class Model:
             except StopIteration:
                 raise IndexError(f"frame {frame}: past the end: the frames are {index}") from None
         clicked = held[-1]
-        h, w = clicked.shape[:2]
-        tracker = _core.Tracker(self._native, clicked, w, h, pts, float(radius),
-                                int(side), settings)
+        tracker = _core.Tracker(self._native, clicked, pts, float(radius), int(side), settings)
 
         def step(image: NDArray[np.uint8]) -> TrackedFrame:
             fh, fw = image.shape[:2]
-            probability, labels, areas = tracker.step(image, fw, fh)
+            probability, labels, areas = tracker.step(image)
             return TrackedFrame(
                 labels=view(labels, np.uint8, (fh, fw)),
                 probability=view(probability, "<f4", (-1, fh, fw)),

@@ -1,9 +1,10 @@
 //! Arrays crossing between Rust and Python through the buffer protocol,
 //! with no bytes objects in between: [`Buffer`] hands bytes made in Rust
 //! to numpy, which wraps them without a copy (`numpy.frombuffer` gives a
-//! writable array that keeps the buffer alive), and [`contiguous`] reads
-//! a C-contiguous numpy array passed in.
+//! writable array that keeps the buffer alive); [`contiguous`] reads a
+//! C-contiguous numpy array passed in, and [`Photo`] an RGB image.
 
+use image::RgbImage;
 use pyo3::buffer::{Element, PyBuffer};
 use pyo3::exceptions::{PyBufferError, PyValueError};
 use pyo3::ffi;
@@ -112,15 +113,9 @@ impl Buffer {
     }
 }
 
-/// The values of `data`, a C-contiguous buffer of `expected` values of
-/// `T` (a numpy array of the matching dtype: uint8 for `u8`, float32 for
-/// `f32`), copied once into Rust; `what` names it in errors.
-pub fn contiguous<T: Element + Copy>(
-    py: Python<'_>,
-    data: &Bound<'_, PyAny>,
-    expected: usize,
-    what: &str,
-) -> PyResult<Vec<T>> {
+/// `data` as a C-contiguous buffer of `T` (a numpy array of the matching
+/// dtype: uint8 for `u8`, float32 for `f32`); `what` names it in errors.
+fn c_contiguous<T: Element>(data: &Bound<'_, PyAny>, what: &str) -> PyResult<PyBuffer<T>> {
     let buffer = PyBuffer::<T>::get(data).map_err(|e| {
         PyValueError::new_err(format!(
             "{what}: not an array of {}: {e}",
@@ -132,6 +127,19 @@ pub fn contiguous<T: Element + Copy>(
             "{what}: the array is not C-contiguous"
         )));
     }
+    Ok(buffer)
+}
+
+/// The values of `data`, a C-contiguous buffer of `expected` values of
+/// `T` (see [`c_contiguous`]), copied once into Rust; `what` names it in
+/// errors.
+pub fn contiguous<T: Element + Copy>(
+    py: Python<'_>,
+    data: &Bound<'_, PyAny>,
+    expected: usize,
+    what: &str,
+) -> PyResult<Vec<T>> {
+    let buffer = c_contiguous::<T>(data, what)?;
     if buffer.item_count() != expected {
         return Err(PyValueError::new_err(format!(
             "{what}: {} values, expected {expected}",
@@ -139,4 +147,36 @@ pub fn contiguous<T: Element + Copy>(
         )));
     }
     buffer.to_vec(py)
+}
+
+/// An RGB image handed in as a C-contiguous `height x width x 3` uint8
+/// array, its size read from the array's own shape.
+pub struct Photo(pub RgbImage);
+
+impl<'a, 'py> FromPyObject<'a, 'py> for Photo {
+    type Error = PyErr;
+
+    fn extract(obj: Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
+        let buffer = c_contiguous::<u8>(&obj, "image")?;
+        let &[height, width, 3] = buffer.shape() else {
+            return Err(PyValueError::new_err(format!(
+                "image: expected shape HxWx3, got {:?}",
+                buffer.shape()
+            )));
+        };
+        let (Ok(w), Ok(h)) = (u32::try_from(width), u32::try_from(height)) else {
+            return Err(PyValueError::new_err(format!(
+                "image: {width}x{height} is too large"
+            )));
+        };
+        if w == 0 || h == 0 {
+            return Err(PyValueError::new_err(format!(
+                "image: {width}x{height} has no pixels"
+            )));
+        }
+        let bytes = buffer.to_vec(obj.py())?;
+        Ok(Self(
+            RgbImage::from_raw(w, h, bytes).expect("the shape was checked"),
+        ))
+    }
 }

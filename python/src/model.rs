@@ -1,9 +1,8 @@
 //! `matseg.Model`: a trained net answering "where else is this material?"
 //! as `matseg segment` does.
 
-use crate::buffer::{contiguous, Buffer};
+use crate::buffer::{Buffer, Photo};
 use crate::errors::matseg_error;
-use image::RgbImage;
 use matseg_eval::ClusterOptions;
 use matseg_image::device::ComputeDevice;
 use matseg_image::tracking::TrackOptions;
@@ -169,13 +168,6 @@ pub struct PyModel {
     net: NetModel,
 }
 
-/// An RGB image from a C-contiguous `height` x `width` x 3 uint8 array.
-fn photo(py: Python<'_>, rgb: &Bound<'_, PyAny>, width: u32, height: u32) -> PyResult<RgbImage> {
-    let expected = width as usize * height as usize * 3;
-    let bytes = contiguous(py, rgb, expected, &format!("image {width}x{height} RGB"))?;
-    Ok(RgbImage::from_raw(width, height, bytes).expect("the size was checked"))
-}
-
 /// `t`'s values as little-endian f32.
 fn tensor_buffer(t: &Tensor) -> PyResult<Buffer> {
     let values = Vec::<f32>::try_from(t.contiguous().flatten(0, -1)).map_err(matseg_error)?;
@@ -216,52 +208,34 @@ impl PyModel {
 
     /// Unit descriptors `[D, height, width]` (f32 bytes) as `matseg
     /// segment` computes them: at the model's inference sizes, resized back.
-    fn describe<'py>(
-        &self,
-        py: Python<'py>,
-        rgb: &Bound<'_, PyAny>,
-        width: u32,
-        height: u32,
-    ) -> PyResult<Buffer> {
-        let photo = photo(py, rgb, width, height)?;
-        let d = py.detach(|| {
-            self.net()
-                .describe(photo.as_raw(), width as usize, height as usize)
-        });
+    fn describe(&self, py: Python<'_>, image: Photo) -> PyResult<Buffer> {
+        let Photo(photo) = image;
+        let (w, h) = (photo.width() as usize, photo.height() as usize);
+        let d = py.detach(|| self.net().describe(photo.as_raw(), w, h));
         tensor_buffer(&d)
     }
 
     /// Unit descriptors `[D, height, width]` of the net alone at the
     /// image's own size (sides multiples of 32), one scale.
-    fn describe_at_own_size<'py>(
-        &self,
-        py: Python<'py>,
-        rgb: &Bound<'_, PyAny>,
-        width: u32,
-        height: u32,
-    ) -> PyResult<Buffer> {
-        let photo = photo(py, rgb, width, height)?;
+    fn describe_at_own_size(&self, py: Python<'_>, image: Photo) -> PyResult<Buffer> {
+        let Photo(photo) = image;
+        let (w, h) = (photo.width() as usize, photo.height() as usize);
         let d = py
-            .detach(|| {
-                self.net()
-                    .describe_at_own_size(photo.as_raw(), width as usize, height as usize)
-            })
+            .detach(|| self.net().describe_at_own_size(photo.as_raw(), w, h))
             .map_err(|e| PyValueError::new_err(e.to_string()))?;
         tensor_buffer(&d)
     }
 
     /// Each point's similarity map `[K, height, width]` (f32 bytes) and,
     /// for two points or more, the nearest-point labels (i32 bytes).
-    fn similarity<'py>(
+    fn similarity(
         &self,
-        py: Python<'py>,
-        rgb: &Bound<'_, PyAny>,
-        width: u32,
-        height: u32,
+        py: Python<'_>,
+        image: Photo,
         points: Vec<(f32, f32)>,
         radius: f32,
     ) -> PyResult<(Buffer, Option<Buffer>)> {
-        let photo = photo(py, rgb, width, height)?;
+        let Photo(photo) = image;
         check_points(&photo, &points, "the image")
             .map_err(|e| PyValueError::new_err(e.to_string()))?;
         let maps = py.detach(|| query_points(&describe(&self.net(), &photo), &points, radius));
@@ -271,12 +245,10 @@ impl PyModel {
 
     /// The photo split into `k` materials by clustering its descriptors:
     /// labels (i32 bytes) and the number of clusters.
-    fn cluster<'py>(
+    fn cluster(
         &self,
-        py: Python<'py>,
-        rgb: &Bound<'_, PyAny>,
-        width: u32,
-        height: u32,
+        py: Python<'_>,
+        image: Photo,
         k: usize,
         seed: u64,
     ) -> PyResult<(Buffer, usize)> {
@@ -285,7 +257,7 @@ impl PyModel {
                 "k: {k} clusters; between 2 and {MAX_POINTS}"
             )));
         }
-        let photo = photo(py, rgb, width, height)?;
+        let Photo(photo) = image;
         let options = ClusterOptions {
             seed,
             ..ClusterOptions::new(k)
@@ -306,22 +278,19 @@ pub struct PyTracker {
 #[pymethods]
 impl PyTracker {
     /// Starts following the materials under `points` on the clicked frame
-    /// (`rgb`, `width` x `height`); `tracker` is (memory, samples,
-    /// confident, prior, temperature).
+    /// (`image`); `tracker` is (memory, samples, confident, prior,
+    /// temperature).
     #[new]
-    #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
         model: Py<PyModel>,
-        rgb: &Bound<'_, PyAny>,
-        width: u32,
-        height: u32,
+        image: Photo,
         points: Vec<(f32, f32)>,
         radius: f32,
         side: u32,
         tracker: (usize, usize, f32, f32, f32),
     ) -> PyResult<Self> {
-        let clicked = photo(py, rgb, width, height)?;
+        let Photo(clicked) = image;
         let (memory, samples, confident, prior, temperature) = tracker;
         let settings = TrackSettings {
             points,
@@ -349,14 +318,8 @@ impl PyTracker {
     /// The next frame's probabilities `[K, height, width]` (f32 bytes),
     /// labels `[height, width]` (u8 bytes: 0 none, k the k-th point's
     /// material) and each point's share of the frame.
-    fn step<'py>(
-        &self,
-        py: Python<'py>,
-        rgb: &Bound<'_, PyAny>,
-        width: u32,
-        height: u32,
-    ) -> PyResult<(Buffer, Buffer, Vec<f64>)> {
-        let frame = photo(py, rgb, width, height)?;
+    fn step(&self, py: Python<'_>, image: Photo) -> PyResult<(Buffer, Buffer, Vec<f64>)> {
+        let Photo(frame) = image;
         let net = &self.model.get().net;
         let mut tracking = matseg_image::sync::lock(&self.tracking);
         let tracking = &mut *tracking;

@@ -87,9 +87,12 @@ def test_arrays_cross_as_buffers_with_no_copy(model, photo):
     assert isinstance(owner(maps), _core.Buffer) and len(owner(maps)) == maps.nbytes
     maps[0, 0, 0] = 2.0
     assert maps[0, 0, 0] == 2.0
-    # A non-contiguous view is made contiguous before it crosses; a size
-    # that does not match the array is refused by the native module.
+    # A non-contiguous view is made contiguous before it crosses; the
+    # native module reads the size from the array and refuses other shapes.
     flipped = photo[::-1]
     assert np.array_equal(model.describe(flipped[:64, :96]), model.describe(np.ascontiguousarray(flipped[:64, :96])))
-    with pytest.raises(ValueError, match="values, expected"):
-        model._native.describe(photo[:64, :96].copy(), 97, 64)
+    for bad in (photo[:64, :96, :2].copy(), photo[:64, :96, 0].copy(), photo[:0, :96].copy()):
+        with pytest.raises(ValueError, match=r"^image: "):
+            model._native.describe(bad)
+    with pytest.raises(ValueError, match="not C-contiguous"):
+        model._native.describe(photo[:64, :96])
