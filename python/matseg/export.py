@@ -13,9 +13,11 @@ a host program does that around the graph (docs/python.md).
 import argparse
 import os
 import sys
+from collections.abc import Sequence
+from typing import Any
 
 import torch
-from torch import nn
+from torch import Tensor, nn
 
 from . import net as netlib
 
@@ -23,16 +25,16 @@ from . import net as netlib
 class RgbToDescriptors(nn.Module):
     """0..255 RGB in, unit descriptors out."""
 
-    def __init__(self, net):
+    def __init__(self, net: netlib.MaterialNet) -> None:
         super().__init__()
         self.net = net
 
-    def forward(self, image):
+    def forward(self, image: Tensor) -> Tensor:
         """Unit descriptors of 0..255 RGB images Bx3xHxW."""
         return self.net(netlib.normalise(image))
 
 
-def drop_intermediate_shapes(path):
+def drop_intermediate_shapes(path: str) -> None:
     """Removes the exporter's shapes of intermediate values: it names some
     symbolic sizes alike that differ at other image sizes (the PSP's pooled
     grids), and onnxruntime then plans buffers wrongly. Without them the
@@ -44,7 +46,8 @@ def drop_intermediate_shapes(path):
     onnx.save(model, path)
 
 
-def export_onnx(model, out, opset=18, max_side=4096):
+def export_onnx(model: str | os.PathLike[str], out: str, opset: int = 18,
+                max_side: int = 4096) -> dict[str, Any]:
     """Writes the ONNX graph of run `model` to `out` (through a temporary
     file renamed into place); returns the net's run.json."""
     net, run = netlib.load(model)
@@ -67,7 +70,7 @@ def export_onnx(model, out, opset=18, max_side=4096):
     return run
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> None:
     """`python -m matseg.export`: parses `argv` (default: the command line) and exports."""
     p = argparse.ArgumentParser(prog="python -m matseg.export", description="Export the matseg net.")
     sub = p.add_subparsers(dest="format", required=True)

@@ -11,11 +11,13 @@ import json
 import math
 import os
 import struct
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 import torch
 import torch.nn.functional as F
-from torch import nn
+from torch import Tensor, nn
 
 from . import _core, tensor_files
 
@@ -24,12 +26,12 @@ MODEL_FILE = CONSTANTS["model_file"]
 RUN_FILE = CONSTANTS["run_file"]
 
 
-def l2_normalise(x, dim=1):
+def l2_normalise(x: Tensor, dim: int = 1) -> Tensor:
     """`x` scaled to unit length along `dim` (zero vectors stay zero)."""
     return F.normalize(x, dim=dim, eps=1e-12)
 
 
-def resize(x, h, w):
+def resize(x: Tensor, h: int, w: int) -> Tensor:
     """Bilinear, half-pixel centres (as the Rust net's resize_bilinear)."""
     return F.interpolate(x, (h, w), mode="bilinear", align_corners=False)
 
@@ -37,12 +39,12 @@ def resize(x, h, w):
 class ConvBnGelu(nn.Module):
     """k x k convolution (same padding, no bias), BatchNorm, GELU."""
 
-    def __init__(self, c_in, c_out, k):
+    def __init__(self, c_in: int, c_out: int, k: int) -> None:
         super().__init__()
         self.conv = nn.Conv2d(c_in, c_out, k, padding=k // 2, bias=False)
         self.bn = nn.BatchNorm2d(c_out)
 
-    def forward(self, x):
+    def forward(self, x: Tensor) -> Tensor:
         """Convolution, batch norm, GELU."""
         return F.gelu(self.bn(self.conv(x)))
 
@@ -50,7 +52,7 @@ class ConvBnGelu(nn.Module):
 class ConvBnRelu6(nn.Sequential):
     """Convolution, batch norm and ReLU6, as torchvision's MobileNetV2."""
 
-    def __init__(self, c_in, c_out, k, stride=1, groups=1):
+    def __init__(self, c_in: int, c_out: int, k: int, stride: int = 1, groups: int = 1) -> None:
         super().__init__(nn.Conv2d(c_in, c_out, k, stride, k // 2, groups=groups, bias=False),
                          nn.BatchNorm2d(c_out), nn.Hardtanh(0.0, 6.0))
 
@@ -59,16 +61,16 @@ class InvertedResidual(nn.Module):
     """MobileNetV2's block: expand, depthwise 3x3, project; residual when
     the shape is kept."""
 
-    def __init__(self, c_in, c_out, stride, expand):
+    def __init__(self, c_in: int, c_out: int, stride: int, expand: int) -> None:
         super().__init__()
         hidden = c_in * expand
-        layers = [] if expand == 1 else [ConvBnRelu6(c_in, hidden, 1)]
+        layers: list[nn.Module] = [] if expand == 1 else [ConvBnRelu6(c_in, hidden, 1)]
         layers += [ConvBnRelu6(hidden, hidden, 3, stride, groups=hidden),
                    nn.Conv2d(hidden, c_out, 1, bias=False), nn.BatchNorm2d(c_out)]
         self.conv = nn.Sequential(*layers)
         self.residual = stride == 1 and c_in == c_out
 
-    def forward(self, x):
+    def forward(self, x: Tensor) -> Tensor:
         """The block on `x`."""
         y = self.conv(x)
         return x + y if self.residual else y
@@ -82,9 +84,10 @@ class MobileNetV2(nn.Module):
     TAPS = (3, 6, 13)
     channels = (24, 32, 96, 1280)
 
-    def __init__(self):
+    def __init__(self) -> None:
         super().__init__()
-        layers, c = [ConvBnRelu6(3, 32, 3, 2)], 32
+        layers: list[nn.Module] = [ConvBnRelu6(3, 32, 3, 2)]
+        c = 32
         for t, out, n, s in self.SETTINGS:
             for i in range(n):
                 layers.append(InvertedResidual(c, out, s if i == 0 else 1, t))
@@ -92,7 +95,7 @@ class MobileNetV2(nn.Module):
         layers.append(ConvBnRelu6(c, 1280, 1))
         self.features = nn.Sequential(*layers)
 
-    def forward(self, x):
+    def forward(self, x: Tensor) -> list[Tensor]:
         """The four taps of RGB input `x`, finest first."""
         taps = []
         for i, layer in enumerate(self.features):
@@ -105,7 +108,7 @@ class MobileNetV2(nn.Module):
 class ChannelNorm(nn.LayerNorm):
     """LayerNorm over the channels of an NCHW tensor."""
 
-    def forward(self, x):
+    def forward(self, x: Tensor) -> Tensor:
         """`x` normalised over its channels."""
         return super().forward(x.permute(0, 2, 3, 1)).permute(0, 3, 1, 2)
 
@@ -113,7 +116,7 @@ class ChannelNorm(nn.LayerNorm):
 class ConvNextBlock(nn.Module):
     """ConvNeXt's block: depthwise 7x7, LayerNorm, MLP, layer scale, residual."""
 
-    def __init__(self, dim):
+    def __init__(self, dim: int) -> None:
         super().__init__()
         self.dwconv = nn.Conv2d(dim, dim, 7, padding=3, groups=dim)
         self.norm = nn.LayerNorm(dim, eps=1e-6)
@@ -121,7 +124,7 @@ class ConvNextBlock(nn.Module):
         self.pwconv2 = nn.Linear(4 * dim, dim)
         self.gamma = nn.Parameter(torch.full((dim,), 1e-6))
 
-    def forward(self, x):
+    def forward(self, x: Tensor) -> Tensor:
         """The block on `x`."""
         y = self.pwconv2(F.gelu(self.pwconv1(self.norm(self.dwconv(x).permute(0, 2, 3, 1)))))
         return x + (y * self.gamma).permute(0, 3, 1, 2)
@@ -130,7 +133,7 @@ class ConvNextBlock(nn.Module):
 class ConvNext(nn.Module):
     """The ConvNeXt encoder: four stages of `depths` blocks at widths `dims`."""
 
-    def __init__(self, depths, dims):
+    def __init__(self, depths: Sequence[int], dims: Sequence[int]) -> None:
         super().__init__()
         self.downsample_layers = nn.ModuleList()
         self.stages = nn.ModuleList()
@@ -143,7 +146,7 @@ class ConvNext(nn.Module):
             self.stages.append(nn.Sequential(*[ConvNextBlock(dims[i]) for _ in range(depths[i])]))
         self.channels = tuple(dims)
 
-    def forward(self, x):
+    def forward(self, x: Tensor) -> list[Tensor]:
         """The four stages' outputs of RGB input `x`, finest first."""
         taps = []
         for down, stage in zip(self.downsample_layers, self.stages, strict=True):
@@ -152,13 +155,13 @@ class ConvNext(nn.Module):
         return taps
 
 
-def pooled_side(n, divisor):
+def pooled_side(n: int, divisor: int) -> int:
     """Rust's max(1, round(n / divisor)) in integer arithmetic (exportable
     with symbolic sizes): halves round up, as f64::round does here."""
     return max(1, (2 * n + divisor) // (2 * divisor))
 
 
-def pooling_matrix(n_in, n_out, like):
+def pooling_matrix(n_in: int, n_out: int, like: Tensor) -> Tensor:
     """The n_out x n_in matrix of adaptive average pooling along one axis:
     row i averages inputs floor(i n_in / n_out) .. ceil((i+1) n_in / n_out)."""
     i = torch.arange(n_out, device=like.device).unsqueeze(1)
@@ -169,7 +172,7 @@ def pooling_matrix(n_in, n_out, like):
     return inside / inside.sum(1, keepdim=True)
 
 
-def adaptive_avg_pool(x, h, w):
+def adaptive_avg_pool(x: Tensor, h: int, w: int) -> Tensor:
     """F.adaptive_avg_pool2d(x, (h, w)) as two matrix products, which
     export to ONNX with dynamic sizes."""
     rows = pooling_matrix(x.shape[2], h, x)
@@ -183,12 +186,12 @@ class Psp(nn.Module):
 
     DIVISORS = (1, 2, 4, 8)
 
-    def __init__(self, c_in, branch, c_out):
+    def __init__(self, c_in: int, branch: int, c_out: int) -> None:
         super().__init__()
         self.branches = nn.ModuleList([ConvBnGelu(c_in, branch, 3) for _ in self.DIVISORS])
         self.fuse = ConvBnGelu(branch * len(self.DIVISORS), c_out, 3)
 
-    def forward(self, x):
+    def forward(self, x: Tensor) -> Tensor:
         """The fused pyramid of `x`."""
         h, w = x.shape[2:]
         outs = []
@@ -205,7 +208,7 @@ class DecoderStep(nn.Module):
     """One decoder step: the coarser features convolved and upsampled, plus
     a 1x1 of the skip tap."""
 
-    def __init__(self, c_in, width, skip):
+    def __init__(self, c_in: int, width: int, skip: int) -> None:
         super().__init__()
         self.conv = ConvBnGelu(c_in, width, 3)
         self.skip = ConvBnGelu(skip, width, 1)
@@ -214,14 +217,14 @@ class DecoderStep(nn.Module):
 class Decoder(nn.Module):
     """The decoder: from the PSP output up through the three finer taps."""
 
-    def __init__(self, c_in, widths, taps):
+    def __init__(self, c_in: int, widths: Sequence[int], taps: Sequence[int]) -> None:
         super().__init__()
         self.steps = nn.ModuleList()
         for width, skip in zip(widths, (taps[2], taps[1], taps[0]), strict=True):
             self.steps.append(DecoderStep(c_in, width, skip))
             c_in = width
 
-    def forward(self, psp, taps):
+    def forward(self, psp: Tensor, taps: Sequence[Tensor]) -> Tensor:
         """Features at the finest tap's stride."""
         x = psp
         for step, skip in zip(self.steps, (taps[2], taps[1], taps[0]), strict=True):
@@ -234,10 +237,10 @@ class SplitMix64:
 
     MASK = (1 << 64) - 1
 
-    def __init__(self, seed):
+    def __init__(self, seed: int) -> None:
         self.state = seed
 
-    def next(self):
+    def next(self) -> int:
         """The next 64-bit draw."""
         self.state = (self.state + 0x9E3779B97F4A7C15) & self.MASK
         z = self.state
@@ -245,17 +248,17 @@ class SplitMix64:
         z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & self.MASK
         return z ^ (z >> 31)
 
-    def uniform(self):
+    def uniform(self) -> float:
         """A uniform draw in (0, 1)."""
         return ((self.next() >> 11) + 0.5) / float(1 << 53)
 
-    def standard_normal(self):
+    def standard_normal(self) -> float:
         """A standard normal draw (Box-Muller)."""
         u, v = self.uniform(), self.uniform()
         return math.sqrt(-2.0 * math.log(u)) * math.cos(2 * math.pi * v)
 
 
-def srgb_to_lab(rgb):
+def srgb_to_lab(rgb: Tensor) -> Tensor:
     """CIE L*a*b* (D65) of 0..255 sRGB, Bx3xHxW."""
     c = rgb / 255.0
     linear = torch.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
@@ -269,7 +272,7 @@ def srgb_to_lab(rgb):
     return torch.stack([fy * 116.0 - 16.0, (fx - fy) * 500.0, (fy - fz) * 200.0], 1)
 
 
-def cell_lab(x, h4, w4):
+def cell_lab(x: Tensor, h4: int, w4: int) -> Tensor:
     """Each cell's mean L*a*b* colour, Bx3xh4xw4, of the net's input x."""
     return adaptive_avg_pool(srgb_to_lab(denormalise(x).clamp(0.0, 255.0)), h4, w4)
 
@@ -279,7 +282,7 @@ class ColourPart(nn.Module):
     L*a*b* value (a Gaussian kernel of learned bandwidth), with a learned
     weight."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         super().__init__()
         n = CONSTANTS["colour_features"]
         draws = SplitMix64(CONSTANTS["colour_seed"])
@@ -290,11 +293,11 @@ class ColourPart(nn.Module):
         self.log_weight = nn.Parameter(torch.zeros(1))
         self.log_bandwidth = nn.Parameter(torch.full((1,), math.log(CONSTANTS["colour_initial_bandwidth"])))
 
-    def forward(self, x, h4, w4):
+    def forward(self, x: Tensor, h4: int, w4: int) -> Tensor:
         """The colour part of 0..255 RGB `x` on its h4 x w4 stride-4 grid."""
         return self.from_cells(cell_lab(x, h4, w4))
 
-    def from_cells(self, lab):
+    def from_cells(self, lab: Tensor) -> Tensor:
         """The weighted part of cells whose mean L*a*b* colours Bx3xhxw are given."""
         lab = lab / self.log_bandwidth.exp()
         angles = (lab.permute(0, 2, 3, 1) @ self.projection.T).permute(0, 3, 1, 2)
@@ -302,16 +305,17 @@ class ColourPart(nn.Module):
         return l2_normalise(torch.cos(angles)) * self.log_weight.exp()
 
 
-def _mean(like):
+def _mean(like: Tensor) -> Tensor:
+    """The input mean, 1x3x1x1, in `like`'s dtype and on its device."""
     return torch.tensor(CONSTANTS["input_mean"], dtype=like.dtype, device=like.device).view(1, 3, 1, 1)
 
 
-def normalise(rgb):
+def normalise(rgb: Tensor) -> Tensor:
     """The net's input from 0..255 RGB Bx3xHxW: (x - mean) / scale."""
     return (rgb - _mean(rgb)) / CONSTANTS["input_scale"]
 
 
-def denormalise(x):
+def denormalise(x: Tensor) -> Tensor:
     """0..255 RGB back from the net's input: the inverse of `normalise`."""
     return x * CONSTANTS["input_scale"] + _mean(x)
 
@@ -321,12 +325,12 @@ class MaterialNet(nn.Module):
     and colour_features the weighted parts beside it; resized to the input
     and L2-normalised per pixel. `config` is run.json's "net"."""
 
-    def __init__(self, config):
+    def __init__(self, config: Mapping[str, Any]) -> None:
         super().__init__()
         self.config = dict(config)
         enc = config["encoder"]
         if enc["kind"] == "mobilenet-v2":
-            self.encoder = MobileNetV2()
+            self.encoder: MobileNetV2 | ConvNext = MobileNetV2()
         elif enc["kind"] == "convnext":
             self.encoder = ConvNext(enc["depths"], enc["dims"])
         else:
@@ -336,20 +340,20 @@ class MaterialNet(nn.Module):
         self.decoder = Decoder(config["psp_out"], config["decoder"], taps)
         self.head = nn.Conv2d(config["decoder"][2], config["descriptor_dim"], 1)
         if config.get("encoder_features"):
-            self.part_log_weights = nn.Parameter(torch.zeros(4))
+            self.part_log_weights: nn.Parameter | None = nn.Parameter(torch.zeros(4))
         else:
             self.part_log_weights = None
         self.colour = ColourPart() if config.get("colour_features") else None
 
     normalise = staticmethod(normalise)
 
-    def coarse(self, x):
+    def coarse(self, x: Tensor) -> Tensor:
         """Descriptors on the stride-4 grid, not yet normalised."""
         taps = self.encoder(x)
         lab = cell_lab(x, *taps[0].shape[2:]) if self.colour is not None else None
         return self.coarse_from_taps(taps, lab)
 
-    def coarse_from_taps(self, taps, lab=None):
+    def coarse_from_taps(self, taps: Sequence[Tensor], lab: Tensor | None = None) -> Tensor:
         """`coarse` from the encoder's four taps (and, with a colour part,
         the cells' colours `cell_lab` on the stride-4 grid): everything
         after the encoder, for training on cached features."""
@@ -367,19 +371,19 @@ class MaterialNet(nn.Module):
             parts.append(self.colour.from_cells(lab))
         return torch.cat(parts, 1)
 
-    def forward(self, x):
+    def forward(self, x: Tensor) -> Tensor:
         """Unit descriptors BxDxHxW of normalised input Bx3xHxW."""
         h, w = x.shape[2:]
         return l2_normalise(resize(self.coarse(x), h, w))
 
 
-def state_names(net):
+def state_names(net: nn.Module) -> list[str]:
     """The names of the net's stored variables (parameters and BatchNorm
     statistics, as matseg's safetensors files hold them)."""
     return [k for k in net.state_dict() if not k.endswith("num_batches_tracked")]
 
 
-def encoder_digest(net):
+def encoder_digest(net: nn.Module) -> str:
     """SHA-256 of the encoder's stored variables, as `matseg features`
     records it for a cache (matseg_net::features::encoder_digest): names
     under `encoder.` sorted, each its name's length and bytes, its shape
@@ -396,26 +400,26 @@ def encoder_digest(net):
     return h.hexdigest()
 
 
-def state_arrays(net):
+def state_arrays(net: nn.Module) -> dict[str, np.ndarray]:
     """The net's stored variables as float32 numpy arrays, by name."""
     state = net.state_dict()
     return {k: state[k].detach().to("cpu", torch.float32).contiguous().numpy() for k in state_names(net)}
 
 
-def run_files(name):
+def run_files(name: str | os.PathLike[str]) -> tuple[str, str]:
     """(run folder, weights file) of a model name: `default`, a run folder
     or a weights file with run.json beside it (as `matseg segment` finds them)."""
     folder, weights = _core.run_files(os.fspath(name))
     return os.fspath(folder), os.fspath(weights)
 
 
-def load_weights(net, path):
+def load_weights(net: nn.Module, path: str | os.PathLike[str]) -> None:
     """Loads a safetensors file into `net` (every variable, no others)."""
     tensors, _ = tensor_files.read(path)
     load_arrays(net, tensors, path)
 
 
-def load_arrays(net, tensors, path):
+def load_arrays(net: nn.Module, tensors: Mapping[str, np.ndarray], path: str | os.PathLike[str]) -> None:
     """Copies name -> numpy array into `net` (every variable, no others);
     errors name `path`, where the arrays came from."""
     names = set(state_names(net))
@@ -431,7 +435,7 @@ def load_arrays(net, tensors, path):
             state[k].copy_(value)
 
 
-def load(name="default"):
+def load(name: str | os.PathLike[str] = "default") -> tuple[MaterialNet, dict[str, Any]]:
     """The net of a run (eval mode, CPU) and its run.json as a dict."""
     folder, weights = run_files(name)
     run_path = os.path.join(folder, RUN_FILE)
@@ -444,7 +448,8 @@ def load(name="default"):
     return net.eval(), run
 
 
-def save(net, run, folder, arrays=None):
+def save(net: nn.Module, run: Mapping[str, Any], folder: str | os.PathLike[str],
+         arrays: dict[str, np.ndarray] | None = None) -> None:
     """Writes `folder/model.safetensors` (32-bit floats) and `run.json`;
     `arrays`: the net's `state_arrays` when the caller has them already."""
     os.makedirs(folder, exist_ok=True)
@@ -455,7 +460,7 @@ def save(net, run, folder, arrays=None):
     os.replace(tmp, os.path.join(folder, RUN_FILE))
 
 
-def matseg_loss(desc, weights, roi):
+def matseg_loss(desc: Tensor, weights: Tensor, roi: Tensor) -> Tensor | None:
     """The MatSeg loss (crates/matseg-net/src/loss.rs): one softmax over
     all materials of the batch, soft targets, ROI-masked, mean over B*H*W.
     None when the batch has fewer than two materials."""

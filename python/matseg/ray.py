@@ -11,9 +11,11 @@ generate` process writes.
 import argparse
 import sys
 import time
+from collections.abc import Sequence
+from typing import Any
 
 
-def parse_args(argv):
+def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     """The arguments of `python -m matseg.ray`."""
     p = argparse.ArgumentParser(prog="python -m matseg.ray", description="matseg on a Ray cluster.")
     sub = p.add_subparsers(dest="command", required=True)
@@ -40,14 +42,15 @@ def parse_args(argv):
     return p.parse_args(argv)
 
 
-def generator_args(args):
+def generator_args(args: argparse.Namespace) -> dict[str, Any]:
     """The `matseg.Generator` keyword arguments the command line gives."""
     return dict(kind=args.kind, sources=args.sources, seed=args.seed, recipe=args.recipe,
                 samples=args.samples, textures=args.textures, materials=args.materials,
                 meshes=args.meshes, hdris=args.hdris, size=args.size, spp=args.spp)
 
 
-def run_job(gen_args, out, format, shard_size, num_shards, index):
+def run_job(gen_args: dict[str, Any], out: str, format: str, shard_size: int, num_shards: int,
+            index: int) -> tuple[int, dict[str, int]]:
     """One job, in a Ray worker: job `index` of `num_shards`."""
     import matseg
 
@@ -56,7 +59,7 @@ def run_job(gen_args, out, format, shard_size, num_shards, index):
     return index, report
 
 
-def generate(args):
+def generate(args: argparse.Namespace) -> None:
     """`python -m matseg.ray generate`: the dataset's jobs spread over the cluster's workers."""
     import ray
 
@@ -91,7 +94,7 @@ def generate(args):
           f"({totals['generated'] / max(seconds, 1e-9):.1f} samples/s) by {args.num_shards} Ray tasks", flush=True)
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> None:
     """`python -m matseg.ray`: parses `argv` (default: the command line) and runs the command."""
     args = parse_args(sys.argv[1:] if argv is None else argv)
     if args.command == "generate":

@@ -18,14 +18,17 @@ start + r, start + r + world_size, ... in order, whatever its number of
 workers (so a run's first n steps on W ranks used indices start..start+nW-1).
 """
 
+from collections.abc import Iterator
+from typing import Any
+
 import torch
 from torch.utils.data import IterableDataset, get_worker_info
 
-from .data import BatchPlan
+from .data import BatchPlan, Dataset, FeatureCache, Generator, Sample
 from .net import normalise
 
 
-def consumer():
+def consumer() -> tuple[int, int]:
     """(this consumer's number, how many consumers) across the DDP ranks
     (when torch.distributed is initialised) and the DataLoader workers."""
     rank, world = 0, 1
@@ -36,7 +39,7 @@ def consumer():
     return worker * world + rank, world * workers
 
 
-def my_indices(start, stop, number, count):
+def my_indices(start: int, stop: int | None, number: int, count: int) -> Iterator[int]:
     """The indices of consumer `number` of `count` in start..stop (stop
     None: unbounded)."""
     i = start + number
@@ -45,7 +48,7 @@ def my_indices(start, stop, number, count):
         i += count
 
 
-def sample_tensors(sample):
+def sample_tensors(sample: Sample) -> dict[str, Any]:
     """A sample's arrays as tensors: image 3xHxW uint8, masks KxHxW, roi HxW."""
     out = {"key": sample["key"], "image": torch.from_numpy(sample["image"]).permute(2, 0, 1)}
     out["masks"] = torch.from_numpy(sample["masks"])
@@ -60,7 +63,7 @@ class SampleStream(IterableDataset):
     generator), split across workers and ranks. Samples differ in size:
     use batch_size=None, or `BatchStream` for the net's batches."""
 
-    def __init__(self, source, start=0, stop=None):
+    def __init__(self, source: Generator | Dataset, start: int = 0, stop: int | None = None) -> None:
         self.source, self.start = source, start
         if stop is None:
             try:
@@ -69,7 +72,7 @@ class SampleStream(IterableDataset):
                 stop = None
         self.stop = stop
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[dict[str, Any]]:
         number, count = consumer()
         for i in my_indices(self.start, self.stop, number, count):
             yield sample_tensors(self.source[i])
@@ -79,15 +82,15 @@ class _StepStream(IterableDataset):
     """Steps first_step..first_step+steps (None: unbounded) split across
     workers and ranks, each yielding `self.batch(step)`."""
 
-    def __init__(self, steps, first_step):
+    def __init__(self, steps: int | None, first_step: int) -> None:
         self.first_step = first_step
         self.stop = None if steps is None else first_step + steps
 
-    def batch(self, step):
+    def batch(self, step: int) -> dict[str, Any]:
         """Batch `step` as tensors."""
         raise NotImplementedError
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[dict[str, Any]]:
         number, count = consumer()
         for step in my_indices(self.first_step, self.stop, number, count):
             yield self.batch(step)
@@ -101,11 +104,12 @@ class BatchStream(_StepStream):
     samples, as `matseg train --mix-data`. A batch: images Bx3xHxW float32
     (normalised, the net's input), weights BxKxHxW, roi BxHxW, step."""
 
-    def __init__(self, source, plan=None, seed=0, steps=None, first_step=0, mix=None):
+    def __init__(self, source: Generator | Dataset, plan: BatchPlan | None = None, seed: int = 0,
+                 steps: int | None = None, first_step: int = 0, mix: tuple[Dataset, float] | None = None) -> None:
         super().__init__(steps, first_step)
         self.source, self.plan, self.seed, self.mix = source, plan or BatchPlan.default(), seed, mix
 
-    def batch(self, step):
+    def batch(self, step: int) -> dict[str, Any]:
         """Batch `step` as tensors."""
         b = self.source.batch(step, self.plan, self.seed, self.mix)
         return {
@@ -123,11 +127,12 @@ class FeatureStream(_StepStream):
     list of four BxCxhxw float32 tensors), lab, weights and roi on the
     stride-4 grid, step."""
 
-    def __init__(self, cache, plan, seed=0, steps=None, first_step=0):
+    def __init__(self, cache: FeatureCache, plan: BatchPlan, seed: int = 0, steps: int | None = None,
+                 first_step: int = 0) -> None:
         super().__init__(steps, first_step)
         self.cache, self.plan, self.seed = cache, plan, seed
 
-    def batch(self, step):
+    def batch(self, step: int) -> dict[str, Any]:
         """Batch `step` as tensors."""
         b = self.cache.batch(step, self.plan, self.seed)
         return {

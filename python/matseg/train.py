@@ -22,9 +22,12 @@ import os
 import shutil
 import sys
 import time
+from collections.abc import Sequence
+from typing import IO, Any
 
 import torch
 import torch.distributed as dist
+from torch import Tensor
 from torch.nn.parallel import DistributedDataParallel
 from torch.utils.data import DataLoader
 
@@ -39,7 +42,7 @@ PLOT_FILE = netlib.CONSTANTS["plot_file"]
 BEST_MODEL_FILE = netlib.CONSTANTS["best_model_file"]
 
 
-def parse_args(argv):
+def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     """The arguments of `python -m matseg.train`."""
     p = argparse.ArgumentParser(prog="python -m matseg.train", description=__doc__.split("\n\n")[0])
     p.add_argument("--out", help="run folder to write (a new one)")
@@ -92,16 +95,16 @@ class FromTaps(torch.nn.Module):
     """The net after its encoder, as one module (what DDP wraps in a run on
     cached features): unit descriptors on the stride-4 grid of the taps."""
 
-    def __init__(self, net):
+    def __init__(self, net: netlib.MaterialNet) -> None:
         super().__init__()
         self.net = net
 
-    def forward(self, taps, lab):
+    def forward(self, taps: Sequence[Tensor], lab: Tensor | None) -> Tensor:
         """Unit descriptors of the encoder's taps and the cells' L*a*b* colours."""
         return netlib.l2_normalise(self.net.coarse_from_taps(taps, lab))
 
 
-def check_cache_encoder(net, run):
+def check_cache_encoder(net: netlib.MaterialNet, run: dict[str, Any]) -> None:
     """Refuses a run on a feature cache whose net's encoder did not make it."""
     manifest = run["features"]["manifest"]
     where = os.path.join(run["features"]["cache"], "cache.json")
@@ -113,7 +116,7 @@ def check_cache_encoder(net, run):
                          f"those of {run['init']}: start from the cache's model (--init cache)")
 
 
-def open_cache(run):
+def open_cache(run: dict[str, Any]) -> FeatureCache:
     """The feature cache of a run on one, checked to be the one it started on."""
     cache = FeatureCache(run["features"]["cache"])
     what = cache.difference(run["features"]["manifest"])
@@ -123,7 +126,7 @@ def open_cache(run):
     return cache
 
 
-def param_groups(net, lr_scales):
+def param_groups(net: torch.nn.Module, lr_scales: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     """One group per learning-rate factor (later prefixes win, as matseg train)."""
     groups: dict[float, list[object]] = {}
     for name, p in net.named_parameters():
@@ -135,7 +138,7 @@ def param_groups(net, lr_scales):
     return [{"params": ps, "scale": s} for s, ps in groups.items()]
 
 
-def state_digest(net):
+def state_digest(net: torch.nn.Module) -> str:
     """SHA-256 of the stored variables (model.safetensors'), in name order:
     equal on every rank."""
     h = hashlib.sha256()
@@ -145,7 +148,7 @@ def state_digest(net):
     return h.hexdigest()
 
 
-def initial_net(args, init):
+def initial_net(args: argparse.Namespace, init: str) -> tuple[netlib.MaterialNet, dict[str, Any]]:
     """The net to start from (`init`) and the run.json fields it carries over."""
     if init == "scratch":
         config = json.loads(_core.net_preset(args.encoder, False, False))
@@ -158,7 +161,7 @@ def initial_net(args, init):
     return net, carried
 
 
-def new_run(args):
+def new_run(args: argparse.Namespace) -> tuple[netlib.MaterialNet, dict[str, Any]]:
     """The net and run.json of a new run from the arguments."""
     if os.path.isfile(os.path.join(args.out, netlib.RUN_FILE)):
         raise SystemExit(f"{args.out}: already holds a run; resume it (--resume), or choose another folder")
@@ -197,7 +200,7 @@ def new_run(args):
     return net, run
 
 
-def resumed_run(folder):
+def resumed_run(folder: str) -> tuple[netlib.MaterialNet, dict[str, Any]]:
     """The net (weights still to load) and run.json of the run in `folder`."""
     path = os.path.join(folder, netlib.RUN_FILE)
     if not os.path.isfile(path):
@@ -207,7 +210,8 @@ def resumed_run(folder):
     return netlib.MaterialNet(run["net"]), run
 
 
-def batch_stream(run, args, first_batch):
+def batch_stream(run: dict[str, Any], args: argparse.Namespace,
+                 first_batch: int) -> BatchStream | FeatureStream:
     """The run's batches from `first_batch` on: from its feature cache, its
     stored dataset or online 2D scenes of the run's seed (and
     --sources/--textures), with its mixed-in dataset."""
@@ -224,7 +228,7 @@ def batch_stream(run, args, first_batch):
     return BatchStream(source, BatchPlan(**options["plan"]), options["seed"], first_step=first_batch, mix=mix)
 
 
-def held_out_batches(run, args):
+def held_out_batches(run: dict[str, Any], args: argparse.Namespace) -> list[dict[str, Any]]:
     """matseg train's validation batches: `validation_batches` batches of
     2D scenes from a generator and a batch stream of their own seeds."""
     options = run["options"]
@@ -237,7 +241,8 @@ def held_out_batches(run, args):
     return [stream.batch(i) for i in range(count)]
 
 
-def validation_loss(net, batches, device):
+def validation_loss(net: torch.nn.Module, batches: Sequence[dict[str, Any]],
+                    device: torch.device) -> float | None:
     """The mean loss of `net` in inference mode over the batches that have
     two materials or more (None when none has)."""
     net.eval()
@@ -245,11 +250,11 @@ def validation_loss(net, batches, device):
         losses = [netlib.matseg_loss(net(b["images"].to(device)), b["weights"].to(device), b["roi"].to(device))
                   for b in batches]
     net.train()
-    losses = [float(loss) for loss in losses if loss is not None]
-    return sum(losses) / len(losses) if losses else None
+    values = [float(loss) for loss in losses if loss is not None]
+    return sum(values) / len(values) if values else None
 
 
-def open_metrics(folder, next_step):
+def open_metrics(folder: str, next_step: int) -> tuple[IO[str], float]:
     """metrics.jsonl of `folder` holding the records of the steps before
     `next_step` (those a resumed run keeps), open for appending, and the
     best val_points among them (-inf: none)."""
@@ -266,7 +271,7 @@ def open_metrics(folder, next_step):
     return open(path, "a"), best
 
 
-def main(argv=None):
+def main(argv: Sequence[str] | None = None) -> None:
     """`python -m matseg.train`: parses `argv` (default: the command line) and trains."""
     args = parse_args(sys.argv[1:] if argv is None else argv)
     world = int(os.environ.get("WORLD_SIZE", "1"))
@@ -348,7 +353,7 @@ def main(argv=None):
             loss.backward()
             optimizer.step()
             updates += 1
-        loss_value = None if skipped else float(loss.detach())
+        loss_value = None if skipped or loss is None else float(loss.detach())
         if device.type == "cuda":
             torch.cuda.synchronize(device)
         step_seconds = time.perf_counter() - step_started

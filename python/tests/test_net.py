@@ -78,7 +78,9 @@ def test_the_pytorch_loss_is_the_rust_loss():
         b = mt.BatchStream(matseg.Generator("2d", seed=2), plan, seed=1).batch(step)
         with torch.no_grad():
             d = net(b["images"])
-        ours = float(mn.matseg_loss(d, b["weights"], b["roi"]))
+        loss = mn.matseg_loss(d, b["weights"], b["roi"])
+        assert loss is not None, "the batch has two materials or more"
+        ours = float(loss)
         k = b["weights"].shape[1]
         desc, weights, roi = (np.ascontiguousarray(t.numpy(), np.float32) for t in (d, b["weights"], b["roi"]))
         rust = _core.matseg_loss(desc, weights, roi, tuple(d.shape), k)
