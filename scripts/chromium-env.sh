@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Installs Debian's headless Chromium into the project's git-ignored .venv
 # (no root: the .deb files are fetched with `apt-get download` and
-# unpacked), for the browser tests of `matseg serve`
+# unpacked by scripts/debs.sh), for the browser tests of `matseg serve`
 # (crates/matseg-serve/tests/browser.rs). A no-op once there.
 #
 # The browser is .venv/chromium/chromium (a wrapper that sets the library
@@ -27,18 +27,9 @@ if [ -f "$STAMP" ]; then
 fi
 echo "chromium-env: installing headless Chromium into $ROOT (once; ~70 MB download)" >&2
 rm -rf "$ROOT.partial"
-mkdir -p "$ROOT.partial/debs" .venv/apt/lists/partial .venv/apt/cache/archives/partial
-debs=$(realpath "$ROOT.partial/debs")
-private=(-o "Dir::State::Lists=$(realpath .venv/apt/lists)"
-         -o "Dir::Cache=$(realpath .venv/apt/cache)" -o Debug::NoLocking=1)
-if ! (cd "$debs" && apt-get download "${PACKAGES[@]}" >/dev/null 2>&1); then
-    apt-get "${private[@]}" update >/dev/null
-    (cd "$debs" && apt-get "${private[@]}" download "${PACKAGES[@]}" >/dev/null)
-fi
-for deb in "$debs"/*.deb; do
-    dpkg-deb -x "$deb" "$ROOT.partial/root"
-done
-rm -rf "$debs"
+mkdir -p "$ROOT.partial"
+. scripts/debs.sh
+unpack_debs "$ROOT.partial/root" "${PACKAGES[@]}"
 shell="$ROOT.partial/root/usr/lib/chromium/chromium-headless-shell"
 test -x "$shell" || { echo "chromium-env: $shell missing after unpacking" >&2; exit 1; }
 cat > "$ROOT.partial/chromium" <<'WRAPPER'
@@ -51,6 +42,4 @@ exec "$here/root/usr/lib/chromium/chromium-headless-shell" "$@"
 WRAPPER
 chmod +x "$ROOT.partial/chromium"
 "$ROOT.partial/chromium" --version >&2
-touch "$ROOT.partial/installed"
-rm -rf "$ROOT"
-mv "$ROOT.partial" "$ROOT"
+finish_install "$ROOT"

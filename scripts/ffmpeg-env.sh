@@ -3,7 +3,7 @@
 # project's git-ignored .venv, for `matseg track` on video files and the
 # tests that encode and decode videos. No root: the .deb files of ffmpeg
 # and of every library it needs that this machine lacks are fetched with
-# `apt-get download` and unpacked. A no-op once there.
+# `apt-get download` and unpacked (scripts/debs.sh). A no-op once there.
 #
 # The programs are .venv/ffmpeg/ffmpeg and .venv/ffmpeg/ffprobe (wrappers
 # that set the library path of the unpacked libraries); matseg finds them
@@ -19,10 +19,8 @@ if [ -f "$STAMP" ]; then
 fi
 echo "ffmpeg-env: installing Debian's ffmpeg into $ROOT (once; about 160 MB unpacked)" >&2
 rm -rf "$ROOT.partial"
-mkdir -p "$ROOT.partial/debs" .venv/apt/lists/partial .venv/apt/cache/archives/partial
-debs=$(realpath "$ROOT.partial/debs")
-private=(-o "Dir::State::Lists=$(realpath .venv/apt/lists)"
-         -o "Dir::Cache=$(realpath .venv/apt/cache)" -o Debug::NoLocking=1)
+mkdir -p "$ROOT.partial"
+. scripts/debs.sh
 # What installing ffmpeg would add to this machine: ffmpeg and the
 # libraries it lacks (the simulation needs no root).
 missing() {
@@ -31,19 +29,12 @@ missing() {
 }
 packages=$(missing)
 if [ -z "$packages" ]; then
-    apt-get "${private[@]}" update >/dev/null
-    packages=$(missing "${private[@]}")
+    apt_refresh
+    packages=$(missing "${APT_PRIVATE[@]}")
 fi
 test -n "$packages" || { echo "ffmpeg-env: apt knows no ffmpeg package" >&2; exit 1; }
 # shellcheck disable=SC2086
-if ! (cd "$debs" && apt-get download $packages >/dev/null 2>&1); then
-    # shellcheck disable=SC2086
-    (cd "$debs" && apt-get "${private[@]}" download $packages >/dev/null)
-fi
-for deb in "$debs"/*.deb; do
-    dpkg-deb -x "$deb" "$ROOT.partial/root"
-done
-rm -rf "$debs"
+unpack_debs "$ROOT.partial/root" $packages
 test -x "$ROOT.partial/root/usr/bin/ffmpeg" ||
     { echo "ffmpeg-env: usr/bin/ffmpeg missing after unpacking" >&2; exit 1; }
 for program in ffmpeg ffprobe; do
@@ -58,6 +49,4 @@ WRAPPER
     chmod +x "$ROOT.partial/$program"
 done
 "$ROOT.partial/ffmpeg" -hide_banner -version | head -1 >&2
-touch "$ROOT.partial/installed"
-rm -rf "$ROOT"
-mv "$ROOT.partial" "$ROOT"
+finish_install "$ROOT"
