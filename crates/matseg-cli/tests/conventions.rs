@@ -2,19 +2,8 @@
 //! no function of theirs answers an error as a bare `String`; each returns
 //! its crate's typed error, which callers can match on.
 
-use std::path::{Path, PathBuf};
-
-/// Every `.rs` file below `dir`.
-fn sources(dir: &Path, out: &mut Vec<PathBuf>) {
-    for entry in std::fs::read_dir(dir).unwrap() {
-        let path = entry.unwrap().path();
-        if path.is_dir() {
-            sources(&path, out);
-        } else if path.extension().is_some_and(|e| e == "rs") {
-            out.push(path);
-        }
-    }
-}
+use matseg_image::io::find_files;
+use std::path::Path;
 
 /// The signatures (from `fn` to the body or `;`, white space folded) of
 /// the functions in `text` whose error type is `String`.
@@ -31,8 +20,10 @@ fn string_error_functions(text: &str) -> Vec<String> {
         let end = text[start..]
             .find(['{', ';'])
             .map_or(text.len(), |e| start + e);
-        let signature = text[start..end].split_whitespace().collect::<Vec<_>>();
-        let signature = signature.join(" ");
+        let signature = text[start..end]
+            .split_whitespace()
+            .collect::<Vec<_>>()
+            .join(" ");
         let returns = signature.split_once(" where ").map_or(&*signature, |s| s.0);
         if returns.contains("-> Result<") && returns.trim_end().ends_with(", String>") {
             found.push(signature);
@@ -61,15 +52,15 @@ fn the_detector_finds_string_errors_and_passes_typed_ones() {
 #[test]
 fn no_library_function_returns_a_string_error() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let mut files = Vec::new();
+    let mut roots = vec![root.join("python/src")];
     for entry in std::fs::read_dir(root.join("crates")).unwrap() {
         let dir = entry.unwrap().path();
         // The CLI is the one binary: clap's value parsers answer `String`.
         if dir.file_name().unwrap() != "matseg-cli" {
-            sources(&dir.join("src"), &mut files);
+            roots.push(dir.join("src"));
         }
     }
-    sources(&root.join("python/src"), &mut files);
+    let files = find_files(&roots, &["rs"]).unwrap();
     assert!(files.len() > 100, "{} source files", files.len());
     let offenders: Vec<String> = files
         .iter()
