@@ -9,13 +9,9 @@ use axum::http::StatusCode;
 use matseg_serve::{app::router, state, ServeError, ServeOptions};
 use router::{error_of, get, json, post};
 
-/// The web app on the shipped model, as a test runs it.
+/// The web app on the shipped model and the bundled photos alone.
 fn options() -> ServeOptions {
-    ServeOptions {
-        port: 0,
-        cache_mb: 64,
-        ..ServeOptions::default()
-    }
+    router::options(Vec::new(), Vec::new())
 }
 
 #[tokio::test(flavor = "multi_thread")]

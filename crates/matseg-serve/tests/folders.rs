@@ -10,21 +10,10 @@ use image::{GrayImage, RgbImage};
 use matseg_data::encode::EncodedSample;
 use matseg_eval::Annotation;
 use matseg_image::io::{encode_jpeg, encode_png_grey};
-use matseg_serve::{app::router, state, ServeOptions};
-use router::{get, json, post};
-use std::path::{Path, PathBuf};
+use matseg_serve::{app::router, state};
+use router::{get, json, options, post};
+use std::path::Path;
 use std::time::{Duration, Instant};
-
-/// The web app on the shipped model over `data` and `bench`.
-fn options(data: Vec<PathBuf>, bench: Vec<PathBuf>) -> ServeOptions {
-    ServeOptions {
-        data,
-        bench,
-        port: 0,
-        cache_mb: 64,
-        ..ServeOptions::default()
-    }
-}
 
 async fn get_json(app: &axum::Router, uri: &str) -> serde_json::Value {
     let (status, _, body) = get(app, uri).await;

@@ -10,8 +10,8 @@ mod router;
 
 use axum::http::StatusCode;
 use ffmpeg::run_ffmpeg;
-use matseg_serve::{app::router, state, ServeOptions};
-use router::{error_of, get, json, post};
+use matseg_serve::{app::router, state};
+use router::{error_of, get, json, options, post};
 use std::ffi::OsStr;
 use std::path::Path;
 use std::time::{Duration, Instant};
@@ -33,13 +33,7 @@ fn write_test_pattern(file: &Path) {
 async fn a_video_is_tracked_and_its_labels_served() {
     let videos = tempfile::tempdir().unwrap();
     write_test_pattern(&videos.path().join("clip.mkv"));
-    let options = ServeOptions {
-        data: vec![videos.path().into()],
-        port: 0,
-        cache_mb: 64,
-        ..ServeOptions::default()
-    };
-    let app = router(state(&options).unwrap());
+    let app = router(state(&options(vec![videos.path().into()], Vec::new())).unwrap());
     for page in ["/video", "/video.js"] {
         assert_eq!(get(&app, page).await.0, StatusCode::OK, "{page}");
     }

@@ -1,12 +1,26 @@
-//! Requests sent to the app's router in memory (no socket), and what the
-//! tests read from the answers.
+//! The app as the API tests run it: its options, requests sent to its
+//! router in memory (no socket), and what the tests read from the answers.
 
 // Each test binary uses its own share of these.
 #![allow(dead_code)]
 
 use axum::body::Body;
 use axum::http::{Request, StatusCode};
+use matseg_serve::ServeOptions;
+use std::path::PathBuf;
 use tower::ServiceExt;
+
+/// The web app on the shipped model over `data` and `bench`, on any free
+/// port, with a small cache of described photos.
+pub fn options(data: Vec<PathBuf>, bench: Vec<PathBuf>) -> ServeOptions {
+    ServeOptions {
+        data,
+        bench,
+        port: 0,
+        cache_mb: 64,
+        ..ServeOptions::default()
+    }
+}
 
 /// Status, content type and body of the answer to `request`.
 pub async fn send(app: &axum::Router, request: Request<Body>) -> (StatusCode, String, Vec<u8>) {
