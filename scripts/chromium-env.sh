@@ -27,7 +27,6 @@ if [ -f "$STAMP" ]; then
 fi
 echo "chromium-env: installing headless Chromium into $ROOT (once; ~70 MB download)" >&2
 rm -rf "$ROOT.partial"
-mkdir -p "$ROOT.partial"
 . scripts/debs.sh
 unpack_debs "$ROOT.partial/root" "${PACKAGES[@]}"
 shell="$ROOT.partial/root/usr/lib/chromium/chromium-headless-shell"

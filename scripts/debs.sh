@@ -18,13 +18,15 @@ apt_refresh() {
 }
 
 # unpack_debs TARGET PACKAGE...: downloads the PACKAGEs' .deb files (from
-# this machine's lists, else the private ones) and unpacks them all into
-# TARGET.
+# this machine's lists, else the private ones) into TARGET.debs and unpacks
+# them all into TARGET. TARGET lies in the install's .partial folder, so an
+# interrupted download goes with it.
 unpack_debs() {
     local target=$1
     shift
-    local debs
-    debs=$(mktemp -d)
+    local debs="$target.debs"
+    rm -rf "$debs"
+    mkdir -p "$debs"
     if ! (cd "$debs" && apt-get download "$@" >/dev/null 2>&1); then
         apt_refresh
         (cd "$debs" && apt-get "${APT_PRIVATE[@]}" download "$@" >/dev/null)

@@ -19,7 +19,6 @@ if [ -f "$STAMP" ]; then
 fi
 echo "ffmpeg-env: installing Debian's ffmpeg into $ROOT (once; about 160 MB unpacked)" >&2
 rm -rf "$ROOT.partial"
-mkdir -p "$ROOT.partial"
 . scripts/debs.sh
 # What installing ffmpeg would add to this machine: ffmpeg and the
 # libraries it lacks (the simulation needs no root).
