@@ -4,6 +4,7 @@
 use crate::buffer::{Buffer, Photo};
 use crate::errors::matseg_error;
 use matseg_eval::ClusterOptions;
+use matseg_image::descriptor::check_radius;
 use matseg_image::device::ComputeDevice;
 use matseg_image::tracking::TrackOptions;
 use matseg_net::infer::resolve_model as resolve;
@@ -238,6 +239,7 @@ impl PyModel {
         let Photo(photo) = image;
         check_points(&photo, &points, "the image")
             .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        check_radius(radius).map_err(|e| PyValueError::new_err(e.to_string()))?;
         let maps = py.detach(|| query_points(&describe(&self.net(), &photo), &points, radius));
         let flat: Vec<f32> = maps.similarity.concat();
         Ok((Buffer::f32s(&flat), maps.labels.map(|l| label_buffer(&l))))

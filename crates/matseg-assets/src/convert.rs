@@ -88,9 +88,8 @@ fn convert_image(
             ))
         }
         None => {
-            let img = image::load_from_memory(&bytes)
-                .map_err(|e| content(format!("not a readable image: {e}")))?
-                .into_rgb8();
+            let img = matseg_image::io::decode_rgb(&bytes, std::path::Path::new(name))
+                .map_err(|e| content(format!("not a readable image: {}", e.message)))?;
             let info = if textures {
                 texture_info(&img)?
             } else {

@@ -3,11 +3,13 @@
 //! describes each photo with a first click (the descriptor pass), then has
 //! 1, 16... concurrent clients click random points on photos already
 //! described for a bounded time, and reads the server's memory
-//! (`matseg_serve::load`, `matseg_pipeline::bench::clock`).
+//! (`matseg_serve::load`, `matseg_pipeline::bench::clock`). With
+//! `--while-evaluating BENCH`, an evaluation of that point benchmark runs
+//! in the server's background throughout the click rounds.
 
 use anyhow::{bail, Context, Result};
 use matseg_pipeline::bench::clock::process_memory_mib;
-use matseg_serve::load::{clicks, percentile, write_photos, ClickStats, Connection};
+use matseg_serve::load::{clicks, percentile, write_photos, ClickStats, Connection, ServerAddress};
 use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
@@ -36,6 +38,11 @@ pub struct Args {
     /// The model the server runs.
     #[arg(long, default_value = "default")]
     model: String,
+    /// A point benchmark folder: its evaluation (the served model and the
+    /// baselines the evaluate page ticks) runs in the server's background
+    /// during every click round.
+    #[arg(long, value_name = "BENCH")]
+    while_evaluating: Option<std::path::PathBuf>,
     /// Print JSON instead of tables.
     #[arg(long)]
     json: bool,
@@ -44,7 +51,7 @@ pub struct Args {
 /// The server as a child process; killed when dropped.
 struct Server {
     child: Child,
-    host: String,
+    address: ServerAddress,
 }
 
 impl Server {
@@ -56,6 +63,11 @@ impl Server {
             .arg(args.cache_mb.to_string())
             .arg("--data")
             .arg(data)
+            .args(
+                args.while_evaluating
+                    .iter()
+                    .flat_map(|b| [std::ffi::OsStr::new("--bench"), b.as_os_str()]),
+            )
             .stdout(Stdio::piped())
             .spawn()
             .context("cannot start matseg serve")?;
@@ -63,11 +75,16 @@ impl Server {
         BufReader::new(child.stdout.take().expect("piped"))
             .read_line(&mut line)
             .context("matseg serve printed no address")?;
-        let host = serde_json::from_str::<serde_json::Value>(&line)
+        let address = serde_json::from_str::<serde_json::Value>(&line)
             .ok()
-            .and_then(|ready| Some(ready["address"].as_str()?.to_string()));
-        match host {
-            Some(host) => Ok(Self { child, host }),
+            .and_then(|ready| {
+                Some(ServerAddress {
+                    host: ready["address"].as_str()?.to_string(),
+                    token: ready["token"].as_str().map(str::to_string),
+                })
+            });
+        match address {
+            Some(address) => Ok(Self { child, address }),
             None => {
                 let _ = child.kill();
                 bail!("matseg serve did not start: {line:?}")
@@ -98,7 +115,7 @@ pub fn run(args: Args) -> Result<()> {
     let (_, idle_peak) = server.memory();
 
     // The descriptor pass: each photo's first click.
-    let mut connection = Connection::open(&server.host)?;
+    let mut connection = Connection::open(&server.address)?;
     let mut describe_ms = Vec::new();
     for (name, w, h) in &photos {
         let answer = connection.get(&matseg_serve::load::click_path(name, w / 2, h / 2))?;
@@ -118,11 +135,21 @@ pub fn run(args: Args) -> Result<()> {
         photos.iter().map(|(_, w, h)| (w * h) as f64).sum::<f64>() / photos.len() as f64 / 1e6;
 
     let warm = &photos[photos.len().saturating_sub(args.warm)..];
-    let rounds: Vec<ClickStats> = args
-        .clients
-        .iter()
-        .map(|&c| clicks(&server.host, warm, c, Duration::from_secs_f64(args.seconds)))
-        .collect();
+    let mut rounds: Vec<ClickStats> = Vec::new();
+    let mut evaluated = Vec::new();
+    for &clients in &args.clients {
+        if args.while_evaluating.is_some() {
+            start_evaluation(&mut connection)?;
+        }
+        let duration = Duration::from_secs_f64(args.seconds);
+        rounds.push(clicks(&server.address, warm, clients, duration));
+        if args.while_evaluating.is_some() {
+            evaluated.push(evaluation_running(&mut connection)?);
+        }
+    }
+    if args.while_evaluating.is_some() {
+        connection.send("DELETE", "/api/evaluate?root=bench0")?;
+    }
     let (final_rss, final_peak) = server.memory();
     let describe_p50 = percentile(&mut describe_ms, 50.0);
     let describe_p99 = percentile(&mut describe_ms, 99.0);
@@ -136,6 +163,7 @@ pub fn run(args: Args) -> Result<()> {
             "rss_after_photos_mib": described_rss, "rss_peak_after_photos_mib": described_peak,
             "rss_final_mib": final_rss, "rss_peak_mib": final_peak,
             "clicks": rounds,
+            "evaluating_throughout": evaluated,
         });
         println!("{}", serde_json::to_string_pretty(&out)?);
         return Ok(());
@@ -148,6 +176,12 @@ pub fn run(args: Args) -> Result<()> {
         "server memory (RSS): {idle_peak:.0} MiB at start, {described_rss:.0} MiB after {} photos (peak {described_peak:.0}), {final_rss:.0} MiB at the end (peak {final_peak:.0}); described photos kept: {cached_mib:.0} MiB of the {} MiB bound",
         args.photos, args.cache_mb
     );
+    if let Some(bench) = &args.while_evaluating {
+        println!(
+            "an evaluation of {} ran in the background throughout each round: {evaluated:?}",
+            bench.display()
+        );
+    }
     println!("| clients | clicks | errors | server p50 ms | server p99 ms | round trip p50 ms | round trip p99 ms | clicks/s |");
     println!("|---|---|---|---|---|---|---|---|");
     for r in &rounds {
@@ -164,4 +198,32 @@ pub fn run(args: Args) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// The baselines the evaluate page ticks by default, beside the model.
+const EVALUATED_BASELINES: &str = "rgb,lab,texture,position";
+
+/// Starts the evaluation of the benchmark, unless one is running.
+fn start_evaluation(connection: &mut Connection) -> Result<()> {
+    if evaluation_running(connection)? {
+        return Ok(());
+    }
+    let (answer, body) = connection.send(
+        "POST",
+        &format!("/api/evaluate?root=bench0&baselines={EVALUATED_BASELINES}"),
+    )?;
+    if answer.status != 200 {
+        bail!(
+            "the evaluation did not start: {}",
+            String::from_utf8_lossy(&body)
+        );
+    }
+    Ok(())
+}
+
+/// Whether the benchmark's evaluation is running.
+fn evaluation_running(connection: &mut Connection) -> Result<bool> {
+    let (_, body) = connection.get_body("/api/evaluate?root=bench0")?;
+    let status: serde_json::Value = serde_json::from_slice(&body)?;
+    Ok(status["state"] == "running")
 }

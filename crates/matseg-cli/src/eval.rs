@@ -4,6 +4,7 @@ use anyhow::Result;
 use clap::Subcommand;
 use matseg_eval::{evaluate_masks, scan_mask_benchmark, MaskEvalOptions, QueryOptions};
 use matseg_image::descriptor::DescriptorModel;
+use matseg_image::progress::Silent;
 use matseg_pipeline::models::ModelChoice;
 use matseg_pipeline::point_bench::score_point_benchmark;
 use std::path::PathBuf;
@@ -80,7 +81,7 @@ pub struct MaskArgs {
     #[arg(long, default_value_t = 400)]
     min_area: usize,
     /// Radius of a query point's disc, in pixels.
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, default_value_t = 5.0, value_parser = crate::query_args::parse_radius)]
     radius: f32,
     /// Seed of the query points.
     #[arg(long, default_value_t = 0)]
@@ -119,8 +120,13 @@ fn score(v: Option<f64>) -> String {
 
 fn points(args: PointArgs) -> Result<()> {
     let models = models(&args.model)?;
-    let evaluation =
-        score_point_benchmark(&args.bench, &models, args.skip_bad, args.model.max_side)?;
+    let evaluation = score_point_benchmark(
+        &args.bench,
+        &models,
+        args.skip_bad,
+        args.model.max_side,
+        &Silent,
+    )?;
     for problem in &evaluation.skipped {
         eprintln!("warning: skipped {problem}");
     }

@@ -22,6 +22,7 @@ mod maps;
 mod net_args;
 mod pbr;
 mod pbr_mix;
+mod query_args;
 mod recipe;
 mod render;
 #[cfg(feature = "net")]

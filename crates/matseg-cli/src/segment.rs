@@ -4,6 +4,7 @@
 //! clustering the descriptors (`--auto K`).
 
 use crate::net_args::parse_device;
+use crate::query_args::{parse_point, parse_radius};
 use anyhow::Result;
 use matseg_eval::ClusterOptions;
 use matseg_image::io::read_rgb;
@@ -23,7 +24,7 @@ pub struct Args {
     #[arg(long, default_value = "default")]
     model: PathBuf,
     /// A query point `X,Y` in image pixels; repeat for several materials.
-    #[arg(long = "point", required_unless_present = "auto", value_parser = parse_point)]
+    #[arg(long = "point", required_unless_present = "auto", value_parser = parse_point, allow_hyphen_values = true)]
     points: Vec<(f32, f32)>,
     /// No points: split the photo into K materials by clustering the
     /// descriptors (spherical k-means).
@@ -33,7 +34,7 @@ pub struct Args {
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Radius of each point's disc in pixels.
-    #[arg(long, default_value_t = DEFAULT_RADIUS)]
+    #[arg(long, default_value_t = DEFAULT_RADIUS, value_parser = parse_radius)]
     radius: f32,
     /// cpu, cuda or cuda:N.
     #[arg(long, default_value = "cpu")]
@@ -41,19 +42,6 @@ pub struct Args {
     /// Output folder.
     #[arg(long)]
     out: PathBuf,
-}
-
-/// A point `X,Y` in pixels.
-pub fn parse_point(s: &str) -> Result<(f32, f32), String> {
-    let (x, y) = s
-        .split_once(',')
-        .ok_or_else(|| format!("{s}: expected X,Y"))?;
-    let number = |v: &str| {
-        v.trim()
-            .parse::<f32>()
-            .map_err(|_| format!("{s}: expected X,Y numbers"))
-    };
-    Ok((number(x)?, number(y)?))
 }
 
 /// Runs `matseg segment`.

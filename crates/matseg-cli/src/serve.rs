@@ -2,7 +2,7 @@
 
 use crate::net_args::parse_device;
 use anyhow::Result;
-use matseg_serve::{serve, ServeOptions};
+use matseg_serve::{serve, ServeOptions, TokenChoice};
 use std::path::PathBuf;
 
 /// Arguments of `matseg serve`.
@@ -20,50 +20,71 @@ pub struct Args {
     /// and evaluate; repeatable.
     #[arg(long, num_args = 1..)]
     bench: Vec<PathBuf>,
-    /// Address to bind; any other than the loopback needs --token.
+    /// Address to bind (the loopback unless told otherwise).
     #[arg(long, default_value = ServeOptions::HOST)]
     host: String,
+    /// Another name the server answers to (the Host of a request), besides
+    /// localhost, 127.0.0.1, [::1] and --host; repeatable.
+    #[arg(long = "allowed-host", value_name = "NAME")]
+    allowed_hosts: Vec<String>,
     /// Port (0: any free one).
     #[arg(long, default_value_t = ServeOptions::PORT)]
     port: u16,
-    /// A token every API call must carry (header `x-matseg-token` or
-    /// query `token`).
-    #[arg(long)]
+    /// The token every API call must carry (header `x-matseg-token` or
+    /// query `token`), instead of a new random one each run.
+    #[arg(long, conflicts_with = "no_token")]
     token: Option<String>,
+    /// No token: any page of this machine's browser that passes the
+    /// Host and Origin checks may call the API (loopback only).
+    #[arg(long)]
+    no_token: bool,
     /// Bound on the described photos kept in memory, in MiB.
     #[arg(long, default_value_t = ServeOptions::CACHE_MB)]
     cache_mb: usize,
+    /// Bound on the uploads on disk (photos and videos, arriving and
+    /// kept), in MiB; the least recently used go first.
+    #[arg(long, default_value_t = ServeOptions::UPLOAD_MB)]
+    upload_mb: usize,
     /// cpu, cuda or cuda:N.
     #[arg(long, default_value = "cpu")]
     device: String,
     /// Announce the address as one JSON line, `{"address": "HOST:PORT",
-    /// "url": "http://..."}`, instead of the banner: for scripts that start
-    /// the server with `--port 0`.
+    /// "url": "http://...", "token": ...}`, instead of the banner: for
+    /// scripts that start the server with `--port 0`.
     #[arg(long)]
     json: bool,
 }
 
-/// Runs `matseg serve` until interrupted.
+/// Runs `matseg serve` until interrupted (SIGINT or SIGTERM).
 pub fn run(args: Args) -> Result<()> {
+    let token = match (args.token, args.no_token) {
+        (Some(token), _) if token.is_empty() => anyhow::bail!("--token: give a non-empty token"),
+        (Some(token), _) => TokenChoice::Given(token),
+        (None, true) => TokenChoice::Off,
+        (None, false) => TokenChoice::PerRun,
+    };
     let options = ServeOptions {
         model: args.model,
         data: args.data,
         bench: args.bench,
         host: args.host,
+        allowed_hosts: args.allowed_hosts,
         port: args.port,
-        token: args.token,
+        token,
         cache_mb: args.cache_mb,
+        upload_mb: args.upload_mb,
         device: parse_device(&args.device)?,
     };
-    let token = options.token.clone();
-    serve(&options, |address| {
-        let query = token.map(|t| format!("?token={t}")).unwrap_or_default();
-        let url = format!("http://{address}/{query}");
+    serve(&options, |ready| {
         if args.json {
-            let line = serde_json::json!({ "address": address.to_string(), "url": url });
+            let line = serde_json::json!({
+                "address": ready.address.to_string(),
+                "url": ready.url,
+                "token": ready.token,
+            });
             println!("{line}");
         } else {
-            println!("matseg serve: {url}");
+            println!("matseg serve: {}", ready.url);
         }
     })?;
     Ok(())

@@ -4,7 +4,7 @@
 
 use crate::common::BarProgress;
 use crate::net_args::parse_device;
-use crate::segment::parse_point;
+use crate::query_args::{parse_point, parse_radius};
 use anyhow::Result;
 use matseg_image::tracking::TrackOptions;
 use matseg_pipeline::frames::FrameSource;
@@ -20,7 +20,7 @@ pub struct Args {
     /// PNG/JPEG frames in name order.
     video: PathBuf,
     /// A point `X,Y` in pixels of the clicked frame; repeat for several materials.
-    #[arg(long = "point", required = true, value_parser = parse_point)]
+    #[arg(long = "point", required = true, value_parser = parse_point, allow_hyphen_values = true)]
     points: Vec<(f32, f32)>,
     /// The frame the points are clicked on (from 0).
     #[arg(long, default_value_t = 0)]
@@ -28,7 +28,7 @@ pub struct Args {
     #[command(flatten)]
     tracking: TrackingArgs,
     /// Radius of each point's disc in pixels.
-    #[arg(long, default_value_t = DEFAULT_RADIUS)]
+    #[arg(long, default_value_t = DEFAULT_RADIUS, value_parser = parse_radius)]
     radius: f32,
     /// Write the overlay as an animated PNG preview even where ffmpeg could encode an MP4.
     #[arg(long)]

@@ -1363,22 +1363,3 @@ fn bench_serve_clicks_a_served_photo_without_errors() {
     let zero = matseg(&["bench-serve", "--clients", "0"]);
     assert_one_line_error(&zero, "must be positive");
 }
-
-#[cfg(feature = "net")]
-#[test]
-fn serve_refuses_an_open_address_without_a_token_and_a_bench_without_images() {
-    let open = matseg(&["serve", "--host", "0.0.0.0", "--port", "0"]);
-    assert_one_line_error(
-        &open,
-        "--host 0.0.0.0: serving beyond this machine needs --token",
-    );
-    let dir = tempfile::tempdir().unwrap();
-    let bench = matseg(&[
-        "serve",
-        "--port",
-        "0",
-        "--bench",
-        dir.path().to_str().unwrap(),
-    ]);
-    assert_one_line_error(&bench, "a benchmark folder needs an images/ folder");
-}

@@ -6,6 +6,7 @@
 //! writer and the web app's annotate page all go through it.
 
 use crate::points::{BenchError, ROUND_RELATION, SQUARE_RELATION};
+use matseg_image::descriptor::{check_radius, RadiusError};
 use matseg_image::io::write_atomic;
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -58,7 +59,14 @@ pub enum AnnotationProblem {
     RepeatedGroup(String),
     /// A group with no points.
     NoPoints(String),
-    /// A point off the image (or with a negative radius).
+    /// A point's disc radius out of the range every front end accepts.
+    BadRadius {
+        /// The group.
+        id: String,
+        /// The point, `[x, y, r]`.
+        point: [f64; 3],
+    },
+    /// A point off the image.
     Outside {
         /// The group.
         id: String,
@@ -105,6 +113,14 @@ impl fmt::Display for AnnotationProblem {
             Self::BadId(id) => write!(f, "group id {id:?}: expected a number"),
             Self::RepeatedGroup(id) => write!(f, "group {id} appears twice"),
             Self::NoPoints(id) => write!(f, "group {id} has no points"),
+            Self::BadRadius {
+                id,
+                point: [x, y, r],
+            } => write!(
+                f,
+                "group {id}: point ({x}, {y}): {}",
+                RadiusError(*r as f32)
+            ),
             Self::Outside {
                 id,
                 point: [x, y, r],
@@ -172,8 +188,14 @@ impl Annotation {
             }
             for &point in &group.points {
                 let [x, y, r] = point;
+                if check_radius(r as f32).is_err() {
+                    return Err(AnnotationProblem::BadRadius {
+                        id: id.to_string(),
+                        point,
+                    });
+                }
                 let inside = (0.0..width as f64).contains(&x) && (0.0..height as f64).contains(&y);
-                if !(inside && r.is_finite() && r >= 0.0) {
+                if !inside {
                     return Err(AnnotationProblem::Outside {
                         id: id.to_string(),
                         point,

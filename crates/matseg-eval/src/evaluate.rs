@@ -8,6 +8,7 @@ use crate::triplet::{score_image, ImageScores, PointScores};
 use image::{GrayImage, RgbImage};
 use matseg_image::descriptor::DescriptorModel;
 use matseg_image::io::{decode_grey, read_rgb};
+use matseg_image::progress::Progress;
 use matseg_image::Pyramid;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -80,11 +81,15 @@ pub struct PointCounts {
 }
 
 /// Scores `model` on every image of `bench`, evaluated with the longer side
-/// resized to `max_side` (points scaled alike).
+/// resized to `max_side` (points scaled alike). Each image scored is a step
+/// of `progress` (the caller starts and finishes it); when `progress` is
+/// cancelled, the images not yet begun are not scored and the answer is an
+/// error saying so.
 pub fn evaluate_points(
     model: &dyn DescriptorModel,
     bench: &PointBenchmark,
     max_side: u32,
+    progress: &dyn Progress,
 ) -> Result<PointReport, BenchError> {
     let comparison = model.comparison();
     let mut counts = PointCounts::default();
@@ -94,6 +99,13 @@ pub fn evaluate_points(
         .images
         .par_iter()
         .map(|image| -> Result<(NamedScores, usize), BenchError> {
+            if progress.cancelled() {
+                return Err(BenchError::new(
+                    &image.image_path,
+                    None,
+                    "not scored: the evaluation was cancelled",
+                ));
+            }
             let (pixels, scale) = resize_longer_side(read_rgb(&image.image_path)?, max_side);
             let map = model.describe(&pixels);
             let (points, material) = flatten(image);
@@ -113,6 +125,7 @@ pub fn evaluate_points(
                 name: image.name.clone(),
                 scores,
             };
+            progress.advance();
             Ok((named, points.len()))
         })
         .collect::<Result<_, _>>()?;

@@ -136,7 +136,13 @@ fn flat_colours_score_one_with_the_rgb_baseline() {
     assert_eq!(pairs, [["1", "3"], ["2", "3"]]);
     write_point_image(dir.path(), "bands", &img, &annotation).unwrap();
     let bench = load_point_benchmark(dir.path(), false).unwrap();
-    let report = evaluate_points(&ColourBaseline::RGB, &bench, 0).unwrap();
+    let report = evaluate_points(
+        &ColourBaseline::RGB,
+        &bench,
+        0,
+        &matseg_image::progress::Silent,
+    )
+    .unwrap();
     assert_eq!(report.counts.points, 15);
     assert_eq!(report.all_by_point, Some(1.0));
     assert_eq!(report.soft_by_material, Some(1.0));

@@ -29,13 +29,8 @@ pub enum MaterialError {
         dir: PathBuf,
     },
     /// A map that does not decode.
-    #[error("{}: {source}", path.display())]
-    Image {
-        /// The map file.
-        path: PathBuf,
-        /// Why.
-        source: image::ImageError,
-    },
+    #[error(transparent)]
+    Image(#[from] matseg_image::ImageIoError),
     /// A folder or file that could not be written.
     #[error("{}: cannot write: {source}", path.display())]
     Write {
@@ -139,12 +134,7 @@ pub fn colour_map(dir: &Path) -> Result<Option<PathBuf>, MaterialError> {
 pub fn read_material(dir: &Path) -> Result<MaterialMaps, MaterialError> {
     let files = map_files(dir)?;
     let find = |wanted: Role| find_role(&files, wanted);
-    let open = |p: &PathBuf| {
-        image::open(p).map_err(|source| MaterialError::Image {
-            path: p.clone(),
-            source,
-        })
-    };
+    let open = |p: &PathBuf| matseg_image::io::read_image(p).map_err(MaterialError::Image);
     let grey = |kind: MapKind| -> Result<Option<GrayImage>, MaterialError> {
         find(Role::Scalar(kind))
             .map(|p| open(p).map(|i| i.to_luma8()))

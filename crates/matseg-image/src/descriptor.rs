@@ -30,6 +30,25 @@ impl Comparison {
     }
 }
 
+/// The largest radius of a query point's disc, in pixels.
+pub const MAX_RADIUS: f32 = 256.0;
+
+/// A query point's disc radius out of its range.
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+#[error("radius {0}: give a disc radius from 0 to {MAX_RADIUS} pixels")]
+pub struct RadiusError(pub f32);
+
+/// `radius`, checked: a number of pixels from 0 to [`MAX_RADIUS`] (not
+/// negative, not NaN or infinite). Every front end that takes a radius
+/// (the CLI, the web app, Python, the evaluations) checks it here.
+pub fn check_radius(radius: f32) -> Result<f32, RadiusError> {
+    if (0.0..=MAX_RADIUS).contains(&radius) {
+        Ok(radius)
+    } else {
+        Err(RadiusError(radius))
+    }
+}
+
 /// A `width x height` map of `dim`-long descriptors, pixel by pixel.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DescriptorMap {
@@ -128,6 +147,27 @@ pub trait DescriptorModel: Send + Sync {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn radii_are_pixels_from_zero_to_the_most() {
+        for r in [0.0, 0.5, 5.0, MAX_RADIUS] {
+            assert_eq!(check_radius(r), Ok(r));
+        }
+        for r in [
+            -1.0,
+            -0.0001,
+            MAX_RADIUS + 0.5,
+            1e9,
+            f32::NAN,
+            f32::INFINITY,
+        ] {
+            let refused = check_radius(r).unwrap_err();
+            assert!(
+                refused.to_string().starts_with(&format!("radius {r}: ")),
+                "{refused}"
+            );
+        }
+    }
 
     fn map() -> DescriptorMap {
         // 3x2 pixels, 2-d descriptors.

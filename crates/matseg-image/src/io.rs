@@ -1,9 +1,11 @@
 //! Reading and writing images, with errors that name the file.
 
 use image::codecs::png::{CompressionType, FilterType, PngEncoder};
-use image::{ExtendedColorType, GrayImage, ImageEncoder, ImageReader, RgbImage};
+use image::{
+    DynamicImage, ExtendedColorType, GrayImage, ImageEncoder, ImageFormat, ImageReader, RgbImage,
+};
 use std::io::Cursor;
-use std::path::{Path, PathBuf};
+use std::path::{Component, Path, PathBuf};
 
 /// An image that could not be read or decoded, with the file it came from.
 #[derive(Debug, thiserror::Error)]
@@ -21,6 +23,15 @@ impl ImageIoError {
         Self {
             path: path.into(),
             message: message.to_string(),
+        }
+    }
+
+    /// The same error about `name`: a file the user knows by another name
+    /// (an upload kept under a name of the server's).
+    pub fn renamed(self, name: impl Into<PathBuf>) -> Self {
+        Self {
+            path: name.into(),
+            ..self
         }
     }
 }
@@ -89,28 +100,93 @@ pub fn read_dimensions(path: &Path) -> Result<(u32, u32), ImageIoError> {
 
 /// Decodes an image file to 8-bit RGB (grey images are expanded).
 pub fn read_rgb(path: &Path) -> Result<RgbImage, ImageIoError> {
+    Ok(read_image(path)?.into_rgb8())
+}
+
+/// Decodes an image file as it is stored (any bit depth and channels):
+/// [`decode_image`] of its bytes.
+pub fn read_image(path: &Path) -> Result<DynamicImage, ImageIoError> {
     let bytes = std::fs::read(path).map_err(|e| ImageIoError::new(path, e))?;
-    decode_rgb(&bytes, path)
+    decode_image(&bytes, path)
 }
 
 /// Decodes in-memory image bytes to 8-bit RGB; `name` is used in errors.
 pub fn decode_rgb(bytes: &[u8], name: &Path) -> Result<RgbImage, ImageIoError> {
-    let img = ImageReader::new(Cursor::new(bytes))
-        .with_guessed_format()
-        .map_err(|e| ImageIoError::new(name, e))?
-        .decode()
-        .map_err(|e| ImageIoError::new(name, e))?;
-    Ok(img.to_rgb8())
+    Ok(decode_image(bytes, name)?.into_rgb8())
 }
 
 /// Decodes in-memory image bytes to 8-bit grey; `name` is used in errors.
 pub fn decode_grey(bytes: &[u8], name: &Path) -> Result<GrayImage, ImageIoError> {
-    let img = ImageReader::new(Cursor::new(bytes))
+    Ok(decode_image(bytes, name)?.into_luma8())
+}
+
+/// The one image decoder every reader of the project goes through: the
+/// format guessed from the bytes, and a file cut short refused rather
+/// than decoded in part (JPEG decoders fill a missing end of the scan with
+/// grey and say nothing; a JPEG must reach its end-of-image marker).
+/// `name` is used in errors.
+pub fn decode_image(bytes: &[u8], name: &Path) -> Result<DynamicImage, ImageIoError> {
+    let reader = ImageReader::new(Cursor::new(bytes))
         .with_guessed_format()
-        .map_err(|e| ImageIoError::new(name, e))?
-        .decode()
         .map_err(|e| ImageIoError::new(name, e))?;
-    Ok(img.to_luma8())
+    if reader.format() == Some(ImageFormat::Jpeg) && !jpeg_is_complete(bytes) {
+        return Err(ImageIoError::new(
+            name,
+            "truncated JPEG: the file ends before its end-of-image marker",
+        ));
+    }
+    reader.decode().map_err(|e| ImageIoError::new(name, e))
+}
+
+/// Whether a JPEG's segments and scans run, in order, up to its
+/// end-of-image marker (whatever follows it, as some cameras append, is
+/// left alone).
+fn jpeg_is_complete(bytes: &[u8]) -> bool {
+    const SOI: u8 = 0xD8;
+    const EOI: u8 = 0xD9;
+    const SOS: u8 = 0xDA;
+    if bytes.len() < 4 || bytes[0] != 0xFF || bytes[1] != SOI {
+        return false;
+    }
+    let mut at = 2;
+    loop {
+        // A marker, after any fill bytes.
+        while bytes.get(at) == Some(&0xFF) && bytes.get(at + 1) == Some(&0xFF) {
+            at += 1;
+        }
+        let (Some(&0xFF), Some(&marker)) = (bytes.get(at), bytes.get(at + 1)) else {
+            return false;
+        };
+        at += 2;
+        match marker {
+            EOI => return true,
+            // Restart markers and TEM carry no length.
+            0xD0..=0xD7 | 0x01 => continue,
+            _ => {}
+        }
+        let Some(length) = bytes
+            .get(at..at + 2)
+            .map(|l| u16::from_be_bytes([l[0], l[1]]) as usize)
+        else {
+            return false;
+        };
+        if length < 2 {
+            return false;
+        }
+        at += length;
+        if marker == SOS {
+            // Entropy-coded data: it ends at the first 0xFF that is neither
+            // a stuffed zero nor a restart marker.
+            loop {
+                match bytes.get(at..at + 2) {
+                    None => return false,
+                    Some([0xFF, 0x00]) | Some([0xFF, 0xD0..=0xD7]) => at += 2,
+                    Some([0xFF, _]) => break,
+                    Some(_) => at += 1,
+                }
+            }
+        }
+    }
 }
 
 /// Baseline JPEG bytes of an RGB image at `quality` (1..=100). At quality
@@ -154,6 +230,37 @@ pub fn encode_png_rgb(img: &RgbImage) -> Vec<u8> {
     )
 }
 
+/// A folder output as a command line names it, as the path it is written
+/// to: trailing slashes and `.` parts dropped, and a last part of `.` or
+/// `..` resolved against the folders that exist, so that the folder's
+/// `.partial` sibling ([`partial_folder`]) lies beside it, never inside it.
+/// The file system's root and an empty path are refused.
+pub fn output_folder(out: &Path) -> Result<PathBuf, ImageIoError> {
+    let refused = || ImageIoError::new(out, "not a folder to write into: name the folder itself");
+    let normal: PathBuf = out.components().collect();
+    let named = matches!(normal.components().next_back(), Some(Component::Normal(_)));
+    let resolved = if named {
+        normal
+    } else {
+        let absolute = std::path::absolute(&normal).map_err(|e| ImageIoError::new(out, e))?;
+        absolute
+            .canonicalize()
+            .map_err(|e| ImageIoError::new(out, e))?
+    };
+    if resolved.file_name().is_none() {
+        return Err(refused());
+    }
+    Ok(resolved)
+}
+
+/// Where the folder `out` (as [`output_folder`] gives it) is written
+/// before it is renamed into place: `OUT.partial` beside it.
+pub fn partial_folder(out: &Path) -> PathBuf {
+    let mut name = out.as_os_str().to_owned();
+    name.push(".partial");
+    PathBuf::from(name)
+}
+
 /// Where a file is written before it is renamed to `path`: `path` + `.tmp`.
 /// Readers skip such names, so a half-written file is never taken as whole.
 pub fn temporary_path(path: &Path) -> PathBuf {
@@ -183,6 +290,81 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A small photo-like image: gradients and a square.
+    fn picture() -> RgbImage {
+        RgbImage::from_fn(64, 48, |x, y| {
+            let inside = (20..40).contains(&x) && (10..30).contains(&y);
+            image::Rgb([(x * 4) as u8, (y * 5) as u8, if inside { 250 } else { 30 }])
+        })
+    }
+
+    #[test]
+    fn truncated_images_are_refused_and_whole_ones_read() {
+        let name = Path::new("photo.jpg");
+        let jpeg = encode_jpeg(&picture(), 90);
+        assert_eq!(decode_rgb(&jpeg, name).unwrap().dimensions(), (64, 48));
+        // Bytes a camera appends after the end marker are left alone.
+        let mut trailed = jpeg.clone();
+        trailed.extend_from_slice(b"\xFF\xD8 trailer with its own bytes");
+        assert!(decode_rgb(&trailed, name).is_ok());
+        for cut in [jpeg.len() - 2, jpeg.len() / 2, jpeg.len() - 200, 300] {
+            let error = decode_rgb(&jpeg[..cut], name).unwrap_err();
+            assert_eq!(error.path, name);
+            assert!(error.message.contains("truncated"), "{cut}: {error}");
+        }
+        let png = encode_png_rgb(&picture());
+        assert!(decode_grey(&png, Path::new("mask.png")).is_ok());
+        for cut in [png.len() - 12, png.len() / 2, 40] {
+            assert!(
+                decode_rgb(&png[..cut], Path::new("a.png")).is_err(),
+                "{cut}"
+            );
+        }
+        assert!(decode_rgb(b"not an image", name).is_err());
+    }
+
+    #[test]
+    fn output_folders_have_their_partial_folder_beside_them() {
+        let cwd = std::env::current_dir().unwrap();
+        for (given, written) in [
+            ("out", PathBuf::from("out")),
+            ("out/", PathBuf::from("out")),
+            ("a/out//", PathBuf::from("a/out")),
+            ("./a/./out/.", PathBuf::from("./a/out")),
+            (".", cwd.clone()),
+            ("./", cwd.clone()),
+            ("..", cwd.parent().unwrap().to_path_buf()),
+        ] {
+            let out = output_folder(Path::new(given)).unwrap();
+            assert_eq!(out, written, "{given}");
+            let partial = partial_folder(&out);
+            assert_eq!(partial.parent(), out.parent(), "{given}: beside it");
+            assert!(partial.to_string_lossy().ends_with(".partial"), "{given}");
+        }
+        for refused in ["/", "", "/.."] {
+            assert!(output_folder(Path::new(refused)).is_err(), "{refused}");
+        }
+    }
+
+    #[test]
+    fn jpeg_structure_walks_segments_scans_and_restarts() {
+        // SOI, an APP0 of 4 bytes, SOS of 3, data with a stuffed 0xFF and a
+        // restart marker, then EOI.
+        let whole = [
+            0xFF, 0xD8, 0xFF, 0xE0, 0x00, 0x04, 0xAA, 0xBB, 0xFF, 0xDA, 0x00, 0x03, 0x01, 0x12,
+            0xFF, 0x00, 0x34, 0xFF, 0xD3, 0x56, 0xFF, 0xD9,
+        ];
+        assert!(jpeg_is_complete(&whole));
+        for cut in 0..whole.len() - 1 {
+            assert!(!jpeg_is_complete(&whole[..cut]), "cut at {cut}");
+        }
+        // An end marker inside a segment's data is not the end.
+        let hidden = [
+            0xFF, 0xD8, 0xFF, 0xE1, 0x00, 0x04, 0xFF, 0xD9, 0xFF, 0xDA, 0x00, 0x02, 0x11,
+        ];
+        assert!(!jpeg_is_complete(&hidden));
+    }
 
     #[test]
     fn concurrent_writers_of_one_file_all_succeed_and_leave_it_whole() {

@@ -23,6 +23,13 @@ pub trait Progress: Sync {
     /// Something was skipped; the job goes on. `message` names the file
     /// and the problem.
     fn warn(&self, message: &str);
+    /// Whether the front end wants the job stopped (the web app's Cancel,
+    /// or the server shutting down). Jobs that can stop early ask between
+    /// steps and end with an error that says they were cancelled; never,
+    /// by default.
+    fn cancelled(&self) -> bool {
+        false
+    }
 }
 
 /// Progress nobody watches: every report is dropped, warnings included.

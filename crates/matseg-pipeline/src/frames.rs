@@ -158,6 +158,16 @@ impl FrameSource {
             .as_str()
             .and_then(parse_rate)
             .unwrap_or(25.0);
+        let frames = stream["nb_read_packets"]
+            .as_str()
+            .and_then(|n| n.parse().ok())
+            .unwrap_or(0);
+        if frames == 0 {
+            return Err(PipelineError::file(
+                file.display(),
+                "not a video: its video stream has no frames",
+            ));
+        }
         Ok(FrameSource {
             path: file.to_path_buf(),
             width,
@@ -165,16 +175,14 @@ impl FrameSource {
             fps,
             kind: SourceKind::Video {
                 ffmpeg: ffmpeg_program("ffmpeg"),
-                frames: stream["nb_read_packets"]
-                    .as_str()
-                    .and_then(|n| n.parse().ok())
-                    .unwrap_or(0),
+                frames,
             },
         })
     }
 
-    /// The number of frames: the folder's files, or the video's frames as
-    /// its container counts them (a corrupt video may decode fewer).
+    /// The number of frames (one at least): the folder's files, or the
+    /// video's frames as its container counts them (a corrupt video may
+    /// decode fewer).
     pub fn frame_count(&self) -> u64 {
         match &self.kind {
             SourceKind::Folder(files) => files.len() as u64,

@@ -12,6 +12,7 @@ use matseg_eval::synthetic::{annotate_points, write_point_image, SyntheticOption
 use matseg_eval::{evaluate_points, load_point_benchmark, PointReport};
 use matseg_image::descriptor::DescriptorModel;
 use matseg_image::io::{encode_png_rgb, read_rgb};
+use matseg_image::progress::Progress;
 use matseg_scene::{generate_2d, Recipe2d};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -32,18 +33,22 @@ pub struct PointEvaluation {
 
 /// Scores each of `models` on the point benchmark in `dir`, its images
 /// resized to a longer side of `max_side`; with `skip_bad`, malformed
-/// images are left out (and listed) instead of failing.
+/// images are left out (and listed) instead of failing. `progress` counts
+/// the images scored, of every model; cancelled, it stops the scoring.
 pub fn score_point_benchmark(
     dir: &Path,
     models: &[Box<dyn DescriptorModel>],
     skip_bad: bool,
     max_side: u32,
+    progress: &dyn Progress,
 ) -> Result<PointEvaluation, PipelineError> {
     let bench = load_point_benchmark(dir, skip_bad)?;
+    progress.start((models.len() * bench.images.len()) as u64, "images");
     let reports = models
         .iter()
-        .map(|m| evaluate_points(m.as_ref(), &bench, max_side))
+        .map(|m| evaluate_points(m.as_ref(), &bench, max_side, progress))
         .collect::<Result<Vec<_>, _>>()?;
+    progress.finish();
     Ok(PointEvaluation {
         benchmark: dir.to_path_buf(),
         max_side,

@@ -9,6 +9,7 @@ use crate::files::{create_folder, write_file};
 use image::RgbImage;
 use matseg_eval::{cluster_descriptors, ClusterOptions};
 use matseg_image::coarse::CoarseDescriptors;
+use matseg_image::descriptor::check_radius;
 use matseg_image::io::{encode_png_grey, encode_png_rgb};
 use matseg_net::TEMPERATURE;
 use matseg_scene::{blend_annotation_colour, PALETTE};
@@ -155,6 +156,7 @@ pub fn write_point_maps(
     radius: f32,
     out: &Path,
 ) -> Result<f64, PipelineError> {
+    check_radius(radius).map_err(|e| PipelineError::Settings(e.to_string()))?;
     create_folder(out)?;
     let (w, h) = photo.dimensions();
     let maps = query_points(map, points, radius);

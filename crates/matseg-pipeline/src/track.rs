@@ -15,12 +15,13 @@ use crate::progress::Progress;
 use crate::segment::{check_points, outline_disc, Model};
 use image::RgbImage;
 use matseg_image::coarse::CoarseDescriptors;
-use matseg_image::io::{encode_jpeg, encode_png_grey};
+use matseg_image::descriptor::check_radius;
+use matseg_image::io::{encode_jpeg, encode_png_grey, output_folder, partial_folder};
 use matseg_image::tracking::{MaterialTracker, TrackOptions};
 use matseg_scene::PALETTE;
 use rayon::prelude::*;
 use serde::Serialize;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
 /// The longer side frames are described at, unless a caller says otherwise.
@@ -131,6 +132,7 @@ impl Tracking {
             ));
         }
         check_points(clicked, &settings.points, label)?;
+        check_radius(settings.radius).map_err(|e| PipelineError::Settings(e.to_string()))?;
         if !(16..=4096).contains(&settings.side) {
             return Err(PipelineError::setting(
                 "side",
@@ -344,7 +346,8 @@ pub struct TrackReport {
 /// and the frames themselves when `files` asks. Everything is written into
 /// `OUT.partial` and renamed into place at the end, so a failure leaves
 /// nothing half-written; an existing `out` is replaced only when it holds
-/// an earlier `track.json`.
+/// nothing but an earlier track output (`out/`, `.` and the like name the
+/// folder itself: its `.partial` folder is beside it).
 pub fn track_to_folder(
     model: &dyn FrameDescriber,
     source: &FrameSource,
@@ -353,13 +356,16 @@ pub fn track_to_folder(
     files: TrackFiles,
     progress: &dyn Progress,
 ) -> Result<TrackReport, PipelineError> {
-    if out.exists() && !out.join("track.json").is_file() && !is_empty_dir(out) {
+    let out = &output_folder(out)?;
+    if let Some(stranger) = foreign_entry(out) {
         return Err(PipelineError::file(
             out.display(),
-            "exists and is not an earlier track output (no track.json): choose another --out",
+            format!(
+                "holds {stranger:?}, which no track output has (only an earlier track output is replaced): choose another --out"
+            ),
         ));
     }
-    let partial = partial_path(out);
+    let partial = partial_folder(out);
     if partial.exists() {
         std::fs::remove_dir_all(&partial)
             .map_err(|e| PipelineError::file(partial.display(), format!("cannot remove: {e}")))?;
@@ -382,15 +388,34 @@ pub fn track_to_folder(
     Ok(report)
 }
 
-/// `out` + `.partial`.
-fn partial_path(out: &Path) -> PathBuf {
-    let mut name = out.as_os_str().to_owned();
-    name.push(".partial");
-    PathBuf::from(name)
-}
+/// What a track output folder holds: [`track_to_folder`] replaces a
+/// folder holding nothing else.
+const TRACK_OUTPUT: [&str; 6] = [
+    "track.json",
+    "labels",
+    "similarity",
+    "frames",
+    "overlay.mp4",
+    "overlay.png",
+];
 
-fn is_empty_dir(dir: &Path) -> bool {
-    std::fs::read_dir(dir).is_ok_and(|mut d| d.next().is_none())
+/// The first entry of the folder `out` that is not part of a track output;
+/// none when `out` does not exist, is empty or holds only an earlier track
+/// output's files. A file at `out` is its own stranger.
+fn foreign_entry(out: &Path) -> Option<String> {
+    if !out.exists() {
+        return None;
+    }
+    let Ok(listing) = std::fs::read_dir(out) else {
+        return Some(out.display().to_string());
+    };
+    let mut names: Vec<String> = listing
+        .filter_map(|e| e.ok().map(|e| e.file_name().to_string_lossy().into_owned()))
+        .collect();
+    names.sort();
+    names
+        .into_iter()
+        .find(|n| !TRACK_OUTPUT.contains(&n.as_str()))
 }
 
 /// [`track_to_folder`]'s work, into the folder `dir`.
@@ -425,6 +450,12 @@ fn track_into(
     let (mut areas, mut track_seconds, mut frame_seconds) = (Vec::new(), Vec::new(), Vec::new());
     let mut started = Instant::now();
     for (i, frame) in source.frames()?.enumerate() {
+        if progress.cancelled() {
+            return Err(PipelineError::file(
+                label,
+                format!("cancelled at frame {i}"),
+            ));
+        }
         let frame = frame?;
         let tracked = tracking
             .step(model, &frame)
@@ -510,7 +541,6 @@ mod tests {
         assert_eq!(label_pixels(&maps, LABEL_PROBABILITY), vec![1, 2, 0, 0]);
         assert_eq!(median_after_first(&[9.0, 1.0, 3.0, 2.0]), 2.0);
         assert_eq!(median_after_first(&[4.0]), 4.0);
-        assert_eq!(partial_path(Path::new("a/out")), Path::new("a/out.partial"));
     }
 
     #[test]

@@ -10,6 +10,7 @@ use crate::sources::Libraries;
 use crate::weights::{imagenet_weights, read_weights};
 use matseg_data::Dataset;
 use matseg_eval::{evaluate_points, load_point_benchmark, PointBenchmark};
+use matseg_image::progress::Silent;
 use matseg_net::colour::COLOUR_PART;
 use matseg_net::data::{BatchPlan, DatasetSource, GeneratorSource, MixedSource, SampleSource};
 use matseg_net::features::{encoder_digest, CacheManifest, FeatureCache};
@@ -255,7 +256,7 @@ pub fn point_score(
     max_side: u32,
 ) -> Result<f64, NetError> {
     let invalid = |message: String| NetError::Validation { message };
-    let report = evaluate_points(&NetModel::new("net", net), bench, max_side)
+    let report = evaluate_points(&NetModel::new("net", net), bench, max_side, &Silent)
         .map_err(|e| invalid(e.to_string()))?;
     report
         .all_by_material

@@ -1,16 +1,19 @@
 //! The HTTP side: the pages' static files (built into the binary), the
-//! token check, the error type every handler answers with, and the router
-//! that puts the API of each page under `/api/` (docs/serve.md).
+//! error type every handler answers with, and the router that puts the API
+//! of each page under `/api/`, behind the guard (docs/serve.md).
 
 use crate::annotate::BenchFolder;
 use crate::browse::DatasetFolder;
-use crate::described::{DescribedCache, Uploads};
+use crate::described::DescribedCache;
 use crate::evaluate::Evaluations;
+use crate::guard::Access;
+use crate::jobs::Workers;
 use crate::roots::{PathError, Roots};
+use crate::uploads::UploadFolder;
 use crate::video::Videos;
-use crate::{annotate, browse, evaluate, photos, video};
+use crate::{annotate, browse, evaluate, guard, photos, video};
 use axum::extract::{DefaultBodyLimit, Path, Request, State};
-use axum::http::{header, HeaderMap, StatusCode};
+use axum::http::{header, StatusCode};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
@@ -31,10 +34,13 @@ pub struct AppState {
     pub roots: Roots,
     /// Photos described so far.
     pub described: DescribedCache,
-    /// Photos uploaded by the page, kept in memory.
-    pub uploads: Uploads,
-    /// The bound the described and uploaded photos share.
+    /// The bound on the described photos kept in memory.
     pub budget: Arc<MemoryBudget>,
+    /// The server's own temporary folder (uploads, tracks), removed when
+    /// it stops.
+    pub folder: tempfile::TempDir,
+    /// Photos and videos the pages uploaded, on disk in [`Self::folder`].
+    pub uploads: UploadFolder,
     /// The photos under the photo roots, as root name and path inside.
     pub photos: Vec<(String, PathBuf)>,
     /// The `--data` folders that are datasets.
@@ -43,10 +49,12 @@ pub struct AppState {
     pub benches: Vec<BenchFolder>,
     /// Evaluations run or running, by bench root.
     pub evaluations: Evaluations,
-    /// Videos: listed, uploaded and tracked.
+    /// Videos: listed and tracked.
     pub videos: Videos,
-    /// The token every API call must carry, when set.
-    pub token: Option<String>,
+    /// The background jobs (tracks, evaluations), stopped with the server.
+    pub workers: Workers,
+    /// Who may talk to the server.
+    pub access: Arc<Access>,
 }
 
 /// The pages and the files they load: name, content type, body.
@@ -102,7 +110,12 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/api/sample/image", get(browse::sample_image))
         .route("/api/benches", get(annotate::benches))
         .route("/api/annotation", get(annotate::load).post(annotate::save))
-        .route("/api/evaluate", get(evaluate::status).post(evaluate::start))
+        .route(
+            "/api/evaluate",
+            get(evaluate::status)
+                .post(evaluate::start)
+                .delete(evaluate::cancel),
+        )
         .route("/api/videos", get(video::list))
         .route("/api/video", get(video::video))
         .route(
@@ -110,12 +123,15 @@ pub fn router(state: Arc<AppState>) -> Router {
             post(video::upload).layer(DefaultBodyLimit::disable()),
         )
         .route("/api/video/frame", get(video::frame))
-        .route("/api/track", get(video::status).post(video::start))
+        .route(
+            "/api/track",
+            get(video::status).post(video::start).delete(video::cancel),
+        )
         .route("/api/track/frame", get(video::job_frame))
         .route("/api/track/overlay", get(video::job_overlay))
         .route("/api/track/download", get(video::download))
-        .route_layer(middleware::from_fn_with_state(state.clone(), check_token))
         .route_layer(middleware::from_fn(server_timing));
+    let access = state.access.clone();
     Router::new()
         .route("/", get(|| async { static_file("") }))
         .route(
@@ -124,6 +140,7 @@ pub fn router(state: Arc<AppState>) -> Router {
         )
         .merge(api)
         .with_state(state)
+        .layer(middleware::from_fn_with_state(access, guard::check))
 }
 
 /// `GET /api/status`: what the server holds in memory against its bound,
@@ -132,8 +149,9 @@ async fn status(State(state): State<Arc<AppState>>) -> Json<serde_json::Value> {
     let mib = |bytes: usize| bytes as f64 / (1 << 20) as f64;
     Json(serde_json::json!({
         "described_mib": mib(state.described.bytes()),
-        "uploads_mib": mib(state.uploads.bytes()),
         "bound_mib": mib(state.budget.limit()),
+        "uploads_mib": mib(state.uploads.bytes() as usize),
+        "uploads_bound_mib": mib(state.uploads.limit() as usize),
     }))
 }
 
@@ -151,6 +169,11 @@ impl ApiError {
             status,
             message: message.into(),
         }
+    }
+
+    /// The status it is answered with.
+    pub fn status(&self) -> StatusCode {
+        self.status
     }
 
     /// A 400: the request is wrong.
@@ -198,31 +221,6 @@ pub struct UploadName {
     pub name: String,
 }
 
-/// An upload's body, at most `limit` bytes (413 above it, whether the
-/// request declares its length or not); `what` names it in the error.
-pub async fn upload_body(
-    headers: &HeaderMap,
-    body: axum::body::Body,
-    limit: usize,
-    what: &str,
-) -> Result<axum::body::Bytes, ApiError> {
-    let too_large = || {
-        ApiError::new(
-            StatusCode::PAYLOAD_TOO_LARGE,
-            format!("{what} larger than {} MiB", limit >> 20),
-        )
-    };
-    let declared = headers
-        .get(header::CONTENT_LENGTH)
-        .and_then(|v| v.to_str().ok()?.parse::<usize>().ok());
-    if declared.is_some_and(|n| n > limit) {
-        return Err(too_large());
-    }
-    axum::body::to_bytes(body, limit)
-        .await
-        .map_err(|_| too_large())
-}
-
 /// Runs `work` on a blocking thread (decoding, describing, reading
 /// samples), off the async workers.
 pub async fn blocking<T: Send + 'static>(
@@ -244,28 +242,6 @@ async fn server_timing(request: Request, next: Next) -> Response {
         response.headers_mut().insert("server-timing", value);
     }
     response
-}
-
-/// Refuses API calls without the server's token (header `x-matseg-token`
-/// or query `token`), when it has one.
-async fn check_token(
-    State(state): State<Arc<AppState>>,
-    headers: HeaderMap,
-    request: Request,
-    next: Next,
-) -> Response {
-    if let Some(token) = &state.token {
-        let from_header = headers.get("x-matseg-token").and_then(|v| v.to_str().ok());
-        let from_query = request
-            .uri()
-            .query()
-            .and_then(|q| q.split('&').find_map(|kv| kv.strip_prefix("token=")));
-        if from_header != Some(token.as_str()) && from_query != Some(token.as_str()) {
-            return ApiError::new(StatusCode::UNAUTHORIZED, "a valid token is required")
-                .into_response();
-        }
-    }
-    next.run(request).await
 }
 
 #[cfg(test)]

@@ -1,11 +1,14 @@
 //! The evaluate page's API: `matseg eval points` on a `--bench` folder for
-//! the baselines the page picks and the served model (locked one image at a
-//! time, so the other pages are answered meanwhile), run on a thread of its
-//! own; the page polls for the report (All / Soft / top-1 scores per model
-//! and per image), or for why it failed.
+//! the baselines the page picks and the served model, run in the
+//! background: on a thread of its own at the lowest priority, one image at
+//! a time (the served model locked for one image), so that clicks on the
+//! other pages keep their latency. The page polls for the images done and
+//! the report (All / Soft / top-1 scores per model and per image), or for
+//! why it failed, and can cancel it.
 
 use crate::annotate::bench;
 use crate::app::{ApiError, AppState};
+use crate::jobs::{run_in_background, JobProgress};
 use axum::extract::{Query, State};
 use axum::http::StatusCode;
 use axum::Json;
@@ -20,8 +23,8 @@ use std::time::Instant;
 
 /// Where an evaluation of one benchmark stands.
 pub enum Evaluation {
-    /// Running since then.
-    Running(Instant),
+    /// Running since then, with its progress (images done, of all models).
+    Running(Instant, Arc<JobProgress>),
     /// Finished: the report.
     Done(serde_json::Value),
     /// Failed: why.
@@ -61,29 +64,53 @@ pub async fn start(
             known.join(", ")
         )));
     }
-    {
-        let mut evaluations = matseg_image::sync::lock(&state.evaluations);
-        if let Some(Evaluation::Running(_)) = evaluations.get(&query.root) {
-            return Err(ApiError::new(
-                StatusCode::CONFLICT,
-                format!("{}: an evaluation is already running", folder.display()),
-            ));
-        }
-        evaluations.insert(query.root.clone(), Evaluation::Running(Instant::now()));
-    }
     let choice = ModelChoice {
         baselines,
         nets: Vec::new(),
         net_sides: Vec::new(),
         device: state.device,
     };
+    let mut evaluations = matseg_image::sync::lock(&state.evaluations);
+    if let Some(Evaluation::Running(..)) = evaluations.get(&query.root) {
+        return Err(ApiError::new(
+            StatusCode::CONFLICT,
+            format!("{}: an evaluation is already running", folder.display()),
+        ));
+    }
+    let progress = Arc::new(JobProgress::default());
     let root = query.root.clone();
     let worker = state.clone();
-    std::thread::spawn(move || {
-        let done = finished(&folder, || run(&folder, &choice, worker.clone()));
-        matseg_image::sync::lock(&worker.evaluations).insert(root, done);
-    });
+    let job_progress = progress.clone();
+    state
+        .workers
+        .spawn(&format!("evaluate {root}"), progress.clone(), move || {
+            let done = finished(&folder, || {
+                run_in_background(|| run(&folder, &choice, worker.clone(), job_progress.as_ref()))
+                    .unwrap_or_else(|e| Err(EvaluationError::Background(e.to_string())))
+            });
+            matseg_image::sync::lock(&worker.evaluations).insert(root, done);
+        })
+        .map_err(|e| ApiError::internal(format!("cannot start the evaluation: {e}")))?;
+    evaluations.insert(query.root, Evaluation::Running(Instant::now(), progress));
     Ok(Json(serde_json::json!({ "state": "running" })))
+}
+
+/// `DELETE /api/evaluate?root=R`: stops the benchmark's running
+/// evaluation (it ends as failed, "cancelled").
+pub async fn cancel(
+    State(state): State<Arc<AppState>>,
+    Query(query): Query<StatusQuery>,
+) -> Result<Json<serde_json::Value>, ApiError> {
+    bench(&state, &query.root)?;
+    let evaluations = matseg_image::sync::lock(&state.evaluations);
+    let running = match evaluations.get(&query.root) {
+        Some(Evaluation::Running(_, progress)) => {
+            progress.cancel();
+            true
+        }
+        _ => false,
+    };
+    Ok(Json(serde_json::json!({ "cancelling": running })))
 }
 
 /// How the evaluation `job` of the benchmark in `folder` ended: done with
@@ -122,6 +149,9 @@ pub enum EvaluationError {
     /// A benchmark with no annotated image yet.
     #[error("{}: no annotated image to evaluate", .0.display())]
     NothingAnnotated(std::path::PathBuf),
+    /// The background thread pool could not be made.
+    #[error("cannot run the evaluation in the background: {0}")]
+    Background(String),
 }
 
 /// The served model as an evaluated one.
@@ -147,10 +177,11 @@ fn run(
     folder: &std::path::Path,
     choice: &ModelChoice,
     state: Arc<AppState>,
+    progress: &JobProgress,
 ) -> Result<serde_json::Value, EvaluationError> {
     let mut models = baselines(choice)?;
     models.push(Box::new(ServedModel(state)));
-    let evaluation = score_point_benchmark(folder, &models, true, DEFAULT_MAX_SIDE)?;
+    let evaluation = score_point_benchmark(folder, &models, true, DEFAULT_MAX_SIDE, progress)?;
     if evaluation.models[0].counts.images == 0 {
         return Err(EvaluationError::NothingAnnotated(folder.to_path_buf()));
     }
@@ -164,8 +195,9 @@ pub struct StatusQuery {
 }
 
 /// `GET /api/evaluate`: where the benchmark's evaluation stands: `idle`,
-/// `running` (with the seconds so far), `done` (with the report) or
-/// `failed` (with the error).
+/// `running` (with the seconds so far and the images done of the total,
+/// every model's images counted), `done` (with the report) or `failed`
+/// (with the error).
 pub async fn status(
     State(state): State<Arc<AppState>>,
     Query(query): Query<StatusQuery>,
@@ -174,10 +206,15 @@ pub async fn status(
     let evaluations = matseg_image::sync::lock(&state.evaluations);
     Ok(Json(match evaluations.get(&query.root) {
         None => serde_json::json!({ "state": "idle" }),
-        Some(Evaluation::Running(since)) => serde_json::json!({
-            "state": "running",
-            "seconds": since.elapsed().as_secs_f64(),
-        }),
+        Some(Evaluation::Running(since, progress)) => {
+            let (done, total) = progress.counts();
+            serde_json::json!({
+                "state": "running",
+                "seconds": since.elapsed().as_secs_f64(),
+                "done": done,
+                "total": total,
+            })
+        }
         Some(Evaluation::Done(report)) => serde_json::json!({ "state": "done", "report": report }),
         Some(Evaluation::Failed(error)) => serde_json::json!({ "state": "failed", "error": error }),
     }))

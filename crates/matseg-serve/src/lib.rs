@@ -8,9 +8,12 @@
 //! described once by the model; clicks are answered from the cached
 //! descriptors.
 //!
-//! Safety: the server binds 127.0.0.1 unless told otherwise, and any other
-//! address needs a token that every API call must carry; it serves only
-//! its own files and the folders it was given (docs/serve.md).
+//! Safety: the server binds 127.0.0.1 unless told otherwise; it answers
+//! only requests made by its own pages, with the token it makes each run
+//! ([`guard`]); it serves only its own files and the folders it was given;
+//! uploads go to disk within a bound; and when it is stopped (SIGINT,
+//! SIGTERM) it stops its jobs and removes its temporary folder
+//! (docs/serve.md).
 
 #![warn(missing_docs)]
 
@@ -19,28 +22,38 @@ pub mod app;
 pub mod browse;
 pub mod described;
 pub mod evaluate;
+pub mod guard;
+pub mod jobs;
 pub mod load;
 pub mod photos;
 pub mod roots;
+pub mod uploads;
 pub mod video;
 
 use annotate::BenchFolder;
 use app::AppState;
 use browse::DatasetFolder;
-use described::{DescribedCache, Uploads};
+use described::DescribedCache;
+pub use guard::TokenChoice;
+use guard::{new_token, Access};
 use matseg_image::MemoryBudget;
 use matseg_net::infer::NetModel;
 use roots::Roots;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::Arc;
+use std::time::Duration;
+use uploads::UploadFolder;
 
 /// Why the server could not start.
 #[derive(Debug, thiserror::Error)]
 pub enum ServeError {
     /// Another host than the loopback without a token.
-    #[error("--host {0}: serving beyond this machine needs --token")]
+    #[error("--host {0}: serving beyond this machine needs a token (leave out --no-token)")]
     NoToken(String),
+    /// The server's temporary folder or token could not be made.
+    #[error("cannot start: {0}")]
+    Setup(String),
     /// A folder that cannot be served.
     #[error("{}: {message}", path.display())]
     Folder {
@@ -77,12 +90,17 @@ pub struct ServeOptions {
     pub bench: Vec<PathBuf>,
     /// The address to bind.
     pub host: String,
+    /// Other names the server answers to (the `Host` of a request),
+    /// besides the loopback names and `host`.
+    pub allowed_hosts: Vec<String>,
     /// The port (0: any free one).
     pub port: u16,
     /// The token API calls must carry.
-    pub token: Option<String>,
+    pub token: TokenChoice,
     /// Bound on the described photos kept, in MiB.
     pub cache_mb: usize,
+    /// Bound on the uploads on disk, arriving and kept, in MiB.
+    pub upload_mb: usize,
     /// The device the model runs on.
     pub device: matseg_image::device::ComputeDevice,
 }
@@ -94,20 +112,25 @@ impl ServeOptions {
     pub const PORT: u16 = 8080;
     /// The bound on described photos kept unless told otherwise, in MiB.
     pub const CACHE_MB: usize = 1024;
+    /// The bound on uploads on disk unless told otherwise, in MiB.
+    pub const UPLOAD_MB: usize = 2048;
 }
 
 impl Default for ServeOptions {
     /// `matseg serve` with no arguments: the shipped model on the CPU, the
-    /// bundled photos only, on [`Self::HOST`]:[`Self::PORT`], no token.
+    /// bundled photos only, on [`Self::HOST`]:[`Self::PORT`], a token per
+    /// run.
     fn default() -> Self {
         Self {
             model: "default".into(),
             data: Vec::new(),
             bench: Vec::new(),
             host: Self::HOST.into(),
+            allowed_hosts: Vec::new(),
             port: Self::PORT,
-            token: None,
+            token: TokenChoice::PerRun,
             cache_mb: Self::CACHE_MB,
+            upload_mb: Self::UPLOAD_MB,
             device: matseg_image::device::ComputeDevice::Cpu,
         }
     }
@@ -120,9 +143,16 @@ fn is_loopback(host: &str) -> bool {
 
 /// The app's state: the model loaded, the folders checked.
 pub fn state(options: &ServeOptions) -> Result<Arc<AppState>, ServeError> {
-    if !is_loopback(&options.host) && options.token.is_none() {
-        return Err(ServeError::NoToken(options.host.clone()));
-    }
+    let token = match &options.token {
+        TokenChoice::Off if !is_loopback(&options.host) => {
+            return Err(ServeError::NoToken(options.host.clone()))
+        }
+        TokenChoice::Off => None,
+        TokenChoice::Given(token) => Some(token.clone()),
+        TokenChoice::PerRun => {
+            Some(new_token().map_err(|e| ServeError::Setup(format!("no random token: {e}")))?)
+        }
+    };
     let mut roots = Roots::default();
     let add = |roots: &mut Roots, name: &str, dir: &PathBuf| {
         if !dir.is_dir() {
@@ -165,11 +195,18 @@ pub fn state(options: &ServeOptions) -> Result<Arc<AppState>, ServeError> {
     let served = || roots.iter().filter(|(name, _)| photo_root(name));
     let photos = roots::files_under(served(), &photos::PHOTO_EXTENSIONS)?;
     let videos = roots::files_under(served(), &video::VIDEO_EXTENSIONS)?;
-    let videos = video::Videos::new(videos).map_err(|e| ServeError::Folder {
-        path: std::env::temp_dir(),
-        message: format!("cannot make the server's temporary folder: {e}"),
-    })?;
     let model = NetModel::load(&options.model, options.device)?;
+    let folder = tempfile::Builder::new()
+        .prefix("matseg-serve-")
+        .tempdir()
+        .map_err(|e| ServeError::Folder {
+            path: std::env::temp_dir(),
+            message: format!("cannot make the server's temporary folder: {e}"),
+        })?;
+    let upload_limit = (options.upload_mb as u64).saturating_mul(1 << 20);
+    let uploads = UploadFolder::new(folder.path().join("uploads"), upload_limit)
+        .map_err(|e| ServeError::Setup(format!("{}: {e}", folder.path().display())))?;
+    let videos = video::Videos::new(videos, folder.path().join("tracks"));
     let budget = MemoryBudget::new(options.cache_mb.saturating_mul(1 << 20));
     Ok(Arc::new(AppState {
         model,
@@ -177,19 +214,40 @@ pub fn state(options: &ServeOptions) -> Result<Arc<AppState>, ServeError> {
         roots,
         photos,
         described: DescribedCache::new(budget.clone()),
-        uploads: Uploads::new(budget.clone()),
         budget,
+        folder,
+        uploads,
         datasets,
         benches,
         evaluations: Default::default(),
         videos,
-        token: options.token.clone(),
+        workers: Default::default(),
+        access: Arc::new(Access::new(&options.host, &options.allowed_hosts, token)),
     }))
 }
 
-/// Serves the app until the process ends; `on_ready` gets the address
-/// bound (the port chosen when `port` was 0).
-pub fn serve(options: &ServeOptions, on_ready: impl FnOnce(SocketAddr)) -> Result<(), ServeError> {
+/// Where a started server is.
+#[derive(Clone, Debug)]
+pub struct Ready {
+    /// The address bound (the port chosen when it was 0).
+    pub address: SocketAddr,
+    /// The address to open, with the token: `http://ADDRESS/?token=T`.
+    pub url: String,
+    /// The token API calls carry, when there is one.
+    pub token: Option<String>,
+}
+
+/// How long a stopping server waits for the requests under way.
+const REQUESTS_GRACE: Duration = Duration::from_secs(5);
+
+/// How long a stopping server waits for its jobs to stop.
+const JOBS_GRACE: Duration = Duration::from_secs(20);
+
+/// Serves the app until the process gets SIGINT (Ctrl-C) or SIGTERM;
+/// `on_ready` gets where it listens. Then it answers the requests under
+/// way, stops its jobs and removes its temporary folder before returning
+/// (a second signal skips the waiting).
+pub fn serve(options: &ServeOptions, on_ready: impl FnOnce(&Ready)) -> Result<(), ServeError> {
     let state = state(options)?;
     let address = format!("{}:{}", options.host, options.port);
     let bind_error = |message: String| ServeError::Bind {
@@ -198,18 +256,86 @@ pub fn serve(options: &ServeOptions, on_ready: impl FnOnce(SocketAddr)) -> Resul
     };
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_io()
+        .enable_time()
         .build()
         .map_err(|e| bind_error(e.to_string()))?;
-    runtime.block_on(async {
+    let served = runtime.block_on(async {
         let listener = tokio::net::TcpListener::bind(&address)
             .await
             .map_err(|e| bind_error(e.to_string()))?;
         let local = listener
             .local_addr()
             .map_err(|e| bind_error(e.to_string()))?;
-        on_ready(local);
-        axum::serve(listener, app::router(state))
-            .await
-            .map_err(|e| bind_error(e.to_string()))
-    })
+        let token = state.access.token.clone();
+        let query = token
+            .as_ref()
+            .map(|t| format!("?token={t}"))
+            .unwrap_or_default();
+        on_ready(&Ready {
+            address: local,
+            url: format!("http://{local}/{query}"),
+            token,
+        });
+        let stop = stop_signals().map_err(|e| bind_error(format!("cannot watch signals: {e}")))?;
+        let stopping = watch_stop(stop, state.clone());
+        let asked = |mut stopping: tokio::sync::watch::Receiver<bool>| async move {
+            let _ = stopping.wait_for(|&stop| stop).await;
+        };
+        let server = axum::serve(listener, app::router(state.clone()))
+            .with_graceful_shutdown(asked(stopping.clone()));
+        // After the signal, requests under way are waited for a while.
+        let grace = async {
+            asked(stopping).await;
+            tokio::time::sleep(REQUESTS_GRACE).await;
+        };
+        tokio::select! {
+            served = async { server.await } => served.map_err(|e| bind_error(e.to_string())),
+            () = grace => Ok(()),
+        }
+    });
+    runtime.shutdown_timeout(Duration::from_secs(1));
+    state.workers.stop_all(JOBS_GRACE);
+    let _ = std::fs::remove_dir_all(state.folder.path());
+    served
+}
+
+/// Watches `stop` for the server in `state`: at the first signal its jobs
+/// are told to stop and the answer turns true; a second signal removes its
+/// temporary folder and ends the process at once.
+fn watch_stop(
+    mut stop: tokio::sync::mpsc::Receiver<()>,
+    state: Arc<AppState>,
+) -> tokio::sync::watch::Receiver<bool> {
+    let (send, receive) = tokio::sync::watch::channel(false);
+    tokio::spawn(async move {
+        if stop.recv().await.is_none() {
+            return;
+        }
+        state.workers.cancel_all();
+        let _ = send.send(true);
+        if stop.recv().await.is_some() {
+            let _ = std::fs::remove_dir_all(state.folder.path());
+            std::process::exit(130);
+        }
+    });
+    receive
+}
+
+/// A channel that gets one message for each SIGINT or SIGTERM the process
+/// receives.
+fn stop_signals() -> std::io::Result<tokio::sync::mpsc::Receiver<()>> {
+    use tokio::signal::unix::{signal, SignalKind};
+    let (send, receive) = tokio::sync::mpsc::channel(4);
+    for kind in [SignalKind::interrupt(), SignalKind::terminate()] {
+        let mut signals = signal(kind)?;
+        let send = send.clone();
+        tokio::spawn(async move {
+            while signals.recv().await.is_some() {
+                if send.send(()).await.is_err() {
+                    break;
+                }
+            }
+        });
+    }
+    Ok(receive)
 }

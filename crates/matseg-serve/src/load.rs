@@ -71,22 +71,33 @@ pub struct Answer {
     pub round_trip_ms: f64,
 }
 
+/// Where a running server is: its address (`127.0.0.1:PORT`) and the
+/// token its API wants, if any.
+#[derive(Clone, Debug)]
+pub struct ServerAddress {
+    /// `HOST:PORT`.
+    pub host: String,
+    /// The token API calls carry.
+    pub token: Option<String>,
+}
+
 /// A keep-alive HTTP/1.1 connection to the server.
 pub struct Connection {
     reader: BufReader<TcpStream>,
-    host: String,
+    server: ServerAddress,
 }
 
 impl Connection {
-    /// Connects to `host` (`127.0.0.1:PORT`).
-    pub fn open(host: &str) -> Result<Self, LoadError> {
+    /// Connects to `server`.
+    pub fn open(server: &ServerAddress) -> Result<Self, LoadError> {
+        let host = &server.host;
         let stream = TcpStream::connect(host).map_err(|e| LoadError(format!("{host}: {e}")))?;
         stream
             .set_nodelay(true)
             .map_err(|e| LoadError(e.to_string()))?;
         Ok(Self {
             reader: BufReader::new(stream),
-            host: host.to_string(),
+            server: server.clone(),
         })
     }
 
@@ -97,13 +108,43 @@ impl Connection {
 
     /// `GET path` and the body.
     pub fn get_body(&mut self, path: &str) -> Result<(Answer, Vec<u8>), LoadError> {
-        let fail = |e: std::io::Error| LoadError(format!("GET {path}: {e}"));
+        self.send("GET", path)
+    }
+
+    /// `METHOD path` with no body (a POST typed as JSON, as the pages send
+    /// it), as the server's own page would send it: its Host, its token;
+    /// the answer and its body.
+    pub fn send(&mut self, method: &str, path: &str) -> Result<(Answer, Vec<u8>), LoadError> {
+        let kind = (method == "POST").then_some("application/json");
+        self.send_body(method, path, kind, &[])
+    }
+
+    /// `METHOD path` with `body` of type `kind`, as [`Self::send`] sends it.
+    pub fn send_body(
+        &mut self,
+        method: &str,
+        path: &str,
+        kind: Option<&str>,
+        body: &[u8],
+    ) -> Result<(Answer, Vec<u8>), LoadError> {
+        let fail = |e: std::io::Error| LoadError(format!("{method} {path}: {e}"));
         let started = Instant::now();
+        let token = self
+            .server
+            .token
+            .as_ref()
+            .map(|t| format!("x-matseg-token: {t}\r\n"))
+            .unwrap_or_default();
+        let typed = kind
+            .map(|k| format!("content-type: {k}\r\ncontent-length: {}\r\n", body.len()))
+            .unwrap_or_default();
+        let stream = self.reader.get_mut();
         write!(
-            self.reader.get_mut(),
-            "GET {path} HTTP/1.1\r\nHost: {}\r\n\r\n",
-            self.host
+            stream,
+            "{method} {path} HTTP/1.1\r\nHost: {}\r\n{token}{typed}\r\n",
+            self.server.host
         )
+        .and_then(|()| stream.write_all(body))
         .map_err(fail)?;
         let mut line = String::new();
         self.reader.read_line(&mut line).map_err(fail)?;
@@ -111,7 +152,7 @@ impl Connection {
             .split_whitespace()
             .nth(1)
             .and_then(|s| s.parse().ok())
-            .ok_or_else(|| LoadError(format!("GET {path}: bad status line {line:?}")))?;
+            .ok_or_else(|| LoadError(format!("{method} {path}: bad status line {line:?}")))?;
         let (mut length, mut server_ms) = (0usize, f64::NAN);
         loop {
             line.clear();
@@ -183,7 +224,7 @@ pub fn percentile(values: &mut [f64], p: f64) -> f64 {
 /// `clients` clients clicking random points of random `photos` (name,
 /// width, height) for `duration`, each on its own connection.
 pub fn clicks(
-    host: &str,
+    server: &ServerAddress,
     photos: &[(String, u32, u32)],
     clients: usize,
     duration: Duration,
@@ -203,7 +244,7 @@ pub fn clicks(
                         random ^= random << 17;
                         (random % n as u64) as u32
                     };
-                    let mut connection = Connection::open(host).ok();
+                    let mut connection = Connection::open(server).ok();
                     while started.elapsed() < duration {
                         let (name, w, h) = &photos[next(photos.len() as u32) as usize];
                         let path = click_path(name, next(*w), next(*h));
@@ -212,7 +253,7 @@ pub fn clicks(
                             Some(Ok(_)) => errors += 1,
                             _ => {
                                 errors += 1;
-                                connection = Connection::open(host).ok();
+                                connection = Connection::open(server).ok();
                             }
                         }
                     }

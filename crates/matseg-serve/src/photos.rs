@@ -6,18 +6,20 @@
 //! folder, `upload` and the name an upload was given, or a dataset root
 //! and `sample/INDEX`.
 
-use crate::app::{blocking, upload_body, ApiError, AppState, UploadName};
+use crate::app::{blocking, ApiError, AppState, UploadName};
 use crate::described::{release_freed_memory, Described};
+use crate::uploads::Upload;
 use axum::body::Body;
 use axum::extract::{Query, State};
-use axum::http::{header, HeaderMap, StatusCode};
+use axum::http::{header, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
 use image::RgbImage;
 use matseg_eval::cluster::ClusterOptions;
-use matseg_image::io::{decode_rgb, encode_png_grey, encode_png_rgb, read_rgb};
+use matseg_image::descriptor::check_radius;
+use matseg_image::io::{encode_png_grey, encode_png_rgb, read_rgb};
 use matseg_pipeline::segment::{
-    check_points, cluster, describe, query_points, similarity_grey, DEFAULT_RADIUS,
+    check_points, cluster, describe, query_points, similarity_grey, DEFAULT_RADIUS, MAX_POINTS,
 };
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -30,7 +32,7 @@ pub const PHOTO_EXTENSIONS: [&str; 3] = ["jpg", "jpeg", "png"];
 const MAX_LISTING: usize = 1000;
 
 /// The largest upload accepted, in bytes.
-pub const MAX_UPLOAD_BYTES: usize = 32 << 20;
+pub const MAX_UPLOAD_BYTES: u64 = 32 << 20;
 
 /// The largest uploaded photo accepted, in pixels.
 pub const MAX_UPLOAD_PIXELS: u64 = 40_000_000;
@@ -89,7 +91,7 @@ pub struct PhotoRef {
 /// Where a photo's pixels come from: found without reading the photo.
 enum Source {
     File(PathBuf),
-    Upload(Arc<Vec<u8>>),
+    Upload(Upload),
     Sample(usize),
 }
 
@@ -97,15 +99,19 @@ impl Source {
     /// The photo a reference names, and the key it is cached under.
     fn find(state: &AppState, photo: &PhotoRef) -> Result<(String, Self), ApiError> {
         if photo.root == UPLOAD_ROOT {
-            let bytes = state.uploads.get(&photo.path).ok_or_else(|| {
-                ApiError::not_found(format!(
-                    "upload {:?}: not kept any more; upload it again",
-                    photo.path
-                ))
-            })?;
+            let upload = state
+                .uploads
+                .get(&photo.path)
+                .filter(|_| is_photo_upload(&photo.path))
+                .ok_or_else(|| {
+                    ApiError::not_found(format!(
+                        "upload {:?}: not kept any more; upload it again",
+                        photo.path
+                    ))
+                })?;
             return Ok((
                 format!("{UPLOAD_ROOT}/{}", photo.path),
-                Source::Upload(bytes),
+                Source::Upload(upload),
             ));
         }
         if state.datasets.iter().any(|d| d.root == photo.root) {
@@ -127,7 +133,7 @@ impl Source {
     fn pixels(self, state: &AppState, photo: &PhotoRef) -> Result<RgbImage, ApiError> {
         match self {
             Source::File(file) => read_rgb(&file),
-            Source::Upload(bytes) => decode_rgb(&bytes, Path::new(&photo.path)),
+            Source::Upload(upload) => read_rgb(&upload.file).map_err(|e| e.renamed(&photo.path)),
             Source::Sample(index) => return Ok(sample(state, photo, index)?.image),
         }
         .map_err(|e| ApiError::bad(e.to_string()))
@@ -136,10 +142,12 @@ impl Source {
     /// The photo's bytes: the file's or the upload's, a sample's image as
     /// PNG.
     fn bytes(self, state: &AppState, photo: &PhotoRef) -> Result<Vec<u8>, ApiError> {
+        let read = |file: &Path| {
+            std::fs::read(file).map_err(|e| ApiError::not_found(format!("{}: {e}", photo.path)))
+        };
         match self {
-            Source::File(file) => std::fs::read(&file)
-                .map_err(|e| ApiError::not_found(format!("{}: {e}", photo.path))),
-            Source::Upload(bytes) => Ok(bytes.as_ref().clone()),
+            Source::File(file) => read(&file),
+            Source::Upload(upload) => read(&upload.file),
             Source::Sample(index) => Ok(encode_png_rgb(&sample(state, photo, index)?.image)),
         }
     }
@@ -181,32 +189,32 @@ pub async fn photo(
     Ok(([(header::CONTENT_TYPE, image_type(&bytes))], bytes).into_response())
 }
 
-/// `POST /api/upload[?name=FILE]`: a PNG or JPEG photo as the body, kept
-/// in memory; answers its reference and size. Too large: 413; not an
-/// image or a truncated one: 400.
+/// `POST /api/upload[?name=FILE]`: a PNG or JPEG photo as the body,
+/// written to the uploads folder as it arrives and kept there under a name
+/// made from its bytes; answers its reference and size. Too large: 413;
+/// not an image or a truncated one: 400, and nothing kept.
 pub async fn upload(
     State(state): State<Arc<AppState>>,
     Query(name): Query<UploadName>,
-    headers: HeaderMap,
     body: Body,
 ) -> Result<Json<serde_json::Value>, ApiError> {
-    let bytes = upload_body(&headers, body, MAX_UPLOAD_BYTES, "upload").await?;
     let shown = if name.name.is_empty() {
         "upload".to_string()
     } else {
         name.name.clone()
     };
-    let (width, height) = blocking({
-        let bytes = bytes.clone();
+    let arrived = state
+        .uploads
+        .receive(body, MAX_UPLOAD_BYTES, "upload")
+        .await?;
+    let (width, height, extension) = blocking({
+        let file = arrived.file.clone();
         let shown = shown.clone();
-        move || check_upload(&bytes, &shown)
+        move || check_upload(&file, &shown)
     })
     .await?;
-    let key = format!("{:016x}.{}", fnv1a(&bytes), &image_type(&bytes)[6..]);
-    let size = bytes.len();
-    state
-        .uploads
-        .insert(key.clone(), Arc::new(bytes.to_vec()), size);
+    let key = format!("{:016x}.{extension}", arrived.hash);
+    arrived.keep(&key)?;
     Ok(Json(serde_json::json!({
         "root": UPLOAD_ROOT,
         "path": key,
@@ -216,21 +224,27 @@ pub async fn upload(
     })))
 }
 
-/// The size of an uploaded photo, checked: PNG or JPEG, within the pixel
-/// cap, decodable to the end.
-fn check_upload(bytes: &[u8], name: &str) -> Result<(u32, u32), ApiError> {
-    let reader = image::ImageReader::new(std::io::Cursor::new(bytes))
-        .with_guessed_format()
-        .map_err(|e| ApiError::bad(format!("{name}: {e}")))?;
-    if !matches!(
-        reader.format(),
-        Some(image::ImageFormat::Png | image::ImageFormat::Jpeg)
-    ) {
-        return Err(ApiError::bad(format!("{name}: not a PNG or JPEG image")));
-    }
-    let (width, height) = reader
-        .into_dimensions()
-        .map_err(|e| ApiError::bad(format!("{name}: unreadable image header: {e}")))?;
+/// Whether an upload's name is a photo's (the names [`upload`] gives).
+fn is_photo_upload(name: &str) -> bool {
+    name.ends_with(".png") || name.ends_with(".jpeg")
+}
+
+/// The size and extension of an uploaded photo, checked: PNG or JPEG,
+/// within the pixel cap, decodable to the end.
+fn check_upload(file: &Path, name: &str) -> Result<(u32, u32, &'static str), ApiError> {
+    let shown = |e: matseg_image::io::ImageIoError| ApiError::bad(e.renamed(name).to_string());
+    let mut head = [0u8; 8];
+    let read = std::fs::File::open(file).and_then(|mut f| {
+        use std::io::Read;
+        f.read(&mut head)
+    });
+    let read = read.map_err(|e| ApiError::internal(format!("{name}: {e}")))?;
+    let extension = match image_type(&head[..read]) {
+        "image/png" => "png",
+        "image/jpeg" if head.starts_with(&[0xFF, 0xD8]) => "jpeg",
+        _ => return Err(ApiError::bad(format!("{name}: not a PNG or JPEG image"))),
+    };
+    let (width, height) = matseg_image::io::read_dimensions(file).map_err(shown)?;
     let pixels = width as u64 * height as u64;
     if pixels > MAX_UPLOAD_PIXELS {
         return Err(ApiError::new(
@@ -242,33 +256,8 @@ fn check_upload(bytes: &[u8], name: &str) -> Result<(u32, u32), ApiError> {
             ),
         ));
     }
-    let truncated =
-        |reason: &str| ApiError::bad(format!("{name}: truncated or corrupt image: {reason}"));
-    // JPEG decoders fill a cut-off scan with grey; the end marker tells.
-    if is_jpeg(bytes) && !ends_with_jpeg_eoi(bytes) {
-        return Err(truncated("no end-of-image marker"));
-    }
-    decode_rgb(bytes, Path::new(name)).map_err(|e| truncated(&e.message))?;
-    Ok((width, height))
-}
-
-fn is_jpeg(bytes: &[u8]) -> bool {
-    bytes.starts_with(&[0xFF, 0xD8])
-}
-
-/// Whether the JPEG end-of-image marker is in the last KiB (after it,
-/// some writers pad).
-fn ends_with_jpeg_eoi(bytes: &[u8]) -> bool {
-    let tail = &bytes[bytes.len().saturating_sub(1024)..];
-    tail.windows(2).any(|w| w == [0xFF, 0xD9])
-}
-
-/// FNV-1a of `bytes`: the name an upload is kept under, the same for the
-/// same bytes.
-fn fnv1a(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
-        (h ^ b as u64).wrapping_mul(0x0100_0000_01b3)
-    })
+    read_rgb(file).map_err(shown)?;
+    Ok((width, height, extension))
 }
 
 /// The photo described, from the cache or now (off the async threads;
@@ -300,16 +289,30 @@ pub async fn described(
     Ok(described)
 }
 
-/// Points `x,y;x,y...` in photo pixels.
-pub(crate) fn parse_points(text: &str) -> Result<Vec<(f32, f32)>, ApiError> {
-    text.split(';')
+/// Points `x,y;x,y...` in photo pixels: one at least, at most `most`.
+pub(crate) fn parse_points(text: &str, most: usize) -> Result<Vec<(f32, f32)>, ApiError> {
+    let points = text
+        .split(';')
         .filter(|p| !p.trim().is_empty())
         .map(|p| {
             let (x, y) = p.split_once(',')?;
             Some((x.trim().parse().ok()?, y.trim().parse().ok()?))
         })
         .collect::<Option<Vec<_>>>()
-        .ok_or_else(|| ApiError::bad(format!("points {text:?}: expected X,Y;X,Y...")))
+        .ok_or_else(|| ApiError::bad(format!("points {text:?}: expected X,Y;X,Y...")))?;
+    if points.is_empty() || points.len() > most {
+        return Err(ApiError::bad(format!(
+            "points: give 1 to {most} points (got {})",
+            points.len()
+        )));
+    }
+    Ok(points)
+}
+
+/// The radius a request asks for ([`DEFAULT_RADIUS`] when none), checked
+/// as every front end checks it.
+pub(crate) fn checked_radius(radius: Option<f32>) -> Result<f32, ApiError> {
+    check_radius(radius.unwrap_or(DEFAULT_RADIUS)).map_err(|e| ApiError::bad(e.to_string()))
 }
 
 /// A photo and points on it.
@@ -325,8 +328,9 @@ pub struct PointsQuery {
 async fn described_with_points(
     state: &Arc<AppState>,
     query: &PointsQuery,
-) -> Result<(Arc<Described>, Vec<(f32, f32)>), ApiError> {
-    let points = parse_points(&query.points)?;
+) -> Result<(Arc<Described>, Vec<(f32, f32)>, f32), ApiError> {
+    let points = parse_points(&query.points, MAX_POINTS)?;
+    let radius = checked_radius(query.radius)?;
     let photo = PhotoRef {
         root: query.root.clone(),
         path: query.path.clone(),
@@ -334,7 +338,7 @@ async fn described_with_points(
     let described = described(state, &photo).await?;
     check_points(&described.photo, &points, &query.path)
         .map_err(|e| ApiError::bad(e.to_string()))?;
-    Ok((described, points))
+    Ok((described, points, radius))
 }
 
 fn png(bytes: Vec<u8>) -> Response {
@@ -361,15 +365,11 @@ pub async fn similarity(
     State(state): State<Arc<AppState>>,
     Query(query): Query<PointsQuery>,
 ) -> Result<Response, ApiError> {
-    let (described, points) = described_with_points(&state, &query).await?;
+    let (described, points, radius) = described_with_points(&state, &query).await?;
     let first = points
         .first()
         .ok_or_else(|| ApiError::bad("points: give one point"))?;
-    let maps = query_points(
-        &described.map,
-        &[*first],
-        query.radius.unwrap_or(DEFAULT_RADIUS),
-    );
+    let maps = query_points(&described.map, &[*first], radius);
     let grey = similarity_grey(&maps.similarity[0]);
     let (w, h) = described.photo.dimensions();
     Ok(png(encode_png_grey(w, h, &grey)))
@@ -382,15 +382,11 @@ pub async fn segment(
     State(state): State<Arc<AppState>>,
     Query(query): Query<PointsQuery>,
 ) -> Result<Response, ApiError> {
-    let (described, points) = described_with_points(&state, &query).await?;
+    let (described, points, radius) = described_with_points(&state, &query).await?;
     if points.len() < 2 {
         return Err(ApiError::bad("points: give two points or more"));
     }
-    let maps = query_points(
-        &described.map,
-        &points,
-        query.radius.unwrap_or(DEFAULT_RADIUS),
-    );
+    let maps = query_points(&described.map, &points, radius);
     let labels = maps.labels.expect("two points or more");
     let grey =
         |i: usize| (maps.similarity[labels[i] as usize][i].clamp(0.0, 1.0) * 255.0).round() as u8;

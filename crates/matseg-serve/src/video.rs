@@ -7,20 +7,20 @@
 //! Jobs write into the server's own temporary folder, removed when the
 //! server stops; the newest [`KEPT_TRACKS`] finished jobs are kept.
 
-use crate::app::{blocking, upload_body, ApiError, AppState, UploadName};
+use crate::app::{blocking, ApiError, AppState, UploadName};
+use crate::jobs::JobProgress;
+use crate::uploads::Upload;
 use axum::body::Body;
 use axum::extract::{Query, State};
-use axum::http::{header, HeaderMap, StatusCode};
+use axum::http::{header, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
 use matseg_image::io::encode_jpeg;
 use matseg_pipeline::frames::FrameSource;
-use matseg_pipeline::progress::Progress;
 use matseg_pipeline::track::{
-    track_to_folder, TrackFiles, TrackReport, TrackSettings, FRAME_JPEG_QUALITY,
+    track_to_folder, TrackFiles, TrackReport, TrackSettings, FRAME_JPEG_QUALITY, MAX_TRACK_POINTS,
 };
 use serde::Deserialize;
-use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -29,7 +29,7 @@ use std::sync::{Arc, Mutex};
 pub const VIDEO_EXTENSIONS: [&str; 6] = ["mp4", "m4v", "mov", "webm", "mkv", "avi"];
 
 /// The largest video upload accepted, in bytes.
-pub const MAX_VIDEO_UPLOAD_BYTES: usize = 512 << 20;
+pub const MAX_VIDEO_UPLOAD_BYTES: u64 = 512 << 20;
 
 /// Finished tracking jobs kept on disk (older ones are removed).
 pub const KEPT_TRACKS: usize = 2;
@@ -57,48 +57,26 @@ struct Job {
     state: JobState,
 }
 
-/// A job's progress, updated by its thread.
-#[derive(Default)]
-struct JobProgress {
-    done: AtomicU64,
-    total: AtomicU64,
-}
-
-impl Progress for JobProgress {
-    fn start(&self, total: u64, _what: &str) {
-        self.total.store(total, Ordering::Relaxed);
-    }
-    fn advance(&self) {
-        self.advance_by(1);
-    }
-    fn advance_by(&self, steps: u64) {
-        self.done.fetch_add(steps, Ordering::Relaxed);
-    }
-    fn finish(&self) {}
-    fn warn(&self, _message: &str) {}
-}
-
-/// The server's videos: uploads and tracking jobs, in a temporary folder
-/// of its own.
+/// The server's videos: those listed at start, and the tracking jobs
+/// (uploaded videos are kept in [`crate::uploads::UploadFolder`]).
 pub struct Videos {
     /// The videos under the photo folders, listed at start.
     pub listed: Vec<(String, PathBuf)>,
-    folder: tempfile::TempDir,
-    uploads: Mutex<HashMap<String, PathBuf>>,
+    /// Where the jobs write (a folder in the server's temporary folder).
+    tracks: PathBuf,
     jobs: Mutex<Vec<Job>>,
     next_id: AtomicU64,
 }
 
 impl Videos {
-    /// The listed videos, and an empty temporary folder for the rest.
-    pub fn new(listed: Vec<(String, PathBuf)>) -> std::io::Result<Self> {
-        Ok(Videos {
+    /// The listed videos; jobs will write into `tracks`.
+    pub fn new(listed: Vec<(String, PathBuf)>, tracks: PathBuf) -> Self {
+        Videos {
             listed,
-            folder: tempfile::Builder::new().prefix("matseg-serve-").tempdir()?,
-            uploads: Mutex::default(),
+            tracks,
             jobs: Mutex::default(),
             next_id: AtomicU64::new(1),
-        })
+        }
     }
 }
 
@@ -113,29 +91,41 @@ pub struct VideoRef {
 }
 
 impl VideoRef {
-    /// The video's file, and the name errors give it.
-    fn file(&self, state: &AppState) -> Result<(PathBuf, String), ApiError> {
+    /// The video's file (an upload in use while it is held), and the name
+    /// errors give it.
+    fn file(&self, state: &AppState) -> Result<(PathBuf, Option<Upload>, String), ApiError> {
         if self.root == VIDEO_UPLOAD_ROOT {
-            let uploads = matseg_image::sync::lock(&state.videos.uploads);
-            let file = uploads.get(&self.path).ok_or_else(|| {
-                ApiError::not_found(format!("upload {:?}: not kept; upload it again", self.path))
-            })?;
-            return Ok((file.clone(), self.path.clone()));
+            let upload = state
+                .uploads
+                .get(&self.path)
+                .filter(|_| is_video_name(&self.path))
+                .ok_or_else(|| {
+                    ApiError::not_found(format!(
+                        "upload {:?}: not kept; upload it again",
+                        self.path
+                    ))
+                })?;
+            return Ok((upload.file.clone(), Some(upload), self.path.clone()));
         }
         let file = state.roots.resolve(&self.root, &self.path)?;
-        if !matseg_image::io::has_extension(&file, &VIDEO_EXTENSIONS) {
+        if !is_video_name(&self.path) {
             return Err(ApiError::bad(format!("{}: not a video file", self.path)));
         }
-        Ok((file, self.path.clone()))
+        Ok((file, None, self.path.clone()))
     }
 
-    /// The video opened (probed by ffprobe); errors name it as the page
-    /// does, not by the server's path.
-    fn open(&self, state: &AppState) -> Result<(FrameSource, String), ApiError> {
-        let (file, name) = self.file(state)?;
+    /// The video opened (probed by ffprobe), with its upload in use while
+    /// held; errors name it as the page does, not by the server's path.
+    fn open(&self, state: &AppState) -> Result<(FrameSource, Option<Upload>, String), ApiError> {
+        let (file, upload, name) = self.file(state)?;
         let source = FrameSource::open(&file).map_err(|e| renamed(&e.to_string(), &file, &name))?;
-        Ok((source, name))
+        Ok((source, upload, name))
     }
+}
+
+/// Whether `name` has a video file's extension.
+fn is_video_name(name: &str) -> bool {
+    matseg_image::io::has_extension(Path::new(name), &VIDEO_EXTENSIONS)
 }
 
 /// A 400 with `message`, the file's path in it replaced by `name`.
@@ -161,11 +151,10 @@ pub async fn list(State(state): State<Arc<AppState>>) -> Json<serde_json::Value>
         .iter()
         .map(|(root, path)| serde_json::json!({ "root": root, "path": path }))
         .collect();
-    let uploads = matseg_image::sync::lock(&state.videos.uploads);
-    let mut names: Vec<&String> = uploads.keys().collect();
-    names.sort();
     videos.extend(
-        names
+        state
+            .uploads
+            .names(is_video_name)
             .into_iter()
             .map(|name| serde_json::json!({ "root": VIDEO_UPLOAD_ROOT, "path": name })),
     );
@@ -180,39 +169,31 @@ pub async fn video(
     blocking(move || Ok(Json(info(&video.open(&state)?.0)))).await
 }
 
-/// `POST /api/video/upload?name=FILE`: a video as the body, kept in the
-/// server's folder under its name (a later upload of that name replaces
-/// it); answers its reference and [`info`]. Too large: 413; not a
-/// readable video: 400, and nothing kept.
+/// `POST /api/video/upload?name=FILE`: a video as the body, written to the
+/// uploads folder as it arrives and kept under its name (a later upload of
+/// that name replaces it); answers its reference and [`info`]. Too large:
+/// 413; no room: 507; not a readable video, or one with no frames: 400,
+/// and nothing kept.
 pub async fn upload(
     State(state): State<Arc<AppState>>,
     Query(name): Query<UploadName>,
-    headers: HeaderMap,
     body: Body,
 ) -> Result<Json<serde_json::Value>, ApiError> {
-    let bytes = upload_body(&headers, body, MAX_VIDEO_UPLOAD_BYTES, "video upload").await?;
     let name = upload_name(&name.name)?;
-    blocking(move || {
-        let dir = state.videos.folder.path().join("uploads");
-        std::fs::create_dir_all(&dir).map_err(|e| ApiError::internal(e.to_string()))?;
-        let file = dir.join(&name);
-        let partial = dir.join(format!(".{name}.partial"));
-        std::fs::write(&partial, &bytes).map_err(|e| ApiError::internal(format!("{name}: {e}")))?;
-        let source = match FrameSource::open(&partial) {
-            Ok(source) => source,
-            Err(e) => {
-                let _ = std::fs::remove_file(&partial);
-                return Err(renamed(&e.to_string(), &partial, &name));
-            }
-        };
-        std::fs::rename(&partial, &file).map_err(|e| ApiError::internal(format!("{name}: {e}")))?;
-        matseg_image::sync::lock(&state.videos.uploads).insert(name.clone(), file);
-        let mut answer = info(&source);
-        answer["root"] = VIDEO_UPLOAD_ROOT.into();
-        answer["path"] = name.into();
-        Ok(Json(answer))
+    let arrived = state
+        .uploads
+        .receive(body, MAX_VIDEO_UPLOAD_BYTES, "video upload")
+        .await?;
+    let source = blocking({
+        let (file, name) = (arrived.file.clone(), name.clone());
+        move || FrameSource::open(&file).map_err(|e| renamed(&e.to_string(), &file, &name))
     })
-    .await
+    .await?;
+    arrived.keep(&name)?;
+    let mut answer = info(&source);
+    answer["root"] = VIDEO_UPLOAD_ROOT.into();
+    answer["path"] = name.into();
+    Ok(Json(answer))
 }
 
 /// The file name an upload is kept under: its own name's last part, with
@@ -224,7 +205,7 @@ fn upload_name(asked: &str) -> Result<String, ApiError> {
         && name
             .chars()
             .all(|c| c.is_alphanumeric() || matches!(c, '.' | '-' | '_' | ' '))
-        && matseg_image::io::has_extension(Path::new(name), &VIDEO_EXTENSIONS);
+        && is_video_name(name);
     if ok {
         Ok(name.to_string())
     } else {
@@ -255,7 +236,7 @@ pub async fn frame(
             root: query.root,
             path: query.path,
         };
-        let (source, name) = video.open(&state)?;
+        let (source, _upload, name) = video.open(&state)?;
         let frame = source
             .frame(query.frame)
             .map_err(|e| renamed(&e.to_string(), &source.path, &name))?;
@@ -273,6 +254,7 @@ pub struct TrackQuery {
     #[serde(default)]
     frame: u64,
     points: String,
+    radius: Option<f32>,
 }
 
 /// `POST /api/track`: starts following the materials under `points`
@@ -282,25 +264,19 @@ pub async fn start(
     State(state): State<Arc<AppState>>,
     Query(query): Query<TrackQuery>,
 ) -> Result<Json<serde_json::Value>, ApiError> {
-    let points = crate::photos::parse_points(&query.points)?;
+    let points = crate::photos::parse_points(&query.points, MAX_TRACK_POINTS)?;
+    let radius = crate::photos::checked_radius(query.radius)?;
     let video = VideoRef {
         root: query.root,
         path: query.path,
     };
-    let (source, name) = {
+    let (source, upload, name) = {
         let state = state.clone();
         blocking(move || video.open(&state)).await?
     };
-    if let Some((x, y)) = points.iter().find(|(x, y)| {
-        !(0.0..source.width as f32).contains(x) || !(0.0..source.height as f32).contains(y)
-    }) {
-        return Err(ApiError::bad(format!(
-            "point {x},{y}: outside the {}x{} frames of {name}",
-            source.width, source.height
-        )));
-    }
+    check_points(&points, source.width, source.height, &name)?;
     let frames = source.frame_count();
-    if frames > 0 && query.frame >= frames {
+    if query.frame >= frames {
         return Err(ApiError::bad(format!(
             "frame {}: past the end: {name} has {frames} frames",
             query.frame
@@ -308,57 +284,97 @@ pub async fn start(
     }
     let mut settings = TrackSettings::new(points);
     settings.frame = query.frame;
-    let (id, dir, progress) = {
-        let mut jobs = matseg_image::sync::lock(&state.videos.jobs);
-        if jobs.iter().any(|j| matches!(j.state, JobState::Running)) {
-            return Err(ApiError::new(
-                StatusCode::CONFLICT,
-                "a video is being tracked already; wait for it",
-            ));
-        }
-        forget_old_jobs(&mut jobs);
-        let id = state.videos.next_id.fetch_add(1, Ordering::Relaxed);
-        let dir = state.videos.folder.path().join(format!("track-{id}"));
-        let progress = Arc::new(JobProgress::default());
-        jobs.push(Job {
-            id,
-            dir: dir.clone(),
-            stem: download_stem(&name),
-            progress: progress.clone(),
-            state: JobState::Running,
-        });
-        (id, dir, progress)
-    };
+    settings.radius = radius;
+    let mut jobs = matseg_image::sync::lock(&state.videos.jobs);
+    if jobs.iter().any(|j| matches!(j.state, JobState::Running)) {
+        return Err(ApiError::new(
+            StatusCode::CONFLICT,
+            "a video is being tracked already; wait for it, or cancel it",
+        ));
+    }
+    forget_old_jobs(&mut jobs);
+    let id = state.videos.next_id.fetch_add(1, Ordering::Relaxed);
+    let dir = state.videos.tracks.join(format!("track-{id}"));
+    let progress = Arc::new(JobProgress::default());
     let worker = state.clone();
-    std::thread::spawn(move || {
-        let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            let files = TrackFiles {
-                mp4: true,
-                frames: true,
+    let job_progress = progress.clone();
+    let shown = name.clone();
+    state
+        .workers
+        .spawn(&format!("track {id}"), progress.clone(), move || {
+            // The upload stays while it is tracked.
+            let _upload = upload;
+            let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                let files = TrackFiles {
+                    mp4: true,
+                    frames: true,
+                };
+                track_to_folder(
+                    &worker.model,
+                    &source,
+                    &settings,
+                    &dir,
+                    files,
+                    job_progress.as_ref(),
+                )
+            }));
+            let done = match outcome {
+                Ok(Ok(report)) => JobState::Done(Box::new(report)),
+                Ok(Err(e)) => JobState::Failed(
+                    e.to_string()
+                        .replace(&source.path.display().to_string(), &shown),
+                ),
+                Err(_) => {
+                    JobState::Failed(format!("{shown}: tracking stopped on an internal error"))
+                }
             };
-            track_to_folder(
-                &worker.model,
-                &source,
-                &settings,
-                &dir,
-                files,
-                progress.as_ref(),
-            )
-        }));
-        let done = match outcome {
-            Ok(Ok(report)) => JobState::Done(Box::new(report)),
-            Ok(Err(e)) => JobState::Failed(
-                e.to_string()
-                    .replace(&source.path.display().to_string(), &name),
-            ),
-            Err(_) => JobState::Failed(format!("{name}: tracking stopped on an internal error")),
-        };
-        let mut jobs = matseg_image::sync::lock(&worker.videos.jobs);
-        if let Some(job) = jobs.iter_mut().find(|j| j.id == id) {
-            job.state = done;
-        }
+            let mut jobs = matseg_image::sync::lock(&worker.videos.jobs);
+            if let Some(job) = jobs.iter_mut().find(|j| j.id == id) {
+                job.state = done;
+            }
+        })
+        .map_err(|e| ApiError::internal(format!("cannot start tracking: {e}")))?;
+    jobs.push(Job {
+        id,
+        dir: state.videos.tracks.join(format!("track-{id}")),
+        stem: download_stem(&name),
+        progress,
+        state: JobState::Running,
     });
     Ok(Json(serde_json::json!({ "job": id })))
+}
+
+/// Points checked against `width` x `height` frames of `name`: each
+/// inside.
+fn check_points(
+    points: &[(f32, f32)],
+    width: u32,
+    height: u32,
+    name: &str,
+) -> Result<(), ApiError> {
+    if let Some((x, y)) = points
+        .iter()
+        .find(|(x, y)| !(0.0..width as f32).contains(x) || !(0.0..height as f32).contains(y))
+    {
+        return Err(ApiError::bad(format!(
+            "point {x},{y}: outside the {width}x{height} frames of {name}"
+        )));
+    }
+    Ok(())
+}
+
+/// `DELETE /api/track?job=ID`: stops a running job (it ends as failed,
+/// "cancelled"); a finished one is left as it is.
+pub async fn cancel(
+    State(state): State<Arc<AppState>>,
+    Query(query): Query<JobQuery>,
+) -> Result<Json<serde_json::Value>, ApiError> {
+    let jobs = matseg_image::sync::lock(&state.videos.jobs);
+    let job = find_job(&jobs, query.job)?;
+    job.progress.cancel();
+    Ok(Json(
+        serde_json::json!({ "job": query.job, "cancelling": matches!(job.state, JobState::Running) }),
+    ))
 }
 
 /// Removes the finished jobs beyond the newest [`KEPT_TRACKS`] - 1 (a new
@@ -385,10 +401,7 @@ pub async fn status(
 ) -> Result<Json<serde_json::Value>, ApiError> {
     let jobs = matseg_image::sync::lock(&state.videos.jobs);
     let job = find_job(&jobs, query.job)?;
-    let (done, total) = (
-        job.progress.done.load(Ordering::Relaxed),
-        job.progress.total.load(Ordering::Relaxed),
-    );
+    let (done, total) = job.progress.counts();
     Ok(Json(match &job.state {
         JobState::Running => {
             serde_json::json!({ "state": "running", "done": done, "total": total })

@@ -5,9 +5,11 @@
 
 mod router;
 
+use axum::body::Body;
+use axum::http::Request;
 use axum::http::StatusCode;
-use matseg_serve::{app::router, state, ServeError, ServeOptions};
-use router::{error_of, get, json, post};
+use matseg_serve::{app::router, state, ServeError, ServeOptions, TokenChoice};
+use router::{error_of, get, json, post, send_as_is};
 
 /// The web app on the shipped model and the bundled photos alone.
 fn options() -> ServeOptions {
@@ -109,7 +111,8 @@ async fn the_automatic_segmentation_splits_the_photo_into_k_materials() {
 
 #[tokio::test(flavor = "multi_thread")]
 async fn uploads_are_described_and_bad_ones_refused_with_a_reason() {
-    let app = router(state(&options()).unwrap());
+    let app_state = state(&options()).unwrap();
+    let app = router(app_state.clone());
     let coffee =
         std::fs::read(matseg_pipeline::sources::assets_dir().join("photos/coffee.jpg")).unwrap();
     let (status, _, body) = post(&app, "/api/upload?name=mine.jpg", coffee.clone()).await;
@@ -149,10 +152,9 @@ async fn uploads_are_described_and_bad_ones_refused_with_a_reason() {
     )
     .await;
     assert_eq!(status, StatusCode::BAD_REQUEST);
-    assert!(
-        error_of(&body).starts_with("cut.jpg: truncated or corrupt image"),
-        "{}",
-        error_of(&body)
+    assert_eq!(
+        error_of(&body),
+        "cut.jpg: truncated JPEG: the file ends before its end-of-image marker"
     );
     let (status, _, body) = post(&app, "/api/upload?name=big.png", vec![0; (32 << 20) + 1]).await;
     assert_eq!(status, StatusCode::PAYLOAD_TOO_LARGE);
@@ -166,6 +168,19 @@ async fn uploads_are_described_and_bad_ones_refused_with_a_reason() {
     );
     let (status, _, body) = get(&app, "/api/photo?root=upload&path=0000000000000000.png").await;
     assert_eq!(status, StatusCode::NOT_FOUND);
+    // On disk: the one upload kept, nothing of the refused ones.
+    let kept: Vec<_> = std::fs::read_dir(app_state.folder.path().join("uploads"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    assert_eq!(kept, [path]);
+    let (_, _, status) = get(&app, "/api/status").await;
+    let status = json(&status);
+    assert_eq!(
+        status["uploads_mib"].as_f64().unwrap() * (1 << 20) as f64,
+        coffee.len() as f64
+    );
+    assert_eq!(status["uploads_bound_mib"], 2048.0);
     assert!(error_of(&body).contains("upload it again"));
 }
 
@@ -194,27 +209,65 @@ async fn paths_outside_the_folders_bad_points_and_missing_tokens_are_refused() {
     assert_eq!(status, StatusCode::BAD_REQUEST);
     assert!(error_of(&body).contains("expected X,Y"));
 
-    let guarded = router(
+    // Without the token, with another one, or from the page without it.
+    let with_headers = |pairs: &[(&str, &str)]| {
+        let mut request = Request::get("/api/photos");
+        for (name, value) in pairs {
+            request = request.header(*name, *value);
+        }
+        request.body(Body::empty()).unwrap()
+    };
+    let host = ("host", router::HOST);
+    for refused in [vec![host], vec![host, ("x-matseg-token", "guess")]] {
+        let (status, _, body) = send_as_is(&app, with_headers(&refused)).await;
+        assert_eq!(status, StatusCode::UNAUTHORIZED);
+        assert!(error_of(&body).contains("token"), "{}", error_of(&body));
+    }
+    let (status, _, _) = send_as_is(
+        &app,
+        Request::get(format!("/api/photos?token={}", router::TOKEN))
+            .header("host", router::HOST)
+            .body(Body::empty())
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK);
+    // The page itself needs no token; the API does.
+    let (status, _, _) = send_as_is(
+        &app,
+        Request::get("/")
+            .header("host", router::HOST)
+            .body(Body::empty())
+            .unwrap(),
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK);
+
+    // By default a new token each run; none only when asked, on loopback.
+    let per_run = |host: &str| {
         state(&ServeOptions {
-            token: Some("s3cret".into()),
+            host: host.into(),
+            token: TokenChoice::PerRun,
             ..options()
         })
-        .unwrap(),
+    };
+    let (a, b) = (per_run("127.0.0.1").unwrap(), per_run("0.0.0.0").unwrap());
+    let (a, b) = (
+        a.access.token.clone().unwrap(),
+        b.access.token.clone().unwrap(),
     );
-    assert_eq!(
-        get(&guarded, "/api/photos").await.0,
-        StatusCode::UNAUTHORIZED
-    );
-    assert_eq!(
-        get(&guarded, "/api/photos?token=s3cret").await.0,
-        StatusCode::OK
-    );
-    // The page itself needs no token; the API does.
-    assert_eq!(get(&guarded, "/").await.0, StatusCode::OK);
-
+    assert_eq!(a.len(), 32);
+    assert_ne!(a, b);
     let open = state(&ServeOptions {
         host: "0.0.0.0".into(),
+        token: TokenChoice::Off,
         ..options()
     });
     assert!(matches!(open, Err(ServeError::NoToken(_))));
+    let off = state(&ServeOptions {
+        token: TokenChoice::Off,
+        ..options()
+    })
+    .unwrap();
+    assert!(off.access.token.is_none());
 }

@@ -22,12 +22,30 @@ use matseg_image::progress::Silent;
 use matseg_image::LicenceFilter;
 use matseg_pipeline::sources::{assets_dir, Defaults, Libraries};
 use matseg_scene::{Recipe2d, PALETTE};
+use matseg_serve::load::{Connection, ServerAddress};
 use matseg_serve::{serve, ServeOptions};
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 
-/// Starts the server on a free port; its address.
-fn start_server(data: Vec<PathBuf>, bench: PathBuf) -> String {
+/// A started server: where it is and its token.
+struct Served {
+    /// `http://127.0.0.1:PORT`.
+    base: String,
+    address: ServerAddress,
+}
+
+impl Served {
+    /// The address of a page (`/browse`, `/?root=...`), with the token
+    /// the printed address carries.
+    fn page(&self, path: &str) -> String {
+        let join = if path.contains('?') { '&' } else { '?' };
+        let token = self.address.token.as_deref().unwrap();
+        format!("{}{path}{join}token={token}", self.base)
+    }
+}
+
+/// Starts the server on a free port, with a token of its own.
+fn start_server(data: Vec<PathBuf>, bench: PathBuf) -> Served {
     let options = ServeOptions {
         data,
         bench: vec![bench],
@@ -35,11 +53,21 @@ fn start_server(data: Vec<PathBuf>, bench: PathBuf) -> String {
         cache_mb: 256,
         ..ServeOptions::default()
     };
-    let (ready, address) = std::sync::mpsc::channel();
+    let (ready, started) = std::sync::mpsc::channel();
     std::thread::spawn(move || {
-        serve(&options, |a| ready.send(a).unwrap()).unwrap();
+        serve(&options, |r| ready.send(r.clone()).unwrap()).unwrap();
     });
-    format!("http://{}", address.recv().unwrap())
+    let started = started.recv().unwrap();
+    assert!(started
+        .url
+        .ends_with(&format!("/?token={}", started.token.clone().unwrap())));
+    Served {
+        base: format!("http://{}", started.address),
+        address: ServerAddress {
+            host: started.address.to_string(),
+            token: started.token,
+        },
+    }
 }
 
 /// Writes the page's screenshot as `serve-NAME.jpg` when asked to.
@@ -54,9 +82,8 @@ fn screenshot(browser: &mut Browser, name: &str) {
 }
 
 /// The body of `GET path` from the server (a plain HTTP/1.1 request).
-fn http_get(server: &str, path: &str) -> Vec<u8> {
-    let host = server.trim_start_matches("http://");
-    let mut connection = matseg_serve::load::Connection::open(host).unwrap();
+fn http_get(server: &Served, path: &str) -> Vec<u8> {
+    let mut connection = Connection::open(&server.address).unwrap();
     let (answer, body) = connection.get_body(path).unwrap();
     assert_eq!(answer.status, 200, "{path}");
     body
@@ -161,14 +188,11 @@ fn downloaded(file: &Path) -> Vec<u8> {
     std::fs::read(file).unwrap()
 }
 
-fn video_page(browser: &mut Browser, server: &str) {
+fn video_page(browser: &mut Browser, server: &Served) {
     const CANVAS: &str = "#canvas";
     let shown =
         |frame: u32| format!("document.getElementById('canvas').dataset.frame === '{frame}'");
-    browser.open(
-        &format!("{server}/video?root=data1&path=clip.mkv"),
-        &shown(0),
-    );
+    browser.open(&server.page("/video?root=data1&path=clip.mkv"), &shown(0));
     let last = CLIP_FRAMES - 1;
     let centre = |i: u32| (patch_left(i) + PATCH / 2, 72 + PATCH / 2);
     let (x0, y0) = centre(0);
@@ -267,10 +291,10 @@ fn video_page(browser: &mut Browser, server: &str) {
     assert!(http_get(server, "/api/videos").starts_with(b"{"));
 }
 
-fn segment_page(browser: &mut Browser, server: &str) {
+fn segment_page(browser: &mut Browser, server: &Served) {
     const CANVAS: &str = "#canvas";
     browser.open(
-        &format!("{server}/?root=photos&path=coffee.jpg"),
+        &server.page("/?root=photos&path=coffee.jpg"),
         "document.getElementById('canvas').dataset.photo === 'photos/coffee.jpg'",
     );
     let coffee = browser.canvas_pixel(CANVAS, 260, 150);
@@ -358,12 +382,12 @@ fn segment_page(browser: &mut Browser, server: &str) {
     );
 }
 
-fn browse_page(browser: &mut Browser, server: &str) {
+fn browse_page(browser: &mut Browser, server: &Served) {
     let all_loaded = |selector: &str| {
         format!("[...document.querySelectorAll('{selector}')].every((i) => i.complete && i.naturalWidth > 0)")
     };
     browser.open(
-        &format!("{server}/browse"),
+        &server.page("/browse"),
         &format!(
             "document.querySelectorAll('#grid figure').length === 12 && {}",
             all_loaded("#grid img")
@@ -387,11 +411,11 @@ fn browse_page(browser: &mut Browser, server: &str) {
     screenshot(browser, "browse");
 }
 
-fn annotate_page(browser: &mut Browser, server: &str, bench: &Path) {
+fn annotate_page(browser: &mut Browser, server: &Served, bench: &Path) {
     const CANVAS: &str = "#canvas";
     let image_is =
         |name: &str| format!("document.getElementById('canvas').dataset.image === '{name}'");
-    browser.open(&format!("{server}/annotate"), &image_is("chelsea"));
+    browser.open(&server.page("/annotate"), &image_is("chelsea"));
     browser.click("#images li[data-name='coffee']");
     browser.wait_for(&image_is("coffee"));
     // Group 1: the coffee; group 2: the wood; a stray point undone, another
@@ -440,8 +464,9 @@ fn annotate_page(browser: &mut Browser, server: &str, bench: &Path) {
         (&"coffee".into(), &"wood".into())
     );
 
-    // Reopened, the page shows what it saved.
-    browser.open(&format!("{server}/annotate"), &image_is("chelsea"));
+    // Reopened, the page shows what it saved (opened without the token:
+    // the page kept it).
+    browser.open(&format!("{}/annotate", server.base), &image_is("chelsea"));
     browser.click("#images li[data-name='coffee']");
     browser.wait_for(&image_is("coffee"));
     let status = browser.eval("document.getElementById('status').textContent");
@@ -449,9 +474,9 @@ fn annotate_page(browser: &mut Browser, server: &str, bench: &Path) {
     screenshot(browser, "annotate");
 }
 
-fn evaluate_page(browser: &mut Browser, server: &str) {
+fn evaluate_page(browser: &mut Browser, server: &Served) {
     browser.open(
-        &format!("{server}/evaluate"),
+        &server.page("/evaluate"),
         "document.querySelectorAll('#baselines input').length > 0",
     );
     browser.click("#run");

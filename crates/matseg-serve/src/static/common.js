@@ -1,7 +1,8 @@
 // What every page shares: the API helper (which carries the server's
-// token, taken from the page's address), reading a PNG's pixels, the
-// material palette (the same colours as the command line's overlays),
-// drawing a similarity map over a photo, and downloads.
+// token, taken from the address the server printed and kept for the
+// other pages), reading a PNG's pixels, the material palette (the same
+// colours as the command line's overlays), drawing a similarity map over
+// a photo, and downloads.
 
 export const TEMPERATURE = 0.2;
 export const PALETTE = [
@@ -11,18 +12,29 @@ export const PALETTE = [
   [170, 255, 195], [128, 128, 0], [255, 215, 180], [0, 0, 128], [128, 128, 128],
 ];
 
-const token = new URLSearchParams(location.search).get("token");
+// The server's token: from the page's address when it has one (and kept
+// for this server's other pages, which this browser keeps apart from
+// every other site's), else the one kept.
+const TOKEN_KEY = "matseg-token";
+const token = new URLSearchParams(location.search).get("token") ?? localStorage.getItem(TOKEN_KEY);
+if (token) localStorage.setItem(TOKEN_KEY, token);
 
-// The address of an API call, with the token when the server has one.
+// The address of an API call, with the token when the server has one (for
+// images and downloads, which cannot carry a header).
 export function apiUrl(path, params = {}) {
   const query = new URLSearchParams(params);
   if (token) query.set("token", token);
   return `${path}?${query}`;
 }
 
-// Calls the API; a failed call throws the server's one-line error.
+// Calls the API; a failed call throws the server's one-line error. A POST
+// is typed: JSON unless the caller says otherwise (uploads send their
+// bytes as application/octet-stream).
 export async function api(path, params = {}, init = {}) {
-  const response = await fetch(apiUrl(path, params), init);
+  const headers = new Headers(init.headers);
+  if (token) headers.set("x-matseg-token", token);
+  if (init.method === "POST" && !headers.has("content-type")) headers.set("content-type", "application/json");
+  const response = await fetch(apiUrl(path, params), { ...init, headers });
   if (!response.ok) {
     const body = await response.json().catch(() => ({ error: response.statusText }));
     throw new Error(body.error);
@@ -118,6 +130,12 @@ export async function greyPng(values, width, height) {
   return scratch.convertToBlob({ type: "image/png" });
 }
 
+// Sends a file's bytes to an upload route; its answer as JSON.
+export async function uploadFile(path, file) {
+  const init = { method: "POST", body: file, headers: { "content-type": "application/octet-stream" } };
+  return (await api(path, { name: file.name }, init)).json();
+}
+
 // Calls `upload(file)` with the file picked in `input` or dropped on any
 // of `zones`.
 export function takeFiles(input, zones, upload) {
@@ -143,8 +161,7 @@ export function listFolders(select, folders) {
   }
 }
 
-// Keeps the token in the links between pages.
+// Marks the page the user is on in the links between pages.
 for (const link of document.querySelectorAll("nav a")) {
-  if (token) link.href = `${link.pathname}?token=${encodeURIComponent(token)}`;
   link.classList.toggle("here", link.pathname === location.pathname);
 }

@@ -49,7 +49,8 @@ function showReport(report) {
 async function poll() {
   const answer = await (await api("/api/evaluate", { root: state.root })).json();
   if (answer.state === "running") {
-    status.textContent = `evaluating... ${Math.round(answer.seconds)} s`;
+    const images = answer.total ? `${answer.done} of ${answer.total} images, ` : "";
+    status.textContent = `evaluating in the background... ${images}${Math.round(answer.seconds)} s`;
     setTimeout(poll, 1000);
   } else if (answer.state === "done") {
     showReport(answer.report);
@@ -57,7 +58,16 @@ async function poll() {
     status.textContent = answer.error;
   }
   document.getElementById("run").disabled = answer.state === "running";
+  document.getElementById("cancel").hidden = answer.state !== "running";
 }
+
+document.getElementById("cancel").addEventListener("click", async () => {
+  try {
+    await api("/api/evaluate", { root: state.root }, { method: "DELETE" });
+  } catch (error) {
+    status.textContent = error.message;
+  }
+});
 
 document.getElementById("run").addEventListener("click", async () => {
   const baselines = [...document.querySelectorAll("#baselines input:checked")].map((b) => b.value);

@@ -5,7 +5,7 @@
 // into K materials. The server describes a photo once and answers every
 // click from its descriptors.
 
-import { api, pixels, similarities, bitmap, blend, ring, pointOf, download, greyPng, takeFiles, COLOUR_MAPS, PALETTE }
+import { api, pixels, similarities, bitmap, blend, ring, pointOf, download, greyPng, takeFiles, uploadFile, COLOUR_MAPS, PALETTE }
   from "/common.js";
 
 const canvas = document.getElementById("canvas");
@@ -140,7 +140,7 @@ for (const [id, mask] of [["save-map", false], ["save-mask", true]]) {
 async function upload(file) {
   status.textContent = `uploading ${file.name}...`;
   try {
-    const photo = await (await api("/api/upload", { name: file.name }, { method: "POST", body: file })).json();
+    const photo = await uploadFile("/api/upload", file);
     await open({ root: photo.root, path: photo.path }, file.name);
   } catch (error) {
     status.textContent = error.message;

@@ -5,7 +5,7 @@
 // tracked frames with each material tinted in its colour; the label PNGs
 // (a tar), the overlay video and one frame's labels can be downloaded.
 
-import { api, apiUrl, pixels, bitmap, blend, ring, pointOf, download, takeFiles, PALETTE } from "/common.js";
+import { api, apiUrl, pixels, bitmap, blend, ring, pointOf, download, takeFiles, uploadFile, PALETTE } from "/common.js";
 
 const canvas = document.getElementById("canvas");
 const context = canvas.getContext("2d", { willReadFrequently: true });
@@ -14,7 +14,7 @@ const slider = document.getElementById("frame");
 const opacity = document.getElementById("opacity");
 const list = document.getElementById("videos");
 const pointList = document.getElementById("points");
-const buttons = Object.fromEntries(["play", "track", "save-labels", "save-overlay", "save-frame"]
+const buttons = Object.fromEntries(["play", "track", "cancel", "save-labels", "save-overlay", "save-frame"]
   .map((id) => [id, document.getElementById(id)]));
 // job: the finished tracking job whose frames are shown (null: the video's
 // own frames, points being picked); labels: the shown frame's labels.
@@ -146,6 +146,8 @@ buttons.track.addEventListener("click", async () => {
     const points = state.points.map(([x, y]) => `${x},${y}`).join(";");
     const { job } = await (await api("/api/track", { ...state.video, frame: state.clicked, points },
       { method: "POST" })).json();
+    buttons.cancel.hidden = false;
+    buttons.cancel.onclick = () => api("/api/track", { job }, { method: "DELETE" }).catch(() => {});
     for (;;) {
       const answer = await (await api("/api/track", { job })).json();
       if (answer.state === "failed") throw new Error(answer.error);
@@ -167,6 +169,7 @@ buttons.track.addEventListener("click", async () => {
   } catch (error) {
     status.textContent = error.message;
   }
+  buttons.cancel.hidden = true;
   buttons.track.disabled = !state.points.length;
 });
 
@@ -211,7 +214,7 @@ buttons["save-frame"].addEventListener("click", async () => {
 async function upload(file) {
   status.textContent = `uploading ${file.name}...`;
   try {
-    const video = await (await api("/api/video/upload", { name: file.name }, { method: "POST", body: file })).json();
+    const video = await uploadFile("/api/video/upload", file);
     await listVideos();
     await open({ root: video.root, path: video.path }, file.name);
   } catch (error) {

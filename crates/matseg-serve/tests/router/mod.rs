@@ -1,29 +1,53 @@
 //! The app as the API tests run it: its options, requests sent to its
-//! router in memory (no socket), and what the tests read from the answers.
+//! router in memory (no socket) as its own pages send them (its Host, its
+//! token, typed POST bodies), and what the tests read from the answers.
 
 // Each test binary uses its own share of these.
 #![allow(dead_code)]
 
 use axum::body::Body;
 use axum::http::{Request, StatusCode};
-use matseg_serve::ServeOptions;
+use matseg_serve::{ServeOptions, TokenChoice};
 use std::path::PathBuf;
 use tower::ServiceExt;
 
+/// The token the test apps want.
+pub const TOKEN: &str = "test-token";
+
+/// The Host the test apps' pages send.
+pub const HOST: &str = "127.0.0.1:8080";
+
 /// The web app on the shipped model over `data` and `bench`, on any free
-/// port, with a small cache of described photos.
+/// port, with a small cache of described photos, wanting [`TOKEN`].
 pub fn options(data: Vec<PathBuf>, bench: Vec<PathBuf>) -> ServeOptions {
     ServeOptions {
         data,
         bench,
         port: 0,
         cache_mb: 64,
+        token: TokenChoice::Given(TOKEN.into()),
         ..ServeOptions::default()
     }
 }
 
-/// Status, content type and body of the answer to `request`.
-pub async fn send(app: &axum::Router, request: Request<Body>) -> (StatusCode, String, Vec<u8>) {
+/// Status, content type and body of the answer to `request`, sent as the
+/// app's own page sends it: [`HOST`] and [`TOKEN`] added where the request
+/// has none.
+pub async fn send(app: &axum::Router, mut request: Request<Body>) -> (StatusCode, String, Vec<u8>) {
+    let headers = request.headers_mut();
+    headers.entry("host").or_insert(HOST.parse().unwrap());
+    headers
+        .entry("x-matseg-token")
+        .or_insert(TOKEN.parse().unwrap());
+    send_as_is(app, request).await
+}
+
+/// Status, content type and body of the answer to `request`, with nothing
+/// added: a request another page, or another program, could send.
+pub async fn send_as_is(
+    app: &axum::Router,
+    request: Request<Body>,
+) -> (StatusCode, String, Vec<u8>) {
     let response = app.clone().oneshot(request).await.unwrap();
     let status = response.status();
     let kind = response
@@ -43,13 +67,20 @@ pub async fn get(app: &axum::Router, uri: &str) -> (StatusCode, String, Vec<u8>)
     send(app, Request::get(uri).body(Body::empty()).unwrap()).await
 }
 
-/// Status, content type and body of `POST uri` with `body`.
+/// Status, content type and body of `POST uri` with `body`, typed as the
+/// pages type it: `application/octet-stream` for uploads, JSON otherwise.
 pub async fn post(
     app: &axum::Router,
     uri: &str,
     body: impl Into<Body>,
 ) -> (StatusCode, String, Vec<u8>) {
-    send(app, Request::post(uri).body(body.into()).unwrap()).await
+    let kind = if uri.contains("/upload") {
+        "application/octet-stream"
+    } else {
+        "application/json"
+    };
+    let request = Request::post(uri).header("content-type", kind);
+    send(app, request.body(body.into()).unwrap()).await
 }
 
 /// A body read as JSON.
