@@ -213,6 +213,46 @@ pub fn one_line(e: &anyhow::Error) -> String {
     text.replace('\n', " ")
 }
 
+/// Reports a command line clap refused: help and the version as clap
+/// prints them; an error as one line, `error: WHAT[; tip: HOW] (see
+/// matseg ... --help)`, like every other error of the command, exit
+/// status 2.
+pub fn argument_error(e: clap::Error) -> std::process::ExitCode {
+    use clap::error::ErrorKind;
+    if matches!(
+        e.kind(),
+        ErrorKind::DisplayHelp
+            | ErrorKind::DisplayVersion
+            | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+    ) {
+        let _ = e.print();
+        return std::process::ExitCode::from(e.exit_code() as u8);
+    }
+    eprintln!("{}", argument_error_line(&e.render().to_string()));
+    std::process::ExitCode::from(2)
+}
+
+/// clap's rendered error as one line: its first line, its tips, and where
+/// to look (the usage's command with `--help`).
+fn argument_error_line(rendered: &str) -> String {
+    let mut line = String::new();
+    let mut command = "matseg".to_string();
+    for text in rendered.lines().map(str::trim).filter(|l| !l.is_empty()) {
+        if line.is_empty() {
+            line = text.to_string();
+        } else if let Some(tip) = text.strip_prefix("tip:") {
+            line = format!("{line}; tip:{tip}");
+        } else if let Some(usage) = text.strip_prefix("Usage: ") {
+            command = usage
+                .split_whitespace()
+                .take_while(|w| !w.starts_with('[') && !w.starts_with('<') && !w.starts_with('-'))
+                .collect::<Vec<_>>()
+                .join(" ");
+        }
+    }
+    format!("{line} (see {command} --help)")
+}
+
 /// Sets the global rayon thread count when given.
 pub fn init_threads(threads: Option<usize>) -> Result<()> {
     if let Some(t) = threads {
@@ -248,5 +288,19 @@ mod tests {
         );
         let file = PipelineError::file("a.json", "cannot read");
         assert_eq!(one_line(&anyhow::Error::from(file)), "a.json: cannot read");
+    }
+
+    #[test]
+    fn clap_errors_become_one_line() {
+        let rendered = "error: unexpected argument '--ot' found\n\n  tip: a similar argument exists: '--out'\n\nUsage: matseg track --point <POINTS> --out <OUT> <VIDEO>\n\nFor more information, try '--help'.\n";
+        assert_eq!(
+            argument_error_line(rendered),
+            "error: unexpected argument '--ot' found; tip: a similar argument exists: '--out' (see matseg track --help)"
+        );
+        let plain = "error: invalid value 'x' for '--radius <RADIUS>': x: expected a number of pixels\n\nFor more information, try '--help'.\n";
+        assert_eq!(
+            argument_error_line(plain),
+            "error: invalid value 'x' for '--radius <RADIUS>': x: expected a number of pixels (see matseg --help)"
+        );
     }
 }

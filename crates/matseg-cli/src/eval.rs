@@ -81,7 +81,7 @@ pub struct MaskArgs {
     #[arg(long, default_value_t = 400)]
     min_area: usize,
     /// Radius of a query point's disc, in pixels.
-    #[arg(long, default_value_t = 5.0, value_parser = crate::query_args::parse_radius)]
+    #[arg(long, default_value_t = 5.0, value_parser = crate::query_args::parse_radius, allow_negative_numbers = true)]
     radius: f32,
     /// Seed of the query points.
     #[arg(long, default_value_t = 0)]

@@ -110,7 +110,10 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => return common::argument_error(e),
+    };
     // The server is long-running and bounds its memory by its cache; it
     // gives freed memory back itself (matseg_serve::described).
     #[cfg(feature = "net")]

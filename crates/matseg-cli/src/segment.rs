@@ -34,7 +34,7 @@ pub struct Args {
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Radius of each point's disc in pixels.
-    #[arg(long, default_value_t = DEFAULT_RADIUS, value_parser = parse_radius)]
+    #[arg(long, default_value_t = DEFAULT_RADIUS, value_parser = parse_radius, allow_negative_numbers = true)]
     radius: f32,
     /// cpu, cuda or cuda:N.
     #[arg(long, default_value = "cpu")]

@@ -44,10 +44,11 @@ pub fn run(args: Args) -> Result<()> {
         eprintln!("warning: skipped {e}");
     }
     println!(
-        "{}: {} textures from {} photos ({} already done, {} smaller than {} px, {} unreadable); {:.2} CPU s per megapixel",
+        "{}: {} textures from {} of {} photos ({} already done, {} smaller than {} px, {} unreadable); {:.2} CPU s per megapixel",
         args.out.display(),
         r.textures,
         r.photos,
+        r.found,
         r.already,
         r.too_small,
         r.smallest,

@@ -28,7 +28,7 @@ pub struct Args {
     #[command(flatten)]
     tracking: TrackingArgs,
     /// Radius of each point's disc in pixels.
-    #[arg(long, default_value_t = DEFAULT_RADIUS, value_parser = parse_radius)]
+    #[arg(long, default_value_t = DEFAULT_RADIUS, value_parser = parse_radius, allow_negative_numbers = true)]
     radius: f32,
     /// Write the overlay as an animated PNG preview even where ffmpeg could encode an MP4.
     #[arg(long)]

@@ -87,7 +87,24 @@ fn bad_inputs_are_one_line_errors() {
     );
     std::fs::write(&config, "[scene\n").unwrap();
     let out = generate_one(out_s, &["--config", config.to_str().unwrap()]);
-    assert_one_line_error(&out, &format!("{}: invalid recipe:", config.display()));
+    assert_one_line_error(&out, &format!("{}:1:7: invalid recipe:", config.display()));
+    let camera = dir.path().join("camera.toml");
+    std::fs::write(&camera, "frames = 4\norbit_deg = \"wide\"\n").unwrap();
+    let out = generate_one(
+        out_s,
+        &[
+            "--kind",
+            "3d",
+            "--frames",
+            "4",
+            "--camera-path",
+            camera.to_str().unwrap(),
+        ],
+    );
+    assert_one_line_error(
+        &out,
+        &format!("{}:2:13: invalid camera path:", camera.display()),
+    );
 
     let out = generate_one(out_s, &["--num-shards", "2", "--shard-index", "5"]);
     assert_one_line_error(&out, "shard index 5 is not below the number of shards 2");
@@ -481,7 +498,10 @@ fn a_texture_library_is_made_once_and_feeds_the_generator() {
     let photos = assets("photos");
     let out = matseg_ok(&["textures", &photos, "--out", lib]);
     let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
-    assert!(stdout.contains("from 8 photos (0 already done"), "{stdout}");
+    assert!(
+        stdout.contains("from 8 of 8 photos (0 already done"),
+        "{stdout}"
+    );
     let crops = std::fs::read_dir(lib)
         .unwrap()
         .filter(|e| {
@@ -506,6 +526,42 @@ fn a_texture_library_is_made_once_and_feeds_the_generator() {
     assert!(gen.status.success(), "{}", stderr(&gen));
     let missing = matseg(&["textures", "/no/such/folder", "--out", lib]);
     assert_one_line_error(&missing, "/no/such/folder");
+}
+
+#[test]
+fn a_texture_library_counts_each_photo_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let photos = dir.path().join("photos");
+    std::fs::create_dir(&photos).unwrap();
+    let coffee = std::fs::read(Path::new(&assets("photos")).join("coffee.jpg")).unwrap();
+    std::fs::write(photos.join("whole.jpg"), &coffee).unwrap();
+    std::fs::write(photos.join("cut.jpg"), &coffee[..coffee.len() / 2]).unwrap();
+    std::fs::write(photos.join("junk.jpg"), b"not a photo").unwrap();
+    for name in ["small1.png", "small2.png"] {
+        image::RgbImage::new(100, 80)
+            .save(photos.join(name))
+            .unwrap();
+    }
+    let lib = dir.path().join("lib");
+    let out = matseg_ok(&[
+        "textures",
+        photos.to_str().unwrap(),
+        "--out",
+        lib.to_str().unwrap(),
+    ]);
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        stdout.contains("from 1 of 5 photos (0 already done, 2 smaller than 240 px, 2 unreadable)"),
+        "{stdout}"
+    );
+    let err = stderr(&out);
+    for name in ["cut.jpg", "junk.jpg"] {
+        let warned = err
+            .lines()
+            .filter(|l| l.contains("warning: skipped") && l.contains(name));
+        assert_eq!(warned.count(), 1, "{name}: {err}");
+    }
+    assert!(err.contains("truncated JPEG"), "{err}");
 }
 
 #[test]

@@ -375,8 +375,72 @@ fn bad_videos_and_settings_are_one_line_errors_that_leave_nothing() {
         "--out",
         taken.to_str().unwrap(),
     ]);
-    assert_one_line_error(&out, "is not an earlier track output");
+    assert_one_line_error(&out, "holds \"keep.txt\", which no track output has");
     assert!(taken.join("keep.txt").is_file());
+    // Nor is an earlier output with a file of the user's beside it.
+    let track_into = |out: &str| {
+        matseg(&[
+            "track",
+            frames.to_str().unwrap(),
+            "--point",
+            "3,3",
+            "--out",
+            out,
+        ])
+    };
+    let earlier = d("earlier");
+    assert!(track_into(earlier.to_str().unwrap()).status.success());
+    std::fs::write(earlier.join("notes.txt"), "mine").unwrap();
+    let listing = |dir: &Path| {
+        let mut names: Vec<_> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        names.sort();
+        names
+    };
+    let before = listing(&earlier);
+    let out = track_into(&format!("{}/", earlier.display()));
+    assert_one_line_error(&out, "holds \"notes.txt\", which no track output has");
+    assert_eq!(listing(&earlier), before);
+    // A trailing slash names the folder itself: its earlier output is
+    // replaced, and nothing is left beside or inside it.
+    std::fs::remove_file(earlier.join("notes.txt")).unwrap();
+    for out in [
+        format!("{}/", earlier.display()),
+        format!("{}//.", earlier.display()),
+    ] {
+        let run = track_into(&out);
+        assert!(run.status.success(), "{out}: {}", stderr(&run));
+        assert!(earlier.join("track.json").is_file(), "{out}");
+        assert!(
+            !d("earlier.partial").exists() && !earlier.join(".partial").exists(),
+            "{out}"
+        );
+    }
+    // Radii out of range, and a negative coordinate taken as a point.
+    for (extra, needle) in [
+        (
+            ["--radius", "-1"],
+            "radius -1: give a disc radius from 0 to 256 pixels",
+        ),
+        (["--radius", "NaN"], "radius NaN: give a disc radius"),
+        (["--point", "-5,10"], "point -5,10: outside frame 0"),
+    ] {
+        let out = d("out");
+        let mut args = vec![
+            "track",
+            frames.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(&extra);
+        if extra[0] != "--point" {
+            args.extend(["--point", "3,3"]);
+        }
+        assert_one_line_error(&matseg(&args), needle);
+        assert!(!out.exists(), "{needle}");
+    }
     // Sequences are 3D only; a dataset without frames is no track benchmark.
     let two_d = matseg(&[
         "generate",

@@ -59,8 +59,8 @@ pub enum LibraryError {
     /// No readable image in any of the sources.
     #[error("{0}: no readable images (jpg, jpeg, png)")]
     Empty(String),
-    /// Every image failed to decode when drawn.
-    #[error("{0}: every image failed to decode")]
+    /// Every image failed to decode.
+    #[error("{0}: no usable image: every one failed to decode")]
     AllFailed(String),
     /// No image's licence passes the licence filter.
     #[error("{label}: no image has a licence in {filter}")]
@@ -292,6 +292,18 @@ impl PhotoLibrary {
             if let Ok(photo) = self.get(draw(self.entries.len())) {
                 return Ok(photo);
             }
+        }
+    }
+
+    /// Decodes the photos in order until one decodes (it stays cached), so
+    /// that a library whose every file is unusable (truncated, corrupt
+    /// past its header) is refused before anything is made from it; the
+    /// ones that fail on the way are remembered as [`Self::pick`] does.
+    pub fn ensure_usable(&self) -> Result<(), LibraryError> {
+        if (0..self.entries.len()).any(|i| self.get(i).is_ok()) {
+            Ok(())
+        } else {
+            Err(LibraryError::AllFailed(self.label.clone()))
         }
     }
 

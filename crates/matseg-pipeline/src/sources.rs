@@ -161,7 +161,8 @@ impl Libraries {
     /// `cache_mb` of decoded images between them, and keeps the files whose
     /// licence `licences` accepts. Unreadable files are skipped
     /// ([`Libraries::skipped_at_scan`]; those that fail to decode later:
-    /// `PhotoLibrary::failures`).
+    /// `PhotoLibrary::failures`); libraries with no photo that decodes are
+    /// refused.
     pub fn load(
         photos: &[PathBuf],
         textures: &[PathBuf],
@@ -187,6 +188,8 @@ impl Libraries {
         let textures = texture_sources(&defaults.required(textures, "textures")?)?;
         let (textures, r2) = PhotoLibrary::scan(&textures, 0)?;
         let textures = textures.retain_licences(licences)?.sharing(budget.clone());
+        photos.ensure_usable()?;
+        textures.ensure_usable()?;
         let scan_skipped = r1.skipped.into_iter().chain(r2.skipped).collect();
         Ok(Self {
             photos,

@@ -43,11 +43,14 @@ fn record_path(out: &Path, entry: &PhotoEntry) -> PathBuf {
         .join(format!("{}.json", entry.flat_name()))
 }
 
-/// What a texture-library job did.
+/// What a texture-library job did. Every image file found is counted once:
+/// `found` = `photos` + `already` + `too_small` + `unreadable.len()`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TextureReport {
     /// Textures written now.
     pub textures: usize,
+    /// Image files found under the sources.
+    pub found: usize,
     /// Photos processed now.
     pub photos: usize,
     /// Photos done by an earlier run.
@@ -56,7 +59,8 @@ pub struct TextureReport {
     pub too_small: usize,
     /// The smallest square's side, in pixels.
     pub smallest: u32,
-    /// Photos that could not be read, each as `FILE: problem`.
+    /// Files that could not be read (their header when the sources were
+    /// listed, or their pixels), each as `FILE: problem`.
     pub unreadable: Vec<String>,
     /// CPU seconds per megapixel of the photos processed now.
     pub cpu_seconds_per_megapixel: f64,
@@ -64,8 +68,8 @@ pub struct TextureReport {
 
 /// Extracts the textures of `photos` (files or folders, walked
 /// recursively) into the library `out`, skipping photos an earlier run
-/// finished; files the scan cannot read are reported to `progress` as
-/// warnings, photos that fail to decode in the report.
+/// finished; files that cannot be read are skipped and listed in the
+/// report.
 pub fn make_texture_library(
     photos: &[PathBuf],
     out: &Path,
@@ -78,9 +82,11 @@ pub fn make_texture_library(
         ));
     }
     let (library, report) = PhotoLibrary::scan(photos, 0).map_err(SourceError::from)?;
-    for s in &report.skipped {
-        progress.warn(&format!("{}: {}", s.path.display(), s.reason));
-    }
+    let mut unreadable: Vec<String> = report
+        .skipped
+        .iter()
+        .map(|s| format!("{}: {}", s.path.display(), s.reason))
+        .collect();
     let records = out.join("records");
     create_folder(&records)?;
     let smallest = (options.cell * options.min_cells) as u32;
@@ -103,15 +109,17 @@ pub fn make_texture_library(
         })
         .collect();
     progress.finish();
-    let (mut textures, mut pixels) = (0usize, 0u64);
-    let mut unreadable = Vec::new();
+    let (mut textures, mut pixels, mut failed) = (0usize, 0u64, 0usize);
     for r in results {
         match r {
             Ok((n, px)) => {
                 textures += n;
                 pixels += px;
             }
-            Err(e) => unreadable.push(e.to_string()),
+            Err(e) => {
+                failed += 1;
+                unreadable.push(e.to_string());
+            }
         }
     }
     write_licences(out)?;
@@ -121,7 +129,8 @@ pub fn make_texture_library(
     };
     Ok(TextureReport {
         textures,
-        photos: todo.len() - unreadable.len(),
+        found: library.len() + report.skipped.len(),
+        photos: todo.len() - failed,
         already: library.len() - todo.len() - too_small.len(),
         too_small: too_small.len(),
         smallest,

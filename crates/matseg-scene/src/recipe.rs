@@ -182,11 +182,18 @@ pub enum RecipeError {
         /// Why.
         reason: String,
     },
-    /// Not valid TOML for a recipe (unknown key, wrong type...).
-    #[error("{}: invalid recipe: {reason}", path.display())]
+    /// Not valid TOML for a recipe or a camera path (unknown key, wrong
+    /// type...), at a line and column of the file.
+    #[error("{}:{line}:{column}: invalid {what}: {reason}", path.display())]
     Parse {
         /// The file.
         path: PathBuf,
+        /// What the file was read as (`recipe`, `camera path`).
+        what: &'static str,
+        /// The line at fault, from 1.
+        line: usize,
+        /// The column at fault, from 1.
+        column: usize,
         /// The parser's message, on one line.
         reason: String,
     },
@@ -206,7 +213,7 @@ pub const MAX_SCENE_SIDE: usize = 8192;
 impl Recipe2d {
     /// Reads a TOML recipe; keys left out keep their defaults.
     pub fn from_toml_file(path: &Path) -> Result<Self, RecipeError> {
-        let recipe: Self = read_toml(path)?;
+        let recipe: Self = read_toml(path, "recipe")?;
         recipe.validate(&path.display().to_string())?;
         Ok(recipe)
     }
@@ -285,15 +292,35 @@ impl Recipe2d {
 pub const PALETTE_LIMIT: usize = crate::annotation::PALETTE.len();
 
 /// A recipe of any kind from a TOML file; errors name the file.
-pub(crate) fn read_toml<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, RecipeError> {
+pub(crate) fn read_toml<T: serde::de::DeserializeOwned>(
+    path: &Path,
+    what: &'static str,
+) -> Result<T, RecipeError> {
     let text = std::fs::read_to_string(path).map_err(|e| RecipeError::Read {
         path: path.to_path_buf(),
         reason: e.to_string(),
     })?;
-    toml::from_str(&text).map_err(|e| RecipeError::Parse {
-        path: path.to_path_buf(),
-        reason: e.message().replace('\n', " "),
+    toml::from_str(&text).map_err(|e| {
+        let (line, column) = line_and_column(&text, e.span().map_or(0, |s| s.start));
+        RecipeError::Parse {
+            path: path.to_path_buf(),
+            what,
+            line,
+            column,
+            reason: e.message().replace('\n', " "),
+        }
     })
+}
+
+/// The line and column (from 1, columns in characters) of byte `offset`
+/// of `text`.
+fn line_and_column(text: &str, offset: usize) -> (usize, usize) {
+    let before = &text[..text.floor_char_boundary(offset.min(text.len()))];
+    let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+    (
+        before.matches('\n').count() + 1,
+        before[line_start..].chars().count() + 1,
+    )
 }
 
 #[cfg(test)]
@@ -362,7 +389,10 @@ mod tests {
         std::fs::write(&bad, "[scene]\nsize_mni = 64\n").unwrap();
         let err = Recipe2d::from_toml_file(&bad).unwrap_err().to_string();
         assert!(
-            err.starts_with(&format!("{}: invalid recipe: unknown field", bad.display())),
+            err.starts_with(&format!(
+                "{}:2:1: invalid recipe: unknown field",
+                bad.display()
+            )),
             "{err}"
         );
         assert!(!err.contains('\n'));

@@ -160,7 +160,7 @@ impl Recipe3d {
     /// Reads a recipe from a TOML file (missing fields take their defaults,
     /// unknown ones are refused) and validates it; errors name the file.
     pub fn from_toml_file(path: &Path) -> Result<Self, RecipeError> {
-        let recipe: Self = read_toml(path)?;
+        let recipe: Self = read_toml(path, "recipe")?;
         recipe.validate().map_err(|e| RecipeError::Invalid {
             origin: path.display().to_string(),
             reason: e.0,

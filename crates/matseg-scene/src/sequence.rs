@@ -55,7 +55,7 @@ impl CameraPath {
 
     /// Reads a path from TOML (any field may be left out) and checks it.
     pub fn from_toml_file(path: &Path) -> Result<Self, RecipeError> {
-        let camera_path: Self = read_toml(path)?;
+        let camera_path: Self = read_toml(path, "camera path")?;
         camera_path.validate().map_err(|e| RecipeError::Invalid {
             origin: path.display().to_string(),
             reason: e.0,

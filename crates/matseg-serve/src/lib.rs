@@ -170,10 +170,12 @@ pub fn state(options: &ServeOptions) -> Result<Arc<AppState>, ServeError> {
     add(&mut roots, "photos", &bundled)?;
     let mut photo_roots = vec!["photos".to_string()];
     let mut datasets = Vec::new();
+    // Folders are kept by their canonical path: the one form the API
+    // hands out and takes back, however they were named.
     for (i, dir) in options.data.iter().enumerate() {
         let name = format!("data{i}");
-        add(&mut roots, &name, dir)?;
-        match DatasetFolder::open(&name, dir.clone()) {
+        let dir = add(&mut roots, &name, dir)?;
+        match DatasetFolder::open(&name, dir) {
             Some(dataset) => datasets.push(dataset),
             None => photo_roots.push(name),
         }
@@ -181,15 +183,16 @@ pub fn state(options: &ServeOptions) -> Result<Arc<AppState>, ServeError> {
     let mut benches = Vec::new();
     for (i, dir) in options.bench.iter().enumerate() {
         let name = format!("bench{i}");
-        add(&mut roots, &name, dir)?;
+        let given = dir;
+        let dir = add(&mut roots, &name, given)?;
         if !dir.join("images").is_dir() {
             return Err(ServeError::Folder {
-                path: dir.clone(),
+                path: given.clone(),
                 message: "a benchmark folder needs an images/ folder of photos".into(),
             });
         }
         photo_roots.push(name.clone());
-        benches.push(BenchFolder::new(&name, dir.clone()));
+        benches.push(BenchFolder::new(&name, dir));
     }
     let photo_root = |name: &&str| photo_roots.iter().any(|p| p == name);
     let served = || roots.iter().filter(|(name, _)| photo_root(name));

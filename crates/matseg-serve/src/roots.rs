@@ -27,10 +27,12 @@ pub struct Roots {
 
 impl Roots {
     /// Adds `dir` under `name` (canonicalised, so symlinks inside it are
-    /// judged against where it really is).
-    pub fn add(&mut self, name: &str, dir: &Path) -> std::io::Result<()> {
-        self.roots.push((name.to_string(), dir.canonicalize()?));
-        Ok(())
+    /// judged against where it really is); the folder as it is kept, the
+    /// one form of its path the server uses from then on.
+    pub fn add(&mut self, name: &str, dir: &Path) -> std::io::Result<PathBuf> {
+        let dir = dir.canonicalize()?;
+        self.roots.push((name.to_string(), dir.clone()));
+        Ok(dir)
     }
 
     /// The roots, by name.

@@ -429,12 +429,30 @@ fn annotate_page(browser: &mut Browser, server: &Served, bench: &Path) {
     browser.click("#undo");
     browser.click_canvas(CANVAS, 120, 300, 0);
     browser.click_canvas(CANVAS, 122, 303, ALT);
-    browser.eval(
-        "const names = document.querySelectorAll('#groups .name');
-         names[0].value = 'coffee'; names[0].dispatchEvent(new Event('change'));
-         names[1].value = 'wood'; names[1].dispatchEvent(new Event('change'));
-         document.querySelectorAll('#groups .pick').forEach((box) => { box.checked = true; })",
+    // Names typed one after the other: the first kept when the second
+    // field is clicked.
+    browser.click("#groups li:nth-child(1) .name");
+    browser.type_text("coffee");
+    browser.click("#groups li:nth-child(2) .name");
+    browser.type_text("wood");
+    browser.click("#groups li:nth-child(1) .pick");
+    browser.click("#groups li:nth-child(2) .pick");
+    let names = browser.eval("[...document.querySelectorAll('#groups .name')].map((n) => n.value)");
+    assert_eq!(names, serde_json::json!(["coffee", "wood"]));
+    // Another image with points unsaved: asked first; Cancel stays.
+    browser.accept_dialogs = false;
+    browser.click("#images li[data-name='chelsea']");
+    assert_eq!(browser.dialogs.len(), 1, "{:?}", browser.dialogs);
+    assert!(
+        browser.dialogs[0].contains("not saved"),
+        "{:?}",
+        browser.dialogs
     );
+    assert_eq!(
+        browser.eval("document.getElementById('canvas').dataset.image"),
+        "coffee"
+    );
+    browser.accept_dialogs = true;
     browser.click("#relate-round");
     browser.click("#save");
     browser.wait_for("document.getElementById('canvas').dataset.saved === '1'");

@@ -197,6 +197,52 @@ const CHELSEA: &str = r#"{"groups": [
     {"id": "1", "name": "fur", "points": [[200, 150, 5], [250, 200, 5]]},
     {"id": "2", "name": "wall", "points": [[20, 20, 5]]}]}"#;
 
+/// `to` relative to the working folder (`../..` as far as needed).
+fn relative_to_here(to: &Path) -> std::path::PathBuf {
+    let here = std::env::current_dir().unwrap().canonicalize().unwrap();
+    let to = to.canonicalize().unwrap();
+    let common = here
+        .components()
+        .zip(to.components())
+        .take_while(|(a, b)| a == b)
+        .count();
+    let mut relative = std::path::PathBuf::new();
+    for _ in here.components().skip(common) {
+        relative.push("..");
+    }
+    relative.extend(to.components().skip(common));
+    relative
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_benchmark_named_by_a_relative_path_opens_as_an_absolute_one() {
+    let bench = bench_folder();
+    let relative = relative_to_here(bench.path());
+    assert!(relative.is_relative());
+    let mut answers = Vec::new();
+    for root in [relative, bench.path().to_path_buf()] {
+        let app = router(state(&options(vec![], vec![root.clone()])).unwrap());
+        let listing = get_json(&app, "/api/benches").await;
+        let image = listing["benches"][0]["images"][0].clone();
+        let saved = get_json(&app, "/api/annotation?root=bench0&name=chelsea").await;
+        for path in [&image["path"], &saved["path"]] {
+            assert_eq!(path, "images/chelsea.jpg", "{}", root.display());
+            let uri = format!("/api/photo?root=bench0&path={}", path.as_str().unwrap());
+            assert_eq!(
+                get(&app, &uri).await.0,
+                StatusCode::OK,
+                "{}",
+                root.display()
+            );
+        }
+        answers.push((listing, saved));
+    }
+    assert_eq!(
+        answers[0], answers[1],
+        "the same answers, whichever way it was named"
+    );
+}
+
 #[tokio::test(flavor = "multi_thread")]
 async fn annotations_are_saved_in_the_benchmark_layout_and_evaluated() {
     let bench = bench_folder();

@@ -2,6 +2,7 @@
 // layout (a folder given to `matseg serve --bench`). Click adds a point
 // to the active group, alt-click removes the nearest point; groups can be
 // named and marked partly the same (0.6 or 0.3); undo steps back one edit.
+// Opening another image (or leaving) with unsaved points asks first.
 // Saving writes data/NAME/data.json and group_relations.txt, each file
 // whole, and reopening the image shows what was saved.
 
@@ -46,7 +47,13 @@ function render() {
     item.querySelector(".swatch").style.background = `rgb(${colourOf(g).join(",")})`;
     const name = item.querySelector(".name");
     name.value = group.name;
-    name.addEventListener("change", () => edit((a) => { a.groups[g].name = name.value; }));
+    // A name is kept as typed, without redrawing the list (which would
+    // take away the field the user moves to next).
+    name.addEventListener("change", () => {
+      state.history.push(snapshot());
+      state.annotation.groups[g].name = name.value;
+      showStatus();
+    });
     item.addEventListener("click", (event) => {
       if (event.target.tagName === "INPUT") return;
       state.active = g;
@@ -65,10 +72,21 @@ function render() {
     item.append(remove);
     return item;
   }));
-  const changed = snapshot() !== state.saved;
-  status.textContent = `${state.name}: ${groups.length} groups, ${groups.reduce((n, g) => n + g.points.length, 0)} points`
-    + (changed ? " (not saved)" : " (saved)");
+  showStatus();
 }
+
+const unsaved = () => state.annotation !== null && snapshot() !== state.saved;
+
+function showStatus() {
+  const { groups } = state.annotation;
+  status.textContent = `${state.name}: ${groups.length} groups, ${groups.reduce((n, g) => n + g.points.length, 0)} points`
+    + (unsaved() ? " (not saved)" : " (saved)");
+}
+
+// Leaving the page with unsaved points asks first.
+window.addEventListener("beforeunload", (event) => {
+  if (unsaved()) event.preventDefault();
+});
 
 function newGroup(annotation) {
   const next = Math.max(0, ...annotation.groups.map((g) => Number(g.id))) + 1;
@@ -130,6 +148,8 @@ document.getElementById("save").addEventListener("click", async () => {
 });
 
 async function openImage(image) {
+  if (image.name !== state.name && unsaved()
+    && !confirm(`${state.name} has points that are not saved. Open ${image.name} and lose them?`)) return;
   try {
     const saved = await (await api("/api/annotation", { root: state.root, name: image.name })).json();
     state.image = await bitmap(await api("/api/photo", { root: state.root, path: saved.path }));
@@ -171,8 +191,11 @@ if (!benches.length) {
 }
 listFolders(select, benches);
 async function openBench(root) {
-  state.root = root;
-  state.name = null;
+  if (unsaved() && !confirm(`${state.name} has points that are not saved. Open ${root} and lose them?`)) {
+    select.value = state.root;
+    return;
+  }
+  Object.assign(state, { root, name: null, image: null, annotation: null });
   const bench = await listImages();
   if (bench.images.length) openImage(bench.images[0]);
 }

@@ -42,6 +42,10 @@ pub struct Browser {
     /// command carries.
     page: String,
     next_id: u64,
+    /// The messages of the dialogs (confirm, alert) the page opened.
+    pub dialogs: Vec<String>,
+    /// Whether dialogs are answered OK (else Cancel).
+    pub accept_dialogs: bool,
     _profile: tempfile::TempDir,
 }
 
@@ -90,6 +94,8 @@ impl Browser {
             socket,
             page: String::new(),
             next_id: 0,
+            dialogs: Vec::new(),
+            accept_dialogs: true,
             _profile: profile,
         };
         let target = browser.call_browser("Target.createTarget", json!({ "url": "about:blank" }));
@@ -128,6 +134,25 @@ impl Browser {
                     "JavaScript error on the page: {}",
                     answer["params"]["exceptionDetails"]
                 );
+            }
+            if answer["method"] == "Page.javascriptDialogOpening" {
+                // Answered at once: the page waits for it, and so would
+                // the command under way.
+                self.dialogs.push(
+                    answer["params"]["message"]
+                        .as_str()
+                        .unwrap_or_default()
+                        .into(),
+                );
+                self.next_id += 1;
+                let handle = json!({
+                    "id": self.next_id,
+                    "method": "Page.handleJavaScriptDialog",
+                    "params": { "accept": self.accept_dialogs },
+                    PAGE_CHANNEL: self.page,
+                });
+                self.socket.send(Message::text(handle.to_string())).unwrap();
+                continue;
             }
             if answer["id"] == id {
                 assert!(answer["error"].is_null(), "{method}: {}", answer["error"]);
@@ -187,6 +212,11 @@ impl Browser {
                 json!({ "type": kind, "x": x, "y": y, "button": "left", "clickCount": 1, "modifiers": modifiers }),
             );
         }
+    }
+
+    /// Types `text` into the focused field, as a keyboard would.
+    pub fn type_text(&mut self, text: &str) {
+        self.call("Input.insertText", json!({ "text": text }));
     }
 
     /// Clicks the middle of the element `selector` finds.
