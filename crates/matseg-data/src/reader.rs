@@ -100,8 +100,23 @@ pub enum ReadError {
 fn io_err(path: &Path) -> impl Fn(std::io::Error) -> ReadError + '_ {
     move |e| ReadError::Io {
         path: path.to_path_buf(),
-        reason: e.to_string(),
+        reason: one_line(&e.to_string()),
     }
+}
+
+/// `message` on one line, its control characters escaped: a tar error
+/// quotes the name in a damaged header, which may hold any bytes.
+fn one_line(message: &str) -> String {
+    message
+        .chars()
+        .map(|c| {
+            if c.is_control() {
+                c.escape_default().to_string()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect()
 }
 
 #[derive(Clone, Debug)]
@@ -440,6 +455,22 @@ fn read_shard_sample(path: &Path, key: &str, members: &[Member]) -> Result<Sampl
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A damaged header the property tests found: the tar reader's error
+    /// quotes its name, newlines and all, which made a message of several
+    /// lines.
+    #[test]
+    fn errors_about_damaged_headers_are_one_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("shard-000000.tar");
+        let mut header = [0u8; 1024];
+        header[..5].copy_from_slice(b"a\nb\rc");
+        header[148..156].copy_from_slice(b"zzzzzzz\0");
+        std::fs::write(&path, header).unwrap();
+        let err = Dataset::open(&path).unwrap_err().to_string();
+        assert!(!err.contains('\n') && !err.contains('\r'), "{err:?}");
+        assert!(err.contains("a\\nb\\rc"), "{err}");
+    }
 
     #[test]
     fn mask_names_of_both_layouts() {

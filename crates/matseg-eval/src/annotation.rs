@@ -449,6 +449,23 @@ mod tests {
         assert!(!data.exists(), "no groups: nothing left");
     }
 
+    /// A coordinate the property tests found read back one unit in the
+    /// last place off, before JSON floats were parsed exactly.
+    #[test]
+    fn coordinates_read_back_to_the_last_bit() {
+        let dir = tempfile::tempdir().unwrap();
+        let a = Annotation {
+            groups: vec![Group {
+                id: "0".into(),
+                name: None,
+                points: vec![[0.983_489_336_938_522_9, 0.0, 0.0]],
+            }],
+            relations: Vec::new(),
+        };
+        a.write(dir.path()).unwrap();
+        assert_eq!(Annotation::read(dir.path()).unwrap(), Some(a));
+    }
+
     #[test]
     fn bad_annotations_are_named() {
         let problem = |a: &Annotation| a.check(40, 10).unwrap_err().to_string();

@@ -18,11 +18,13 @@ pub struct ImageIoError {
 }
 
 impl ImageIoError {
-    /// An error about `path`.
+    /// An error about `path`; the message on one line (decoders' messages
+    /// may end with, or hold, line breaks).
     pub fn new(path: impl Into<PathBuf>, message: impl ToString) -> Self {
+        let message = message.to_string();
         Self {
             path: path.into(),
-            message: message.to_string(),
+            message: message.split_whitespace().collect::<Vec<_>>().join(" "),
         }
     }
 

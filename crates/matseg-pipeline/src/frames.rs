@@ -148,10 +148,15 @@ impl FrameSource {
         let rotation = stream["side_data_list"][0]["rotation"]
             .as_i64()
             .unwrap_or(0);
+        // Sides past u32 are as out of range as any over the limit.
+        let (w, h) = (
+            u32::try_from(w).unwrap_or(u32::MAX),
+            u32::try_from(h).unwrap_or(u32::MAX),
+        );
         let (width, height) = if rotation.rem_euclid(180) == 90 {
-            (h as u32, w as u32)
+            (h, w)
         } else {
-            (w as u32, h as u32)
+            (w, h)
         };
         check_side(file, width, height)?;
         let fps = stream["avg_frame_rate"]
@@ -355,7 +360,8 @@ fn read_full(stream: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
 fn parse_rate(rate: &str) -> Option<f64> {
     let (n, d) = rate.split_once('/').unwrap_or((rate, "1"));
     let (n, d): (f64, f64) = (n.parse().ok()?, d.parse().ok()?);
-    (n > 0.0 && d > 0.0).then(|| n / d)
+    let fps = n / d;
+    (n > 0.0 && d > 0.0 && fps.is_finite() && fps > 0.0).then_some(fps)
 }
 
 /// The last non-empty line FFmpeg wrote to stderr about `file`, without

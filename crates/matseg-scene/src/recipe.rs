@@ -292,7 +292,7 @@ impl Recipe2d {
 pub const PALETTE_LIMIT: usize = crate::annotation::PALETTE.len();
 
 /// A recipe of any kind from a TOML file; errors name the file.
-pub(crate) fn read_toml<T: serde::de::DeserializeOwned>(
+pub(crate) fn read_toml<T: serde::de::DeserializeOwned + serde::Serialize>(
     path: &Path,
     what: &'static str,
 ) -> Result<T, RecipeError> {
@@ -300,7 +300,7 @@ pub(crate) fn read_toml<T: serde::de::DeserializeOwned>(
         path: path.to_path_buf(),
         reason: e.to_string(),
     })?;
-    toml::from_str(&text).map_err(|e| {
+    let parse_error = |e: toml::de::Error| {
         let (line, column) = line_and_column(&text, e.span().map_or(0, |s| s.start));
         RecipeError::Parse {
             path: path.to_path_buf(),
@@ -309,13 +309,46 @@ pub(crate) fn read_toml<T: serde::de::DeserializeOwned>(
             column,
             reason: e.message().replace('\n', " "),
         }
+    };
+    let read: T = toml::from_str(&text).map_err(parse_error)?;
+    // What was read, as the settings hold it (a number too large for its
+    // setting's precision is infinite there).
+    let held = toml::Table::try_from(&read).ok();
+    if let Some(key) = held.as_ref().and_then(|t| non_finite(t, "")) {
+        return Err(RecipeError::Invalid {
+            origin: path.display().to_string(),
+            reason: format!("{key}: not a finite number (nan, inf, or too large)"),
+        });
+    }
+    Ok(read)
+}
+
+/// The key of the first NaN or infinite number in `table` (TOML allows
+/// them; no setting means them), as `section.key`.
+fn non_finite(table: &toml::Table, prefix: &str) -> Option<String> {
+    table.iter().find_map(|(key, value)| {
+        let key = format!("{prefix}{key}");
+        match value {
+            toml::Value::Float(f) if !f.is_finite() => Some(format!("{key} = {f}")),
+            toml::Value::Table(inner) => non_finite(inner, &format!("{key}.")),
+            toml::Value::Array(items) => items.iter().find_map(|item| match item {
+                toml::Value::Float(f) if !f.is_finite() => Some(format!("{key} = [.. {f} ..]")),
+                toml::Value::Table(inner) => non_finite(inner, &format!("{key}.")),
+                _ => None,
+            }),
+            _ => None,
+        }
     })
 }
 
 /// The line and column (from 1, columns in characters) of byte `offset`
 /// of `text`.
 fn line_and_column(text: &str, offset: usize) -> (usize, usize) {
-    let before = &text[..text.floor_char_boundary(offset.min(text.len()))];
+    let mut end = offset.min(text.len());
+    while !text.is_char_boundary(end) {
+        end -= 1;
+    }
+    let before = &text[..end];
     let line_start = before.rfind('\n').map_or(0, |i| i + 1);
     (
         before.matches('\n').count() + 1,

@@ -238,6 +238,18 @@ impl Recipe3d {
                 "radii, focal_mm and distance_unit must be positive".into(),
             ));
         }
+        let positive = |v: f32| v > 0.0;
+        let not_negative = |v: f32| v >= 0.0;
+        // A NaN fails both tests too.
+        if !positive(self.group_spread)
+            || !not_negative(self.soft_width_max)
+            || !not_negative(self.max_roll_deg)
+        {
+            return Err(OutOfRange(format!(
+                "group_spread ({}) must be positive, soft_width_max ({}) and max_roll_deg ({}) not negative",
+                self.group_spread, self.soft_width_max, self.max_roll_deg
+            )));
+        }
         Ok(())
     }
 }

@@ -69,10 +69,12 @@ pub fn read_safetensors(bytes: &[u8], name: &str) -> Result<Vec<Tensor>, Weights
             ),
             _ => return Err(bad()),
         };
-        if end < begin
-            || end > data.len()
-            || end - begin != shape.iter().product::<usize>() * dtype.size()
-        {
+        // The shape's byte count, checked: a shape whose product overflows
+        // matches no data.
+        let bytes = shape
+            .iter()
+            .try_fold(dtype.size(), |n, &d| n.checked_mul(d));
+        if end < begin || end > data.len() || Some(end - begin) != bytes {
             return Err(fail(format!(
                 "{key}: data offsets do not match its shape or the file"
             )));
@@ -116,10 +118,33 @@ fn header<'a>(bytes: &'a [u8], name: &str) -> Result<(Map<String, Value>, &'a [u
         .get(..8)
         .map(|b| u64::from_le_bytes(b.try_into().expect("8 bytes")) as usize)
         .ok_or_else(|| fail("truncated safetensors header".into()))?;
-    let text = bytes
-        .get(8..8 + len)
+    // A length past the end (however large) is a truncated header.
+    let (text, data) = bytes[8..]
+        .split_at_checked(len)
         .ok_or_else(|| fail("truncated safetensors header".into()))?;
     let header =
         serde_json::from_slice(text).map_err(|e| fail(format!("bad safetensors header: {e}")))?;
-    Ok((header, &bytes[8 + len..]))
+    Ok((header, data))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Headers whose numbers lie, found by the property tests: a length
+    /// that overflows the offset arithmetic, and a shape whose byte count
+    /// overflows.
+    #[test]
+    fn lengths_and_shapes_that_overflow_are_errors() {
+        let err = read_safetensors(&u64::MAX.to_le_bytes(), "long").unwrap_err();
+        assert_eq!(err.to_string(), "long: truncated safetensors header");
+        let header = br#"{"":{"data_offsets":[0,0],"dtype":"F32","shape":[4611686018427387904]}}"#;
+        let mut file = (header.len() as u64).to_le_bytes().to_vec();
+        file.extend(header);
+        let err = read_safetensors(&file, "huge").unwrap_err();
+        assert!(
+            err.to_string().contains("data offsets do not match"),
+            "{err}"
+        );
+    }
 }

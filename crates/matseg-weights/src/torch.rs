@@ -106,14 +106,15 @@ fn read_legacy(bytes: &[u8]) -> Result<Vec<Tensor>, CheckpointProblem> {
             .get(pos..pos + 8)
             .ok_or_else(|| format!("truncated before storage {key}"))?;
         let count = i64::from_le_bytes(header.try_into().expect("8 bytes"));
-        let len =
-            usize::try_from(count).map_err(|_| format!("storage {key}: bad size {count}"))? * size;
-        let data = bytes.get(pos + 8..pos + 8 + len).ok_or_else(|| {
-            format!(
-                "truncated: storage {key} needs {len} bytes, {} left",
-                bytes.len() - pos - 8
-            )
-        })?;
+        let len = usize::try_from(count)
+            .ok()
+            .and_then(|count| count.checked_mul(size))
+            .ok_or_else(|| format!("storage {key}: bad size {count}"))?;
+        let left = bytes.len() - pos - 8;
+        if len > left {
+            return Err(format!("truncated: storage {key} needs {len} bytes, {left} left").into());
+        }
+        let data = &bytes[pos + 8..pos + 8 + len];
         storages.insert(key, data.to_vec());
         pos += 8 + len;
     }
@@ -219,6 +220,50 @@ fn rebuild_args(tensor: &Value) -> Result<TensorView<'_>, CheckpointProblem> {
     }
 }
 
+/// The number of elements of the view `shape`, `stride` at `offset` of a
+/// storage of `elements` elements, once checked that every element lies in
+/// the storage and that there are no more of them than it holds (a view
+/// that repeats elements, such as an expanded one, could otherwise make a
+/// tensor of any size out of a few bytes).
+fn view_elements(
+    shape: &[i64],
+    stride: &[i64],
+    offset: i64,
+    elements: usize,
+) -> Result<i64, CheckpointProblem> {
+    if shape.len() != stride.len() || shape.iter().any(|&d| d < 0) {
+        return Err(format!("size {shape:?} and stride {stride:?} make no view").into());
+    }
+    let too_many = || format!("a view of size {shape:?} has more elements than the storage");
+    let count = shape
+        .iter()
+        .try_fold(1i64, |n, &d| n.checked_mul(d))
+        .ok_or_else(too_many)?;
+    if count == 0 {
+        return Ok(0);
+    }
+    if !usize::try_from(count).is_ok_and(|count| count <= elements) {
+        return Err(too_many().into());
+    }
+    // The first and last elements the view reaches (a reach that
+    // overflows is past the end).
+    let past_end = || {
+        format!(
+            "a view of offset {offset}, size {shape:?} and stride {stride:?} reads past the end"
+        )
+    };
+    let (mut first, mut last) = (offset, offset);
+    for (&d, &s) in shape.iter().zip(stride) {
+        let reach = (d - 1).checked_mul(s).ok_or_else(past_end)?;
+        let bound = if reach < 0 { &mut first } else { &mut last };
+        *bound = bound.checked_add(reach).ok_or_else(past_end)?;
+    }
+    if first < 0 || !usize::try_from(last).is_ok_and(|last| last < elements) {
+        return Err(past_end().into());
+    }
+    Ok(count)
+}
+
 /// Builds every tensor of the state dict, reading storages through `storage`
 /// and copying strided views into contiguous row-major data.
 fn tensors(object: &Value, storage: &StorageReader<'_>) -> Result<Vec<Tensor>, CheckpointProblem> {
@@ -238,9 +283,11 @@ fn tensors(object: &Value, storage: &StorageReader<'_>) -> Result<Vec<Tensor>, C
         }
         let data = &cache[&r.key];
         let size = r.dtype.size();
-        let count: i64 = shape.iter().product();
-        let mut bytes = Vec::with_capacity(count.max(0) as usize * size);
-        // Walk the elements in row-major order through the strides.
+        let count = view_elements(&shape, &stride, offset, data.len() / size)
+            .map_err(|e| format!("{name}: storage {}: {}", r.key, e.0))?;
+        let mut bytes = Vec::with_capacity(count as usize * size);
+        // Walk the elements in row-major order through the strides (every
+        // one inside the storage, as checked).
         let mut index = vec![0i64; shape.len()];
         for _ in 0..count {
             let at = offset + index.iter().zip(&stride).map(|(i, s)| i * s).sum::<i64>();
@@ -265,4 +312,60 @@ fn tensors(object: &Value, storage: &StorageReader<'_>) -> Result<Vec<Tensor>, C
         });
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fixtures::{legacy, zipped, Storage};
+
+    /// Checkpoints found by the property tests: a view of 2^30 elements
+    /// over an empty storage (as much was reserved: 4 GiB), a storage of
+    /// 2^62 elements (its byte count overflowed), and views whose sizes
+    /// or strides overflow, repeat elements or reach outside the storage.
+    #[test]
+    fn views_and_storages_that_lie_are_errors() {
+        let empty = [Storage {
+            key: "0",
+            values: vec![],
+        }];
+        let err = read_checkpoint(&zipped(&empty, &[("w", 0, 0, vec![1 << 30], vec![])]), "z")
+            .unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "z: w: storage 0: size [1073741824] and stride [] make no view"
+        );
+
+        let three = [Storage {
+            key: "0",
+            values: vec![1.0, 2.0, 3.0],
+        }];
+        let mut file = legacy(&three, &[("w", 0, 0, vec![3], vec![1])]);
+        let at = file.len() - 8 - 12;
+        file[at..at + 8].copy_from_slice(&(1i64 << 62).to_le_bytes());
+        let err = read_checkpoint(&file, "l").unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "l: storage 0: bad size 4611686018427387904"
+        );
+
+        for (shape, stride, problem) in [
+            (
+                vec![i32::MAX, i32::MAX, i32::MAX],
+                vec![1, 1, 1],
+                "more elements",
+            ),
+            (vec![3, 2], vec![0, 1], "more elements"),
+            (vec![2], vec![i32::MAX], "reads past the end"),
+            (vec![2], vec![-1], "reads past the end"),
+            (vec![-1], vec![1], "make no view"),
+        ] {
+            let views = [("w", 0, 0, shape, stride)];
+            let err = read_checkpoint(&zipped(&three, &views), "z").unwrap_err();
+            assert!(err.to_string().contains(problem), "{err}");
+        }
+        let views = [("w", 0, 2, vec![3], vec![-1])];
+        let reversed = read_checkpoint(&zipped(&three, &views), "z").unwrap();
+        assert_eq!(reversed[0].f32_values().unwrap(), [3.0, 2.0, 1.0]);
+    }
 }

@@ -98,7 +98,9 @@ fn directory_location(tail: &[u8]) -> Result<(usize, usize, u64), ZipError> {
 /// The `count` entries of the central directory `bytes`.
 fn parse_directory(bytes: &[u8], count: usize) -> Result<Vec<Entry>, ZipError> {
     let mut at = 0;
-    let mut entries = Vec::with_capacity(count);
+    // Each entry takes 46 bytes at least: a count that cannot fit is not
+    // made room for.
+    let mut entries = Vec::with_capacity(count.min(bytes.len() / 46));
     for _ in 0..count {
         if !bytes
             .get(at..)
@@ -140,8 +142,12 @@ fn decode(e: &Entry, data: &[u8]) -> Result<Vec<u8>, ZipError> {
     match e.method {
         0 => Ok(data.to_vec()),
         8 => {
-            let mut out = Vec::with_capacity(e.size);
+            // The recorded size is only a claim: room for more than a few
+            // times the compressed bytes is made as they inflate, and no
+            // more than one byte past the claim is inflated.
+            let mut out = Vec::with_capacity(e.size.min(data.len().saturating_mul(4)));
             DeflateDecoder::new(data)
+                .take(e.size as u64 + 1)
                 .read_to_end(&mut out)
                 .map_err(|err| corrupt(err.to_string()))?;
             if out.len() != e.size {
@@ -198,6 +204,8 @@ impl<'a> ZipArchive<'a> {
 /// directory is read once, each entry when asked for.
 pub struct ZipFile<R> {
     source: R,
+    /// The source's length in bytes.
+    len: u64,
     entries: Vec<Entry>,
 }
 
@@ -217,7 +225,11 @@ impl<R: Read + Seek> ZipFile<R> {
         source.seek(SeekFrom::Start(offset))?;
         source.read_exact(&mut directory)?;
         let entries = parse_directory(&directory, count)?;
-        Ok(Self { source, entries })
+        Ok(Self {
+            source,
+            len,
+            entries,
+        })
     }
 
     /// The names of the entries, in directory order.
@@ -235,6 +247,11 @@ impl<R: Read + Seek> ZipFile<R> {
             .map_err(truncated)?;
         self.source.read_exact(&mut header).map_err(truncated)?;
         let start = e.header + data_offset(&header, name)?;
+        // A compressed size past the end of the source is not read (nor
+        // made room for).
+        if start.saturating_add(e.compressed as u64) > self.len {
+            return Err(ZipError::TruncatedEntry(name.to_string()));
+        }
         let mut data = vec![0; e.compressed];
         self.source
             .seek(SeekFrom::Start(start))
@@ -281,4 +298,49 @@ pub fn write_stored(entries: &[(&str, &[u8])]) -> Vec<u8> {
     out.extend(start.to_le_bytes());
     out.extend([0, 0]);
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Cursor;
+
+    /// The offset of the central directory entry of `name` in a zip.
+    fn central_entry(zip: &[u8], name: &str) -> usize {
+        let start = u32::from_le_bytes(zip[zip.len() - 6..zip.len() - 2].try_into().unwrap());
+        let mut at = start as usize;
+        loop {
+            let len = u16::from_le_bytes([zip[at + 28], zip[at + 29]]) as usize;
+            if &zip[at + 46..at + 46 + len] == name.as_bytes() {
+                return at;
+            }
+            at += 46 + len;
+        }
+    }
+
+    /// Sizes that lie, found by the property tests: a compressed size past
+    /// the end of the file (4 GiB were allocated to read it), an inflated
+    /// size of 4 GiB (as much was reserved), and an entry count of 65,535
+    /// in a directory of none.
+    #[test]
+    fn sizes_that_lie_are_errors_without_their_allocation() {
+        let mut zip = write_stored(&[("", b""), ("0", b"")]);
+        let entry = central_entry(&zip, "0");
+        zip[entry + 20..entry + 24].copy_from_slice(&u32::MAX.to_le_bytes());
+        let mut file = ZipFile::new(Cursor::new(&zip)).unwrap();
+        assert!(matches!(file.read("0"), Err(ZipError::TruncatedEntry(_))));
+        assert!(ZipArchive::new(&zip).unwrap().read("0").is_err());
+
+        let mut zip = write_stored(&[("a", b"")]);
+        let entry = central_entry(&zip, "a");
+        zip[entry + 10..entry + 12].copy_from_slice(&8u16.to_le_bytes());
+        zip[entry + 24..entry + 28].copy_from_slice(&u32::MAX.to_le_bytes());
+        let archive = ZipArchive::new(&zip).unwrap();
+        assert!(matches!(archive.read("a"), Err(ZipError::Corrupt { .. })));
+
+        let mut zip = write_stored(&[]);
+        let at = zip.len() - 12;
+        zip[at..at + 2].copy_from_slice(&u16::MAX.to_le_bytes());
+        assert!(matches!(ZipArchive::new(&zip), Err(ZipError::BadDirectory)));
+    }
 }

@@ -21,7 +21,12 @@ fn file_error(path: &Path, message: impl std::fmt::Display) -> NetError {
 /// Samples `first..end` of shard `shard` under `manifest`.
 fn shard_range(manifest: &CacheManifest, shard: u64) -> (u64, u64) {
     let first = shard * manifest.shard_size;
-    (first, (first + manifest.shard_size).min(manifest.samples))
+    (
+        first,
+        first
+            .saturating_add(manifest.shard_size)
+            .min(manifest.samples),
+    )
 }
 
 /// An opened feature cache: its manifest and where each sample is.
@@ -39,7 +44,9 @@ impl FeatureCache {
     /// cache's is a one-line error naming it.
     pub fn open(dir: &Path) -> Result<Self, NetError> {
         let manifest = CacheManifest::read(dir)?;
-        let mut samples = Vec::with_capacity(manifest.samples as usize);
+        // The manifest's sample count is only a claim until the shards
+        // hold as many: nothing of its size is made before they are read.
+        let mut samples = Vec::new();
         for shard in 0..manifest.shards() {
             let path = shard_path(dir, shard);
             if !path.is_file() {
@@ -51,21 +58,20 @@ impl FeatureCache {
             }
             let members = index_tar(&path).map_err(|e| file_error(&path, e))?;
             let (first, end) = shard_range(&manifest, shard);
-            let expected: Vec<String> = (first..end)
-                .map(|i| format!("{}.{MEMBER_SUFFIX}", sample_key(i)))
-                .collect();
-            let names: Vec<&str> = members.iter().map(|m| m.name.as_str()).collect();
-            if names != expected {
+            let expected = (first..end).map(|i| format!("{}.{MEMBER_SUFFIX}", sample_key(i)));
+            let same = members.len() as u64 == end - first
+                && members.iter().zip(expected).all(|(m, name)| m.name == name);
+            if !same {
                 return Err(file_error(
                     &path,
                     format!(
                         "not a shard of this cache: expected samples {first}..{end} as \
                          {} members, found {} members{}",
-                        expected.len(),
-                        names.len(),
-                        names
+                        end - first,
+                        members.len(),
+                        members
                             .first()
-                            .map_or(String::new(), |n| format!(" from {n}"))
+                            .map_or(String::new(), |m| format!(" from {}", m.name))
                     ),
                 ));
             }
@@ -220,4 +226,56 @@ fn write_tar(
         .sync_all()
         .map_err(disk)?;
     std::fs::rename(tmp, path).map_err(disk)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A manifest of `samples` samples, `shard_size` a shard, over one
+    /// shard of two members named as its first two samples.
+    fn cache(dir: &Path, samples: u64, shard_size: u64) -> Result<FeatureCache, NetError> {
+        let manifest = CacheManifest {
+            format: super::super::CACHE_FORMAT.into(),
+            version: super::super::CACHE_VERSION,
+            encoder: crate::EncoderConfig::MobilenetV2,
+            encoder_digest: String::new(),
+            model: "test".into(),
+            width: 32,
+            height: 32,
+            taps: [1; 4],
+            samples,
+            shard_size,
+            data: "online".into(),
+            mix: None,
+            seed: 0,
+            zoom: crate::data::Zoom::Cover,
+            p_augment: 0.0,
+            sources_fingerprint: String::new(),
+        };
+        let json = serde_json::to_vec(&manifest).unwrap();
+        std::fs::write(dir.join(MANIFEST_FILE), json).unwrap();
+        let mut tar = tar::Builder::new(Vec::new());
+        for i in 0..2 {
+            let name = format!("{}.{MEMBER_SUFFIX}", sample_key(i));
+            append_member(&mut tar, &name, b"").unwrap();
+        }
+        std::fs::write(shard_path(dir, 0), tar.into_inner().unwrap()).unwrap();
+        FeatureCache::open(dir)
+    }
+
+    /// Manifests the property tests found: a sample count of 2^64 - 1 (a
+    /// list of that many was made room for) and, with as large a shard
+    /// size, the list of names the first shard should hold.
+    #[test]
+    fn sample_counts_that_lie_are_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        assert_eq!(cache(dir.path(), 2, 2).unwrap().len(), 2);
+        let err = cache(dir.path(), u64::MAX, 2).unwrap_err().to_string();
+        assert!(err.contains("shard-000001.tar: missing"), "{err}");
+        let err = cache(dir.path(), u64::MAX, u64::MAX)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("not a shard of this cache"), "{err}");
+    }
 }
