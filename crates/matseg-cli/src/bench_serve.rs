@@ -1,15 +1,19 @@
 //! `matseg bench-serve`: the web app under load on loopback. Writes photos
 //! of a chosen size, starts `matseg serve` on them as a child process,
+//! optionally sends it concurrent video uploads while watching its memory,
 //! describes each photo with a first click (the descriptor pass), then has
 //! 1, 16... concurrent clients click random points on photos already
 //! described for a bounded time, and reads the server's memory
 //! (`matseg_serve::load`, `matseg_pipeline::bench::clock`). With
 //! `--while-evaluating BENCH`, an evaluation of that point benchmark runs
-//! in the server's background throughout the click rounds.
+//! in the server's background from the descriptor pass to the last round.
 
 use anyhow::{bail, Context, Result};
 use matseg_pipeline::bench::clock::process_memory_mib;
-use matseg_serve::load::{clicks, percentile, write_photos, ClickStats, Connection, ServerAddress};
+use matseg_serve::load::{
+    clicks, percentile, video_uploads, write_photos, ClickStats, Connection, ServerAddress,
+    UploadStats,
+};
 use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
@@ -40,15 +44,23 @@ pub struct Args {
     model: String,
     /// A point benchmark folder: its evaluation (the served model and the
     /// baselines the evaluate page ticks) runs in the server's background
-    /// during every click round.
+    /// during the descriptor pass and every click round.
     #[arg(long, value_name = "BENCH")]
     while_evaluating: Option<std::path::PathBuf>,
+    /// Before the clicks: this many video uploads sent at once (each a
+    /// small video padded to --upload-size-mb), the server's memory watched
+    /// while they arrive (needs ffmpeg to make the video).
+    #[arg(long, default_value_t = 0)]
+    uploads: usize,
+    /// The size of each upload, in MiB.
+    #[arg(long, default_value_t = 500)]
+    upload_size_mb: usize,
     /// Print JSON instead of tables.
     #[arg(long)]
     json: bool,
 }
 
-/// The server as a child process; killed when dropped.
+/// The server as a child process; stopped when dropped.
 struct Server {
     child: Child,
     address: ServerAddress,
@@ -98,7 +110,23 @@ impl Server {
 }
 
 impl Drop for Server {
+    /// Stops the server as Ctrl-C would (it removes its temporary folder),
+    /// killing it only when it has not ended within a minute.
     fn drop(&mut self) {
+        #[cfg(all(target_os = "linux", target_env = "gnu"))]
+        {
+            // SAFETY: a signal to the child process this command started.
+            unsafe {
+                libc::kill(self.child.id() as libc::pid_t, libc::SIGTERM);
+            }
+            let started = std::time::Instant::now();
+            while started.elapsed() < Duration::from_secs(60) {
+                if let Ok(Some(_)) = self.child.try_wait() {
+                    return;
+                }
+                std::thread::sleep(Duration::from_millis(50));
+            }
+        }
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
@@ -113,9 +141,27 @@ pub fn run(args: Args) -> Result<()> {
     let photos = write_photos(dir.path(), args.photos, args.megapixels)?;
     let server = Server::start(dir.path(), &args)?;
     let (_, idle_peak) = server.memory();
+    let uploads = (args.uploads > 0)
+        .then(|| {
+            let head = small_video(dir.path())?;
+            let rss = || server.memory().0;
+            let bytes = args.upload_size_mb << 20;
+            Ok::<_, anyhow::Error>(video_uploads(
+                &server.address,
+                &head,
+                args.uploads,
+                bytes,
+                &rss,
+            ))
+        })
+        .transpose()?;
 
     // The descriptor pass: each photo's first click.
     let mut connection = Connection::open(&server.address)?;
+    let mut evaluated = Vec::new();
+    if args.while_evaluating.is_some() {
+        start_evaluation(&mut connection)?;
+    }
     let mut describe_ms = Vec::new();
     for (name, w, h) in &photos {
         let answer = connection.get(&matseg_serve::load::click_path(name, w / 2, h / 2))?;
@@ -127,6 +173,9 @@ pub fn run(args: Args) -> Result<()> {
         }
         describe_ms.push(answer.server_ms);
     }
+    if args.while_evaluating.is_some() {
+        evaluated.push(evaluation_running(&mut connection)?);
+    }
     let (described_rss, described_peak) = server.memory();
     let (_, status) = connection.get_body("/api/status")?;
     let status: serde_json::Value = serde_json::from_slice(&status)?;
@@ -136,7 +185,6 @@ pub fn run(args: Args) -> Result<()> {
 
     let warm = &photos[photos.len().saturating_sub(args.warm)..];
     let mut rounds: Vec<ClickStats> = Vec::new();
-    let mut evaluated = Vec::new();
     for &clients in &args.clients {
         if args.while_evaluating.is_some() {
             start_evaluation(&mut connection)?;
@@ -164,9 +212,13 @@ pub fn run(args: Args) -> Result<()> {
             "rss_final_mib": final_rss, "rss_peak_mib": final_peak,
             "clicks": rounds,
             "evaluating_throughout": evaluated,
+            "uploads": uploads,
         });
         println!("{}", serde_json::to_string_pretty(&out)?);
         return Ok(());
+    }
+    if let Some(u) = &uploads {
+        print_uploads(u);
     }
     println!(
         "{} photos of {megapixels:.2} MP on average; descriptor pass (first click, server time): median {describe_p50:.0} ms, p99 {describe_p99:.0} ms",
@@ -178,7 +230,7 @@ pub fn run(args: Args) -> Result<()> {
     );
     if let Some(bench) = &args.while_evaluating {
         println!(
-            "an evaluation of {} ran in the background throughout each round: {evaluated:?}",
+            "an evaluation of {} ran in the background throughout the descriptor pass, then each round: {evaluated:?}",
             bench.display()
         );
     }
@@ -226,4 +278,52 @@ fn evaluation_running(connection: &mut Connection) -> Result<bool> {
     let (_, body) = connection.get_body("/api/evaluate?root=bench0")?;
     let status: serde_json::Value = serde_json::from_slice(&body)?;
     Ok(status["state"] == "running")
+}
+
+/// A small H.264 MP4 (five 64 x 48 frames) made by ffmpeg in `dir`: the
+/// head of each load upload.
+fn small_video(dir: &std::path::Path) -> Result<Vec<u8>> {
+    let file = dir.join("head.mp4");
+    let ffmpeg = matseg_pipeline::frames::ffmpeg_program("ffmpeg");
+    let made = Command::new(&ffmpeg)
+        .args([
+            "-v",
+            "error",
+            "-nostdin",
+            "-y",
+            "-f",
+            "lavfi",
+            "-i",
+            "testsrc=size=64x48:rate=10",
+        ])
+        .args(["-frames:v", "5", "-c:v", "libx264", "-pix_fmt", "yuv420p"])
+        .args(["-movflags", "+faststart"])
+        .arg(&file)
+        .status()
+        .with_context(|| {
+            format!(
+                "--uploads: cannot run {} to make the video",
+                ffmpeg.display()
+            )
+        })?;
+    if !made.success() {
+        bail!("--uploads: {} could not make the video", ffmpeg.display());
+    }
+    Ok(std::fs::read(&file)?)
+}
+
+/// The upload round's line.
+fn print_uploads(u: &UploadStats) {
+    let ok = u.statuses.iter().filter(|&&s| s == 200).count();
+    println!(
+        "{} uploads of {:.0} MiB at once ({ok} kept, statuses {:?}) in {:.1} s: server memory (RSS) {:.0} MiB before, peak {:.0} MiB while they arrived (+{:.0}), {:.0} MiB after",
+        u.uploads,
+        u.mib_each,
+        u.statuses,
+        u.seconds,
+        u.rss_before_mib,
+        u.rss_peak_mib,
+        u.rss_peak_mib - u.rss_before_mib,
+        u.rss_after_mib
+    );
 }

@@ -206,6 +206,17 @@ impl TrainedNet {
         }
     }
 
+    /// The part of [`PixelDescriptors::descriptor_map`] that needs the
+    /// net: `photo`'s grid. [`pixel_map`] makes the map from it without
+    /// the net, so a shared net is held only for this part.
+    pub fn photo_grid(&self, photo: &RgbImage) -> Tensor {
+        self.grid(
+            photo.as_raw(),
+            photo.width() as usize,
+            photo.height() as usize,
+        )
+    }
+
     /// Unit descriptors `[D, height, width]` of an interleaved RGB image on
     /// the CPU: the net's grid resized to the image and normalised.
     pub fn describe(&self, rgb: &[u8], width: usize, height: usize) -> Tensor {
@@ -280,6 +291,13 @@ pub trait PixelDescriptors {
 fn unit_at(grid: &Tensor, width: usize, height: usize) -> Tensor {
     let d = crate::blocks::resize_bilinear(grid, height as i64, width as i64);
     crate::blocks::l2_normalise(&d, 1).squeeze_dim(0)
+}
+
+/// The descriptor map of a `width x height` photo from its grid
+/// ([`TrainedNet::photo_grid`]): the grid resized to the photo and
+/// normalised, the same map [`PixelDescriptors::descriptor_map`] gives.
+pub fn pixel_map(grid: &Tensor, width: usize, height: usize) -> DescriptorMap {
+    tensor_to_map(&unit_at(grid, width, height))
 }
 
 /// A `[D, H, W]` float tensor on the CPU as a [`DescriptorMap`].

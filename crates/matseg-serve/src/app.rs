@@ -8,6 +8,7 @@ use crate::described::DescribedCache;
 use crate::evaluate::Evaluations;
 use crate::guard::Access;
 use crate::jobs::Workers;
+use crate::model::ServedModel;
 use crate::roots::{PathError, Roots};
 use crate::uploads::UploadFolder;
 use crate::video::Videos;
@@ -19,15 +20,15 @@ use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
 use axum::{Json, Router};
 use matseg_image::MemoryBudget;
-use matseg_net::infer::NetModel;
 use std::path::PathBuf;
 use std::sync::Arc;
 
 /// What the handlers share.
 pub struct AppState {
     /// The model photos are described and benchmarks are scored with,
-    /// named after its run folder (`default` for the shipped model).
-    pub model: NetModel,
+    /// named after its run folder (`default` for the shipped model);
+    /// clicks go first.
+    pub model: ServedModel,
     /// The device the model runs on.
     pub device: matseg_image::device::ComputeDevice,
     /// The folders photos come from.

@@ -8,6 +8,7 @@
 
 use crate::annotate::bench;
 use crate::app::{ApiError, AppState};
+use crate::described::release_freed_memory;
 use crate::jobs::{run_in_background, JobProgress};
 use axum::extract::{Query, State};
 use axum::http::StatusCode;
@@ -88,6 +89,7 @@ pub async fn start(
                 run_in_background(|| run(&folder, &choice, worker.clone(), job_progress.as_ref()))
                     .unwrap_or_else(|e| Err(EvaluationError::Background(e.to_string())))
             });
+            release_freed_memory();
             matseg_image::sync::lock(&worker.evaluations).insert(root, done);
         })
         .map_err(|e| ApiError::internal(format!("cannot start the evaluation: {e}")))?;
@@ -154,20 +156,25 @@ pub enum EvaluationError {
     Background(String),
 }
 
-/// The served model as an evaluated one.
-struct ServedModel(Arc<AppState>);
+/// The served model as an evaluated one (each image after the clicks).
+struct Served(Arc<AppState>);
 
-impl DescriptorModel for ServedModel {
+impl DescriptorModel for Served {
     fn name(&self) -> &str {
         self.0.model.name()
     }
 
     fn comparison(&self) -> Comparison {
-        self.0.model.comparison()
+        DescriptorModel::comparison(&self.0.model)
     }
 
+    /// The image's map; the memory of the previous image's map, dropped by
+    /// now, is given back to the system first (a map at the evaluation
+    /// size is hundreds of MiB), so the server's memory does not keep the
+    /// evaluation's peak.
     fn describe(&self, image: &image::RgbImage) -> DescriptorMap {
-        self.0.model.describe(image)
+        release_freed_memory();
+        DescriptorModel::describe(&self.0.model, image)
     }
 }
 
@@ -180,7 +187,7 @@ fn run(
     progress: &JobProgress,
 ) -> Result<serde_json::Value, EvaluationError> {
     let mut models = baselines(choice)?;
-    models.push(Box::new(ServedModel(state)));
+    models.push(Box::new(Served(state)));
     let evaluation = score_point_benchmark(folder, &models, true, DEFAULT_MAX_SIDE, progress)?;
     if evaluation.models[0].counts.images == 0 {
         return Err(EvaluationError::NothingAnnotated(folder.to_path_buf()));

@@ -25,6 +25,7 @@ pub mod evaluate;
 pub mod guard;
 pub mod jobs;
 pub mod load;
+pub mod model;
 pub mod photos;
 pub mod roots;
 pub mod uploads;
@@ -212,7 +213,7 @@ pub fn state(options: &ServeOptions) -> Result<Arc<AppState>, ServeError> {
     let videos = video::Videos::new(videos, folder.path().join("tracks"));
     let budget = MemoryBudget::new(options.cache_mb.saturating_mul(1 << 20));
     Ok(Arc::new(AppState {
-        model,
+        model: model::ServedModel::new(model),
         device: options.device,
         roots,
         photos,
@@ -248,9 +249,36 @@ const JOBS_GRACE: Duration = Duration::from_secs(20);
 
 /// Serves the app until the process gets SIGINT (Ctrl-C) or SIGTERM;
 /// `on_ready` gets where it listens. Then it answers the requests under
-/// way, stops its jobs and removes its temporary folder before returning
-/// (a second signal skips the waiting).
+/// way, stops its jobs and removes its temporary folder before returning;
+/// a second signal ends the process at once (the folder removed first).
 pub fn serve(options: &ServeOptions, on_ready: impl FnOnce(&Ready)) -> Result<(), ServeError> {
+    serve_until(options, on_ready, |state| async move {
+        let Ok(mut signals) = stop_signals() else {
+            // No signal can be watched: the server runs until killed.
+            return std::future::pending().await;
+        };
+        signals.recv().await;
+        tokio::spawn(async move {
+            if signals.recv().await.is_some() {
+                let _ = std::fs::remove_dir_all(state.folder.path());
+                std::process::exit(130);
+            }
+        });
+    })
+}
+
+/// Serves the app until the future `stop` makes (from the app's state)
+/// completes; `on_ready` gets where it listens. Then, as [`serve`] does, it
+/// stops the jobs, lets the requests under way finish (for up to a few
+/// seconds) and removes the server's temporary folder before returning.
+pub fn serve_until<F>(
+    options: &ServeOptions,
+    on_ready: impl FnOnce(&Ready),
+    stop: impl FnOnce(Arc<AppState>) -> F,
+) -> Result<(), ServeError>
+where
+    F: std::future::Future<Output = ()> + Send + 'static,
+{
     let state = state(options)?;
     let address = format!("{}:{}", options.host, options.port);
     let bind_error = |message: String| ServeError::Bind {
@@ -279,14 +307,13 @@ pub fn serve(options: &ServeOptions, on_ready: impl FnOnce(&Ready)) -> Result<()
             url: format!("http://{local}/{query}"),
             token,
         });
-        let stop = stop_signals().map_err(|e| bind_error(format!("cannot watch signals: {e}")))?;
-        let stopping = watch_stop(stop, state.clone());
+        let stopping = watch_stop(stop(state.clone()), state.clone());
         let asked = |mut stopping: tokio::sync::watch::Receiver<bool>| async move {
             let _ = stopping.wait_for(|&stop| stop).await;
         };
         let server = axum::serve(listener, app::router(state.clone()))
             .with_graceful_shutdown(asked(stopping.clone()));
-        // After the signal, requests under way are waited for a while.
+        // Once stopping, requests under way are waited for a while.
         let grace = async {
             asked(stopping).await;
             tokio::time::sleep(REQUESTS_GRACE).await;
@@ -302,24 +329,17 @@ pub fn serve(options: &ServeOptions, on_ready: impl FnOnce(&Ready)) -> Result<()
     served
 }
 
-/// Watches `stop` for the server in `state`: at the first signal its jobs
-/// are told to stop and the answer turns true; a second signal removes its
-/// temporary folder and ends the process at once.
+/// Waits for `stop` on behalf of the server in `state`: then its jobs are
+/// told to stop and the answer turns true.
 fn watch_stop(
-    mut stop: tokio::sync::mpsc::Receiver<()>,
+    stop: impl std::future::Future<Output = ()> + Send + 'static,
     state: Arc<AppState>,
 ) -> tokio::sync::watch::Receiver<bool> {
     let (send, receive) = tokio::sync::watch::channel(false);
     tokio::spawn(async move {
-        if stop.recv().await.is_none() {
-            return;
-        }
+        stop.await;
         state.workers.cancel_all();
         let _ = send.send(true);
-        if stop.recv().await.is_some() {
-            let _ = std::fs::remove_dir_all(state.folder.path());
-            std::process::exit(130);
-        }
     });
     receive
 }

@@ -285,6 +285,106 @@ pub fn clicks(
     }
 }
 
+/// What concurrent uploads did to the server.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct UploadStats {
+    /// Uploads sent at once.
+    pub uploads: usize,
+    /// MiB each.
+    pub mib_each: f64,
+    /// Each upload's answer status (0: the request failed).
+    pub statuses: Vec<u16>,
+    /// The server's memory (RSS) before, MiB.
+    pub rss_before_mib: f64,
+    /// Its highest RSS seen while they arrived (sampled every 10 ms), MiB.
+    pub rss_peak_mib: f64,
+    /// Its RSS once they were answered, MiB.
+    pub rss_after_mib: f64,
+    /// Seconds until the last was answered.
+    pub seconds: f64,
+}
+
+/// `count` video uploads of `bytes_each` bytes sent at once, each `head`
+/// (a small video) padded with zeros to its size, written 1 MiB at a time;
+/// `rss` reads the server's memory in MiB, sampled while they arrive.
+pub fn video_uploads(
+    server: &ServerAddress,
+    head: &[u8],
+    count: usize,
+    bytes_each: usize,
+    rss: &(dyn Fn() -> f64 + Sync),
+) -> UploadStats {
+    let rss_before_mib = rss();
+    let started = Instant::now();
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let (statuses, rss_peak_mib) = std::thread::scope(|scope| {
+        let senders: Vec<_> = (0..count)
+            .map(|i| {
+                let done = &done;
+                scope.spawn(move || {
+                    let status = upload_padded(server, &format!("load{i}.mp4"), head, bytes_each)
+                        .unwrap_or(0);
+                    done.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    status
+                })
+            })
+            .collect();
+        let mut peak = rss_before_mib;
+        while done.load(std::sync::atomic::Ordering::Relaxed) < count {
+            peak = peak.max(rss());
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        let statuses: Vec<u16> = senders.into_iter().map(|s| s.join().unwrap_or(0)).collect();
+        (statuses, peak)
+    });
+    UploadStats {
+        uploads: count,
+        mib_each: bytes_each as f64 / (1 << 20) as f64,
+        statuses,
+        rss_before_mib,
+        rss_peak_mib,
+        rss_after_mib: rss(),
+        seconds: started.elapsed().as_secs_f64(),
+    }
+}
+
+/// One video upload named `name`: `head` and zeros up to `bytes` bytes;
+/// the answer's status.
+fn upload_padded(
+    server: &ServerAddress,
+    name: &str,
+    head: &[u8],
+    bytes: usize,
+) -> Result<u16, LoadError> {
+    let fail = |e: std::io::Error| LoadError(format!("upload {name}: {e}"));
+    let mut stream = TcpStream::connect(&server.host).map_err(fail)?;
+    let token = server
+        .token
+        .as_ref()
+        .map(|t| format!("x-matseg-token: {t}\r\n"))
+        .unwrap_or_default();
+    write!(
+        stream,
+        "POST /api/video/upload?name={name} HTTP/1.1\r\nHost: {}\r\n{token}content-type: video/mp4\r\ncontent-length: {bytes}\r\nconnection: close\r\n\r\n",
+        server.host
+    )
+    .map_err(fail)?;
+    stream.write_all(head).map_err(fail)?;
+    let zeros = vec![0u8; 1 << 20];
+    let mut left = bytes.saturating_sub(head.len());
+    while left > 0 {
+        let n = left.min(zeros.len());
+        stream.write_all(&zeros[..n]).map_err(fail)?;
+        left -= n;
+    }
+    let mut line = String::new();
+    BufReader::new(stream).read_line(&mut line).map_err(fail)?;
+    line.split_whitespace()
+        .nth(1)
+        .and_then(|s| s.parse().ok())
+        .ok_or_else(|| LoadError(format!("upload {name}: bad status line {line:?}")))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

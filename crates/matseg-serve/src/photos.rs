@@ -19,7 +19,7 @@ use matseg_eval::cluster::ClusterOptions;
 use matseg_image::descriptor::check_radius;
 use matseg_image::io::{encode_png_grey, encode_png_rgb, read_rgb};
 use matseg_pipeline::segment::{
-    check_points, cluster, describe, query_points, similarity_grey, DEFAULT_RADIUS, MAX_POINTS,
+    check_points, cluster, query_points, similarity_grey, DEFAULT_RADIUS, MAX_POINTS,
 };
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -274,10 +274,7 @@ pub async fn described(
     let photo = photo.clone();
     let described = blocking(move || {
         let image = source.pixels(&state, &photo)?;
-        let map = {
-            let model = state.model.lock();
-            describe(&model, &image)
-        };
+        let map = state.model.describe_click(&image);
         let described = Arc::new(Described { photo: image, map });
         state
             .described

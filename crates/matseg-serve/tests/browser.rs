@@ -23,15 +23,17 @@ use matseg_image::LicenceFilter;
 use matseg_pipeline::sources::{assets_dir, Defaults, Libraries};
 use matseg_scene::{Recipe2d, PALETTE};
 use matseg_serve::load::{Connection, ServerAddress};
-use matseg_serve::{serve, ServeOptions};
+use matseg_serve::{serve_until, ServeOptions};
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 
-/// A started server: where it is and its token.
+/// A started server: where it is and its token; stopped when dropped.
 struct Served {
     /// `http://127.0.0.1:PORT`.
     base: String,
     address: ServerAddress,
+    stop: Option<tokio::sync::oneshot::Sender<()>>,
+    thread: Option<std::thread::JoinHandle<()>>,
 }
 
 impl Served {
@@ -41,6 +43,17 @@ impl Served {
         let join = if path.contains('?') { '&' } else { '?' };
         let token = self.address.token.as_deref().unwrap();
         format!("{}{path}{join}token={token}", self.base)
+    }
+}
+
+impl Drop for Served {
+    fn drop(&mut self) {
+        if let Some(stop) = self.stop.take() {
+            let _ = stop.send(());
+        }
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
     }
 }
 
@@ -54,8 +67,12 @@ fn start_server(data: Vec<PathBuf>, bench: PathBuf) -> Served {
         ..ServeOptions::default()
     };
     let (ready, started) = std::sync::mpsc::channel();
-    std::thread::spawn(move || {
-        serve(&options, |r| ready.send(r.clone()).unwrap()).unwrap();
+    let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+    let thread = std::thread::spawn(move || {
+        let until = |_| async move {
+            let _ = stopped.await;
+        };
+        serve_until(&options, |r| ready.send(r.clone()).unwrap(), until).unwrap();
     });
     let started = started.recv().unwrap();
     assert!(started
@@ -67,6 +84,8 @@ fn start_server(data: Vec<PathBuf>, bench: PathBuf) -> Served {
             host: started.address.to_string(),
             token: started.token,
         },
+        stop: Some(stop),
+        thread: Some(thread),
     }
 }
 
