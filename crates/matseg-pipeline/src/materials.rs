@@ -35,7 +35,8 @@ pub struct LibraryReport {
 /// into `out`, one folder each (`TEXTURE__pbrJ`), skipping complete ones,
 /// on the current rayon pool. Material `j` of texture `i` depends only on
 /// (`seed`, `i`, `j`). Unreadable textures and failed materials are
-/// reported to `progress` and skipped.
+/// reported to `progress` and skipped; textures of which none decodes are
+/// refused before anything is written.
 pub fn make_library(
     textures: &[PathBuf],
     out: &Path,
@@ -48,6 +49,7 @@ pub fn make_library(
     for s in &report.skipped {
         progress.warn(&format!("{}: {}", s.path.display(), s.reason));
     }
+    library.ensure_usable()?;
     std::fs::create_dir_all(out).map_err(|source| MaterialError::Write {
         path: out.to_path_buf(),
         source,

@@ -73,6 +73,13 @@ pub fn make_point_benchmark(
             "--points must be at least 1".into(),
         ));
     }
+    if scenes < 1 {
+        return Err(PipelineError::setting(
+            "scenes",
+            Some(scenes),
+            "a benchmark needs one scene at least",
+        ));
+    }
     let recipe = Recipe2d::default();
     let options = SyntheticOptions {
         points_per_material: points,
@@ -106,6 +113,11 @@ pub fn draw_point_benchmark(
     magnify_below: u32,
 ) -> Result<(usize, usize), PipelineError> {
     let bench = load_point_benchmark(bench, false)?;
+    // Every photo is decoded once before anything is written (and again
+    // to be drawn, one at a time), so an unreadable one leaves nothing.
+    for image in &bench.images {
+        read_rgb(&image.image_path)?;
+    }
     create_folder(out)?;
     let mut points = 0;
     for image in &bench.images {

@@ -69,7 +69,8 @@ pub struct TextureReport {
 /// Extracts the textures of `photos` (files or folders, walked
 /// recursively) into the library `out`, skipping photos an earlier run
 /// finished; files that cannot be read are skipped and listed in the
-/// report.
+/// report, and photos of which none decodes are refused before anything
+/// is written.
 pub fn make_texture_library(
     photos: &[PathBuf],
     out: &Path,
@@ -82,6 +83,7 @@ pub fn make_texture_library(
         ));
     }
     let (library, report) = PhotoLibrary::scan(photos, 0).map_err(SourceError::from)?;
+    library.ensure_usable().map_err(SourceError::from)?;
     let mut unreadable: Vec<String> = report
         .skipped
         .iter()

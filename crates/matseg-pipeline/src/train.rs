@@ -281,6 +281,17 @@ pub fn start(config: &TrainConfig, device: ComputeDevice) -> Result<TrainingRun,
             "already holds a run; resume it (matseg train --resume), or choose another folder",
         ));
     }
+    // The datasets are checked before anything is loaded or written.
+    let datasets = match &config.data {
+        TrainData::Dataset(path) => vec![path],
+        _ => Vec::new(),
+    };
+    for path in datasets
+        .into_iter()
+        .chain(config.mix.iter().map(|m| &m.data))
+    {
+        dataset_source(&path.display().to_string())?;
+    }
     let trainer = Trainer::new(config.run_config()?, torch_device(device));
     for group in &config.lr_scales {
         if !trainer

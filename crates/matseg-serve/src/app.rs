@@ -141,7 +141,34 @@ pub fn router(state: Arc<AppState>) -> Router {
         )
         .merge(api)
         .with_state(state)
+        .layer(middleware::from_fn(json_errors))
         .layer(middleware::from_fn_with_state(access, guard::check))
+}
+
+/// Makes every error answer the API's own kind, `{"error": "one line"}`:
+/// the framework's refusals (a query that does not parse, a body past its
+/// limit, an unknown route or method) come as plain text or nothing.
+async fn json_errors(request: Request, next: Next) -> Response {
+    let response = next.run(request).await;
+    let status = response.status();
+    let is_json = response
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .is_some_and(|kind| kind.as_bytes().starts_with(b"application/json"));
+    if !(status.is_client_error() || status.is_server_error()) || is_json {
+        return response;
+    }
+    let text = axum::body::to_bytes(response.into_body(), 64 << 10)
+        .await
+        .map(|body| String::from_utf8_lossy(&body).into_owned())
+        .unwrap_or_default();
+    let message = text.split_whitespace().collect::<Vec<_>>().join(" ");
+    let message = if message.is_empty() {
+        status.canonical_reason().unwrap_or("refused").to_string()
+    } else {
+        message
+    };
+    ApiError::new(status, message).into_response()
 }
 
 /// `GET /api/status`: what the server holds in memory against its bound,

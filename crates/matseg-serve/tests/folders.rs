@@ -6,12 +6,9 @@
 mod router;
 
 use axum::http::StatusCode;
-use image::{GrayImage, RgbImage};
-use matseg_data::encode::EncodedSample;
 use matseg_eval::Annotation;
-use matseg_image::io::{encode_jpeg, encode_png_grey};
 use matseg_serve::{app::router, state};
-use router::{get, json, options, post};
+use router::{get, json, options, post, sample};
 use std::path::Path;
 use std::time::{Duration, Instant};
 
@@ -30,26 +27,6 @@ async fn get_json(app: &axum::Router, uri: &str) -> serde_json::Value {
 async fn post_json(app: &axum::Router, uri: &str, body: &str) -> (StatusCode, serde_json::Value) {
     let (status, _, body) = post(app, uri, body.to_string()).await;
     (status, json(&body))
-}
-
-/// Sample `index`: a 32 x 24 image, mask 0 a ramp left to right, mask 1
-/// its complement.
-fn sample(index: u64) -> EncodedSample {
-    let ramp = GrayImage::from_fn(32, 24, |x, _| image::Luma([(x * 8) as u8]));
-    let rest = GrayImage::from_fn(32, 24, |x, _| image::Luma([255 - (x * 8) as u8]));
-    let image = RgbImage::from_fn(32, 24, |x, y| {
-        image::Rgb([x as u8 * 8, y as u8 * 10, index as u8])
-    });
-    EncodedSample {
-        index,
-        jpg: encode_jpeg(&image, 90),
-        masks: vec![
-            encode_png_grey(32, 24, ramp.as_raw()),
-            encode_png_grey(32, 24, rest.as_raw()),
-        ],
-        roi: encode_png_grey(32, 24, &[255; 32 * 24]),
-        json: format!("{{\"seed\": 7, \"index\": {index}}}").into_bytes(),
-    }
 }
 
 fn png(bytes: &[u8]) -> image::DynamicImage {

@@ -9,25 +9,10 @@ mod ffmpeg;
 mod router;
 
 use axum::http::StatusCode;
-use ffmpeg::run_ffmpeg;
+use ffmpeg::write_test_pattern;
 use matseg_serve::{app::router, state};
 use router::{error_of, get, json, options, post};
-use std::ffi::OsStr;
-use std::path::Path;
 use std::time::{Duration, Instant};
-
-/// FFmpeg's test pattern, 160x120, 6 frames, lossless (FFV1 in MKV).
-fn write_test_pattern(file: &Path) {
-    let pattern = ["-f", "lavfi", "-i", "testsrc=size=160x120:rate=10"];
-    let output = ["-frames:v", "6", "-c:v", "ffv1"].map(OsStr::new);
-    run_ffmpeg(
-        pattern
-            .map(OsStr::new)
-            .into_iter()
-            .chain(output)
-            .chain([file.as_os_str()]),
-    );
-}
 
 #[tokio::test(flavor = "multi_thread")]
 async fn a_video_is_tracked_and_its_labels_served() {

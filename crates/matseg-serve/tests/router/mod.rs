@@ -7,6 +7,9 @@
 
 use axum::body::Body;
 use axum::http::{Request, StatusCode};
+use image::{GrayImage, RgbImage};
+use matseg_data::encode::EncodedSample;
+use matseg_image::io::{encode_jpeg, encode_png_grey};
 use matseg_serve::{ServeOptions, TokenChoice};
 use std::path::PathBuf;
 use tower::ServiceExt;
@@ -91,4 +94,24 @@ pub fn json(body: &[u8]) -> serde_json::Value {
 /// The one-line error of a refused request.
 pub fn error_of(body: &[u8]) -> String {
     json(body)["error"].as_str().unwrap().to_string()
+}
+
+/// Sample `index`: a 32 x 24 image, mask 0 a ramp left to right, mask 1
+/// its complement.
+pub fn sample(index: u64) -> EncodedSample {
+    let ramp = GrayImage::from_fn(32, 24, |x, _| image::Luma([(x * 8) as u8]));
+    let rest = GrayImage::from_fn(32, 24, |x, _| image::Luma([255 - (x * 8) as u8]));
+    let image = RgbImage::from_fn(32, 24, |x, y| {
+        image::Rgb([x as u8 * 8, y as u8 * 10, index as u8])
+    });
+    EncodedSample {
+        index,
+        jpg: encode_jpeg(&image, 90),
+        masks: vec![
+            encode_png_grey(32, 24, ramp.as_raw()),
+            encode_png_grey(32, 24, rest.as_raw()),
+        ],
+        roi: encode_png_grey(32, 24, &[255; 32 * 24]),
+        json: format!("{{\"seed\": 7, \"index\": {index}}}").into_bytes(),
+    }
 }

@@ -1,0 +1,244 @@
+//! Hostile requests to every route of the API, through the router on the
+//! shipped model: missing, malformed, out-of-range and huge parameters,
+//! paths that leave the served folders, and empty, foreign, truncated and
+//! oversized uploads. Each must be refused with a 4xx status and a
+//! one-line JSON error, never a panic or a 5xx; nothing refused is kept;
+//! and the server goes on answering.
+
+mod ffmpeg;
+mod router;
+
+use axum::body::Body;
+use axum::http::{Method, Request, StatusCode};
+use ffmpeg::write_test_pattern;
+use matseg_serve::{app::router, state};
+use router::{options, sample, send};
+
+/// A request, and the status it must get.
+struct Hostile {
+    method: Method,
+    uri: String,
+    body: Vec<u8>,
+    status: StatusCode,
+}
+
+fn get(uri: impl Into<String>, status: StatusCode) -> Hostile {
+    Hostile {
+        method: Method::GET,
+        uri: uri.into(),
+        body: Vec::new(),
+        status,
+    }
+}
+
+fn post(uri: impl Into<String>, body: impl Into<Vec<u8>>, status: StatusCode) -> Hostile {
+    Hostile {
+        method: Method::POST,
+        uri: uri.into(),
+        body: body.into(),
+        status,
+    }
+}
+
+fn delete(uri: impl Into<String>, status: StatusCode) -> Hostile {
+    Hostile {
+        method: Method::DELETE,
+        uri: uri.into(),
+        body: Vec::new(),
+        status,
+    }
+}
+
+/// A black PNG of 42 megapixels (a few hundred KB), over the 40 an
+/// upload may have.
+fn huge_png() -> Vec<u8> {
+    matseg_image::io::encode_png_grey(7000, 6000, &vec![0; 7000 * 6000])
+}
+
+fn requests(coffee: &[u8]) -> Vec<Hostile> {
+    use StatusCode as S;
+    let photo = "root=photos&path=coffee.jpg";
+    let clip = "root=data1&path=clip.mkv";
+    let many = vec!["1,1"; 300].join(";");
+    let mut list = vec![
+        // The photo list and photos.
+        get("/api/photos?offset=-1", S::BAD_REQUEST),
+        get("/api/photos?limit=lots", S::BAD_REQUEST),
+        get("/api/photos?offset=99999999999999999999999", S::BAD_REQUEST),
+        get("/api/photo", S::BAD_REQUEST),
+        get("/api/photo?root=photos&path=../../../etc/passwd", S::FORBIDDEN),
+        get("/api/photo?root=photos&path=%2e%2e%2f%2e%2e%2fLICENSE", S::FORBIDDEN),
+        get("/api/photo?root=photos&path=/etc/passwd", S::FORBIDDEN),
+        get("/api/photo?root=nowhere&path=a.jpg", S::NOT_FOUND),
+        get("/api/photo?root=upload&path=0123456789abcdef.png", S::NOT_FOUND),
+        get("/api/photo?root=data0&path=sample/99999", S::NOT_FOUND),
+        get("/api/photo?root=data0&path=sample/x", S::BAD_REQUEST),
+        // Clicks: points and radii.
+        get(format!("/api/similarity?{photo}"), S::BAD_REQUEST),
+        get(format!("/api/similarity?{photo}&points="), S::BAD_REQUEST),
+        get(format!("/api/similarity?{photo}&points=a,b"), S::BAD_REQUEST),
+        get(format!("/api/similarity?{photo}&points=1;2"), S::BAD_REQUEST),
+        get(format!("/api/similarity?{photo}&points={many}"), S::BAD_REQUEST),
+        get(format!("/api/similarity?{photo}&points=9999,1"), S::BAD_REQUEST),
+        get(format!("/api/similarity?{photo}&points=-1,5"), S::BAD_REQUEST),
+        get(format!("/api/similarity?{photo}&points=NaN,5"), S::BAD_REQUEST),
+        get(format!("/api/similarity?{photo}&points=5,5&radius=-1"), S::BAD_REQUEST),
+        get(format!("/api/similarity?{photo}&points=5,5&radius=NaN"), S::BAD_REQUEST),
+        get(format!("/api/similarity?{photo}&points=5,5&radius=1e9"), S::BAD_REQUEST),
+        get(format!("/api/similarity?{photo}&points=5,5&radius=big"), S::BAD_REQUEST),
+        get(format!("/api/segment?{photo}&points=5,5"), S::BAD_REQUEST),
+        get(format!("/api/auto?{photo}&k=0"), S::BAD_REQUEST),
+        get(format!("/api/auto?{photo}&k=21"), S::BAD_REQUEST),
+        get(format!("/api/auto?{photo}&k=-3"), S::BAD_REQUEST),
+        get(format!("/api/auto?{photo}"), S::BAD_REQUEST),
+        // Uploads: empty, foreign, cut short, huge, too large.
+        post("/api/upload?name=empty.jpg", Vec::new(), S::BAD_REQUEST),
+        post("/api/upload?name=notes.jpg", b"not a photo".to_vec(), S::BAD_REQUEST),
+        post("/api/upload?name=cut.jpg", coffee[..coffee.len() / 2].to_vec(), S::BAD_REQUEST),
+        post("/api/upload?name=huge.png", huge_png(), S::PAYLOAD_TOO_LARGE),
+        post("/api/upload?name=big.jpg", vec![0xFF; (32 << 20) + 1], S::PAYLOAD_TOO_LARGE),
+        // Datasets.
+        get("/api/samples?root=nowhere", S::NOT_FOUND),
+        get("/api/samples?root=data0&offset=x", S::BAD_REQUEST),
+        get("/api/sample?root=data0&index=99999", S::NOT_FOUND),
+        get("/api/sample?root=data0&index=-1", S::BAD_REQUEST),
+        get("/api/sample/image?root=data0&index=0&part=secrets", S::BAD_REQUEST),
+        get("/api/sample/image?root=data0&index=0&part=mask&mask=99", S::NOT_FOUND),
+        // Annotations.
+        get("/api/annotation?root=bench0&name=../../etc/passwd", S::NOT_FOUND),
+        get("/api/annotation?root=nowhere&name=coffee", S::NOT_FOUND),
+        post("/api/annotation?root=bench0&name=coffee", b"{not json".to_vec(), S::BAD_REQUEST),
+        post("/api/annotation?root=bench0&name=coffee", b"".to_vec(), S::BAD_REQUEST),
+        post(
+            "/api/annotation?root=bench0&name=coffee",
+            br#"{"groups": [{"id": "1", "points": [[9999, 1, 5]]}], "relations": []}"#.to_vec(),
+            S::BAD_REQUEST,
+        ),
+        post(
+            "/api/annotation?root=bench0&name=coffee",
+            br#"{"groups": [{"id": "1", "points": [[5, 5, 1e9]]}], "relations": []}"#.to_vec(),
+            S::BAD_REQUEST,
+        ),
+        post(
+            "/api/annotation?root=bench0&name=coffee",
+            br#"{"groups": [{"id": "1", "points": [[5, 5, 5]]}, {"id": "1", "points": [[6, 6, 5]]}], "relations": []}"#.to_vec(),
+            S::BAD_REQUEST,
+        ),
+        post(
+            "/api/annotation?root=bench0&name=coffee",
+            vec![b' '; 3 << 20],
+            S::PAYLOAD_TOO_LARGE,
+        ),
+        // Evaluations.
+        post("/api/evaluate?root=nowhere", Vec::new(), S::NOT_FOUND),
+        post("/api/evaluate?root=bench0&baselines=nope", Vec::new(), S::BAD_REQUEST),
+        get("/api/evaluate?root=nowhere", S::NOT_FOUND),
+        delete("/api/evaluate?root=nowhere", S::NOT_FOUND),
+        // Videos and tracks.
+        get("/api/video?root=data1&path=missing.mp4", S::NOT_FOUND),
+        get(format!("/api/video?{photo}"), S::BAD_REQUEST),
+        get(format!("/api/video/frame?{clip}&frame=999999"), S::BAD_REQUEST),
+        get(format!("/api/video/frame?{clip}&frame=-1"), S::BAD_REQUEST),
+        post("/api/video/upload?name=empty.mp4", Vec::new(), S::BAD_REQUEST),
+        post("/api/video/upload?name=notes.mp4", b"not a video".to_vec(), S::BAD_REQUEST),
+        post("/api/video/upload?name=notes.txt", b"not a video".to_vec(), S::BAD_REQUEST),
+        post("/api/video/upload", b"no name".to_vec(), S::BAD_REQUEST),
+        post(format!("/api/track?{clip}&points="), Vec::new(), S::BAD_REQUEST),
+        post(format!("/api/track?{clip}&points={many}"), Vec::new(), S::BAD_REQUEST),
+        post(format!("/api/track?{clip}&points=500,5"), Vec::new(), S::BAD_REQUEST),
+        post(format!("/api/track?{clip}&points=5,5&frame=6"), Vec::new(), S::BAD_REQUEST),
+        post(format!("/api/track?{clip}&points=5,5&radius=-1"), Vec::new(), S::BAD_REQUEST),
+        post(format!("/api/track?{clip}&points=5,5&radius=NaN"), Vec::new(), S::BAD_REQUEST),
+        get("/api/track?job=999", S::NOT_FOUND),
+        get("/api/track?job=x", S::BAD_REQUEST),
+        delete("/api/track?job=999", S::NOT_FOUND),
+        get("/api/track/frame?job=999&frame=0", S::NOT_FOUND),
+        get("/api/track/frame?job=1&frame=0&part=secrets", S::BAD_REQUEST),
+        get("/api/track/download?job=999", S::NOT_FOUND),
+        // No such route or method.
+        get("/api/nothing", S::NOT_FOUND),
+        delete("/api/photos", S::METHOD_NOT_ALLOWED),
+    ];
+    list.push(get("/nothing.js", S::NOT_FOUND));
+    list
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn every_hostile_request_is_refused_in_one_line_and_nothing_is_kept() {
+    let data = tempfile::tempdir().unwrap();
+    matseg_data::folders::write_sample(data.path(), &sample(0)).unwrap();
+    let videos = tempfile::tempdir().unwrap();
+    write_test_pattern(&videos.path().join("clip.mkv"));
+    let bench = tempfile::tempdir().unwrap();
+    std::fs::create_dir(bench.path().join("images")).unwrap();
+    let photos = matseg_pipeline::sources::assets_dir().join("photos");
+    std::fs::copy(
+        photos.join("coffee.jpg"),
+        bench.path().join("images/coffee.jpg"),
+    )
+    .unwrap();
+    let coffee = std::fs::read(photos.join("coffee.jpg")).unwrap();
+    let served = options(
+        vec![data.path().into(), videos.path().into()],
+        vec![bench.path().into()],
+    );
+    let app_state = state(&served).unwrap();
+    let app = router(app_state.clone());
+
+    let mut wrong = Vec::new();
+    let all = requests(&coffee);
+    for hostile in &all {
+        let kind = if hostile.uri.contains("/upload") {
+            "application/octet-stream"
+        } else {
+            "application/json"
+        };
+        let request = Request::builder()
+            .method(hostile.method.clone())
+            .uri(&hostile.uri)
+            .header("content-type", kind)
+            .body(Body::from(hostile.body.clone()))
+            .unwrap();
+        let (status, content, body) = send(&app, request).await;
+        let text = String::from_utf8_lossy(&body);
+        let error = serde_json::from_slice::<serde_json::Value>(&body)
+            .ok()
+            .and_then(|v| v["error"].as_str().map(str::to_string));
+        let shown: String = hostile.uri.chars().take(90).collect();
+        match error {
+            _ if status != hostile.status => wrong.push(format!(
+                "{} {shown}: {status}, not {}: {text}",
+                hostile.method, hostile.status
+            )),
+            Some(e) if content == "application/json" && !e.is_empty() && !e.contains('\n') => {}
+            _ => wrong.push(format!(
+                "{} {shown}: not a one-line JSON error: {text}",
+                hostile.method
+            )),
+        }
+    }
+    assert!(
+        wrong.is_empty(),
+        "{} of {} hostile requests were not refused as they should be:\n{}",
+        wrong.len(),
+        all.len(),
+        wrong.join("\n")
+    );
+    // Nothing refused is kept; nothing is running; the server goes on.
+    let kept: Vec<_> = std::fs::read_dir(app_state.folder.path().join("uploads"))
+        .unwrap()
+        .collect();
+    assert!(kept.is_empty(), "{kept:?}");
+    assert!(!bench.path().join("data").exists(), "no annotation saved");
+    let (status, _, body) = router::get(&app, "/api/evaluate?root=bench0").await;
+    assert_eq!(
+        (status, router::json(&body)["state"].clone()),
+        (StatusCode::OK, "idle".into())
+    );
+    let (status, _, _) = router::get(
+        &app,
+        "/api/similarity?root=photos&path=coffee.jpg&points=5,5",
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK);
+}
