@@ -34,6 +34,11 @@ pub const MAX_VIDEO_UPLOAD_BYTES: u64 = 512 << 20;
 /// Finished tracking jobs kept on disk (older ones are removed).
 pub const KEPT_TRACKS: usize = 2;
 
+/// The most frames a track of the web app follows (5 minutes at 30 frames
+/// a second): its folder keeps every frame as a JPEG, so this bounds the
+/// disk a track takes (a few GB at 1080p).
+pub const MAX_TRACK_FRAMES: u64 = 9000;
+
 /// The root name of uploaded videos.
 pub const VIDEO_UPLOAD_ROOT: &str = "upload";
 
@@ -276,6 +281,11 @@ pub async fn start(
     };
     check_points(&points, source.width, source.height, &name)?;
     let frames = source.frame_count();
+    if frames > MAX_TRACK_FRAMES {
+        return Err(ApiError::bad(format!(
+            "{name}: {frames} frames; the web app tracks videos of up to {MAX_TRACK_FRAMES} frames (`matseg track` has no limit)"
+        )));
+    }
     if query.frame >= frames {
         return Err(ApiError::bad(format!(
             "frame {}: past the end: {name} has {frames} frames",

@@ -9,7 +9,7 @@ mod ffmpeg;
 mod router;
 
 use axum::http::StatusCode;
-use ffmpeg::write_test_pattern;
+use ffmpeg::{run_ffmpeg, write_test_pattern};
 use matseg_serve::{app::router, state};
 use router::{error_of, get, json, options, post};
 use std::time::{Duration, Instant};
@@ -164,6 +164,30 @@ async fn a_video_is_tracked_and_its_labels_served() {
         error_of(&body).starts_with("broken.mp4: not a readable video"),
         "{}",
         error_of(&body)
+    );
+    // A video whose stream has no frame is no video to click on.
+    let empty = videos.path().join("empty.avi");
+    run_ffmpeg([
+        "-f",
+        "lavfi",
+        "-i",
+        "testsrc=size=64x48:rate=10",
+        "-t",
+        "0",
+        "-c:v",
+        "libx264",
+        empty.to_str().unwrap(),
+    ]);
+    let (status, _, body) = post(
+        &app,
+        "/api/video/upload?name=empty.avi",
+        std::fs::read(&empty).unwrap(),
+    )
+    .await;
+    assert_eq!(status, StatusCode::BAD_REQUEST);
+    assert_eq!(
+        error_of(&body),
+        "empty.avi: not a video: its video stream has no frames"
     );
     let bytes = std::fs::read(videos.path().join("clip.mkv")).unwrap();
     let (status, _, body) = post(&app, "/api/video/upload?name=notes.txt", bytes.clone()).await;
