@@ -5,6 +5,7 @@ use matseg_image::descriptor::check_radius;
 
 /// A point `X,Y` in pixels (a negative coordinate is taken as a value, and
 /// refused later as outside the photo, rather than as an unknown option).
+#[cfg(feature = "net")]
 pub fn parse_point(s: &str) -> Result<(f32, f32), String> {
     let (x, y) = s
         .split_once(',')
@@ -32,13 +33,18 @@ pub fn parse_radius(s: &str) -> Result<f32, String> {
 mod tests {
     use super::*;
 
+    #[cfg(feature = "net")]
     #[test]
-    fn points_and_radii_are_checked() {
+    fn points_are_two_finite_numbers() {
         assert_eq!(parse_point("3,4.5"), Ok((3.0, 4.5)));
         assert_eq!(parse_point(" -5 , 10"), Ok((-5.0, 10.0)));
         for bad in ["3", "a,b", "NaN,1", "1,inf", ""] {
             assert!(parse_point(bad).is_err(), "{bad}");
         }
+    }
+
+    #[test]
+    fn radii_are_checked() {
         assert_eq!(parse_radius("5"), Ok(5.0));
         assert_eq!(parse_radius("0"), Ok(0.0));
         for bad in ["-1", "NaN", "1e9", "inf", "five"] {

@@ -13,39 +13,23 @@
 //! loads into the weights its relations give; moved off the image, or
 //! with a group repeated or a relation naming no group, it fails `check`.
 
+#[path = "../../../testing/properties.rs"]
+mod support;
+
 use image::RgbImage;
 use matseg_eval::annotation::{DATA_FILE, RELATIONS_FILE};
 use matseg_eval::points::{ROUND_RELATION, SQUARE_RELATION};
 use matseg_eval::{load_point_benchmark, Annotation, AnnotationProblem, Group, Relation};
 use matseg_image::descriptor::MAX_RADIUS;
 use proptest::prelude::*;
-use proptest::test_runner::RngSeed;
 use serde_json::Value;
 use std::path::Path;
 
 /// The seed of the cases.
 const SEED: u64 = 2;
 
-/// 64 cases from a fixed seed, the same every run so that a failure
-/// repeats, unless `PROPTEST_CASES` or `PROPTEST_RNG_SEED` ask for others
-/// (a longer search); no files of failures written into the source tree.
 fn config() -> ProptestConfig {
-    let default = ProptestConfig::default();
-    let set = |name: &str| std::env::var_os(name).is_some();
-    ProptestConfig {
-        cases: if set("PROPTEST_CASES") {
-            default.cases
-        } else {
-            64
-        },
-        rng_seed: if set("PROPTEST_RNG_SEED") {
-            default.rng_seed
-        } else {
-            RngSeed::Fixed(SEED)
-        },
-        failure_persistence: None,
-        ..default
-    }
+    support::config(SEED)
 }
 
 // ---------------------------------------------------------------- inputs

@@ -34,7 +34,8 @@ pub struct PointEvaluation {
 /// Scores each of `models` on the point benchmark in `dir`, its images
 /// resized to a longer side of `max_side`; with `skip_bad`, malformed
 /// images are left out (and listed) instead of failing. `progress` counts
-/// the images scored, of every model; cancelled, it stops the scoring.
+/// the images scored, of every model, and is told which model is scored;
+/// cancelled, it stops the scoring.
 pub fn score_point_benchmark(
     dir: &Path,
     models: &[Box<dyn DescriptorModel>],
@@ -46,7 +47,11 @@ pub fn score_point_benchmark(
     progress.start((models.len() * bench.images.len()) as u64, "images");
     let reports = models
         .iter()
-        .map(|m| evaluate_points(m.as_ref(), &bench, max_side, progress))
+        .enumerate()
+        .map(|(i, m)| {
+            progress.status(&format!("{} ({} of {})", m.name(), i + 1, models.len()));
+            evaluate_points(m.as_ref(), &bench, max_side, progress)
+        })
         .collect::<Result<Vec<_>, _>>()?;
     progress.finish();
     Ok(PointEvaluation {

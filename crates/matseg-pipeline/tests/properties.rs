@@ -13,10 +13,12 @@
 //! `0/0` when unknown) gives that rate, or 25 when there is none. FFmpeg
 //! itself is not tested here.
 
+#[path = "../../../testing/properties.rs"]
+mod support;
+
 use image::RgbImage;
 use matseg_pipeline::frames::FrameSource;
 use proptest::prelude::*;
-use proptest::test_runner::RngSeed;
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
@@ -24,26 +26,8 @@ use std::sync::OnceLock;
 /// The seed of the cases.
 const SEED: u64 = 6;
 
-/// 64 cases from a fixed seed, the same every run so that a failure
-/// repeats, unless `PROPTEST_CASES` or `PROPTEST_RNG_SEED` ask for others
-/// (a longer search); no files of failures written into the source tree.
 fn config() -> ProptestConfig {
-    let default = ProptestConfig::default();
-    let set = |name: &str| std::env::var_os(name).is_some();
-    ProptestConfig {
-        cases: if set("PROPTEST_CASES") {
-            default.cases
-        } else {
-            64
-        },
-        rng_seed: if set("PROPTEST_RNG_SEED") {
-            default.rng_seed
-        } else {
-            RngSeed::Fixed(SEED)
-        },
-        failure_persistence: None,
-        ..default
-    }
+    support::config(SEED)
 }
 
 /// Points `MATSEG_FFMPEG` at a folder whose `ffprobe` prints its last

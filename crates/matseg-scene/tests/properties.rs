@@ -8,34 +8,18 @@
 //! naming the file, never a panic. A default recipe or path written as
 //! TOML reads back the same, and so does any recipe a changed file gives.
 
+#[path = "../../../testing/properties.rs"]
+mod support;
+
 use matseg_scene::{CameraPath, Recipe2d, Recipe3d, RecipeError};
 use proptest::prelude::*;
-use proptest::test_runner::RngSeed;
 use std::path::Path;
 
 /// The seed of the cases.
 const SEED: u64 = 3;
 
-/// 64 cases from a fixed seed, the same every run so that a failure
-/// repeats, unless `PROPTEST_CASES` or `PROPTEST_RNG_SEED` ask for others
-/// (a longer search); no files of failures written into the source tree.
 fn config() -> ProptestConfig {
-    let default = ProptestConfig::default();
-    let set = |name: &str| std::env::var_os(name).is_some();
-    ProptestConfig {
-        cases: if set("PROPTEST_CASES") {
-            default.cases
-        } else {
-            64
-        },
-        rng_seed: if set("PROPTEST_RNG_SEED") {
-            default.rng_seed
-        } else {
-            RngSeed::Fixed(SEED)
-        },
-        failure_persistence: None,
-        ..default
-    }
+    support::config(SEED)
 }
 
 /// The three kinds of file, read from a path.

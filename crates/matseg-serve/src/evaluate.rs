@@ -15,6 +15,7 @@ use axum::http::StatusCode;
 use axum::Json;
 use matseg_eval::evaluate::DEFAULT_MAX_SIDE;
 use matseg_image::descriptor::{Comparison, DescriptorMap, DescriptorModel};
+use matseg_image::progress::Progress;
 use matseg_pipeline::models::{baselines, known_baselines, ModelChoice};
 use matseg_pipeline::point_bench::score_point_benchmark;
 use serde::Deserialize;
@@ -30,6 +31,8 @@ pub enum Evaluation {
     Done(serde_json::Value),
     /// Failed: why.
     Failed(String),
+    /// Stopped at the page's request (or the server's stop).
+    Cancelled,
 }
 
 /// Evaluations by benchmark root.
@@ -85,10 +88,13 @@ pub async fn start(
     state
         .workers
         .spawn(&format!("evaluate {root}"), progress.clone(), move || {
-            let done = finished(&folder, || {
+            let mut done = finished(&folder, || {
                 run_in_background(|| run(&folder, &choice, worker.clone(), job_progress.as_ref()))
                     .unwrap_or_else(|e| Err(EvaluationError::Background(e.to_string())))
             });
+            if matches!(done, Evaluation::Failed(_)) && job_progress.cancelled() {
+                done = Evaluation::Cancelled;
+            }
             release_freed_memory();
             matseg_image::sync::lock(&worker.evaluations).insert(root, done);
         })
@@ -98,7 +104,7 @@ pub async fn start(
 }
 
 /// `DELETE /api/evaluate?root=R`: stops the benchmark's running
-/// evaluation (it ends as failed, "cancelled").
+/// evaluation (it ends as `cancelled`).
 pub async fn cancel(
     State(state): State<Arc<AppState>>,
     Query(query): Query<StatusQuery>,
@@ -202,9 +208,9 @@ pub struct StatusQuery {
 }
 
 /// `GET /api/evaluate`: where the benchmark's evaluation stands: `idle`,
-/// `running` (with the seconds so far and the images done of the total,
-/// every model's images counted), `done` (with the report) or `failed`
-/// (with the error).
+/// `running` (with the seconds so far, the model being scored, and the
+/// images done of the total, every model's images counted), `done` (with
+/// the report), `failed` (with the error) or `cancelled`.
 pub async fn status(
     State(state): State<Arc<AppState>>,
     Query(query): Query<StatusQuery>,
@@ -218,10 +224,12 @@ pub async fn status(
             serde_json::json!({
                 "state": "running",
                 "seconds": since.elapsed().as_secs_f64(),
+                "model": progress.doing(),
                 "done": done,
                 "total": total,
             })
         }
+        Some(Evaluation::Cancelled) => serde_json::json!({ "state": "cancelled" }),
         Some(Evaluation::Done(report)) => serde_json::json!({ "state": "done", "report": report }),
         Some(Evaluation::Failed(error)) => serde_json::json!({ "state": "failed", "error": error }),
     }))

@@ -15,6 +15,8 @@ use std::time::{Duration, Instant};
 pub struct JobProgress {
     done: AtomicU64,
     total: AtomicU64,
+    /// What the job is doing now (e.g. the model being scored).
+    doing: Mutex<String>,
     cancel: AtomicBool,
 }
 
@@ -25,6 +27,11 @@ impl JobProgress {
             self.done.load(Ordering::Relaxed),
             self.total.load(Ordering::Relaxed),
         )
+    }
+
+    /// What the job says it is doing now (empty until it says).
+    pub fn doing(&self) -> String {
+        matseg_image::sync::lock(&self.doing).clone()
     }
 
     /// Asks the job to stop at its next step.
@@ -42,6 +49,9 @@ impl Progress for JobProgress {
     }
     fn advance_by(&self, steps: u64) {
         self.done.fetch_add(steps, Ordering::Relaxed);
+    }
+    fn status(&self, message: &str) {
+        *matseg_image::sync::lock(&self.doing) = message.to_string();
     }
     fn finish(&self) {}
     fn warn(&self, _message: &str) {}
@@ -188,6 +198,8 @@ mod tests {
         progress.advance();
         progress.advance_by(2);
         assert_eq!(progress.counts(), (3, 10));
+        progress.status("default (2 of 2)");
+        assert_eq!(progress.doing(), "default (2 of 2)");
         assert!(!progress.cancelled());
         progress.cancel();
         assert!(progress.cancelled());

@@ -123,6 +123,13 @@ impl Source {
             return Ok((format!("{}/{index}", photo.root), Source::Sample(index)));
         }
         let file = state.roots.resolve(&photo.root, &photo.path)?;
+        if !matseg_image::io::has_extension(&file, &PHOTO_EXTENSIONS) {
+            return Err(ApiError::bad(format!(
+                "{}: not a photo ({})",
+                photo.path,
+                PHOTO_EXTENSIONS.join(", ")
+            )));
+        }
         Ok((
             format!("{}/{}", photo.root, file.display()),
             Source::File(file),

@@ -147,6 +147,7 @@ fn every_page_works_in_a_real_browser() {
     );
     let mut browser = Browser::start(1280, 800);
 
+    without_the_token(&mut browser, &server);
     segment_page(&mut browser, &server);
     browse_page(&mut browser, &server);
     annotate_page(&mut browser, &server, bench.path());
@@ -308,6 +309,46 @@ fn video_page(browser: &mut Browser, server: &Served) {
         "document.getElementById('status').textContent.startsWith('broken.mp4: not a readable video')",
     );
     assert!(http_get(server, "/api/videos").starts_with(b"{"));
+}
+
+/// A page opened without the token (a fresh browser, the bare address)
+/// says what to do, and takes the printed address.
+fn without_the_token(browser: &mut Browser, server: &Served) {
+    browser.open(
+        &format!("{}/evaluate", server.base),
+        "document.getElementById('access') !== null",
+    );
+    let said = browser.eval("document.querySelector('#access p').textContent");
+    assert!(
+        said.as_str()
+            .unwrap()
+            .contains("open the address `matseg serve` printed"),
+        "{said}"
+    );
+    // Another site's link cannot plant a token: one the server refuses is
+    // not kept.
+    browser.open(
+        &format!("{}/evaluate?token=planted", server.base),
+        "document.getElementById('access') !== null",
+    );
+    assert_eq!(
+        browser.eval("localStorage.getItem('matseg-token')"),
+        serde_json::Value::Null
+    );
+    browser.eval(&format!(
+        "document.querySelector('#access input').value = {:?}",
+        server.page("/")
+    ));
+    browser.click("#access button");
+    browser.wait_for("document.querySelector('#access p').textContent.startsWith('Kept.')");
+    browser.open(
+        &format!("{}/evaluate", server.base),
+        "document.querySelectorAll('#baselines input').length > 0",
+    );
+    assert_eq!(
+        browser.eval("document.getElementById('access')"),
+        serde_json::Value::Null
+    );
 }
 
 fn segment_page(browser: &mut Browser, server: &Served) {

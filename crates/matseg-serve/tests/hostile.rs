@@ -70,6 +70,7 @@ fn requests(coffee: &[u8]) -> Vec<Hostile> {
         get("/api/photo?root=photos&path=%2e%2e%2f%2e%2e%2fLICENSE", S::FORBIDDEN),
         get("/api/photo?root=photos&path=/etc/passwd", S::FORBIDDEN),
         get("/api/photo?root=nowhere&path=a.jpg", S::NOT_FOUND),
+        get("/api/photo?root=photos&path=licenses.json", S::BAD_REQUEST),
         get("/api/photo?root=upload&path=0123456789abcdef.png", S::NOT_FOUND),
         get("/api/photo?root=data0&path=sample/99999", S::NOT_FOUND),
         get("/api/photo?root=data0&path=sample/x", S::BAD_REQUEST),

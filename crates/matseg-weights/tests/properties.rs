@@ -11,6 +11,9 @@
 //! made. Valid files, written by this crate or byte by byte as `torch.save`
 //! lays them out, read back to what was written.
 
+#[path = "../../../testing/properties.rs"]
+mod support;
+
 use matseg_weights::fixtures::{floats, legacy, zipped, Storage, View};
 use matseg_weights::pickle::read_pickle;
 use matseg_weights::zip::{write_stored, ZipArchive, ZipFile};
@@ -18,68 +21,9 @@ use matseg_weights::{
     read_checkpoint, read_safetensors, read_safetensors_metadata, write_safetensors, DType, Tensor,
 };
 use proptest::prelude::*;
-use proptest::test_runner::RngSeed;
 use serde_json::{json, Value};
 use std::collections::{BTreeMap, BTreeSet};
-
-/// Counts the bytes each thread holds, to bound what a read allocates.
-mod allocations {
-    use std::alloc::{GlobalAlloc, Layout, System};
-    use std::cell::Cell;
-
-    /// The system allocator, counting what each thread holds.
-    pub struct Counting;
-
-    thread_local! {
-        static HELD: Cell<isize> = const { Cell::new(0) };
-        static PEAK: Cell<isize> = const { Cell::new(0) };
-    }
-
-    fn add(bytes: isize) {
-        let _ = HELD.try_with(|held| {
-            let now = held.get().saturating_add(bytes);
-            held.set(now);
-            let _ = PEAK.try_with(|peak| peak.set(peak.get().max(now)));
-        });
-    }
-
-    fn size(bytes: usize) -> isize {
-        isize::try_from(bytes).unwrap_or(isize::MAX)
-    }
-
-    // SAFETY: every call is passed on to the system allocator unchanged.
-    unsafe impl GlobalAlloc for Counting {
-        unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-            add(size(layout.size()));
-            unsafe { System.alloc(layout) }
-        }
-
-        unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-            add(size(layout.size()));
-            unsafe { System.alloc_zeroed(layout) }
-        }
-
-        unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-            add(-size(layout.size()));
-            unsafe { System.dealloc(ptr, layout) }
-        }
-
-        unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-            add(size(new_size) - size(layout.size()));
-            unsafe { System.realloc(ptr, layout, new_size) }
-        }
-    }
-
-    /// What `f` returns, and the most bytes this thread held at once while
-    /// it ran beyond what it held before.
-    pub fn peak<T>(f: impl FnOnce() -> T) -> (T, usize) {
-        let start = HELD.with(Cell::get);
-        PEAK.with(|p| p.set(start));
-        let out = f();
-        let peak = PEAK.with(Cell::get);
-        (out, (peak - start).max(0) as usize)
-    }
-}
+use support::allocations;
 
 #[global_allocator]
 static ALLOCATOR: allocations::Counting = allocations::Counting;
@@ -100,26 +44,8 @@ fn pickle_budget(len: usize) -> usize {
 /// The seed of the cases.
 const SEED: u64 = 1;
 
-/// 64 cases from a fixed seed, the same every run so that a failure
-/// repeats, unless `PROPTEST_CASES` or `PROPTEST_RNG_SEED` ask for others
-/// (a longer search); no files of failures written into the source tree.
 fn config() -> ProptestConfig {
-    let default = ProptestConfig::default();
-    let set = |name: &str| std::env::var_os(name).is_some();
-    ProptestConfig {
-        cases: if set("PROPTEST_CASES") {
-            default.cases
-        } else {
-            64
-        },
-        rng_seed: if set("PROPTEST_RNG_SEED") {
-            default.rng_seed
-        } else {
-            RngSeed::Fixed(SEED)
-        },
-        failure_persistence: None,
-        ..default
-    }
+    support::config(SEED)
 }
 
 /// Runs `read`, failing the property when it held more than `limit` bytes.

@@ -15,7 +15,14 @@ const state = { root: null, name: null, image: null, annotation: null, active: 0
 
 const snapshot = () => JSON.stringify(state.annotation);
 
+// Whether an image is open to annotate; says so when not.
+function opened() {
+  if (!state.annotation) status.textContent = "Open an image of a benchmark first.";
+  return state.annotation !== null;
+}
+
 function edit(change) {
+  if (!opened()) return;
   state.history.push(snapshot());
   change(state.annotation);
   render();
@@ -131,6 +138,7 @@ document.getElementById("undo").addEventListener("click", () => {
   render();
 });
 document.getElementById("save").addEventListener("click", async () => {
+  if (!opened()) return;
   // Groups without points are not saved (the format has no empty groups).
   const annotation = { ...state.annotation, groups: state.annotation.groups.filter((g) => g.points.length) };
   try {

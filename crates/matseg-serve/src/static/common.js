@@ -12,12 +12,60 @@ export const PALETTE = [
   [170, 255, 195], [128, 128, 0], [255, 215, 180], [0, 0, 128], [128, 128, 128],
 ];
 
-// The server's token: from the page's address when it has one (and kept
-// for this server's other pages, which this browser keeps apart from
-// every other site's), else the one kept.
+// The server's token, kept for this server's other pages (this browser
+// keeps it apart from every other site's). The token in the page's
+// address is kept only when the server accepts it, so that a link from
+// another site cannot plant one.
 const TOKEN_KEY = "matseg-token";
-const token = new URLSearchParams(location.search).get("token") ?? localStorage.getItem(TOKEN_KEY);
-if (token) localStorage.setItem(TOKEN_KEY, token);
+let token = localStorage.getItem(TOKEN_KEY);
+
+// Whether the server accepts `candidate` as its token.
+async function accepts(candidate) {
+  const response = await fetch(`/api/status?${new URLSearchParams({ token: candidate })}`);
+  return response.ok;
+}
+
+// Keeps `candidate` as the token when the server accepts it.
+async function useToken(candidate) {
+  if (!candidate || !(await accepts(candidate))) return false;
+  token = candidate;
+  localStorage.setItem(TOKEN_KEY, token);
+  return true;
+}
+
+// A banner over the page when the server refuses it its API (no token, or
+// another run's): what happened, and a field for the address the server
+// printed, whose token is then kept.
+function showAccessProblem(message) {
+  let banner = document.getElementById("access");
+  if (!banner) {
+    banner = document.createElement("div");
+    banner.id = "access";
+    banner.setAttribute("role", "alert");
+    banner.innerHTML = `<p></p><label>Address <code>matseg serve</code> printed:
+      <input type="text" size="60" placeholder="http://127.0.0.1:8080/?token=..."></label>
+      <button>Use it</button> <button hidden>Reload the page</button>`;
+    const [field, use, reload] = [banner.querySelector("input"), ...banner.querySelectorAll("button")];
+    use.addEventListener("click", async () => {
+      const text = field.value.trim();
+      const candidate = URL.canParse(text) ? new URL(text).searchParams.get("token") : text;
+      if (await useToken(candidate)) {
+        banner.querySelector("p").textContent = "Kept. Repeat what you were doing (Save again), or reload the page.";
+        reload.hidden = false;
+      } else {
+        banner.querySelector("p").textContent = "That is not this server's address or token: copy the whole address it printed.";
+      }
+    });
+    reload.addEventListener("click", () => location.reload());
+    document.body.prepend(banner);
+  }
+  banner.querySelector("p").textContent = message;
+}
+
+const offered = new URLSearchParams(location.search).get("token");
+if (offered && offered !== token && !(await useToken(offered))) {
+  showAccessProblem("The token in this page's address is not this server's (the server makes a new one each time it starts).");
+}
 
 // The address of an API call, with the token when the server has one (for
 // images and downloads, which cannot carry a header).
@@ -29,7 +77,9 @@ export function apiUrl(path, params = {}) {
 
 // Calls the API; a failed call throws the server's one-line error. A POST
 // is typed: JSON unless the caller says otherwise (uploads send their
-// bytes as application/octet-stream).
+// bytes as application/octet-stream). A call the server refuses for want
+// of its token shows the banner that says what to do, and never settles:
+// the page waits there until the user gives the address, then repeats.
 export async function api(path, params = {}, init = {}) {
   const headers = new Headers(init.headers);
   if (token) headers.set("x-matseg-token", token);
@@ -37,6 +87,10 @@ export async function api(path, params = {}, init = {}) {
   const response = await fetch(apiUrl(path, params), { ...init, headers });
   if (!response.ok) {
     const body = await response.json().catch(() => ({ error: response.statusText }));
+    if (response.status === 401) {
+      showAccessProblem(body.error);
+      return new Promise(() => {});
+    }
     throw new Error(body.error);
   }
   return response;

@@ -49,13 +49,16 @@ function showReport(report) {
 async function poll() {
   const answer = await (await api("/api/evaluate", { root: state.root })).json();
   if (answer.state === "running") {
-    const images = answer.total ? `${answer.done} of ${answer.total} images, ` : "";
-    status.textContent = `evaluating in the background... ${images}${Math.round(answer.seconds)} s`;
+    const model = answer.model ? `${answer.model}: ` : "";
+    const images = answer.total ? `${answer.done} of ${answer.total} images of all models, ` : "";
+    status.textContent = `evaluating in the background... ${model}${images}${Math.round(answer.seconds)} s`;
     setTimeout(poll, 1000);
   } else if (answer.state === "done") {
     showReport(answer.report);
   } else if (answer.state === "failed") {
     status.textContent = answer.error;
+  } else if (answer.state === "cancelled") {
+    status.textContent = "The evaluation was cancelled.";
   }
   document.getElementById("run").disabled = answer.state === "running";
   document.getElementById("cancel").hidden = answer.state !== "running";
@@ -99,6 +102,7 @@ async function openImage(name) {
     canvas.hidden = false;
     canvas.dataset.image = name;
     drawView();
+    canvas.scrollIntoView({ block: "nearest" });
   } catch (error) {
     status.textContent = error.message;
   }
