@@ -5,6 +5,7 @@
 // Each test binary uses its own share of these.
 #![allow(dead_code)]
 
+use proptest::prelude::*;
 use proptest::test_runner::{Config, RngSeed};
 
 /// 64 cases from the fixed `seed`, the same every run so that a failure
@@ -86,4 +87,92 @@ pub mod allocations {
         let peak = PEAK.with(Cell::get);
         (out, (peak - start).max(0) as usize)
     }
+}
+
+/// A change to a valid file's bytes: what the properties do to valid
+/// files to see that the readers refuse the damage cleanly.
+#[derive(Clone, Debug)]
+pub enum Mutation {
+    /// Keep this share (in 1/65536) of the bytes.
+    Truncate(u16),
+    /// Flip bits: (position share, bit) pairs.
+    Flip(Vec<(u16, u8)>),
+    /// Overwrite bytes at a position share with these.
+    Overwrite(u16, Vec<u8>),
+    /// Insert bytes at a position share.
+    Insert(u16, Vec<u8>),
+    /// Remove up to this many bytes at a position share.
+    Remove(u16, u8),
+}
+
+pub fn mutation() -> impl Strategy<Value = Mutation> {
+    prop_oneof![
+        any::<u16>().prop_map(Mutation::Truncate),
+        prop::collection::vec((any::<u16>(), 0u8..8), 1..8).prop_map(Mutation::Flip),
+        (any::<u16>(), prop::collection::vec(any::<u8>(), 1..9))
+            .prop_map(|(at, b)| Mutation::Overwrite(at, b)),
+        (any::<u16>(), prop::collection::vec(any::<u8>(), 1..9))
+            .prop_map(|(at, b)| Mutation::Insert(at, b)),
+        (any::<u16>(), any::<u8>()).prop_map(|(at, n)| Mutation::Remove(at, n)),
+    ]
+}
+
+pub fn position(share: u16, len: usize) -> usize {
+    (len * share as usize) >> 16
+}
+
+pub fn mutate(bytes: &[u8], m: &Mutation) -> Vec<u8> {
+    let mut out = bytes.to_vec();
+    match m {
+        Mutation::Truncate(share) => out.truncate(position(*share, bytes.len())),
+        Mutation::Flip(flips) => {
+            if !out.is_empty() {
+                for &(share, bit) in flips {
+                    let at = position(share, out.len());
+                    out[at] ^= 1 << bit;
+                }
+            }
+        }
+        Mutation::Overwrite(share, new) => {
+            let at = position(*share, out.len());
+            for (k, b) in new.iter().enumerate() {
+                if let Some(old) = out.get_mut(at + k) {
+                    *old = *b;
+                }
+            }
+        }
+        Mutation::Insert(share, new) => {
+            let at = position(*share, out.len());
+            out.splice(at..at, new.iter().copied());
+        }
+        Mutation::Remove(share, n) => {
+            let at = position(*share, out.len());
+            let end = (at + *n as usize).min(out.len());
+            out.drain(at..end);
+        }
+    }
+    out
+}
+
+/// Any JSON value, up to `depth` levels deep with `branches` items a
+/// level, its numbers from `numbers` (each crate's edges).
+pub fn json_value(
+    numbers: impl Strategy<Value = serde_json::Value> + 'static,
+    depth: u32,
+    branches: usize,
+) -> impl Strategy<Value = serde_json::Value> {
+    use serde_json::Value;
+    let leaf = prop_oneof![
+        Just(Value::Null),
+        any::<bool>().prop_map(Value::from),
+        numbers,
+        any::<String>().prop_map(Value::from),
+    ];
+    leaf.prop_recursive(depth, 4 * branches as u32, branches as u32, move |inner| {
+        prop_oneof![
+            prop::collection::vec(inner.clone(), 0..branches).prop_map(Value::Array),
+            prop::collection::btree_map(any::<String>(), inner, 0..branches)
+                .prop_map(|m| Value::Object(m.into_iter().collect())),
+        ]
+    })
 }

@@ -15,6 +15,8 @@
 #[path = "../../../testing/properties.rs"]
 mod support;
 
+use support::{mutate, mutation, position};
+
 use image::{GrayImage, RgbImage};
 use matseg_data::wds::{shard_path, ShardWriter};
 use matseg_data::{
@@ -38,74 +40,13 @@ fn config() -> ProptestConfig {
 
 // ---------------------------------------------------------------- inputs
 
-/// A change to a valid file's bytes.
-#[derive(Clone, Debug)]
-enum Mutation {
-    /// Keep this share (in 1/65536) of the bytes.
-    Truncate(u16),
-    /// Flip bits: (position share, bit) pairs.
-    Flip(Vec<(u16, u8)>),
-    /// Insert bytes at a position share.
-    Insert(u16, Vec<u8>),
-    /// Remove up to this many bytes at a position share.
-    Remove(u16, u8),
-}
-
-fn mutation() -> impl Strategy<Value = Mutation> {
-    prop_oneof![
-        any::<u16>().prop_map(Mutation::Truncate),
-        prop::collection::vec((any::<u16>(), 0u8..8), 1..8).prop_map(Mutation::Flip),
-        (any::<u16>(), prop::collection::vec(any::<u8>(), 1..9))
-            .prop_map(|(at, b)| Mutation::Insert(at, b)),
-        (any::<u16>(), any::<u8>()).prop_map(|(at, n)| Mutation::Remove(at, n)),
-    ]
-}
-
-fn position(share: u16, len: usize) -> usize {
-    (len * share as usize) >> 16
-}
-
-fn mutate(bytes: &[u8], m: &Mutation) -> Vec<u8> {
-    let mut out = bytes.to_vec();
-    match m {
-        Mutation::Truncate(share) => out.truncate(position(*share, bytes.len())),
-        Mutation::Flip(flips) => {
-            if !out.is_empty() {
-                for &(share, bit) in flips {
-                    let at = position(share, out.len());
-                    out[at] ^= 1 << bit;
-                }
-            }
-        }
-        Mutation::Insert(share, new) => {
-            let at = position(*share, out.len());
-            out.splice(at..at, new.iter().copied());
-        }
-        Mutation::Remove(share, n) => {
-            let at = position(*share, out.len());
-            let end = (at + *n as usize).min(out.len());
-            out.drain(at..end);
-        }
-    }
-    out
-}
-
 /// Any JSON value, a few levels deep.
 fn json_value() -> impl Strategy<Value = Value> {
-    let leaf = prop_oneof![
-        Just(Value::Null),
-        any::<bool>().prop_map(Value::from),
+    let numbers = prop_oneof![
         any::<i64>().prop_map(Value::from),
         any::<f64>().prop_map(Value::from),
-        any::<String>().prop_map(Value::from),
     ];
-    leaf.prop_recursive(3, 16, 4, |inner| {
-        prop_oneof![
-            prop::collection::vec(inner.clone(), 0..4).prop_map(Value::Array),
-            prop::collection::btree_map(any::<String>(), inner, 0..4)
-                .prop_map(|m| Value::Object(m.into_iter().collect())),
-        ]
-    })
+    support::json_value(numbers, 3, 4)
 }
 
 /// One sample as a generator makes it, before encoding: an image of a

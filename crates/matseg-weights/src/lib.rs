@@ -85,22 +85,23 @@ impl DType {
         }
     }
 
+    /// Every type, in the order safetensors lists them.
+    pub const ALL: [DType; 10] = [
+        DType::F32,
+        DType::F64,
+        DType::F16,
+        DType::BF16,
+        DType::I64,
+        DType::I32,
+        DType::I16,
+        DType::I8,
+        DType::U8,
+        DType::Bool,
+    ];
+
     /// The type named `name` in safetensors.
     pub fn from_safetensors_name(name: &str) -> Option<Self> {
-        [
-            DType::F32,
-            DType::F64,
-            DType::F16,
-            DType::BF16,
-            DType::I64,
-            DType::I32,
-            DType::I16,
-            DType::I8,
-            DType::U8,
-            DType::Bool,
-        ]
-        .into_iter()
-        .find(|d| d.safetensors_name() == name)
+        Self::ALL.into_iter().find(|d| d.safetensors_name() == name)
     }
 }
 

@@ -14,6 +14,8 @@
 #[path = "../../../testing/properties.rs"]
 mod support;
 
+use support::{mutate, mutation, position};
+
 use matseg_weights::fixtures::{floats, legacy, zipped, Storage, View};
 use matseg_weights::pickle::read_pickle;
 use matseg_weights::zip::{write_stored, ZipArchive, ZipFile};
@@ -65,86 +67,9 @@ fn one_line(error: &impl std::fmt::Display) -> Result<(), TestCaseError> {
     Ok(())
 }
 
-// ---------------------------------------------------------------- mutations
-
-/// A change to a valid file's bytes.
-#[derive(Clone, Debug)]
-enum Mutation {
-    /// Keep this share (in 1/65536) of the bytes.
-    Truncate(u16),
-    /// Flip bits: (position share, bit) pairs.
-    Flip(Vec<(u16, u8)>),
-    /// Overwrite bytes at a position share with these.
-    Overwrite(u16, Vec<u8>),
-    /// Insert bytes at a position share.
-    Insert(u16, Vec<u8>),
-    /// Remove up to this many bytes at a position share.
-    Remove(u16, u8),
-}
-
-fn mutation() -> impl Strategy<Value = Mutation> {
-    prop_oneof![
-        any::<u16>().prop_map(Mutation::Truncate),
-        prop::collection::vec((any::<u16>(), 0u8..8), 1..8).prop_map(Mutation::Flip),
-        (any::<u16>(), prop::collection::vec(any::<u8>(), 1..9))
-            .prop_map(|(at, b)| Mutation::Overwrite(at, b)),
-        (any::<u16>(), prop::collection::vec(any::<u8>(), 1..9))
-            .prop_map(|(at, b)| Mutation::Insert(at, b)),
-        (any::<u16>(), any::<u8>()).prop_map(|(at, n)| Mutation::Remove(at, n)),
-    ]
-}
-
-fn position(share: u16, len: usize) -> usize {
-    (len * share as usize) >> 16
-}
-
-fn mutate(bytes: &[u8], m: &Mutation) -> Vec<u8> {
-    let mut out = bytes.to_vec();
-    match m {
-        Mutation::Truncate(share) => out.truncate(position(*share, bytes.len())),
-        Mutation::Flip(flips) => {
-            if !out.is_empty() {
-                for &(share, bit) in flips {
-                    let at = position(share, out.len());
-                    out[at] ^= 1 << bit;
-                }
-            }
-        }
-        Mutation::Overwrite(share, new) => {
-            let at = position(*share, out.len());
-            for (k, b) in new.iter().enumerate() {
-                if let Some(old) = out.get_mut(at + k) {
-                    *old = *b;
-                }
-            }
-        }
-        Mutation::Insert(share, new) => {
-            let at = position(*share, out.len());
-            out.splice(at..at, new.iter().copied());
-        }
-        Mutation::Remove(share, n) => {
-            let at = position(*share, out.len());
-            let end = (at + *n as usize).min(out.len());
-            out.drain(at..end);
-        }
-    }
-    out
-}
-
 // ---------------------------------------------------------------- safetensors
 
-const DTYPES: [DType; 10] = [
-    DType::F32,
-    DType::F64,
-    DType::F16,
-    DType::BF16,
-    DType::I64,
-    DType::I32,
-    DType::I16,
-    DType::I8,
-    DType::U8,
-    DType::Bool,
-];
+const DTYPES: [DType; 10] = DType::ALL;
 
 /// Tensors with distinct names (none `__metadata__`), small shapes and
 /// bytes of the right length.
@@ -207,19 +132,7 @@ fn json_number() -> impl Strategy<Value = Value> {
 
 /// Any JSON value, a few levels deep.
 fn json_value() -> impl Strategy<Value = Value> {
-    let leaf = prop_oneof![
-        Just(Value::Null),
-        any::<bool>().prop_map(Value::from),
-        json_number(),
-        any::<String>().prop_map(Value::from),
-    ];
-    leaf.prop_recursive(3, 24, 6, |inner| {
-        prop_oneof![
-            prop::collection::vec(inner.clone(), 0..6).prop_map(Value::Array),
-            prop::collection::btree_map(any::<String>(), inner, 0..6)
-                .prop_map(|m| Value::Object(m.into_iter().collect())),
-        ]
-    })
+    support::json_value(json_number(), 3, 6)
 }
 
 /// A header entry of plausible shape with any values: known and unknown
