@@ -47,7 +47,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
         "DEFAULT_TRACK_SIDE",
         matseg_pipeline::track::DEFAULT_TRACK_SIDE,
     )?;
-    let tracker = matseg_image::tracking::TrackOptions::default();
+    let tracker = matseg_query::tracking::TrackOptions::default();
     m.add(
         "DEFAULT_TRACKER",
         (

@@ -3,14 +3,14 @@
 
 use crate::buffer::{Buffer, Photo};
 use crate::errors::matseg_error;
-use matseg_eval::ClusterOptions;
-use matseg_image::descriptor::check_radius;
 use matseg_image::device::ComputeDevice;
-use matseg_image::tracking::TrackOptions;
 use matseg_net::infer::resolve_model as resolve;
 use matseg_net::infer::NetModel;
 use matseg_pipeline::segment::{check_points, cluster, describe, query_points, Model, MAX_POINTS};
 use matseg_pipeline::track::{TrackSettings, Tracking};
+use matseg_query::descriptor::check_radius;
+use matseg_query::tracking::TrackOptions;
+use matseg_query::ClusterOptions;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;

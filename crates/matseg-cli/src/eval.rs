@@ -3,10 +3,10 @@
 use anyhow::Result;
 use clap::Subcommand;
 use matseg_eval::{evaluate_masks, scan_mask_benchmark, MaskEvalOptions, QueryOptions};
-use matseg_image::descriptor::DescriptorModel;
 use matseg_image::progress::Silent;
 use matseg_pipeline::models::ModelChoice;
 use matseg_pipeline::point_bench::score_point_benchmark;
+use matseg_query::descriptor::DescriptorModel;
 use std::path::PathBuf;
 
 /// `matseg eval` subcommands.

@@ -1,7 +1,7 @@
 //! The query arguments `segment`, `track` and `eval masks` share: points
 //! and the radius of their discs, parsed and checked once.
 
-use matseg_image::descriptor::check_radius;
+use matseg_query::descriptor::check_radius;
 
 /// A point `X,Y` in pixels (a negative coordinate is taken as a value, and
 /// refused later as outside the photo, rather than as an unknown option).

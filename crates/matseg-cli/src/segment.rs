@@ -6,11 +6,11 @@
 use crate::net_args::parse_device;
 use crate::query_args::{parse_point, parse_radius};
 use anyhow::Result;
-use matseg_eval::ClusterOptions;
 use matseg_image::io::read_rgb;
 use matseg_pipeline::segment::{
     check_points, describe, write_clusters, write_point_maps, Model, DEFAULT_RADIUS,
 };
+use matseg_query::ClusterOptions;
 use std::path::PathBuf;
 use std::time::Instant;
 

@@ -6,11 +6,11 @@ use crate::common::BarProgress;
 use crate::net_args::parse_device;
 use crate::query_args::{parse_point, parse_radius};
 use anyhow::Result;
-use matseg_image::tracking::TrackOptions;
 use matseg_pipeline::frames::FrameSource;
 use matseg_pipeline::segment::{Model, DEFAULT_RADIUS};
 use matseg_pipeline::track::{track_to_folder, TrackFiles, TrackSettings, DEFAULT_TRACK_SIDE};
 use matseg_pipeline::track_bench::{eval_track, TrackBenchSettings};
+use matseg_query::tracking::TrackOptions;
 use std::path::PathBuf;
 
 /// Arguments of `matseg track`.

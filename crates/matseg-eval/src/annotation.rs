@@ -6,8 +6,8 @@
 //! writer and the web app's annotate page all go through it.
 
 use crate::points::{BenchError, ROUND_RELATION, SQUARE_RELATION};
-use matseg_image::descriptor::{check_radius, RadiusError};
 use matseg_image::io::write_atomic;
+use matseg_query::descriptor::{check_radius, RadiusError};
 use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::path::{Path, PathBuf};

@@ -5,8 +5,8 @@
 //! material often lie close together.
 
 use image::RgbImage;
-use matseg_image::descriptor::{Comparison, DescriptorMap, DescriptorModel};
 use matseg_image::lab::srgb_to_lab;
+use matseg_query::descriptor::{Comparison, DescriptorMap, DescriptorModel};
 
 /// Names accepted by [`baseline`], in table order.
 pub const BASELINES: [&str; 4] = ["rgb", "lab", "texture", "position"];

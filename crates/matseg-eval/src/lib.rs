@@ -1,14 +1,13 @@
 //! Evaluation of material descriptors on real photos (pipeline.md §9): point
 //! benchmarks in the MatSeg format scored by the triplet metric, mask
 //! benchmarks scored by IoU at the best threshold, and training-free
-//! baselines behind the same `DescriptorModel` trait (`matseg_image::descriptor`)
+//! baselines behind the same `DescriptorModel` trait (`matseg_query::descriptor`)
 //! a trained net implements.
 
 #![warn(missing_docs)]
 
 pub mod annotation;
 pub mod baselines;
-pub mod cluster;
 pub mod evaluate;
 pub mod iou;
 pub mod masks;
@@ -18,7 +17,6 @@ pub mod synthetic;
 pub mod triplet;
 
 pub use annotation::{Annotation, AnnotationProblem, Group, Relation};
-pub use cluster::{cluster_descriptors, ClusterOptions, Clustering};
 pub use evaluate::{evaluate_masks, evaluate_points, MaskEvalOptions, MaskReport, PointReport};
 pub use iou::{best_iou, best_iou_on_grid, BestIou};
 pub use masks::{scan_mask_benchmark, MaskImage, QueryOptions};

@@ -22,7 +22,7 @@ use image::RgbImage;
 use matseg_eval::annotation::{DATA_FILE, RELATIONS_FILE};
 use matseg_eval::points::{ROUND_RELATION, SQUARE_RELATION};
 use matseg_eval::{load_point_benchmark, Annotation, AnnotationProblem, Group, Relation};
-use matseg_image::descriptor::MAX_RADIUS;
+use matseg_query::descriptor::MAX_RADIUS;
 use proptest::prelude::*;
 use serde_json::Value;
 use std::path::Path;

@@ -1,10 +1,10 @@
 //! Pixels for matseg: float planes and RGB images, colour channels (RGB/HSV)
 //! on 8-bit levels with their counts and histograms,
 //! threshold ramps, Gaussian blur, mip-pyramid resampling, image I/O and the
-//! bounded, decode-once photo library every generator draws from; per-pixel
-//! descriptor maps (the interface every model, trained or not, implements)
-//! and the CIE L*a*b* conversion; photo fingerprints; the progress
-//! reports of long jobs and the device a model runs on.
+//! bounded, decode-once photo library every generator draws from; the CIE
+//! L*a*b* conversion; photo fingerprints; the progress reports of long
+//! jobs and the device a model runs on. What models make of pixels
+//! (descriptor maps, similarity, clustering, tracking) is matseg-query's.
 
 #![warn(missing_docs)]
 
@@ -13,9 +13,7 @@ pub mod blur;
 pub mod budget;
 pub mod channel;
 pub mod channel_rows;
-pub mod coarse;
 pub mod coverage;
-pub mod descriptor;
 pub mod device;
 pub mod fingerprint;
 pub mod io;
@@ -31,7 +29,6 @@ pub mod resample;
 pub mod rgb;
 pub mod sparse;
 pub mod sync;
-pub mod tracking;
 
 pub use blur::{gaussian_blur, gaussian_blur_covered, CoveredBlur};
 pub use budget::{ByteLru, MemoryBudget};

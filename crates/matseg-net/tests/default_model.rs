@@ -2,9 +2,9 @@
 //! descriptors, and tells materials of a bundled photo apart: two points on
 //! one material are more alike than points on two materials.
 
-use matseg_image::descriptor::{Comparison, DescriptorModel};
 use matseg_image::device::ComputeDevice;
 use matseg_net::infer::{default_model_dir, NetModel, DEFAULT_MODEL};
+use matseg_query::descriptor::{Comparison, DescriptorModel};
 use std::path::Path;
 
 #[test]

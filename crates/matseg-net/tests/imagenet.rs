@@ -3,10 +3,10 @@
 //! classifies bundled CC0 photos correctly: the weights are wired right.
 
 use image::imageops::{self, FilterType};
-use matseg_image::descriptor::{Comparison, DescriptorModel};
 use matseg_net::imagenet::{ImagenetBaseline, ImagenetFeatures, IMAGENET_DIM};
 use matseg_net::mobilenet_v2::IMAGENET_MEAN_STD;
 use matseg_net::{load_named, rgb8_to_tensor, MobileNetV2Classifier};
+use matseg_query::descriptor::{Comparison, DescriptorModel};
 use matseg_weights::read_checkpoint;
 use matseg_weights::zip::ZipArchive;
 use std::path::Path;

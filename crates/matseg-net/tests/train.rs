@@ -4,7 +4,6 @@
 
 mod common;
 
-use matseg_image::descriptor::Comparison;
 use matseg_image::device::ComputeDevice;
 use matseg_net::colour::COLOUR_PART;
 use matseg_net::data::{batch_samples, BatchPlan, GeneratorSource};
@@ -13,6 +12,7 @@ use matseg_net::train::{
     self, RunConfig, StepMetrics, TrainOptions, Trainer, TrainingData, Validation,
 };
 use matseg_net::{load_net_adding, NetError};
+use matseg_query::descriptor::Comparison;
 use matseg_scene::Recipe2d;
 use std::path::Path;
 use tch::Device;

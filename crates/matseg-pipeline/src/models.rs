@@ -4,8 +4,8 @@
 
 use crate::error::PipelineError;
 use matseg_eval::baselines::{baseline, BASELINES};
-use matseg_image::descriptor::DescriptorModel;
 use matseg_image::device::ComputeDevice;
+use matseg_query::descriptor::DescriptorModel;
 use std::path::PathBuf;
 
 /// Which models to build.

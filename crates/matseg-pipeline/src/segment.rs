@@ -7,11 +7,11 @@
 use crate::error::PipelineError;
 use crate::files::{create_folder, write_file};
 use image::RgbImage;
-use matseg_eval::{cluster_descriptors, ClusterOptions};
-use matseg_image::coarse::CoarseDescriptors;
-use matseg_image::descriptor::check_radius;
 use matseg_image::io::{encode_png_grey, encode_png_rgb};
 use matseg_net::TEMPERATURE;
+use matseg_query::coarse::CoarseDescriptors;
+use matseg_query::descriptor::check_radius;
+use matseg_query::{cluster_descriptors, ClusterOptions};
 use matseg_scene::{blend_annotation_colour, PALETTE};
 use std::path::Path;
 use std::time::Instant;
@@ -224,7 +224,7 @@ pub(crate) fn outline_disc(img: &mut RgbImage, (x, y): (f32, f32), radius: f32) 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use matseg_image::descriptor::DescriptorMap;
+    use matseg_query::descriptor::DescriptorMap;
 
     /// A 4x2 photo whose left half is one material and right half another,
     /// described on a 2x1 grid of unit descriptors.

@@ -4,8 +4,8 @@
 //! uploaded (their encoded bytes). Least recently used first out.
 
 use image::RgbImage;
-use matseg_image::coarse::CoarseDescriptors;
 use matseg_image::ByteLru;
+use matseg_query::coarse::CoarseDescriptors;
 
 /// A photo and its descriptors.
 pub struct Described {

@@ -9,11 +9,11 @@
 //! the pass is made into a map at the photo's size.
 
 use image::RgbImage;
-use matseg_image::coarse::CoarseDescriptors;
-use matseg_image::descriptor::{Comparison, DescriptorMap, DescriptorModel};
 use matseg_net::infer::{pixel_map, NetModel};
 use matseg_pipeline::segment::describe;
 use matseg_pipeline::track::FrameDescriber;
+use matseg_query::coarse::CoarseDescriptors;
+use matseg_query::descriptor::{Comparison, DescriptorMap, DescriptorModel};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Duration;
 

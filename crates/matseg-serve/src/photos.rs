@@ -15,12 +15,12 @@ use axum::http::{header, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
 use image::RgbImage;
-use matseg_eval::cluster::ClusterOptions;
-use matseg_image::descriptor::check_radius;
 use matseg_image::io::{encode_png_grey, encode_png_rgb, read_rgb};
 use matseg_pipeline::segment::{
     check_points, cluster, query_points, similarity_grey, DEFAULT_RADIUS, MAX_POINTS,
 };
+use matseg_query::cluster::ClusterOptions;
+use matseg_query::descriptor::check_radius;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;

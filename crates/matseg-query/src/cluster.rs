@@ -7,7 +7,7 @@
 //! of the centre with the highest cosine similarity. The same map, `k` and
 //! seed always give the same labels.
 
-use matseg_image::descriptor::DescriptorMap;
+use crate::descriptor::DescriptorMap;
 use rand::{Rng, SeedableRng};
 
 /// Settings of [`cluster_descriptors`].
