@@ -3,6 +3,7 @@
 //! from them: point descriptors and similarity maps.
 
 use image::RgbImage;
+use rayon::prelude::*;
 
 /// How two descriptors are compared.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -116,6 +117,7 @@ impl DescriptorMap {
     /// (pixel descriptors are normalised first for cosine).
     pub fn similarity_map(&self, query: &[f32], comparison: Comparison) -> Vec<f32> {
         (0..self.width * self.height)
+            .into_par_iter()
             .map(|i| {
                 let d = self.at(i);
                 let s = match comparison {

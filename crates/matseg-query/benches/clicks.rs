@@ -1,0 +1,104 @@
+//! `cargo bench -p matseg-query --bench clicks`: what a click costs after
+//! the photo's descriptor pass, as the web app and `matseg segment` answer
+//! it. A 1152x864 photo (1 MP) described as the shipped model describes it
+//! (128 values a cell on the stride-4 grid of its 700 px pass, 176x132
+//! cells), eight materials in blobs with noisy descriptors; ten clicks,
+//! alternately positive and negative, each answered with the selection's
+//! soft map and mask at the photo's size. Prints the first click (which
+//! also finds the photo's materials) and the median of the others, over 5
+//! repeats.
+
+use image::RgbImage;
+use matseg_query::coarse::CoarseDescriptors;
+use matseg_query::descriptor::DescriptorMap;
+use matseg_query::select::{Click, Selector};
+use rand::{Rng, SeedableRng};
+use std::time::Instant;
+
+const WIDTH: usize = 1152;
+const HEIGHT: usize = 864;
+const GRID: (usize, usize) = (176, 132);
+const DIM: usize = 128;
+const MATERIALS: usize = 8;
+
+/// The material at photo pixel `(x, y)`: blobs from a few sines.
+fn material(x: f32, y: f32) -> usize {
+    let v = (x / 97.0).sin() + (y / 71.0).cos() + ((x + y) / 153.0).sin();
+    (((v + 3.0) / 6.0 * MATERIALS as f32) as usize).min(MATERIALS - 1)
+}
+
+fn main() {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
+    let centres: Vec<Vec<f32>> = (0..MATERIALS)
+        .map(|_| (0..DIM).map(|_| rng.random_range(-1.0..1.0)).collect())
+        .collect();
+    let (gw, gh) = GRID;
+    let mut data = Vec::with_capacity(gw * gh * DIM);
+    for cy in 0..gh {
+        for cx in 0..gw {
+            let m = material(
+                (cx as f32 + 0.5) * WIDTH as f32 / gw as f32,
+                (cy as f32 + 0.5) * HEIGHT as f32 / gh as f32,
+            );
+            let v: Vec<f32> = centres[m]
+                .iter()
+                .map(|c| c + rng.random_range(-0.4..0.4))
+                .collect();
+            let norm = v.iter().map(|a| a * a).sum::<f32>().sqrt();
+            data.extend(v.iter().map(|a| a / norm));
+        }
+    }
+    let map = CoarseDescriptors {
+        grid: DescriptorMap {
+            width: gw,
+            height: gh,
+            dim: DIM,
+            data,
+        },
+        width: WIDTH,
+        height: HEIGHT,
+    };
+    let photo = RgbImage::from_fn(WIDTH as u32, HEIGHT as u32, |x, y| {
+        let m = material(x as f32, y as f32) as u8;
+        image::Rgb([30 * m, 255 - 25 * m, 90])
+    });
+    let clicks: Vec<Click> = (0..10)
+        .map(|i| {
+            let (x, y) = (
+                rng.random_range(0.0..WIDTH as f32),
+                rng.random_range(0.0..HEIGHT as f32),
+            );
+            if i % 2 == 0 {
+                Click::positive(x, y)
+            } else {
+                Click::negative(x, y)
+            }
+        })
+        .collect();
+    let (mut first, mut next) = (Vec::new(), Vec::new());
+    for _ in 0..5 {
+        let mut selector = Selector::new(&map, Some(&photo), 5.0).expect("a radius");
+        for (i, &click) in clicks.iter().enumerate() {
+            let started = Instant::now();
+            selector.add(click).expect("inside");
+            let selection = selector.selection().expect("a positive click");
+            let ms = started.elapsed().as_secs_f64() * 1e3;
+            assert_eq!(selection.mask.len(), WIDTH * HEIGHT);
+            if i == 0 {
+                first.push(ms)
+            } else {
+                next.push(ms)
+            }
+        }
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    println!(
+        "{WIDTH}x{HEIGHT} photo, {gw}x{gh}x{DIM} descriptors, {} threads: first click {:.1} ms, each next click {:.1} ms (medians)",
+        rayon::current_num_threads(),
+        median(&mut first),
+        median(&mut next)
+    );
+}

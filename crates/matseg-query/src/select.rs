@@ -1,0 +1,692 @@
+//! A selection made by clicks, positive and negative: "this material",
+//! "not that one". Each click's material is its point descriptor; every
+//! cell's similarity to the positive clicks (the best of them) is set
+//! against its similarity to the negative ones, and the selection is the
+//! cells closer to a positive click than to any negative one and similar
+//! enough to it. How similar is enough is the selection's own decision
+//! (Otsu's threshold between the two modes of the positive similarities),
+//! not a threshold picked with the truth; then the decision's edges are
+//! made to follow the photo's (a guided filter, the photo as the guide).
+//!
+//! With positive clicks alone the soft map is today's similarity map (the
+//! best positive similarity), so one click answers as it always did.
+
+use crate::coarse::CoarseDescriptors;
+use crate::descriptor::{check_radius, Comparison, DescriptorMap, RadiusError};
+use crate::edges::EdgeGuide;
+use image::RgbImage;
+
+/// The most clicks one selection takes.
+pub const MAX_CLICKS: usize = 255;
+
+/// A click on a photo, in its pixels: the material there is wanted
+/// (positive) or not (negative).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Click {
+    /// Column.
+    pub x: f32,
+    /// Row.
+    pub y: f32,
+    /// Whether the material under it is wanted.
+    pub positive: bool,
+}
+
+impl Click {
+    /// A click that wants the material at `(x, y)`.
+    pub fn positive(x: f32, y: f32) -> Self {
+        Self {
+            x,
+            y,
+            positive: true,
+        }
+    }
+
+    /// A click that excludes the material at `(x, y)`.
+    pub fn negative(x: f32, y: f32) -> Self {
+        Self {
+            x,
+            y,
+            positive: false,
+        }
+    }
+}
+
+/// Why clicks make no selection.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum SelectError {
+    /// No positive click: nothing to select.
+    #[error("give a positive click (the material to select) before negative ones")]
+    NoPositive,
+    /// Too many clicks.
+    #[error("{0} clicks: at most {MAX_CLICKS}")]
+    TooMany(usize),
+    /// A click outside the photo.
+    #[error("click {x},{y}: outside the {width}x{height} photo")]
+    Outside {
+        /// Its column.
+        x: f32,
+        /// Its row.
+        y: f32,
+        /// The photo's width.
+        width: usize,
+        /// The photo's height.
+        height: usize,
+    },
+    /// A radius out of range.
+    #[error(transparent)]
+    Radius(#[from] RadiusError),
+}
+
+/// What a selection is made from: descriptors on cells (a photo's pixels,
+/// or a coarse grid over it) that answer a descriptor with every cell's
+/// similarity (higher is closer, 1 the same), and cell values resized to
+/// the photo.
+pub trait ClickSpace: Sync {
+    /// The photo's width and height, in pixels.
+    fn photo_size(&self) -> (usize, usize);
+    /// The descriptor of the disc of `radius` photo pixels around `(x, y)`.
+    fn descriptor_at(&self, x: f32, y: f32, radius: f32) -> Vec<f32>;
+    /// Every cell's similarity to `descriptor`.
+    fn similarities_to(&self, descriptor: &[f32]) -> Vec<f32>;
+    /// How many cells there are.
+    fn cells(&self) -> usize;
+    /// The descriptor of cell `cell`.
+    fn cell_descriptor(&self, cell: usize) -> Vec<f32>;
+    /// Cell values resized to the photo, row by row.
+    fn to_photo(&self, cells: Vec<f32>) -> Vec<f32>;
+}
+
+impl ClickSpace for CoarseDescriptors {
+    fn photo_size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
+    fn descriptor_at(&self, x: f32, y: f32, radius: f32) -> Vec<f32> {
+        self.point_descriptor(x, y, radius)
+    }
+
+    fn similarities_to(&self, descriptor: &[f32]) -> Vec<f32> {
+        self.cell_similarity(descriptor)
+    }
+
+    fn cells(&self) -> usize {
+        self.grid.width * self.grid.height
+    }
+
+    fn cell_descriptor(&self, cell: usize) -> Vec<f32> {
+        self.grid.at(cell).to_vec()
+    }
+
+    fn to_photo(&self, cells: Vec<f32>) -> Vec<f32> {
+        self.resize_to_photo(&cells)
+    }
+}
+
+/// A descriptor map of the photo's own size, compared as its model
+/// compares. Distances (colour statistics) become similarities on the
+/// photo's own scale: `1 - d / (2 s)`, `s` the mean distance of the
+/// pixels to their mean descriptor.
+pub struct PixelSpace<'a> {
+    map: &'a DescriptorMap,
+    comparison: Comparison,
+    spread: f32,
+}
+
+impl<'a> PixelSpace<'a> {
+    /// The map `map`, compared as `comparison` says.
+    pub fn new(map: &'a DescriptorMap, comparison: Comparison) -> Self {
+        let spread = match comparison {
+            Comparison::Cosine => 1.0,
+            Comparison::NegativeEuclidean => mean_spread(map),
+        };
+        Self {
+            map,
+            comparison,
+            spread,
+        }
+    }
+}
+
+/// The mean distance of a map's descriptors to their mean (1 when they
+/// are all alike).
+fn mean_spread(map: &DescriptorMap) -> f32 {
+    let n = map.width * map.height;
+    if n == 0 {
+        return 1.0;
+    }
+    let mut mean = vec![0f64; map.dim];
+    for i in 0..n {
+        for (m, &v) in mean.iter_mut().zip(map.at(i)) {
+            *m += v as f64;
+        }
+    }
+    let mean: Vec<f32> = mean.iter().map(|m| (m / n as f64) as f32).collect();
+    let total: f64 = (0..n)
+        .map(|i| -Comparison::NegativeEuclidean.similarity(&mean, map.at(i)))
+        .sum();
+    let spread = (total / n as f64) as f32;
+    if spread > 0.0 {
+        spread
+    } else {
+        1.0
+    }
+}
+
+impl ClickSpace for PixelSpace<'_> {
+    fn photo_size(&self) -> (usize, usize) {
+        (self.map.width, self.map.height)
+    }
+
+    fn descriptor_at(&self, x: f32, y: f32, radius: f32) -> Vec<f32> {
+        self.map.point_descriptor(x, y, radius, self.comparison)
+    }
+
+    fn similarities_to(&self, descriptor: &[f32]) -> Vec<f32> {
+        let map = self.map.similarity_map(descriptor, self.comparison);
+        match self.comparison {
+            Comparison::Cosine => map,
+            Comparison::NegativeEuclidean => map
+                .into_iter()
+                .map(|s| 1.0 + s / (2.0 * self.spread))
+                .collect(),
+        }
+    }
+
+    fn cells(&self) -> usize {
+        self.map.width * self.map.height
+    }
+
+    fn cell_descriptor(&self, cell: usize) -> Vec<f32> {
+        let (x, y) = (
+            (cell % self.map.width) as f32,
+            (cell / self.map.width) as f32,
+        );
+        self.map.point_descriptor(x, y, 0.0, self.comparison)
+    }
+
+    fn to_photo(&self, cells: Vec<f32>) -> Vec<f32> {
+        cells
+    }
+}
+
+/// A selection: how strongly each pixel belongs to it, and the pixels in
+/// it, row by row over the photo.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Selection {
+    /// The photo's width.
+    pub width: usize,
+    /// The photo's height.
+    pub height: usize,
+    /// Each pixel's strength, at most 1 (positive clicks alone: its
+    /// similarity to the nearest of them, exactly the one-click map;
+    /// lowered where a negative click's material is as near or nearer).
+    pub soft: Vec<f32>,
+    /// Whether each pixel is selected: the selection's own decision.
+    pub mask: Vec<bool>,
+}
+
+impl Selection {
+    /// The share of the photo selected, 0..1.
+    pub fn area(&self) -> f64 {
+        let selected = self.mask.iter().filter(|&&m| m).count();
+        selected as f64 / self.mask.len().max(1) as f64
+    }
+}
+
+/// How many of the photo's materials a selection sets the clicks against.
+const PROTOTYPES: usize = 12;
+
+/// How wide a negative click's reach is: the soft map falls to half where
+/// a pixel is as similar to a negative click as to the positive ones, and
+/// to a quarter of its similarity this much closer to the negative.
+const NEGATIVE_TEMPERATURE: f32 = 0.1;
+
+/// The selection `clicks` make on `space` (discs of `radius` photo
+/// pixels), its edges made to follow `photo`'s when given (the photo the
+/// space describes, at its size).
+pub fn select(
+    space: &dyn ClickSpace,
+    photo: Option<&RgbImage>,
+    clicks: &[Click],
+    radius: f32,
+) -> Result<Selection, SelectError> {
+    let mut selector = Selector::new(space, photo, radius)?;
+    if clicks.len() > MAX_CLICKS {
+        return Err(SelectError::TooMany(clicks.len()));
+    }
+    for &click in clicks {
+        selector.add(click)?;
+    }
+    selector.selection()
+}
+
+/// One query of a selection: a descriptor wanted or not, and every
+/// cell's similarity to it.
+struct Query {
+    positive: bool,
+    descriptor: Vec<f32>,
+    similarities: Vec<f32>,
+}
+
+/// Clicks added one at a time to a selection, each click's similarities
+/// computed once: what a session of many clicks (the click benchmark, an
+/// undo) keeps.
+pub struct Selector<'a> {
+    space: &'a dyn ClickSpace,
+    photo: Option<&'a RgbImage>,
+    radius: f32,
+    queries: Vec<Query>,
+    /// The photo's materials, as cells spread over its descriptors, each
+    /// with every cell's similarity to it: made once, at the first
+    /// selection.
+    prototypes: std::sync::OnceLock<Vec<(usize, Vec<f32>)>>,
+    /// The photo's edges, made ready at the first selection.
+    edges: std::sync::OnceLock<Option<EdgeGuide>>,
+}
+
+impl<'a> Selector<'a> {
+    /// No clicks yet on `space`, with discs of `radius` and `photo` to
+    /// follow the edges of (when given at the space's size).
+    pub fn new(
+        space: &'a dyn ClickSpace,
+        photo: Option<&'a RgbImage>,
+        radius: f32,
+    ) -> Result<Self, SelectError> {
+        check_radius(radius)?;
+        let (width, height) = space.photo_size();
+        let photo = photo.filter(|p| p.dimensions() == (width as u32, height as u32));
+        Ok(Self {
+            space,
+            photo,
+            radius,
+            queries: Vec::new(),
+            prototypes: std::sync::OnceLock::new(),
+            edges: std::sync::OnceLock::new(),
+        })
+    }
+
+    /// How many clicks (or saved descriptors) the selection has.
+    pub fn len(&self) -> usize {
+        self.queries.len()
+    }
+
+    /// Whether the selection has no clicks yet.
+    pub fn is_empty(&self) -> bool {
+        self.queries.is_empty()
+    }
+
+    /// Adds `click`.
+    pub fn add(&mut self, click: Click) -> Result<(), SelectError> {
+        let (width, height) = self.space.photo_size();
+        if !(0.0..width as f32).contains(&click.x) || !(0.0..height as f32).contains(&click.y) {
+            return Err(SelectError::Outside {
+                x: click.x,
+                y: click.y,
+                width,
+                height,
+            });
+        }
+        let descriptor = self.space.descriptor_at(click.x, click.y, self.radius);
+        self.add_descriptor(descriptor, click.positive)
+    }
+
+    /// Adds a descriptor wanted (`positive`) or not: a click made on
+    /// another photo of the same model.
+    pub fn add_descriptor(
+        &mut self,
+        descriptor: Vec<f32>,
+        positive: bool,
+    ) -> Result<(), SelectError> {
+        if self.queries.len() >= MAX_CLICKS {
+            return Err(SelectError::TooMany(self.queries.len() + 1));
+        }
+        let similarities = self.space.similarities_to(&descriptor);
+        self.queries.push(Query {
+            positive,
+            descriptor,
+            similarities,
+        });
+        Ok(())
+    }
+
+    /// Removes the click at `index` (in the order they were added).
+    pub fn remove(&mut self, index: usize) {
+        if index < self.queries.len() {
+            self.queries.remove(index);
+        }
+    }
+
+    /// The clicks' descriptors, to apply the selection to other photos.
+    pub fn saved(&self, model: &str) -> SavedSelection {
+        let of = |positive: bool| {
+            self.queries
+                .iter()
+                .filter(|q| q.positive == positive)
+                .map(|q| q.descriptor.clone())
+                .collect()
+        };
+        SavedSelection {
+            model: model.to_string(),
+            radius: self.radius,
+            positive: of(true),
+            negative: of(false),
+        }
+    }
+
+    /// The best similarity of every cell to the clicks of one kind.
+    fn best(&self, positive: bool) -> Option<Vec<f32>> {
+        self.queries
+            .iter()
+            .filter(|q| q.positive == positive)
+            .map(|q| &q.similarities)
+            .fold(None, |acc: Option<Vec<f32>>, m| {
+                Some(match acc {
+                    None => m.clone(),
+                    Some(a) => a.iter().zip(m).map(|(x, y)| x.max(*y)).collect(),
+                })
+            })
+    }
+
+    /// The photo's materials: [`PROTOTYPES`] cells chosen one at a time,
+    /// each the cell least like all chosen before (the first the one
+    /// least like the photo's middle cell), with their similarity maps.
+    fn prototypes(&self) -> &[(usize, Vec<f32>)] {
+        self.prototypes.get_or_init(|| {
+            let cells = self.space.cells();
+            let of_cell = |cell: usize| {
+                self.space
+                    .similarities_to(&self.space.cell_descriptor(cell))
+            };
+            let mut closest = of_cell(cells / 2);
+            let mut chosen: Vec<(usize, Vec<f32>)> = Vec::new();
+            while chosen.len() < PROTOTYPES.min(cells) {
+                let (next, _) = closest
+                    .iter()
+                    .enumerate()
+                    .min_by(|(i, a), (j, b)| a.total_cmp(b).then(i.cmp(j)))
+                    .expect("cells");
+                let map = of_cell(next);
+                for (c, &s) in closest.iter_mut().zip(&map) {
+                    *c = c.max(s);
+                }
+                chosen.push((next, map));
+            }
+            chosen
+        })
+    }
+
+    /// The selection the clicks make.
+    pub fn selection(&self) -> Result<Selection, SelectError> {
+        let (width, height) = self.space.photo_size();
+        let positive = self.best(true).ok_or(SelectError::NoPositive)?;
+        let negative = self.best(false);
+        let threshold = otsu_threshold(&positive);
+        // The photo's materials unlike the positive clicks count, for the
+        // decision, as negative clicks the user did not have to make.
+        let mut against = negative.clone();
+        for (cell, map) in self.prototypes() {
+            if positive[*cell] < threshold {
+                against = Some(match against {
+                    None => map.clone(),
+                    Some(n) => n.iter().zip(map).map(|(a, b)| a.max(*b)).collect(),
+                });
+            }
+        }
+        let soft: Vec<f32> = match &negative {
+            None => positive.clone(),
+            Some(negative) => positive
+                .iter()
+                .zip(negative)
+                .map(|(&p, &n)| {
+                    let away = 1.0 / (1.0 + ((n - p) / NEGATIVE_TEMPERATURE).exp());
+                    p * away
+                })
+                .collect(),
+        };
+        let decision: Vec<f32> = (0..positive.len())
+            .map(|i| {
+                let p = positive[i];
+                let beaten = against.as_ref().is_some_and(|n| n[i] >= p);
+                if p >= threshold && !beaten {
+                    1.0
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let soft = self.space.to_photo(soft);
+        let decision = self.space.to_photo(decision);
+        let edges = self.edges.get_or_init(|| {
+            self.photo
+                .map(|p| EdgeGuide::new(p, GUIDE_RADIUS, GUIDE_EPSILON))
+        });
+        let decision = match edges {
+            Some(edges) => edges.refine(&decision),
+            None => decision,
+        };
+        Ok(Selection {
+            width,
+            height,
+            soft,
+            mask: decision.iter().map(|&d| d >= 0.5).collect(),
+        })
+    }
+}
+
+/// A selection saved to be applied to other photos: the descriptors of
+/// its positive and negative clicks, and the model that made them (the
+/// descriptors mean nothing to another model). `selection.json` holds it.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SavedSelection {
+    /// The model's name (`default`, a run folder, a weights file).
+    pub model: String,
+    /// The radius of the clicks' discs, in pixels of the clicked photo.
+    pub radius: f32,
+    /// The descriptors of the material wanted.
+    pub positive: Vec<Vec<f32>>,
+    /// The descriptors of the materials excluded.
+    pub negative: Vec<Vec<f32>>,
+}
+
+impl SavedSelection {
+    /// Checks that the selection can be applied with descriptors of `dim`
+    /// values: a positive descriptor at least, at most [`MAX_CLICKS`] in
+    /// all, each of `dim` finite values.
+    pub fn check(&self, dim: usize) -> Result<(), String> {
+        if self.positive.is_empty() {
+            return Err("no positive descriptor: nothing to select".into());
+        }
+        let count = self.positive.len() + self.negative.len();
+        if count > MAX_CLICKS {
+            return Err(format!("{count} descriptors: at most {MAX_CLICKS}"));
+        }
+        for (kind, list) in [("positive", &self.positive), ("negative", &self.negative)] {
+            for (i, d) in list.iter().enumerate() {
+                if d.len() != dim {
+                    return Err(format!(
+                        "{kind}[{i}]: {} values, but the model's descriptors have {dim}",
+                        d.len()
+                    ));
+                }
+                if d.iter().any(|v| !v.is_finite()) {
+                    return Err(format!("{kind}[{i}]: a value that is not a finite number"));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The selection applied to the photo `space` describes (`photo` to
+    /// follow the edges of), the descriptors checked first.
+    pub fn apply(
+        &self,
+        space: &dyn ClickSpace,
+        photo: Option<&RgbImage>,
+        dim: usize,
+    ) -> Result<Selection, String> {
+        self.check(dim)?;
+        let mut selector = Selector::new(space, photo, self.radius).map_err(|e| e.to_string())?;
+        for (list, positive) in [(&self.positive, true), (&self.negative, false)] {
+            for d in list {
+                selector
+                    .add_descriptor(d.clone(), positive)
+                    .map_err(|e| e.to_string())?;
+            }
+        }
+        selector.selection().map_err(|e| e.to_string())
+    }
+}
+
+/// Otsu's threshold of `values`: the value that best splits them into two
+/// groups (most variance between the groups), over 256 bins of their
+/// range.
+pub fn otsu_threshold(values: &[f32]) -> f32 {
+    let (lo, hi) = values
+        .iter()
+        .filter(|v| v.is_finite())
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
+            (lo.min(v), hi.max(v))
+        });
+    if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
+        return lo;
+    }
+    const BINS: usize = 256;
+    let mut counts = [0u64; BINS];
+    let bin = |v: f32| (((v - lo) / (hi - lo)) * (BINS - 1) as f32).round() as usize;
+    for &v in values.iter().filter(|v| v.is_finite()) {
+        counts[bin(v).min(BINS - 1)] += 1;
+    }
+    let total: u64 = counts.iter().sum();
+    let sum_all: f64 = counts
+        .iter()
+        .enumerate()
+        .map(|(i, &c)| i as f64 * c as f64)
+        .sum();
+    let (mut below, mut sum_below) = (0u64, 0f64);
+    let (mut best, mut best_between) = (0usize, -1f64);
+    for (i, &c) in counts.iter().enumerate() {
+        below += c;
+        sum_below += i as f64 * c as f64;
+        let above = total - below;
+        if below == 0 || above == 0 {
+            continue;
+        }
+        let mean_below = sum_below / below as f64;
+        let mean_above = (sum_all - sum_below) / above as f64;
+        let between = below as f64 * above as f64 * (mean_below - mean_above).powi(2);
+        if between > best_between {
+            best_between = between;
+            best = i;
+        }
+    }
+    // The threshold lies between bin `best` (below) and the next.
+    lo + (best as f32 + 0.5) / (BINS - 1) as f32 * (hi - lo)
+}
+
+/// The guided filter's window radius, in photo pixels.
+const GUIDE_RADIUS: usize = 4;
+
+/// The guided filter's regularisation (on colours in 0..1): edges weaker
+/// than about this variance are smoothed over.
+const GUIDE_EPSILON: f32 = 0.01;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 40 x 20 map whose left half is one material and right half
+    /// another (2-d unit descriptors), as a pixel space.
+    fn halves() -> DescriptorMap {
+        let (w, h) = (40, 20);
+        let data = (0..w * h)
+            .flat_map(|i| {
+                if i % w < w / 2 {
+                    [1.0, 0.0]
+                } else {
+                    [0.6, 0.8]
+                }
+            })
+            .collect();
+        DescriptorMap {
+            width: w,
+            height: h,
+            dim: 2,
+            data,
+        }
+    }
+
+    #[test]
+    fn one_click_gives_the_similarity_map_and_its_own_mask() {
+        let map = halves();
+        let space = PixelSpace::new(&map, Comparison::Cosine);
+        let selection = select(&space, None, &[Click::positive(5.0, 5.0)], 0.0).unwrap();
+        let query = map.point_descriptor(5.0, 5.0, 0.0, Comparison::Cosine);
+        assert_eq!(
+            selection.soft,
+            map.similarity_map(&query, Comparison::Cosine)
+        );
+        assert!((0..map.width * map.height).all(|i| selection.mask[i] == (i % 40 < 20)));
+        assert!((selection.area() - 0.5).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_negative_click_never_enlarges_the_selection_at_its_own_pixel() {
+        let map = halves();
+        let space = PixelSpace::new(&map, Comparison::Cosine);
+        let both = select(
+            &space,
+            None,
+            &[Click::positive(5.0, 5.0), Click::positive(30.0, 5.0)],
+            0.0,
+        )
+        .unwrap();
+        assert!(both.mask.iter().all(|&m| m), "both materials");
+        let not_right = select(
+            &space,
+            None,
+            &[
+                Click::positive(5.0, 5.0),
+                Click::positive(30.0, 5.0),
+                Click::negative(30.0, 10.0),
+            ],
+            0.0,
+        )
+        .unwrap();
+        let at = 10 * 40 + 30;
+        assert!(!not_right.mask[at]);
+        assert!(not_right.soft[at] <= both.soft[at] * 0.5 + 1e-6);
+        assert!(not_right.mask[5 * 40 + 5]);
+    }
+
+    #[test]
+    fn bad_clicks_are_refused() {
+        let map = halves();
+        let space = PixelSpace::new(&map, Comparison::Cosine);
+        let refused =
+            |clicks: &[Click], radius: f32| select(&space, None, clicks, radius).unwrap_err();
+        assert_eq!(
+            refused(&[Click::negative(1.0, 1.0)], 5.0),
+            SelectError::NoPositive
+        );
+        assert_eq!(refused(&[], 5.0), SelectError::NoPositive);
+        assert!(matches!(
+            refused(&[Click::positive(40.0, 1.0)], 5.0),
+            SelectError::Outside { .. }
+        ));
+        assert!(matches!(
+            refused(&[Click::positive(1.0, 1.0)], -1.0),
+            SelectError::Radius(_)
+        ));
+        let many = vec![Click::positive(1.0, 1.0); MAX_CLICKS + 1];
+        assert_eq!(refused(&many, 5.0), SelectError::TooMany(MAX_CLICKS + 1));
+    }
+
+    #[test]
+    fn otsu_splits_two_modes_between_them() {
+        let values: Vec<f32> = (0..100).map(|i| if i < 60 { 0.1 } else { 0.9 }).collect();
+        let t = otsu_threshold(&values);
+        assert!(t > 0.1 && t < 0.9, "{t}");
+        assert_eq!(otsu_threshold(&[0.5; 10]), 0.5);
+    }
+}
