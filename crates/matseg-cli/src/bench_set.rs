@@ -1,12 +1,14 @@
-//! `matseg bench-set make`: a point benchmark from generated scenes, so the
-//! evaluation can run end to end without external data; `matseg bench-set
-//! draw`: any point benchmark's annotations drawn on its photos
-//! (`matseg_pipeline::point_bench`).
+//! `matseg bench-set make` and `masks`: a point benchmark and a mask
+//! benchmark from generated scenes, so the evaluations run end to end
+//! without external data; `matseg bench-set draw`: any point benchmark's
+//! annotations drawn on its photos (`matseg_pipeline::point_bench`).
 
 use crate::common::LibraryArgs;
 use anyhow::Result;
 use clap::Subcommand;
-use matseg_pipeline::point_bench::{draw_point_benchmark, make_point_benchmark};
+use matseg_pipeline::point_bench::{
+    draw_point_benchmark, make_mask_benchmark, make_point_benchmark,
+};
 use matseg_pipeline::sources::DEFAULT_CACHE_MB;
 use std::path::PathBuf;
 
@@ -15,6 +17,9 @@ use std::path::PathBuf;
 pub enum Command {
     /// Write a point benchmark (MatSeg layout) made from generated 2D scenes.
     Make(MakeArgs),
+    /// Write a mask benchmark (NAME.jpg, NAME.maskK.png; for `eval masks`
+    /// and `eval clicks`) made from generated 2D scenes.
+    Masks(MasksArgs),
     /// Draw each image's points on it (NAME.png: rings in one colour per
     /// material, labelled with its id), to check an annotation by eye.
     Draw(DrawArgs),
@@ -53,12 +58,36 @@ pub struct MakeArgs {
     libraries: LibraryArgs,
 }
 
+/// Arguments of `matseg bench-set masks`.
+#[derive(clap::Args)]
+pub struct MasksArgs {
+    /// Output folder (NAME.jpg, NAME.mask0.png, ...).
+    #[arg(long)]
+    out: PathBuf,
+    /// Number of scenes to generate.
+    #[arg(short = 'n', long = "scenes", default_value_t = 20)]
+    n: u64,
+    /// Seed: scene i depends only on (seed, i).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    #[command(flatten)]
+    libraries: LibraryArgs,
+}
+
 /// Runs `matseg bench-set`.
 pub fn run(command: Command) -> Result<()> {
     match command {
         Command::Make(args) => make(args),
         Command::Draw(args) => draw(args),
+        Command::Masks(args) => masks(args),
     }
+}
+
+fn masks(args: MasksArgs) -> Result<()> {
+    let libraries = args.libraries.load(DEFAULT_CACHE_MB)?;
+    let written = make_mask_benchmark(&args.out, args.n, args.seed, &libraries)?;
+    println!("{}: mask benchmark of {written} scenes", args.out.display());
+    Ok(())
 }
 
 fn draw(args: DrawArgs) -> Result<()> {

@@ -1,4 +1,5 @@
-//! `matseg eval points|masks`: score models on real-photo benchmarks.
+//! `matseg eval points|masks|clicks`: score models on real-photo
+//! benchmarks (`clicks`: crate::eval_clicks).
 
 use anyhow::Result;
 use clap::Subcommand;
@@ -16,6 +17,10 @@ pub enum Command {
     Points(PointArgs),
     /// Photos with ground-truth masks: mean IoU at the best threshold.
     Masks(MaskArgs),
+    /// Clicks a selection needs: NoC@85, NoC@90 and IoU after 1, 3, 5
+    /// clicks on a mask benchmark; on a point benchmark, the balanced
+    /// accuracy of the points not clicked.
+    Clicks(crate::eval_clicks::Args),
     /// Generated 3D sequences: materials clicked on the first frame and
     /// followed, IoU at the best threshold on every frame.
     #[cfg(feature = "net")]
@@ -46,10 +51,10 @@ pub struct ModelArgs {
     device: String,
     /// Longer side of the evaluated images, in pixels (0: as they are).
     #[arg(long, default_value_t = matseg_eval::evaluate::DEFAULT_MAX_SIDE)]
-    max_side: u32,
+    pub max_side: u32,
     /// Print JSON (stable field names) instead of a table.
     #[arg(long)]
-    json: bool,
+    pub json: bool,
 }
 
 /// Arguments of `matseg eval points`.
@@ -98,13 +103,14 @@ pub fn run(command: Command) -> Result<()> {
     match command {
         Command::Points(args) => points(args),
         Command::Masks(args) => masks(args),
+        Command::Clicks(args) => crate::eval_clicks::run(args),
         #[cfg(feature = "net")]
         Command::Track(args) => crate::track::eval(args),
     }
 }
 
 /// The models `args` choose.
-fn models(args: &ModelArgs) -> Result<Vec<Box<dyn DescriptorModel>>> {
+pub fn models(args: &ModelArgs) -> Result<Vec<Box<dyn DescriptorModel>>> {
     let choice = ModelChoice {
         baselines: args.baselines.clone(),
         nets: args.nets.clone(),
@@ -114,7 +120,8 @@ fn models(args: &ModelArgs) -> Result<Vec<Box<dyn DescriptorModel>>> {
     Ok(matseg_pipeline::models::models(&choice)?)
 }
 
-fn score(v: Option<f64>) -> String {
+/// A score with four decimals, `-` when there is none.
+pub fn score(v: Option<f64>) -> String {
     v.map_or("-".into(), |v| format!("{v:.4}"))
 }
 

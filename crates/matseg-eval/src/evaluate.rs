@@ -197,7 +197,7 @@ pub struct NamedIou {
     pub mean_iou: Option<f64>,
 }
 
-fn load_mask(path: &Path, w: u32, h: u32) -> Result<GrayImage, BenchError> {
+pub(crate) fn load_mask(path: &Path, w: u32, h: u32) -> Result<GrayImage, BenchError> {
     let bytes = std::fs::read(path).map_err(|e| BenchError {
         path: path.to_path_buf(),
         line: None,

@@ -8,6 +8,7 @@
 
 pub mod annotation;
 pub mod baselines;
+pub mod clicks;
 pub mod evaluate;
 pub mod iou;
 pub mod masks;

@@ -10,7 +10,7 @@ use matseg_data::sample_rng;
 use matseg_eval::overlay::draw_points;
 use matseg_eval::synthetic::{annotate_points, write_point_image, SyntheticOptions};
 use matseg_eval::{evaluate_points, load_point_benchmark, PointReport};
-use matseg_image::io::{encode_png_rgb, read_rgb};
+use matseg_image::io::{encode_jpeg, encode_png_grey, encode_png_rgb, read_rgb};
 use matseg_image::progress::Progress;
 use matseg_query::descriptor::DescriptorModel;
 use matseg_scene::{generate_2d, Recipe2d};
@@ -106,6 +106,47 @@ pub fn make_point_benchmark(
         written += 1;
     }
     Ok((written, left_out))
+}
+
+/// Writes a mask benchmark (the layout `matseg eval masks` and `eval
+/// clicks` read: `sceneNNNNN.jpg` and a `sceneNNNNN.maskK.png` per
+/// material, its weight as 8-bit grey, 128 and above inside) of `scenes`
+/// generated 2D scenes (scene i from (seed, i)) into `out`. Returns the
+/// scenes written.
+pub fn make_mask_benchmark(
+    out: &Path,
+    scenes: u64,
+    seed: u64,
+    libraries: &Libraries,
+) -> Result<u64, PipelineError> {
+    if scenes < 1 {
+        return Err(PipelineError::setting(
+            "scenes",
+            Some(scenes),
+            "a benchmark needs one scene at least",
+        ));
+    }
+    let recipe = Recipe2d::default();
+    create_folder(out)?;
+    for i in 0..scenes {
+        let mut rng = sample_rng(seed, i);
+        let scene = generate_2d(&mut rng, &recipe, libraries.sources())?;
+        let name = format!("scene{i:05}");
+        let (w, h) = scene.image.dimensions();
+        for (k, weight) in scene.weights.iter().enumerate() {
+            let levels = weight.to_plane().to_u8();
+            write_file(
+                &out.join(format!("{name}.mask{k}.png")),
+                &encode_png_grey(w, h, &levels),
+            )?;
+        }
+        // The photo last: a photo with its masks is a complete image.
+        write_file(
+            &out.join(format!("{name}.jpg")),
+            &encode_jpeg(&scene.image, 95),
+        )?;
+    }
+    Ok(scenes)
 }
 
 /// Draws each image's points of the benchmark `bench` on it into

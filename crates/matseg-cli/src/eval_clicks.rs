@@ -1,0 +1,109 @@
+//! `matseg eval clicks`: how many clicks a selection needs, on a mask
+//! benchmark (NoC@85, NoC@90, IoU after 1, 3 and 5 clicks) or a point
+//! benchmark (the balanced accuracy of the points not clicked after 1, 3
+//! and 5 clicks), for the chosen models (`matseg_eval::clicks`).
+
+use crate::eval::{models, score, ModelArgs};
+use anyhow::Result;
+use matseg_eval::clicks::{evaluate_clicks, evaluate_point_clicks, ClickOptions, REPORTED_CLICKS};
+use matseg_eval::{load_point_benchmark, scan_mask_benchmark};
+use std::path::PathBuf;
+
+/// Arguments of `matseg eval clicks`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// A mask benchmark (NAME.jpg, NAME.mask0.png, ...) or a point
+    /// benchmark (images/, data/NAME/data.json).
+    data: PathBuf,
+    #[command(flatten)]
+    model: ModelArgs,
+    /// The most clicks a mask gets.
+    #[arg(long, default_value_t = 20)]
+    max_clicks: usize,
+    /// Radius of each click's disc, in pixels.
+    #[arg(long, default_value_t = 5.0, value_parser = crate::query_args::parse_radius, allow_negative_numbers = true)]
+    radius: f32,
+    /// Leave out masks smaller than this many pixels (at the evaluated size).
+    #[arg(long, default_value_t = 100)]
+    min_area: usize,
+}
+
+/// Runs `matseg eval clicks`.
+pub fn run(args: Args) -> Result<()> {
+    if args.max_clicks < *REPORTED_CLICKS.iter().max().expect("reported") {
+        anyhow::bail!("--max-clicks {}: give 5 at least", args.max_clicks);
+    }
+    let options = ClickOptions {
+        max_side: args.model.max_side,
+        max_clicks: args.max_clicks,
+        radius: args.radius,
+        min_area: args.min_area,
+    };
+    let models = models(&args.model)?;
+    let at = |map: &std::collections::BTreeMap<String, f64>, k: usize| {
+        score(map.get(&k.to_string()).copied())
+    };
+    if args.data.join("images").is_dir() && args.data.join("data").is_dir() {
+        let bench = load_point_benchmark(&args.data, false)?;
+        let reports = models
+            .iter()
+            .map(|m| evaluate_point_clicks(m.as_ref(), &bench, &options))
+            .collect::<Result<Vec<_>, _>>()?;
+        if args.model.json {
+            let out = serde_json::json!({ "data": args.data, "max_side": options.max_side, "models": reports });
+            println!("{}", serde_json::to_string_pretty(&out)?);
+            return Ok(());
+        }
+        println!(
+            "{}: {} materials clicked; balanced accuracy of the points not clicked",
+            args.data.display(),
+            reports.first().map_or(0, |r| r.sessions.len())
+        );
+        println!("| model | after 1 click | after 3 | after 5 |");
+        println!("|---|---|---|---|");
+        for r in &reports {
+            let ba = &r.balanced_accuracy_at;
+            println!(
+                "| {} | {} | {} | {} |",
+                r.model,
+                at(ba, 1),
+                at(ba, 3),
+                at(ba, 5)
+            );
+        }
+        return Ok(());
+    }
+    let images = scan_mask_benchmark(&args.data)?;
+    let reports = models
+        .iter()
+        .map(|m| evaluate_clicks(m.as_ref(), &images, &options))
+        .collect::<Result<Vec<_>, _>>()?;
+    if args.model.json {
+        let out = serde_json::json!({ "data": args.data, "max_side": options.max_side, "models": reports });
+        println!("{}", serde_json::to_string_pretty(&out)?);
+        return Ok(());
+    }
+    println!(
+        "{}: {} masks clicked ({} too small), at most {} clicks each",
+        args.data.display(),
+        reports.first().map_or(0, |r| r.masks),
+        reports.first().map_or(0, |r| r.skipped_masks),
+        options.max_clicks
+    );
+    println!("| model | NoC@85 | NoC@90 | IoU after 1 click | after 3 | after 5 | one click at the best threshold |");
+    println!("|---|---|---|---|---|---|---|");
+    for r in &reports {
+        let m = &r.miou_at;
+        println!(
+            "| {} | {} | {} | {} | {} | {} | {} |",
+            r.model,
+            score(r.noc85),
+            score(r.noc90),
+            at(m, 1),
+            at(m, 3),
+            at(m, 5),
+            score(r.one_click_oracle)
+        );
+    }
+    Ok(())
+}
