@@ -83,6 +83,13 @@ class Model:
         self, image: _Image, points: list[tuple[float, float]], radius: float
     ) -> tuple[Buffer, Buffer | None]: ...
     def cluster(self, image: _Image, k: int, seed: int) -> tuple[Buffer, int]: ...
+    def select(
+        self,
+        image: _Image,
+        positive: list[tuple[float, float]],
+        negative: list[tuple[float, float]],
+        radius: float,
+    ) -> tuple[Buffer, Buffer, str]: ...
 
 @final
 class Tracker:
@@ -90,7 +97,7 @@ class Tracker:
         self,
         model: Model,
         image: _Image,
-        points: list[tuple[float, float]],
+        clicks: tuple[list[tuple[float, float]], list[tuple[float, float]]],
         radius: float,
         side: int,
         tracker: tuple[int, int, float, float, float],

@@ -1,5 +1,6 @@
 """A trained net, as `matseg segment` uses it: descriptors, similarity to
-clicked points, segmentation by points or by clustering."""
+clicked points, selections by positive and negative clicks, segmentation
+by points or by clustering."""
 
 import os
 from collections.abc import Iterable, Iterator, Sequence
@@ -34,6 +35,20 @@ class TrackedFrame(NamedTuple):
     areas: list[float]
 
 
+class Selection(NamedTuple):
+    """A selection made by clicks (`Model.select`)."""
+
+    #: HxW float32: each pixel's similarity to the positive clicks, lowered
+    #: where a negative click's material is as near (one click alone: its
+    #: similarity map).
+    soft: NDArray[np.float32]
+    #: HxW bool: the selection's own decision.
+    mask: NDArray[np.bool_]
+    #: The selection saved as JSON (`selection.json`, what `matseg apply`
+    #: reads): the clicks' descriptors and the model's name.
+    saved: str
+
+
 def check_image(image: object) -> NDArray[np.uint8]:
     """`image` as a C-contiguous HxWx3 uint8 array, or TypeError/ValueError
     saying what is wrong."""
@@ -46,16 +61,19 @@ def check_image(image: object) -> NDArray[np.uint8]:
     return np.ascontiguousarray(image)
 
 
-def check_points(points: Points) -> list[tuple[float, float]]:
-    """`points` as a list of (x, y) float pairs."""
+def check_points(points: Points, name: str = "points", empty: bool = False) -> list[tuple[float, float]]:
+    """`points` (the argument `name`) as a list of (x, y) float pairs; none
+    only when `empty` allows it."""
+    if empty and len(points) == 0:
+        return []
     try:
         pts = np.asarray(points, dtype=np.float64)
     except (TypeError, ValueError):
-        raise TypeError("points: expected (x, y) pairs of numbers") from None
+        raise TypeError(f"{name}: expected (x, y) pairs of numbers") from None
     if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) == 0:
-        raise ValueError(f"points: expected a list of (x, y) pairs, got shape {pts.shape}")
+        raise ValueError(f"{name}: expected a list of (x, y) pairs, got shape {pts.shape}")
     if not np.isfinite(pts).all():
-        raise ValueError("points: coordinates must be finite")
+        raise ValueError(f"{name}: coordinates must be finite")
     return [(float(x), float(y)) for x, y in pts]
 
 
@@ -108,6 +126,22 @@ class Model:
         maps, _ = self._native.similarity(image, check_points(points), float(radius))
         return view(maps, "<f4", (-1, h, w))
 
+    def select(self, image: NDArray[np.uint8], positive: Points, negative: Points = (),
+               radius: float = DEFAULT_RADIUS) -> Selection:
+        """The selection `positive` clicks of one material and `negative`
+        clicks ((x, y) pixels) make on `image`, as `matseg segment --point
+        1:X,Y --not X,Y` makes it: a `Selection` (soft map, mask, saved)."""
+        image = check_image(image)
+        h, w = image.shape[:2]
+        pos = check_points(positive, "positive")
+        neg = check_points(negative, "negative", empty=True)
+        soft, mask, saved = self._native.select(image, pos, neg, float(radius))
+        return Selection(
+            soft=view(soft, "<f4", (h, w)),
+            mask=view(mask, np.uint8, (h, w)).astype(bool),
+            saved=saved,
+        )
+
     def segment(self, image: NDArray[np.uint8], points: Points | None = None, k: int | None = None,
                 radius: float = DEFAULT_RADIUS, seed: int = 0) -> NDArray[np.int32]:
         """HxW int32 labels: each pixel's most similar point (two points or
@@ -132,15 +166,17 @@ class Model:
     def track(self, frames: Iterable[NDArray[np.uint8]], points: Points, frame: int = 0,
               radius: float = DEFAULT_RADIUS, side: int = DEFAULT_TRACK_SIDE, memory: int = _MEMORY,
               samples: int = _SAMPLES, confident: float = _CONFIDENT, prior: float = _PRIOR,
-              temperature: float = _TEMPERATURE) -> Iterator[TrackedFrame]:
+              temperature: float = _TEMPERATURE, negative: Points = ()) -> Iterator[TrackedFrame]:
         """Follows the materials under `points` ((x, y) pixels, clicked on
-        frame number `frame`) through `frames`, an iterable of HxWx3 uint8
+        frame number `frame`; none of them taking the materials under the
+        `negative` clicks on that frame) through `frames`, an iterable of HxWx3 uint8
         arrays of one size (a list, or a generator decoding a video): yields
         a `TrackedFrame` for every frame from the first, as `matseg track`
         labels them (docs/video.md). Frames are taken one at a time; those
         before the clicked one are held until it comes. The settings are
         `matseg track`'s."""
         pts = check_points(points)
+        neg = check_points(negative, "negative", empty=True)
         if isinstance(frame, bool) or not isinstance(frame, (int, np.integer)) or frame < 0:
             raise ValueError(f"frame: expected a frame number from 0, got {frame!r}")
         settings = (int(memory), int(samples), float(confident), float(prior), float(temperature))
@@ -152,7 +188,7 @@ class Model:
             except StopIteration:
                 raise IndexError(f"frame {frame}: past the end: the frames are {index}") from None
         clicked = held[-1]
-        tracker = _core.Tracker(self._native, clicked, pts, float(radius), int(side), settings)
+        tracker = _core.Tracker(self._native, clicked, (pts, neg), float(radius), int(side), settings)
 
         def step(image: NDArray[np.uint8]) -> TrackedFrame:
             fh, fw = image.shape[:2]

@@ -7,6 +7,7 @@ use matseg_image::device::ComputeDevice;
 use matseg_net::infer::resolve_model as resolve;
 use matseg_net::infer::NetModel;
 use matseg_pipeline::segment::{check_points, cluster, describe, query_points, Model, MAX_POINTS};
+use matseg_pipeline::select::{select_materials, MaterialClicks};
 use matseg_pipeline::track::{TrackSettings, Tracking};
 use matseg_query::descriptor::check_radius;
 use matseg_query::tracking::TrackOptions;
@@ -167,6 +168,8 @@ pub fn plot_losses(metrics: PathBuf, png: PathBuf) -> PyResult<()> {
 #[pyclass(module = "matseg._core", name = "Model", frozen)]
 pub struct PyModel {
     net: NetModel,
+    /// The name it was loaded by, as a saved selection records it.
+    name: String,
 }
 
 /// `t`'s values as little-endian f32.
@@ -199,7 +202,10 @@ impl PyModel {
         let net = py
             .detach(|| NetModel::load(Path::new(&name), ComputeDevice::Cpu))
             .map_err(matseg_error)?;
-        Ok(Self { net })
+        Ok(Self {
+            net,
+            name: name.display().to_string(),
+        })
     }
 
     /// Descriptor channels.
@@ -245,6 +251,43 @@ impl PyModel {
         Ok((Buffer::f32s(&flat), maps.labels.map(|l| label_buffer(&l))))
     }
 
+    /// The selection made by `positive` clicks of one material and
+    /// `negative` ones: its soft map `[height, width]` (f32 bytes), its
+    /// mask (u8 bytes, 1 selected) and the selection saved as JSON (what
+    /// `matseg apply` reads).
+    fn select(
+        &self,
+        py: Python<'_>,
+        image: Photo,
+        positive: Vec<(f32, f32)>,
+        negative: Vec<(f32, f32)>,
+        radius: f32,
+    ) -> PyResult<(Buffer, Buffer, String)> {
+        let Photo(photo) = image;
+        let grouped: Vec<_> = positive.into_iter().map(|p| (Some(0), p)).collect();
+        let clicks = MaterialClicks::group(&grouped, negative);
+        let refused =
+            |e: matseg_pipeline::error::PipelineError| PyValueError::new_err(e.to_string());
+        clicks.check(&photo, "the image").map_err(refused)?;
+        check_radius(radius).map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let name = &self.name;
+        let mut selections = py
+            .detach(|| {
+                select_materials(
+                    &describe(&self.net(), &photo),
+                    &photo,
+                    &clicks,
+                    radius,
+                    name,
+                )
+            })
+            .map_err(refused)?;
+        let selection = selections.remove(0);
+        let mask = selection.mask.iter().map(|&m| m as u8).collect();
+        let saved = serde_json::to_string(&selection.saved).expect("a selection serialises");
+        Ok((Buffer::f32s(&selection.soft), Buffer::new(mask), saved))
+    }
+
     /// The photo split into `k` materials by clustering its descriptors:
     /// labels (i32 bytes) and the number of clusters.
     fn cluster(
@@ -269,6 +312,9 @@ impl PyModel {
     }
 }
 
+/// Clicks as (x, y) pixel pairs.
+type Points = Vec<(f32, f32)>;
+
 /// Clicked materials followed through frames handed over one at a time,
 /// as `matseg track` follows them (`matseg.Model.track`).
 #[pyclass(module = "matseg._core", name = "Tracker", frozen)]
@@ -279,23 +325,26 @@ pub struct PyTracker {
 
 #[pymethods]
 impl PyTracker {
-    /// Starts following the materials under `points` on the clicked frame
-    /// (`image`); `tracker` is (memory, samples, confident, prior,
+    /// Starts following the materials under the points of `clicks` on the
+    /// clicked frame (`image`), none taking the materials under its
+    /// negative clicks (`clicks` is (points, negatives)); `tracker` is (memory, samples, confident, prior,
     /// temperature).
     #[new]
     fn new(
         py: Python<'_>,
         model: Py<PyModel>,
         image: Photo,
-        points: Vec<(f32, f32)>,
+        clicks: (Points, Points),
         radius: f32,
         side: u32,
         tracker: (usize, usize, f32, f32, f32),
     ) -> PyResult<Self> {
         let Photo(clicked) = image;
+        let (points, negatives) = clicks;
         let (memory, samples, confident, prior, temperature) = tracker;
         let settings = TrackSettings {
             points,
+            negatives,
             frame: 0,
             radius,
             side,

@@ -37,6 +37,30 @@ def test_similarity_and_segmentation_match_matseg_segment(model, photo, matseg_b
     assert maps[0][120, 100] > 0.9 and labels[120, 100] == 0 and labels[60, 400] == 1
 
 
+def test_selection_matches_matseg_segment_and_applies_as_saved(model, photo, matseg_bin, tmp_path):
+    out, applied = tmp_path / "segment", tmp_path / "apply"
+    run([matseg_bin, "segment", PHOTO, "--point", "1:100,120", "--point", "1:120,300",
+         "--not", "400,60", "--out", out])
+    selection = model.select(photo, [(100, 120), (120, 300)], negative=[(400, 60)])
+    assert selection.mask.shape == photo.shape[:2] and selection.mask.dtype == bool
+    cli = np.asarray(Image.open(out / "mask_0.png")) > 127
+    assert (selection.mask == cli).mean() > 0.999
+    assert selection.mask[120, 100] and not selection.mask[60, 400]
+    # The saved selection, applied to the same photo, makes the same mask.
+    saved = tmp_path / "selection.json"
+    saved.write_text(selection.saved)
+    run([matseg_bin, "apply", saved, PHOTO, "--out", applied])
+    again = np.asarray(Image.open(applied / "masks" / "astronaut.png")) > 127
+    assert (again == selection.mask).mean() > 0.999
+    # One positive click alone: its similarity map, as it is.
+    alone = model.select(photo, [(100, 120)])
+    assert np.array_equal(alone.soft, model.similarity(photo, [(100, 120)])[0])
+    with pytest.raises(ValueError, match="positive"):
+        model.select(photo, [])
+    with pytest.raises(ValueError, match="^not 9999"):
+        model.select(photo, [(100, 120)], negative=[(9999, 1)])
+
+
 def test_descriptors_are_unit_vectors(model, photo):
     small = photo[:96, :128]
     d = model.describe(small)

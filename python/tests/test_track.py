@@ -56,6 +56,24 @@ def test_tracking_matches_matseg_track(model, frames, matseg_bin, tmp_path):
     assert last[96, 70 + 16 * (FRAMES - 1)] == 1 and last[20, 10] == 2
 
 
+def test_negative_clicks_are_followed_but_never_reported(model, frames, matseg_bin, tmp_path):
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for i, frame in enumerate(frames):
+        Image.fromarray(frame).save(folder / f"{i:06}.png")
+    out = tmp_path / "tracked"
+    run([matseg_bin, "track", folder, "--point", "100,96", "--not", "200,20", "--preview",
+         "--out", out])
+    tracked = list(model.track(frames, [(100, 96)], negative=[(200, 20)]))
+    for i, t in enumerate(tracked):
+        assert t.probability.shape == (1, 192, 256) and len(t.areas) == 1
+        assert set(np.unique(t.labels)) <= {0, 1}
+        cli = np.asarray(Image.open(out / "labels" / f"{i:06}.png"))
+        assert (t.labels == cli).all(), f"frame {i}"
+    last = tracked[-1].labels
+    assert last[96, 70 + 16 * (FRAMES - 1)] == 1 and last[20, 10] == 0
+
+
 def test_bad_frames_and_settings_raise(model, frames):
     with pytest.raises(IndexError, match="past the end"):
         list(model.track(frames[:2], [(100, 96)], frame=5))

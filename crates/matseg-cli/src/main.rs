@@ -4,6 +4,8 @@
 #![warn(missing_docs)]
 
 mod allocator;
+#[cfg(feature = "net")]
+mod apply;
 mod assets;
 mod bench;
 #[cfg(feature = "net")]
@@ -15,6 +17,7 @@ mod bench_set;
 mod common;
 mod demo;
 mod eval;
+mod eval_clicks;
 #[cfg(feature = "net")]
 mod features;
 mod generate;
@@ -90,9 +93,12 @@ enum Command {
     /// Train the material-descriptor net (pipeline.md §8).
     #[cfg(feature = "net")]
     Train(train::Args),
-    /// Similarity maps and segmentation of a photo, from points or by clustering (pipeline.md §8).
+    /// Similarity maps, masks and segmentation of a photo, from positive and negative clicks or by clustering (pipeline.md §8).
     #[cfg(feature = "net")]
     Segment(segment::Args),
+    /// Apply a selection saved from clicks on one photo to other photos: a mask each and areas.csv.
+    #[cfg(feature = "net")]
+    Apply(apply::Args),
     /// Follow the material under clicked points through a video or a frame folder (pipeline.md §8.2).
     #[cfg(feature = "net")]
     Track(track::Args),
@@ -143,6 +149,8 @@ fn main() -> ExitCode {
         Command::Train(args) => train::run(args),
         #[cfg(feature = "net")]
         Command::Segment(args) => segment::run(args),
+        #[cfg(feature = "net")]
+        Command::Apply(args) => apply::run(args),
         #[cfg(feature = "net")]
         Command::Track(args) => track::run(args),
         #[cfg(feature = "net")]

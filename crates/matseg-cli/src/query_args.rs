@@ -1,5 +1,6 @@
 //! The query arguments `segment`, `track` and `eval masks` share: points
-//! and the radius of their discs, parsed and checked once.
+//! (grouped into materials or not) and the radius of their discs, parsed
+//! and checked once.
 
 use matseg_query::descriptor::check_radius;
 
@@ -18,6 +19,22 @@ pub fn parse_point(s: &str) -> Result<(f32, f32), String> {
             .ok_or_else(|| format!("{s}: expected X,Y numbers"))
     };
     Ok((number(x)?, number(y)?))
+}
+
+/// A point of a material `[GROUP:]X,Y`: points that share a group
+/// number are one material; a point without one is a material of its own.
+#[cfg(feature = "net")]
+pub fn parse_grouped_point(s: &str) -> Result<(Option<u32>, (f32, f32)), String> {
+    match s.split_once(':') {
+        None => Ok((None, parse_point(s)?)),
+        Some((group, point)) => {
+            let group = group
+                .trim()
+                .parse::<u32>()
+                .map_err(|_| format!("{s}: expected GROUP:X,Y with a group number"))?;
+            Ok((Some(group), parse_point(point)?))
+        }
+    }
 }
 
 /// A disc radius in pixels, within the range every front end accepts.
@@ -40,6 +57,11 @@ mod tests {
         assert_eq!(parse_point(" -5 , 10"), Ok((-5.0, 10.0)));
         for bad in ["3", "a,b", "NaN,1", "1,inf", ""] {
             assert!(parse_point(bad).is_err(), "{bad}");
+        }
+        assert_eq!(parse_grouped_point("3,4"), Ok((None, (3.0, 4.0))));
+        assert_eq!(parse_grouped_point("2:3,-4"), Ok((Some(2), (3.0, -4.0))));
+        for bad in ["x:3,4", "-1:3,4", "1:3", ":3,4"] {
+            assert!(parse_grouped_point(bad).is_err(), "{bad}");
         }
     }
 

@@ -1,15 +1,15 @@
 //! `matseg segment`: where else in this photo is the material under these
-//! points? Similarity maps from a trained net (pipeline.md §8, inference), and a hard
-//! segmentation when several points are given, or with no points by
+//! points, and not the material under the `--not` clicks? Similarity maps
+//! and masks from a trained net (pipeline.md §8, inference), a hard
+//! segmentation when several materials are clicked, or with no points by
 //! clustering the descriptors (`--auto K`).
 
 use crate::net_args::parse_device;
-use crate::query_args::{parse_point, parse_radius};
+use crate::query_args::{parse_grouped_point, parse_point, parse_radius};
 use anyhow::Result;
 use matseg_image::io::read_rgb;
-use matseg_pipeline::segment::{
-    check_points, describe, write_clusters, write_point_maps, Model, DEFAULT_RADIUS,
-};
+use matseg_pipeline::segment::{describe, write_clusters, write_point_maps, Model, DEFAULT_RADIUS};
+use matseg_pipeline::select::MaterialClicks;
 use matseg_query::ClusterOptions;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -24,8 +24,14 @@ pub struct Args {
     #[arg(long, default_value = "default")]
     model: PathBuf,
     /// A query point `X,Y` in image pixels; repeat for several materials.
-    #[arg(long = "point", required_unless_present = "auto", value_parser = parse_point, allow_hyphen_values = true)]
-    points: Vec<(f32, f32)>,
+    /// `GROUP:X,Y` gives several points of one material (those of one
+    /// group number).
+    #[arg(long = "point", required_unless_present = "auto", value_parser = parse_grouped_point, allow_hyphen_values = true)]
+    points: Vec<(Option<u32>, (f32, f32))>,
+    /// A negative click `X,Y`: its material is excluded from every
+    /// material's selection; repeat for several.
+    #[arg(long = "not", value_parser = parse_point, allow_hyphen_values = true, conflicts_with = "auto")]
+    not: Vec<(f32, f32)>,
     /// No points: split the photo into K materials by clustering the
     /// descriptors (spherical k-means).
     #[arg(long, value_name = "K", conflicts_with = "points", value_parser = clap::value_parser!(u32).range(2..=255))]
@@ -47,7 +53,10 @@ pub struct Args {
 /// Runs `matseg segment`.
 pub fn run(args: Args) -> Result<()> {
     let photo = read_rgb(&args.image)?;
-    check_points(&photo, &args.points, &args.image.display().to_string())?;
+    let clicks = MaterialClicks::group(&args.points, args.not.clone());
+    if args.auto.is_none() {
+        clicks.check(&photo, &args.image.display().to_string())?;
+    }
     let net = Model::load(&args.model, parse_device(&args.device)?)?;
     let started = Instant::now();
     let map = describe(&net, &photo);
@@ -64,25 +73,26 @@ pub fn run(args: Args) -> Result<()> {
         );
         return Ok(());
     }
-    let queried = write_point_maps(&photo, &map, &args.points, args.radius, &args.out)?;
+    let model = args.model.display().to_string();
+    let queried = write_point_maps(&photo, &map, &clicks, args.radius, &model, &args.out)?;
+    let materials = clicks.materials.len();
     println!(
-        "{}: {} similarity map(s){}",
+        "{}: {materials} similarity map(s) and mask(s){}",
         args.out.display(),
-        args.points.len(),
-        if args.points.len() > 1 {
-            " and segmentation.png, labels.png"
+        if materials > 1 {
+            ", segmentation.png, labels.png"
         } else {
             ""
         }
     );
     eprintln!(
-        "descriptors: {:.3} s ({}x{} photo, {}x{} grid); similarity maps: {:.1} ms a point",
+        "descriptors: {:.3} s ({}x{} photo, {}x{} grid); selections: {:.1} ms a material",
         described,
         photo.width(),
         photo.height(),
         map.grid.width,
         map.grid.height,
-        1e3 * queried / args.points.len().max(1) as f64
+        1e3 * queried / materials.max(1) as f64
     );
     Ok(())
 }

@@ -22,6 +22,10 @@ pub struct Args {
     /// A point `X,Y` in pixels of the clicked frame; repeat for several materials.
     #[arg(long = "point", required = true, value_parser = parse_point, allow_hyphen_values = true)]
     points: Vec<(f32, f32)>,
+    /// A negative click `X,Y` on the clicked frame: its material is kept
+    /// out of every point's through the whole video; repeat for several.
+    #[arg(long = "not", value_parser = parse_point, allow_hyphen_values = true)]
+    not: Vec<(f32, f32)>,
     /// The frame the points are clicked on (from 0).
     #[arg(long, default_value_t = 0)]
     frame: u64,
@@ -102,6 +106,7 @@ pub fn run(args: Args) -> Result<()> {
     let net = args.tracking.load()?;
     let settings = TrackSettings {
         points: args.points,
+        negatives: args.not,
         frame: args.frame,
         radius: args.radius,
         side: args.tracking.side,

@@ -5,6 +5,7 @@
 use matseg_data::{generate_dataset, GenerateOptions};
 use matseg_image::{device::ComputeDevice, io::read_rgb, progress::Silent, LicenceFilter};
 use matseg_pipeline::segment::{describe, write_point_maps, Model, DEFAULT_RADIUS};
+use matseg_pipeline::select::MaterialClicks;
 use matseg_pipeline::sources::{assets_dir, Defaults, Libraries};
 use matseg_pipeline::train::{start, TrainConfig, TrainData, TrainInputs};
 use matseg_scene::Recipe2d;
@@ -31,15 +32,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let model = Model::load(&run.model_file(), ComputeDevice::Cpu)?;
     let photo = read_rgb(&assets_dir().join("photos/coffee.jpg"))?;
     let map = describe(&model, &photo);
+    let clicks = MaterialClicks::group(&[(None, (290.0, 130.0))], Vec::new());
+    let model_file = run.model_file().display().to_string();
     write_point_maps(
         &photo,
         &map,
-        &[(290.0, 130.0)],
+        &clicks,
         DEFAULT_RADIUS,
+        &model_file,
         &out.join("segment"),
     )?;
     println!(
-        "{}: similarity map and overlay",
+        "{}: similarity map, overlay and the selection's mask",
         out.join("segment").display()
     );
     Ok(())

@@ -23,6 +23,8 @@
 //!   or resumed from their folder, with each step reported to a callback.
 //! - [`segment`] (feature `net`): a model's descriptors of a photo,
 //!   similarity maps of points, segmentations and their overlays.
+//! - [`select`] (feature `net`): selections by positive and negative
+//!   clicks, each material's mask, saved and applied to other photos.
 //! - [`bench`]: the benchmark harnesses behind `matseg bench*` and
 //!   `cargo bench`.
 //! - [`demo`]: the pipeline on the bundled assets as an HTML report.
@@ -60,6 +62,8 @@ pub mod render;
 pub mod scenes;
 #[cfg(feature = "net")]
 pub mod segment;
+#[cfg(feature = "net")]
+pub mod select;
 pub mod soft_maps;
 pub mod sources;
 pub mod textures;

@@ -6,6 +6,7 @@
 
 use crate::error::PipelineError;
 use crate::files::{create_folder, write_file};
+use crate::select::{select_materials, write_selection, MaterialClicks};
 use image::RgbImage;
 use matseg_image::io::{encode_png_grey, encode_png_rgb};
 use matseg_net::TEMPERATURE;
@@ -43,18 +44,33 @@ pub fn check_points(
     points: &[(f32, f32)],
     label: &str,
 ) -> Result<(), PipelineError> {
+    check_clicks(photo, points, label, "point")
+}
+
+/// Checks that there are at most [`MAX_POINTS`] clicks and each lies
+/// inside `photo` (named `label` in the message), the clicks named
+/// `name` (the argument that gave them: `point`, `not`).
+pub fn check_clicks(
+    photo: &RgbImage,
+    points: &[(f32, f32)],
+    label: &str,
+    name: &str,
+) -> Result<(), PipelineError> {
     let (w, h) = (photo.width() as f32, photo.height() as f32);
     if points.len() > MAX_POINTS {
         return Err(PipelineError::setting(
-            "point",
+            name,
             None::<&str>,
-            format!("at most {MAX_POINTS} points (labels.png is 8-bit)"),
+            format!(
+                "{} clicks: at most {MAX_POINTS} (labels.png is 8-bit)",
+                points.len()
+            ),
         ));
     }
     for &(x, y) in points {
         if !(0.0..w).contains(&x) || !(0.0..h).contains(&y) {
             return Err(PipelineError::setting(
-                "point",
+                name,
                 Some(format!("{x},{y}")),
                 format!("outside {label} ({w}x{h})"),
             ));
@@ -111,15 +127,15 @@ pub fn similarity_grey(similarity: &[f32]) -> Vec<u8> {
         .collect()
 }
 
-/// `photo` painted red where `similarity` is high, with the query point's
-/// disc outlined in white. The red's strength is the training softmax's
+/// `photo` painted red where `similarity` is high, with the query points'
+/// discs outlined in white. The red's strength is the training softmax's
 /// weight of the point's material relative to a perfect match,
 /// `exp((s - 1) / T)`, so the map reads as the net was taught to read it
 /// (cosine 1: full red; 0.8: 37%; 0.5: 8%).
 pub fn similarity_overlay(
     photo: &RgbImage,
     similarity: &[f32],
-    point: (f32, f32),
+    points: &[(f32, f32)],
     radius: f32,
 ) -> RgbImage {
     let mut overlay = photo.clone();
@@ -131,7 +147,9 @@ pub fn similarity_overlay(
             (p.0[2] as f32 * (1.0 - a)) as u8,
         ];
     }
-    outline_disc(&mut overlay, point, radius);
+    for &point in points {
+        outline_disc(&mut overlay, point, radius);
+    }
     overlay
 }
 
@@ -145,37 +163,46 @@ pub fn segmentation_overlay(photo: &RgbImage, labels: &[u32]) -> RgbImage {
     segmentation
 }
 
-/// Writes into `out`, for each point, `similarity_I.png` (grey) and
-/// `overlay_I.png`, and for several points `segmentation.png` and
-/// `labels.png`; every file atomically. Returns the seconds spent on the
-/// points' descriptors and similarity maps (not drawing or writing them).
+/// Writes into `out`, for each material `K` of `clicks`:
+/// `similarity_K.png` (grey: its similarity, lowered near negative
+/// clicks), `overlay_K.png`, `mask_K.png` (its selection's own mask) and
+/// `selection_K.json` (its clicks' descriptors, for `matseg apply`; `model`
+/// names the model); for several materials `segmentation.png` and
+/// `labels.png` (each pixel's nearest material). Every file atomically.
+/// Clicks must have been checked ([`MaterialClicks::check`]). Returns the
+/// seconds spent on the selections (not drawing or writing them).
 pub fn write_point_maps(
     photo: &RgbImage,
     map: &CoarseDescriptors,
-    points: &[(f32, f32)],
+    clicks: &MaterialClicks,
     radius: f32,
+    model: &str,
     out: &Path,
 ) -> Result<f64, PipelineError> {
     check_radius(radius).map_err(|e| PipelineError::Settings(e.to_string()))?;
     create_folder(out)?;
     let (w, h) = photo.dimensions();
-    let maps = query_points(map, points, radius);
-    for (i, (similarity, &point)) in maps.similarity.iter().zip(points).enumerate() {
-        let grey = similarity_grey(similarity);
+    let started = Instant::now();
+    let selections = select_materials(map, photo, clicks, radius, model)?;
+    let seconds = started.elapsed().as_secs_f64();
+    for (k, (selection, points)) in selections.iter().zip(&clicks.materials).enumerate() {
+        let grey = similarity_grey(&selection.soft);
         write_file(
-            &out.join(format!("similarity_{i}.png")),
+            &out.join(format!("similarity_{k}.png")),
             &encode_png_grey(w, h, &grey),
         )?;
-        let overlay = similarity_overlay(photo, similarity, point, radius);
+        let overlay = similarity_overlay(photo, &selection.soft, points, radius);
         write_file(
-            &out.join(format!("overlay_{i}.png")),
+            &out.join(format!("overlay_{k}.png")),
             &encode_png_rgb(&overlay),
         )?;
+        write_selection(photo, k, selection, out)?;
     }
-    if let Some(labels) = &maps.labels {
-        write_segmentation(photo, labels, out)?;
+    if selections.len() > 1 {
+        let soft: Vec<Vec<f32>> = selections.into_iter().map(|s| s.soft).collect();
+        write_segmentation(photo, &CoarseDescriptors::nearest_of(&soft), out)?;
     }
-    Ok(maps.seconds)
+    Ok(seconds)
 }
 
 /// Writes into `out` the segmentation of `photo` into the clusters of its
@@ -262,7 +289,7 @@ mod tests {
             similarity_grey(&[-0.5, 0.0, 0.5, 1.0, 2.0]),
             vec![0, 0, 128, 255, 255]
         );
-        let overlay = similarity_overlay(&photo, &maps.similarity[0], (0.5, 0.5), 0.5);
+        let overlay = similarity_overlay(&photo, &maps.similarity[0], &[(0.5, 0.5)], 0.5);
         // Full red where the similarity is 1.
         assert_eq!(overlay.get_pixel(0, 1).0, [255, 0, 0]);
         // Far from the point, exp(-1 / T) of red: the photo nearly as it is.
@@ -270,7 +297,7 @@ mod tests {
         assert!(far[1] >= 99 && far[2] >= 198, "{far:?}");
         // The point's disc is outlined in white on a photo large enough.
         let big = RgbImage::new(16, 16);
-        let outlined = similarity_overlay(&big, &[0.0; 256], (8.0, 8.0), 5.0);
+        let outlined = similarity_overlay(&big, &[0.0; 256], &[(8.0, 8.0)], 5.0);
         assert_eq!(outlined.get_pixel(13, 8).0, [255, 255, 255]);
         // Inside, cosine 0 on black: exp(-1 / T) of full red, 255 * 0.0067.
         assert_eq!(outlined.get_pixel(8, 8).0, [1, 0, 0]);
@@ -297,12 +324,22 @@ mod tests {
     fn point_maps_are_written_with_the_segmentation() {
         let (photo, map) = halves();
         let dir = tempfile::tempdir().unwrap();
-        write_point_maps(&photo, &map, &[(0.5, 0.5), (3.5, 1.5)], 0.5, dir.path()).unwrap();
+        let clicks = MaterialClicks::group(&[(None, (0.5, 0.5)), (None, (3.5, 1.5))], vec![]);
+        write_point_maps(&photo, &map, &clicks, 0.5, "m", dir.path()).unwrap();
         let labels = image::open(dir.path().join("labels.png"))
             .unwrap()
             .to_luma8();
         assert_eq!(labels.as_raw(), &vec![0, 0, 1, 1, 0, 0, 1, 1]);
-        for name in ["similarity_0.png", "overlay_1.png", "segmentation.png"] {
+        let mask = image::open(dir.path().join("mask_1.png"))
+            .unwrap()
+            .to_luma8();
+        assert_eq!(mask.as_raw(), &vec![0, 0, 255, 255, 0, 0, 255, 255]);
+        for name in [
+            "similarity_0.png",
+            "overlay_1.png",
+            "segmentation.png",
+            "selection_0.json",
+        ] {
             assert!(dir.path().join(name).is_file(), "{name}");
         }
     }

@@ -8,13 +8,13 @@
 //! frame's maps written as it is done.
 
 use crate::error::PipelineError;
-use crate::files::{create_folder, write_file};
+use crate::files::{create_folder, replace_folder, write_file};
 use crate::frames::FrameSource;
 use crate::overlay_video::OverlayVideo;
 use crate::progress::Progress;
-use crate::segment::{check_points, outline_disc, Model};
+use crate::segment::{check_clicks, check_points, outline_disc, Model};
 use image::RgbImage;
-use matseg_image::io::{encode_jpeg, encode_png_grey, output_folder, partial_folder};
+use matseg_image::io::{encode_jpeg, encode_png_grey};
 use matseg_query::coarse::CoarseDescriptors;
 use matseg_query::descriptor::check_radius;
 use matseg_query::tracking::{MaterialTracker, TrackOptions};
@@ -39,6 +39,10 @@ pub const MAX_TRACK_POINTS: usize = 254;
 pub struct TrackSettings {
     /// The clicked points, in pixels of the clicked frame.
     pub points: Vec<(f32, f32)>,
+    /// Negative clicks on the clicked frame: materials followed too, so
+    /// that no point's material takes them, but never labelled or
+    /// reported.
+    pub negatives: Vec<(f32, f32)>,
     /// The frame they were clicked on (from 0).
     pub frame: u64,
     /// Radius of each point's disc, in pixels.
@@ -54,6 +58,7 @@ impl TrackSettings {
     pub fn new(points: Vec<(f32, f32)>) -> Self {
         TrackSettings {
             points,
+            negatives: Vec::new(),
             frame: 0,
             radius: crate::segment::DEFAULT_RADIUS,
             side: DEFAULT_TRACK_SIDE,
@@ -104,6 +109,9 @@ impl FrameDescriber for matseg_net::infer::NetModel {
 /// call is handed the model that describes the frame.
 pub struct Tracking {
     tracker: MaterialTracker,
+    /// How many of the tracker's materials are reported: the points'
+    /// (the negative clicks' follow them).
+    reported: usize,
     side: u32,
     size: (u32, u32),
 }
@@ -124,14 +132,16 @@ impl Tracking {
                 "give at least one point",
             ));
         }
-        if settings.points.len() > MAX_TRACK_POINTS {
+        let clicks = settings.points.len() + settings.negatives.len();
+        if clicks > MAX_TRACK_POINTS {
             return Err(PipelineError::setting(
                 "point",
                 None::<&str>,
-                format!("at most {MAX_TRACK_POINTS} points (labels are 8-bit)"),
+                format!("{clicks} points and negative clicks: at most {MAX_TRACK_POINTS} in all"),
             ));
         }
         check_points(clicked, &settings.points, label)?;
+        check_clicks(clicked, &settings.negatives, label, "not")?;
         check_radius(settings.radius).map_err(|e| PipelineError::Settings(e.to_string()))?;
         if !(16..=4096).contains(&settings.side) {
             return Err(PipelineError::setting(
@@ -145,6 +155,7 @@ impl Tracking {
         let queries = settings
             .points
             .iter()
+            .chain(&settings.negatives)
             .map(|&(x, y)| map.point_descriptor(x, y, settings.radius))
             .collect();
         // The clicked frame seeds the memory: what the clicks confidently
@@ -153,6 +164,7 @@ impl Tracking {
         tracker.step(&map);
         Ok(Tracking {
             tracker,
+            reported: settings.points.len(),
             side: settings.side,
             size: clicked.dimensions(),
         })
@@ -174,14 +186,20 @@ impl Tracking {
         }
         let map = model.describe_frame(frame, self.side);
         let margins = self.tracker.step(&map);
-        let similarity: Vec<Vec<f32>> = margins
+        let mut similarity: Vec<Vec<f32>> = margins
             .iter()
             .map(|m| {
                 let p: Vec<f32> = m.iter().map(|&m| self.tracker.probability(m)).collect();
                 map.resize_to_photo(&p)
             })
             .collect();
-        let labels = label_pixels(&similarity, LABEL_PROBABILITY);
+        // The negative clicks' materials take their pixels from the
+        // points', then go unreported.
+        let mut labels = label_pixels(&similarity, LABEL_PROBABILITY);
+        for l in labels.iter_mut().filter(|l| **l as usize > self.reported) {
+            *l = 0;
+        }
+        similarity.truncate(self.reported);
         let mut counts = vec![0u64; similarity.len()];
         for &l in &labels {
             if l > 0 {
@@ -321,6 +339,9 @@ pub struct TrackReport {
     pub clicked_frame: u64,
     /// The points.
     pub points: Vec<[f32; 2]>,
+    /// The negative clicks (left out when there are none).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub negatives: Vec<[f32; 2]>,
     /// Their discs' radius.
     pub radius: f32,
     /// The side frames were described at.
@@ -356,36 +377,9 @@ pub fn track_to_folder(
     files: TrackFiles,
     progress: &dyn Progress,
 ) -> Result<TrackReport, PipelineError> {
-    let out = &output_folder(out)?;
-    if let Some(stranger) = foreign_entry(out) {
-        return Err(PipelineError::file(
-            out.display(),
-            format!(
-                "holds {stranger:?}, which no track output has (only an earlier track output is replaced): choose another --out"
-            ),
-        ));
-    }
-    let partial = partial_folder(out);
-    if partial.exists() {
-        std::fs::remove_dir_all(&partial)
-            .map_err(|e| PipelineError::file(partial.display(), format!("cannot remove: {e}")))?;
-    }
-    let result = track_into(model, source, settings, &partial, files, progress);
-    let report = match result {
-        Ok(report) => report,
-        Err(e) => {
-            let _ = std::fs::remove_dir_all(&partial);
-            return Err(e);
-        }
-    };
-    if out.exists() {
-        std::fs::remove_dir_all(out)
-            .map_err(|e| PipelineError::file(out.display(), format!("cannot replace: {e}")))?;
-    }
-    std::fs::rename(&partial, out).map_err(|e| {
-        PipelineError::file(out.display(), format!("cannot rename into place: {e}"))
-    })?;
-    Ok(report)
+    replace_folder(out, &TRACK_OUTPUT, "track", |dir| {
+        track_into(model, source, settings, dir, files, progress)
+    })
 }
 
 /// What a track output folder holds: [`track_to_folder`] replaces a
@@ -398,25 +392,6 @@ const TRACK_OUTPUT: [&str; 6] = [
     "overlay.mp4",
     "overlay.png",
 ];
-
-/// The first entry of the folder `out` that is not part of a track output;
-/// none when `out` does not exist, is empty or holds only an earlier track
-/// output's files. A file at `out` is its own stranger.
-fn foreign_entry(out: &Path) -> Option<String> {
-    if !out.exists() {
-        return None;
-    }
-    let Ok(listing) = std::fs::read_dir(out) else {
-        return Some(out.display().to_string());
-    };
-    let mut names: Vec<String> = listing
-        .filter_map(|e| e.ok().map(|e| e.file_name().to_string_lossy().into_owned()))
-        .collect();
-    names.sort();
-    names
-        .into_iter()
-        .find(|n| !TRACK_OUTPUT.contains(&n.as_str()))
-}
 
 /// [`track_to_folder`]'s work, into the folder `dir`.
 fn track_into(
@@ -499,6 +474,7 @@ fn track_into(
         frames: areas.len() as u64,
         clicked_frame: settings.frame,
         points: settings.points.iter().map(|&(x, y)| [x, y]).collect(),
+        negatives: settings.negatives.iter().map(|&(x, y)| [x, y]).collect(),
         radius: settings.radius,
         side: settings.side,
         tracker: settings.options,

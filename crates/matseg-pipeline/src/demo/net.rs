@@ -10,6 +10,7 @@ use crate::error::PipelineError;
 use crate::files::write_file;
 use crate::progress::Progress;
 use crate::segment::{describe, write_clusters, write_point_maps, Model, DEFAULT_RADIUS};
+use crate::select::MaterialClicks;
 use crate::sources::{assets_dir, Defaults, Libraries};
 use crate::train::{resume, start, TrainConfig, TrainData, TrainInputs};
 use matseg_image::device::ComputeDevice;
@@ -210,7 +211,16 @@ fn segmentation_rows(
         let auto = format!("{dir}/{stem}-auto");
         let image = read_rgb(&photo)?;
         let map = describe(net, &image);
-        write_point_maps(&image, &map, points, DEFAULT_RADIUS, &out.join(&by_points))?;
+        let grouped: Vec<_> = points.iter().map(|&p| (None, p)).collect();
+        let clicks = MaterialClicks::group(&grouped, Vec::new());
+        write_point_maps(
+            &image,
+            &map,
+            &clicks,
+            DEFAULT_RADIUS,
+            model,
+            &out.join(&by_points),
+        )?;
         write_clusters(&image, &map, &ClusterOptions::new(AUTO_K), &out.join(&auto))?;
         let point_args: String = points
             .iter()

@@ -1,0 +1,88 @@
+//! `matseg apply`: a selection made by clicks on one photo (its
+//! `selection.json`) applied to other photos of any size: a mask per photo
+//! and each photo's share of the material in `areas.csv`.
+
+use crate::net_args::parse_device;
+use anyhow::{bail, Result};
+use matseg_image::io::{find_files, IMAGE_EXTENSIONS};
+use matseg_pipeline::segment::Model;
+use matseg_pipeline::select::{apply_to_folder, read_selection};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Arguments of `matseg apply`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// The saved selection: `selection_K.json` from `matseg segment`, or
+    /// `selection.json` from the web app or Python's `Model.select`.
+    selection: PathBuf,
+    /// Photos, or folders searched for photos (jpg, jpeg, png).
+    #[arg(required = true)]
+    photos: Vec<PathBuf>,
+    /// The model; by default the one the selection was made with (a
+    /// selection's descriptors mean nothing to another model).
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// cpu, cuda or cuda:N.
+    #[arg(long, default_value = "cpu")]
+    device: String,
+    /// Output folder: `masks/NAME.png`, `areas.csv`, `selection.json`.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+/// Runs `matseg apply`.
+pub fn run(args: Args) -> Result<()> {
+    let saved = read_selection(&args.selection)?;
+    let model = args
+        .model
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(&saved.model));
+    let photos = photos_outside(&args.photos, &args.out)?;
+    let net = Model::load(&model, parse_device(&args.device)?)?;
+    saved
+        .check(net.output_dim() as usize)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", args.selection.display()))?;
+    let started = Instant::now();
+    let total = photos.len();
+    let mut done = 0;
+    let areas = apply_to_folder(&net, &saved, &photos, &args.out, &mut |area| {
+        done += 1;
+        eprintln!(
+            "[{done}/{total}] {}: {:.2}% selected",
+            area.photo.display(),
+            100.0 * area.share()
+        );
+    })?;
+    let mean = areas.iter().map(|a| a.share()).sum::<f64>() / areas.len().max(1) as f64;
+    println!(
+        "{}: {} masks and areas.csv (mean share {:.2}%), {:.2} s a photo",
+        args.out.display(),
+        areas.len(),
+        100.0 * mean,
+        started.elapsed().as_secs_f64() / areas.len().max(1) as f64
+    );
+    Ok(())
+}
+
+/// The photos `roots` name (folders searched recursively), leaving out
+/// anything inside the output folder `out` (an earlier run's masks).
+fn photos_outside(roots: &[PathBuf], out: &Path) -> Result<Vec<PathBuf>> {
+    let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    let out = absolute(out);
+    let partial = matseg_image::io::partial_folder(&out);
+    let photos: Vec<PathBuf> = find_files(roots, &IMAGE_EXTENSIONS)?
+        .into_iter()
+        .filter(|p| {
+            let p = absolute(p);
+            !p.starts_with(&out) && !p.starts_with(&partial)
+        })
+        .collect();
+    if photos.is_empty() {
+        bail!(
+            "{}: no photos (jpg, jpeg, png) to apply the selection to",
+            roots[0].display()
+        );
+    }
+    Ok(photos)
+}
