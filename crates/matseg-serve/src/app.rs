@@ -12,7 +12,7 @@ use crate::model::ServedModel;
 use crate::roots::{PathError, Roots};
 use crate::uploads::UploadFolder;
 use crate::video::Videos;
-use crate::{annotate, browse, evaluate, guard, photos, video};
+use crate::{annotate, browse, evaluate, guard, photos, select, video};
 use axum::extract::{DefaultBodyLimit, Path, Request, State};
 use axum::http::{header, StatusCode};
 use axum::middleware::{self, Next};
@@ -105,6 +105,8 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/api/similarity", get(photos::similarity))
         .route("/api/segment", get(photos::segment))
         .route("/api/auto", get(photos::auto))
+        .route("/api/select", get(select::selection))
+        .route("/api/select/save", get(select::save))
         .route("/api/datasets", get(browse::datasets))
         .route("/api/samples", get(browse::samples))
         .route("/api/sample", get(browse::sample))

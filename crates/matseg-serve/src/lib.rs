@@ -1,7 +1,8 @@
 //! `matseg serve`: the local web app. Five pages: *segment* opens a photo
 //! (bundled, uploaded, or from the folders the server was given) and a
-//! click shows where else in it the material under the point is
-//! (shift-clicks add points, whose segmentation is drawn live); *browse*
+//! click shows where else in it the material under the point is (more
+//! clicks add to the selection, alt- or right-clicks leave a material
+//! out, each drawn live), or splits it automatically; *browse*
 //! pages through a generated dataset; *annotate* builds a point benchmark;
 //! *evaluate* scores the model and baselines on one; *video* follows
 //! clicked materials through a video. Each photo is
@@ -28,6 +29,7 @@ pub mod load;
 pub mod model;
 pub mod photos;
 pub mod roots;
+pub mod select;
 pub mod uploads;
 pub mod video;
 

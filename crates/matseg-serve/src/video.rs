@@ -259,17 +259,28 @@ pub struct TrackQuery {
     #[serde(default)]
     frame: u64,
     points: String,
+    /// Negative clicks, `x,y;x,y...`: materials no point's may take.
+    #[serde(default)]
+    negative: String,
     radius: Option<f32>,
 }
 
 /// `POST /api/track`: starts following the materials under `points`
-/// (`x,y;x,y...`, clicked on `frame`) through the video; answers the job's
+/// (`x,y;x,y...`, clicked on `frame`) through the video, none of them
+/// taking the materials under the `negative` clicks; answers the job's
 /// id. One job runs at a time (409 while one does).
 pub async fn start(
     State(state): State<Arc<AppState>>,
     Query(query): Query<TrackQuery>,
 ) -> Result<Json<serde_json::Value>, ApiError> {
     let points = crate::photos::parse_points(&query.points, MAX_TRACK_POINTS)?;
+    let negatives = crate::select::parse_clicks("negative", &query.negative)?;
+    if points.len() + negatives.len() > MAX_TRACK_POINTS {
+        return Err(ApiError::bad(format!(
+            "points, negative: {} clicks; at most {MAX_TRACK_POINTS} in all",
+            points.len() + negatives.len()
+        )));
+    }
     let radius = crate::photos::checked_radius(query.radius)?;
     let video = VideoRef {
         root: query.root,
@@ -279,7 +290,8 @@ pub async fn start(
         let state = state.clone();
         blocking(move || video.open(&state)).await?
     };
-    check_points(&points, source.width, source.height, &name)?;
+    check_points("point", &points, (source.width, source.height), &name)?;
+    check_points("negative", &negatives, (source.width, source.height), &name)?;
     let frames = source.frame_count();
     if frames > MAX_TRACK_FRAMES {
         return Err(ApiError::bad(format!(
@@ -293,6 +305,7 @@ pub async fn start(
         )));
     }
     let mut settings = TrackSettings::new(points);
+    settings.negatives = negatives;
     settings.frame = query.frame;
     settings.radius = radius;
     let mut jobs = matseg_image::sync::lock(&state.videos.jobs);
@@ -354,12 +367,12 @@ pub async fn start(
     Ok(Json(serde_json::json!({ "job": id })))
 }
 
-/// Points checked against `width` x `height` frames of `name`: each
-/// inside.
+/// Points (`what`: the argument's name) checked against frames of `name`
+/// of `width` x `height`: each inside.
 fn check_points(
+    what: &str,
     points: &[(f32, f32)],
-    width: u32,
-    height: u32,
+    (width, height): (u32, u32),
     name: &str,
 ) -> Result<(), ApiError> {
     if let Some((x, y)) = points
@@ -367,7 +380,7 @@ fn check_points(
         .find(|(x, y)| !(0.0..width as f32).contains(x) || !(0.0..height as f32).contains(y))
     {
         return Err(ApiError::bad(format!(
-            "point {x},{y}: outside the {width}x{height} frames of {name}"
+            "{what} {x},{y}: outside the {width}x{height} frames of {name}"
         )));
     }
     Ok(())

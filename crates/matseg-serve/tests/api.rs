@@ -271,3 +271,113 @@ async fn paths_outside_the_folders_bad_points_and_missing_tokens_are_refused() {
     .unwrap();
     assert!(off.access.token.is_none());
 }
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_negative_click_leaves_its_material_out_of_the_selection() {
+    let app = router(state(&options()).unwrap());
+    let selected = |png: &[u8]| image::load_from_memory(png).unwrap().to_rgb8();
+    // The coffee clicked: the method's own mask (green) takes the coffee
+    // and, on this photo, the red saucer too; the soft map (red) is the
+    // one-click similarity map.
+    let (status, kind, png) = get(
+        &app,
+        "/api/select?root=photos&path=coffee.jpg&positive=290,130",
+    )
+    .await;
+    assert_eq!((status, kind.as_str()), (StatusCode::OK, "image/png"));
+    let coffee = selected(&png);
+    assert_eq!(coffee.dimensions(), (600, 400));
+    assert_eq!(coffee.get_pixel(290, 130).0[1], 255, "the clicked pixel");
+    assert!(coffee
+        .pixels()
+        .all(|p| matches!(p.0[1], 0 | 255) && p.0[2] == 0));
+    let (_, _, grey) = get(
+        &app,
+        "/api/similarity?root=photos&path=coffee.jpg&points=290,130",
+    )
+    .await;
+    let grey = image::load_from_memory(&grey).unwrap().to_luma8();
+    assert!(coffee
+        .pixels()
+        .zip(grey.pixels())
+        .all(|(c, g)| c.0[0] == g.0[0]));
+    let area = |image: &image::RgbImage| image.pixels().filter(|p| p.0[1] == 255).count();
+    // The saucer clicked as negative: out of the mask, the coffee kept.
+    let (status, _, png) = get(
+        &app,
+        "/api/select?root=photos&path=coffee.jpg&positive=290,130&negative=150,300",
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK);
+    let refined = selected(&png);
+    assert_eq!(refined.get_pixel(150, 300).0[1], 0, "the negative's pixel");
+    assert_eq!(refined.get_pixel(290, 130).0[1], 255);
+    assert!(area(&refined) < area(&coffee), "the selection shrinks");
+    assert!(refined.get_pixel(150, 300).0[0] < coffee.get_pixel(150, 300).0[0]);
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn bad_clicks_are_refused_naming_their_argument() {
+    let app = router(state(&options()).unwrap());
+    let photo = "/api/select?root=photos&path=coffee.jpg";
+    let many = vec!["1,1"; 300].join(";");
+    for (query, said) in [
+        (
+            "&negative=5,5",
+            "positive: give one positive click at least",
+        ),
+        ("", "positive: give one positive click at least"),
+        (
+            "&positive=5,5&negative=a,b",
+            "negative \"a,b\": expected X,Y",
+        ),
+        (
+            "&positive=9999,1",
+            "positive 9999,1: outside coffee.jpg (600x400)",
+        ),
+        (
+            "&positive=5,5&negative=5,400",
+            "negative 5,400: outside coffee.jpg",
+        ),
+        (
+            &format!("&positive={many}"),
+            "positive, negative: 300 clicks; at most 255",
+        ),
+        ("&positive=5,5&radius=-1", "radius"),
+    ] {
+        let (status, _, body) = get(&app, &format!("{photo}{query}")).await;
+        assert_eq!(status, StatusCode::BAD_REQUEST, "{query}");
+        assert!(
+            error_of(&body).contains(said),
+            "{query}: {}",
+            error_of(&body)
+        );
+    }
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_selection_is_saved_as_its_clicks_descriptors() {
+    let app = router(state(&options()).unwrap());
+    let (status, kind, body) = get(
+        &app,
+        "/api/select/save?root=photos&path=coffee.jpg&positive=290,130&negative=150,300;540,80",
+    )
+    .await;
+    assert_eq!(
+        (status, kind.as_str()),
+        (StatusCode::OK, "application/json")
+    );
+    let saved: matseg_query::select::SavedSelection = serde_json::from_slice(&body).unwrap();
+    assert_eq!(saved.model, "default");
+    assert_eq!((saved.positive.len(), saved.negative.len()), (1, 2));
+    let dim = saved.positive[0].len();
+    assert!(dim > 0);
+    saved.check(dim).unwrap();
+    let (status, _, body) = get(
+        &app,
+        "/api/select/save?root=photos&path=coffee.jpg&negative=150,300",
+    )
+    .await;
+    assert_eq!(status, StatusCode::BAD_REQUEST);
+    assert!(error_of(&body).starts_with("positive:"));
+}

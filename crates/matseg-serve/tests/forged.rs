@@ -150,6 +150,13 @@ fn forged_requests(token: Option<&'static str>) -> Vec<Forged> {
             S::FORBIDDEN,
         ),
         (
+            "cross-site selection",
+            M::GET,
+            "/api/select?root=bench0&path=images/balance.jpg&positive=5,5",
+            with_own(&[("sec-fetch-site", "cross-site")]),
+            S::FORBIDDEN,
+        ),
+        (
             "cross-site save",
             M::POST,
             ANNOTATION,

@@ -219,3 +219,235 @@ export function listFolders(select, folders) {
 for (const link of document.querySelectorAll("nav a")) {
   link.classList.toggle("here", link.pathname === location.pathname);
 }
+
+// Clicks on a photo, positive ("this material") and negative ("not that
+// one"), with their history: every change (add, remove, clear) can be
+// undone and redone. `changed()` is called after each.
+export class Clicks {
+  constructor(changed) {
+    this.list = [];
+    this.done = [];
+    this.undone = [];
+    this.changed = changed;
+  }
+
+  // A new list of clicks, as one edit.
+  set(list) {
+    this.done.push(this.list);
+    this.list = list;
+    this.undone = [];
+    this.changed();
+  }
+
+  add(click) { this.set([...this.list, click]); }
+  remove(index) { this.set(this.list.filter((_, i) => i !== index)); }
+  clear() { if (this.list.length) this.set([]); }
+
+  undo() {
+    if (!this.done.length) return;
+    this.undone.push(this.list);
+    this.list = this.done.pop();
+    this.changed();
+  }
+
+  redo() {
+    if (!this.undone.length) return;
+    this.done.push(this.list);
+    this.list = this.undone.pop();
+    this.changed();
+  }
+
+  // No clicks and no history (another photo), without `changed()`.
+  forget() {
+    Object.assign(this, { list: [], done: [], undone: [] });
+  }
+
+  // The clicks of one kind as the API takes them, `x,y;x,y`.
+  query(positive) {
+    return this.list.filter((c) => c.positive === positive).map((c) => `${c.x},${c.y}`).join(";");
+  }
+
+  count(positive) {
+    return this.list.filter((c) => c.positive === positive).length;
+  }
+}
+
+// Ctrl+Z undoes, Ctrl+Shift+Z and Ctrl+Y redo, Esc clears the clicks
+// (Cmd for Ctrl on a Mac); keys typed in a text field are left alone.
+export function bindEditKeys(clicks) {
+  document.addEventListener("keydown", (event) => {
+    if (event.target.matches?.("input[type=text], input[type=number], textarea, select")) return;
+    const control = event.ctrlKey || event.metaKey;
+    const key = event.key.toLowerCase();
+    if (control && key === "z" && !event.shiftKey) clicks.undo();
+    else if (control && (key === "y" || (key === "z" && event.shiftKey))) clicks.redo();
+    else if (event.key === "Escape" && !control) clicks.clear();
+    else return;
+    event.preventDefault();
+  });
+}
+
+// Image pixels per CSS pixel of a canvas drawn at any size (at least 1
+// for drawing marks that stay readable).
+export function pixelsPerCss(canvas) {
+  const box = canvas.getBoundingClientRect();
+  return box.width ? Math.max(1, canvas.width / box.width) : 1;
+}
+
+// The radius of a click's marker, in image pixels.
+export function markerRadius(canvas) {
+  return 9 * pixelsPerCss(canvas);
+}
+
+// Draws a click: a green disc with a "+" (positive) or a red one with a
+// "−" (negative), or one filled with `fill` ([r, g, b]) when given,
+// edged in white and outlined in black so that it shows on any photo.
+export function drawClick(context, click, radius, fill = null) {
+  const unit = radius / 9;
+  context.save();
+  context.beginPath();
+  context.arc(click.x + 0.5, click.y + 0.5, radius, 0, 2 * Math.PI);
+  context.fillStyle = fill ? `rgb(${fill.join(",")})` : click.positive ? "rgb(20, 160, 60)" : "rgb(215, 30, 45)";
+  context.fill();
+  context.lineWidth = 4 * unit;
+  context.strokeStyle = "rgb(0, 0, 0)";
+  context.stroke();
+  context.lineWidth = 2 * unit;
+  context.strokeStyle = "rgb(255, 255, 255)";
+  context.stroke();
+  context.beginPath();
+  const arm = radius * 0.55;
+  context.moveTo(click.x + 0.5 - arm, click.y + 0.5);
+  context.lineTo(click.x + 0.5 + arm, click.y + 0.5);
+  if (click.positive) {
+    context.moveTo(click.x + 0.5, click.y + 0.5 - arm);
+    context.lineTo(click.x + 0.5, click.y + 0.5 + arm);
+  }
+  context.lineWidth = 2.5 * unit;
+  context.stroke();
+  context.restore();
+}
+
+// The index of the click whose marker covers image pixel `point`, or -1.
+export function clickIndexAt(clicks, [x, y], radius) {
+  let best = -1;
+  let nearest = radius * radius;
+  clicks.forEach((c, i) => {
+    const d = (c.x - x) ** 2 + (c.y - y) ** 2;
+    if (d <= nearest) [best, nearest] = [i, d];
+  });
+  return best;
+}
+
+// Points on `canvas`: a click adds a positive one, an alt-click or a
+// right-click (its menu kept closed) a negative one, and a click on a
+// marker removes its click. `ready()`, called first, says whether clicks
+// are taken (and may start a new choice).
+export function takeClicks(canvas, clicks, ready = () => true) {
+  const take = (event, positive) => {
+    if (!ready()) return;
+    const [x, y] = pointOf(canvas, event);
+    const hit = clickIndexAt(clicks.list, [x, y], markerRadius(canvas));
+    if (hit >= 0) clicks.remove(hit);
+    else clicks.add({ x, y, positive });
+  };
+  canvas.addEventListener("click", (event) => take(event, !event.altKey));
+  canvas.addEventListener("contextmenu", (event) => {
+    event.preventDefault();
+    take(event, false);
+  });
+}
+
+// Shows or hides the busy mark over `view` (a spinner and `text`, the
+// cursor a progress one).
+export function setBusy(view, text) {
+  view.classList.toggle("busy", Boolean(text));
+  let note = view.querySelector(".busy-note");
+  if (!note) {
+    note = document.createElement("div");
+    note.className = "busy-note";
+    note.setAttribute("role", "status");
+    note.innerHTML = '<span class="spinner"></span> <span class="busy-text"></span>';
+    view.prepend(note);
+  }
+  note.hidden = !text;
+  note.querySelector(".busy-text").textContent = text || "";
+}
+
+// `mask` (one byte a pixel, non-zero set) grown by `radius` pixels in
+// every direction (a square), in two passes of running distances.
+export function dilate(mask, width, height, radius) {
+  const pass = (input, count, length, at) => {
+    const out = new Uint8Array(input.length);
+    for (let line = 0; line < count; line++) {
+      let since = Infinity;
+      for (let k = 0; k < length; k++) {
+        since = input[at(line, k)] ? 0 : since + 1;
+        if (since <= radius) out[at(line, k)] = 1;
+      }
+      since = Infinity;
+      for (let k = length - 1; k >= 0; k--) {
+        since = input[at(line, k)] ? 0 : since + 1;
+        if (since <= radius) out[at(line, k)] = 1;
+      }
+    }
+    return out;
+  };
+  const rows = pass(mask, height, width, (y, x) => y * width + x);
+  return pass(rows, width, height, (x, y) => y * width + x);
+}
+
+// The pixels on the edge of a region map (`region[i]`: a region's number,
+// or -1 for none): those with a right or lower neighbour in another region.
+export function edges(region, width, height) {
+  const edge = new Uint8Array(width * height);
+  for (let y = 0; y < height; y++) {
+    for (let x = 0; x < width; x++) {
+      const i = y * width + x;
+      const r = region[i];
+      if ((x + 1 < width && region[i + 1] !== r) || (y + 1 < height && region[i + width] !== r)) {
+        edge[i] = 1;
+      }
+    }
+  }
+  return edge;
+}
+
+// Draws region edges over the canvas: a white line with a black border on
+// each side, `unit` image pixels thick each (so they read at any size).
+export function drawOutline(context, region, unit) {
+  const { width, height } = context.canvas;
+  const edge = edges(region, width, height);
+  const white = dilate(edge, width, height, unit);
+  const black = dilate(white, width, height, unit);
+  const frame = context.getImageData(0, 0, width, height);
+  for (let i = 0; i < width * height; i++) {
+    if (!black[i]) continue;
+    const v = white[i] ? 255 : 0;
+    frame.data.set([v, v, v], 4 * i);
+  }
+  context.putImageData(frame, 0, 0);
+}
+
+// Greys the canvas: each pixel its lightness, darkened, so that a
+// selection drawn over it in a bright colour reads on any photo.
+export function greyOut(context) {
+  const { width, height } = context.canvas;
+  const frame = context.getImageData(0, 0, width, height);
+  const d = frame.data;
+  for (let i = 0; i < d.length; i += 4) {
+    const v = 0.55 * (0.299 * d[i] + 0.587 * d[i + 1] + 0.114 * d[i + 2]);
+    d[i] = d[i + 1] = d[i + 2] = v;
+  }
+  context.putImageData(frame, 0, 0);
+}
+
+// An opaque RGB PNG blob of `rgb(i)` = [r, g, b] for each pixel.
+export async function rgbPng(rgb, width, height) {
+  const scratch = new OffscreenCanvas(width, height);
+  const context = scratch.getContext("2d");
+  const frame = context.createImageData(width, height);
+  for (let i = 0; i < width * height; i++) frame.data.set([...rgb(i), 255], 4 * i);
+  context.putImageData(frame, 0, 0);
+  return scratch.convertToBlob({ type: "image/png" });
+}

@@ -1,140 +1,272 @@
 // The segment page: open a photo (listed, uploaded, or named in the
-// address as ?root=R&path=P), click a point to see the similarity of every
-// pixel to it, shift-click to add points and see the photo split among
-// them (pixels below the threshold in none), or split it automatically
-// into K materials. The server describes a photo once and answers every
-// click from its descriptors.
+// address as ?root=R&path=P) and click a material: the server selects
+// where else it is (its own decision, and a soft strength the threshold
+// can cut). More clicks refine the selection: a click adds the material
+// under it, an alt- or right-click leaves one out, a click on a mark
+// removes it; Ctrl+Z, Ctrl+Shift+Z (or Ctrl+Y) and Esc undo, redo and
+// clear. The selection is drawn as a tint, an outline, or in a bright
+// colour over the photo greyed. "Segment automatically" splits the photo
+// into K materials, each listed with its share and its mask. The server
+// describes a photo once (started as soon as it is opened) and answers
+// every click from its descriptors.
 
-import { api, pixels, similarities, bitmap, blend, ring, pointOf, download, greyPng, takeFiles, uploadFile, COLOUR_MAPS, PALETTE }
+import { api, pixels, bitmap, blend, download, greyPng, rgbPng, takeFiles, uploadFile, COLOUR_MAPS, PALETTE,
+  Clicks, bindEditKeys, takeClicks, drawClick, markerRadius, pixelsPerCss, setBusy, drawOutline, greyOut }
   from "/common.js";
 
 const canvas = document.getElementById("canvas");
 const context = canvas.getContext("2d", { willReadFrequently: true });
+const view = document.getElementById("view");
 const status = document.getElementById("status");
-const opacity = document.getElementById("opacity");
-const threshold = document.getElementById("threshold");
-const colours = document.getElementById("colours");
-const list = document.getElementById("photos");
-// layer: {kind: "similarity", values} (cosine in 0..1) or
-// {kind: "labels", labels, values} (label and its cosine, or 1 for clusters).
-const state = { photo: null, name: "", image: null, points: [], layer: null };
+const control = (id) => document.getElementById(id);
+const [opacity, threshold, colours, mode, cut] = ["opacity", "threshold", "colours", "view-mode", "cut"].map(control);
+const list = control("photos");
+const legend = control("legend");
+const clicks = new Clicks(update);
+// layer: {kind: "selection", soft, mask} (the strength 0..1 and the
+// method's own mask, 0 or 1, per pixel) or {kind: "auto", labels, k}.
+// asked: the newest request (older answers are dropped); describing,
+// waiting: what the busy mark says.
+const state = { photo: null, name: "", image: null, layer: null, asked: 0, described: null,
+  describing: false, waiting: false };
+
+// The tints of a selection: a strength 0..1 to [r, g, b, a].
+const TINTS = { solid: () => [255, 0, 0, 1], ...COLOUR_MAPS };
+// The colour of a selection over the greyed photo.
+const ON_GREY = [0, 255, 255, 1];
+
+// Each pixel's region: 0 selected, -1 not (a selection), or its material
+// (automatic).
+function regionsOf(layer) {
+  if (layer.kind === "auto") return Int16Array.from(layer.labels);
+  const cutAt = Number(threshold.value);
+  const own = cut.value === "own";
+  return Int16Array.from(layer.soft, (s, i) => ((own ? layer.mask[i] : s >= cutAt) ? 0 : -1));
+}
+
+function colourOf(layer, region, i) {
+  if (layer.kind === "auto") return [...PALETTE[region[i] % PALETTE.length], 1];
+  return mode.value === "grey" ? ON_GREY : TINTS[colours.value](layer.soft[i]);
+}
 
 function draw() {
   if (!state.image) return;
   context.drawImage(state.image, 0, 0);
+  control("threshold-value").textContent = Number(threshold.value).toFixed(2);
   const layer = state.layer;
-  const cut = Number(threshold.value);
-  document.getElementById("threshold-value").textContent = cut.toFixed(2);
-  if (layer?.kind === "similarity") {
-    const colour = COLOUR_MAPS[colours.value];
-    blend(context, (i) => layer.values[i] < cut ? [0, 0, 0, 0] : colour(layer.values[i]), Number(opacity.value));
-  } else if (layer?.kind === "labels") {
-    blend(context, (i) => layer.values[i] < cut ? [0, 0, 0, 0]
-      : [...PALETTE[layer.labels[i] % PALETTE.length], 1], Number(opacity.value));
+  if (layer) {
+    const region = regionsOf(layer);
+    if (mode.value === "outline") {
+      drawOutline(context, region, Math.max(1, Math.round(pixelsPerCss(canvas))));
+    } else {
+      if (mode.value === "grey") greyOut(context);
+      blend(context, (i) => (region[i] < 0 ? [0, 0, 0, 0] : colourOf(layer, region, i)), Number(opacity.value));
+    }
+    canvas.dataset.selected = String(region.reduce((n, r) => n + (r >= 0), 0));
+  } else {
+    delete canvas.dataset.selected;
   }
-  for (const [i, [x, y]] of state.points.entries()) {
-    ring(context, x, y, state.points.length > 1 ? PALETTE[i % PALETTE.length] : [255, 255, 255]);
-  }
+  const radius = markerRadius(canvas);
+  for (const click of clicks.list) drawClick(context, click, radius);
+  canvas.dataset.clicks = String(clicks.list.length);
 }
 
-// The label layer of an RGB label PNG (red: label; green: its strength).
-async function labelLayer(response) {
+// The busy mark: while the photo is described, and while the newest
+// request is answered.
+function showBusy() {
+  const text = state.describing ? "describing the photo…" : state.waiting ? "selecting…" : "";
+  setBusy(view, text);
+}
+
+// The selection layer of a selection PNG (red: strength; green: the mask).
+async function selectionLayer(response) {
   const rgba = await pixels(response);
   const n = rgba.length / 4;
-  const labels = new Uint8Array(n);
-  const values = new Float32Array(n);
+  const soft = new Float32Array(n);
+  const mask = new Uint8Array(n);
   for (let i = 0; i < n; i++) {
-    labels[i] = rgba[4 * i];
-    values[i] = rgba[4 * i + 1] / 255;
+    soft[i] = rgba[4 * i] / 255;
+    mask[i] = rgba[4 * i + 1] > 127 ? 1 : 0;
   }
-  return { kind: "labels", labels, values };
+  return { kind: "selection", soft, mask };
 }
 
-async function answer(started, request) {
-  try {
-    state.layer = await request();
-    status.textContent = `${state.layer ? describeLayer() : ""} ${Math.round(performance.now() - started)} ms`;
-    canvas.dataset.answered = String(Number(canvas.dataset.answered || 0) + 1);
-  } catch (error) {
-    status.textContent = error.message;
-  }
-  draw();
+// The automatic layer of a label PNG (red: the material's number).
+async function autoLayer(response, k) {
+  const rgba = await pixels(response);
+  return { kind: "auto", k, labels: Uint8Array.from({ length: rgba.length / 4 }, (_, i) => rgba[4 * i]) };
 }
 
 function describeLayer() {
-  if (state.layer.kind === "similarity") return "1 point:";
-  return state.points.length ? `${state.points.length} points:` : `${state.layer.k} materials:`;
+  const layer = state.layer;
+  if (layer.kind === "auto") return `${layer.k} materials:`;
+  const share = (100 * Number(canvas.dataset.selected)) / layer.soft.length;
+  return `${clicks.count(true)} + ${clicks.count(false)} −: ${share.toFixed(1)}% of the photo selected,`;
 }
 
-function update() {
-  const params = { ...state.photo, points: state.points.map(([x, y]) => `${x},${y}`).join(";") };
-  answer(performance.now(), async () => {
-    if (state.points.length === 1) {
-      return { kind: "similarity", values: await similarities(await api("/api/similarity", params)) };
+// Asks for a layer (`call()`, once the photo is described) as request
+// `asked`; only the newest request's answer is drawn.
+async function request(asked, call) {
+  const started = performance.now();
+  state.waiting = true;
+  showBusy();
+  try {
+    await state.described;
+    const layer = await call();
+    if (asked !== state.asked) return;
+    state.layer = layer;
+    draw();
+    showLegend();
+    status.textContent = `${describeLayer()} ${Math.round(performance.now() - started)} ms`;
+    canvas.dataset.answered = String(Number(canvas.dataset.answered || 0) + 1);
+  } catch (error) {
+    if (asked === state.asked) status.textContent = error.message;
+  } finally {
+    if (asked === state.asked) {
+      state.waiting = false;
+      showBusy();
     }
-    if (state.points.length > 1) return labelLayer(await api("/api/segment", params));
-    return null;
-  });
+  }
+}
+
+// The clicks changed: drawn at once, and the selection they make asked for.
+function update() {
+  control("undo").disabled = !clicks.done.length;
+  control("redo").disabled = !clicks.undone.length;
+  const asked = ++state.asked;
+  state.waiting = false;
+  showBusy();
+  if (!clicks.count(true)) {
+    state.layer = null;
+    showLegend();
+    status.textContent = clicks.list.length ? "A negative click needs a positive one: click the material to select." : "";
+    draw();
+    return;
+  }
+  draw();
+  const params = { ...state.photo, positive: clicks.query(true), negative: clicks.query(false) };
+  request(asked, async () => selectionLayer(await api("/api/select", params)));
+}
+
+// Describes the photo as soon as it is opened (the first answer takes a
+// few seconds; the next ones milliseconds): a selection at its middle,
+// whose answer is not shown.
+function describe(photo) {
+  state.describing = true;
+  showBusy();
+  const middle = `${Math.floor(canvas.width / 2)},${Math.floor(canvas.height / 2)}`;
+  return api("/api/select", { ...photo, positive: middle })
+    .then((response) => response.arrayBuffer())
+    .catch(() => {})
+    .finally(() => {
+      if (state.photo !== photo) return;
+      state.describing = false;
+      showBusy();
+      canvas.dataset.described = "1";
+    });
 }
 
 async function open(photo, name) {
   for (const item of list.children) item.classList.toggle("open", item.dataset.key === `${photo.root}/${photo.path}`);
-  state.photo = photo;
-  state.name = name.replace(/\.[^.]*$/, "").replace(/[^\w.-]+/g, "_");
-  state.points = [];
-  state.layer = null;
+  state.asked++;
+  Object.assign(state, { photo, image: null, layer: null, waiting: false, described: null,
+    name: name.replace(/\.[^.]*$/, "").replace(/[^\w.-]+/g, "_") });
+  clicks.forget();
+  update();
+  delete canvas.dataset.described;
   try {
     state.image = await bitmap(await api("/api/photo", photo));
   } catch (error) {
     status.textContent = error.message;
     return;
   }
+  if (state.photo !== photo) return;
   canvas.width = state.image.width;
   canvas.height = state.image.height;
   status.textContent = `${name}: ${canvas.width} x ${canvas.height}`;
   canvas.dataset.photo = `${photo.root}/${photo.path}`;
   draw();
+  state.described = describe(photo);
 }
 
-canvas.addEventListener("click", (event) => {
-  if (!state.image) return;
-  const point = pointOf(canvas, event);
-  state.points = event.shiftKey ? [...state.points, point] : [point];
-  update();
+takeClicks(canvas, clicks, () => Boolean(state.image && state.photo));
+bindEditKeys(clicks);
+control("undo").addEventListener("click", () => clicks.undo());
+control("redo").addEventListener("click", () => clicks.redo());
+control("clear").addEventListener("click", () => clicks.clear());
+for (const input of [opacity, colours, mode, cut]) input.addEventListener("input", draw);
+threshold.addEventListener("input", () => {
+  cut.value = "threshold";
+  draw();
 });
-for (const control of [opacity, threshold, colours]) control.addEventListener("input", draw);
-document.getElementById("clear").addEventListener("click", () => {
-  state.points = [];
-  update();
-});
-document.getElementById("auto").addEventListener("click", () => {
+addEventListener("resize", draw);
+
+control("auto").addEventListener("click", () => {
   if (!state.image) return;
-  const k = Number(document.getElementById("k").value);
-  state.points = [];
-  answer(performance.now(), async () => ({ ...await labelLayer(await api("/api/auto", { ...state.photo, k })), k }));
+  const k = Number(control("k").value);
+  clicks.forget();
+  update();
+  request(state.asked, async () => autoLayer(await api("/api/auto", { ...state.photo, k }), k));
 });
 
-// Downloads: the canvas as shown, the map (grey similarity, or labels with
-// 0 for none and label + 1 elsewhere) and the mask (the pixels at or above
-// the threshold, or of the first label).
-document.getElementById("save-overlay").addEventListener("click", () => {
+// The automatic segmentation's legend: each material's colour, its share
+// of the photo, and its mask as a PNG.
+function showLegend() {
+  const layer = state.layer;
+  legend.hidden = layer?.kind !== "auto";
+  if (legend.hidden) return legend.replaceChildren();
+  const counts = new Array(layer.k).fill(0);
+  for (const l of layer.labels) counts[l]++;
+  legend.replaceChildren(...counts.map((count, k) => {
+    const item = document.createElement("li");
+    item.innerHTML = `<span class="swatch"></span> <span></span> <button title="this material's mask">PNG</button>`;
+    item.querySelector(".swatch").style.background = `rgb(${PALETTE[k % PALETTE.length].join(",")})`;
+    item.children[1].textContent = `material ${k + 1}: ${((100 * count) / layer.labels.length).toFixed(1)}%`;
+    item.querySelector("button").addEventListener("click", async () => {
+      const bytes = Array.from(layer.labels, (l) => (l === k ? 255 : 0));
+      download(await greyPng(bytes, canvas.width, canvas.height), `${state.name}-material-${k + 1}.png`);
+    });
+    return item;
+  }));
+}
+
+// Downloads: the canvas as shown; the map (a selection's strength as
+// grey, or the automatic materials in their colours); the mask (the
+// selection shown, 255 in it); the selection as `selection.json`.
+control("save-overlay").addEventListener("click", () => {
   canvas.toBlob((blob) => download(blob, `${state.name}-overlay.png`), "image/png");
 });
-function layerBytes(mask) {
+control("save-map").addEventListener("click", async () => {
   const layer = state.layer;
-  const cut = Number(threshold.value);
-  if (layer.kind === "similarity") {
-    return Array.from(layer.values, (v) => mask ? (v >= cut ? 255 : 0) : Math.round(v * 255));
+  if (!layer) return;
+  const { width, height } = canvas;
+  if (layer.kind === "auto") {
+    download(await rgbPng((i) => PALETTE[layer.labels[i] % PALETTE.length], width, height), `${state.name}-materials.png`);
+  } else {
+    download(await greyPng(Array.from(layer.soft, (s) => Math.round(s * 255)), width, height), `${state.name}-strength.png`);
   }
-  return Array.from(layer.labels, (l, i) => layer.values[i] < cut ? 0 : mask ? (l === 0 ? 255 : 0) : l + 1);
-}
-for (const [id, mask] of [["save-map", false], ["save-mask", true]]) {
-  document.getElementById(id).addEventListener("click", async () => {
-    if (!state.layer) return;
-    const kind = state.layer.kind === "similarity" ? (mask ? "mask" : "similarity") : (mask ? "mask" : "labels");
-    download(await greyPng(layerBytes(mask), canvas.width, canvas.height), `${state.name}-${kind}.png`);
-  });
-}
+});
+control("save-mask").addEventListener("click", async () => {
+  const layer = state.layer;
+  if (layer?.kind !== "selection") {
+    status.textContent = "Click a material first (each automatic material's mask is in its legend).";
+    return;
+  }
+  const region = regionsOf(layer);
+  download(await greyPng(Array.from(region, (r) => (r >= 0 ? 255 : 0)), canvas.width, canvas.height), `${state.name}-mask.png`);
+});
+control("save-selection").addEventListener("click", async () => {
+  if (!clicks.count(true)) {
+    status.textContent = "Click a material first: the selection saved is its clicks' descriptors.";
+    return;
+  }
+  try {
+    const params = { ...state.photo, positive: clicks.query(true), negative: clicks.query(false) };
+    download(await (await api("/api/select/save", params)).blob(), `${state.name}-selection.json`);
+  } catch (error) {
+    status.textContent = error.message;
+  }
+});
 
 // Uploads: the file picker and drops on the drop zone or the photo.
 async function upload(file) {
@@ -146,7 +278,7 @@ async function upload(file) {
     status.textContent = error.message;
   }
 }
-takeFiles(document.getElementById("file"), [document.getElementById("drop"), canvas], upload);
+takeFiles(control("file"), [control("drop"), canvas], upload);
 
 // The photo list, a page at a time.
 let listed = 0;
@@ -160,10 +292,10 @@ async function listMore() {
     list.append(item);
   }
   listed += page.photos.length;
-  document.getElementById("more").hidden = listed >= page.total;
+  control("more").hidden = listed >= page.total;
   return page;
 }
-document.getElementById("more").addEventListener("click", listMore);
+control("more").addEventListener("click", listMore);
 
 const first = await listMore();
 const asked = new URLSearchParams(location.search);

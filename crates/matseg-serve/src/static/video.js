@@ -1,11 +1,14 @@
 // The video page: open a video (listed, uploaded, or named in the address
 // as ?root=R&path=P), pick a frame with the slider, click the materials to
-// follow (shift-click adds one), and Track: the server follows them through
-// every frame (`matseg track`). Then the slider and Play scrub through the
+// follow (each click one, in its colour; an alt- or right-click a
+// material none of them may take; a click on a mark removes it; Ctrl+Z,
+// Ctrl+Shift+Z or Ctrl+Y, and Esc undo, redo and clear), and Track: the
+// server follows them through every frame (`matseg track`). Then the slider and Play scrub through the
 // tracked frames with each material tinted in its colour; the label PNGs
 // (a tar), the overlay video and one frame's labels can be downloaded.
 
-import { api, apiUrl, pixels, bitmap, blend, ring, pointOf, download, takeFiles, uploadFile, PALETTE } from "/common.js";
+import { api, apiUrl, pixels, bitmap, blend, download, takeFiles, uploadFile, PALETTE,
+  Clicks, bindEditKeys, takeClicks, drawClick, markerRadius } from "/common.js";
 
 const canvas = document.getElementById("canvas");
 const context = canvas.getContext("2d", { willReadFrequently: true });
@@ -18,7 +21,14 @@ const buttons = Object.fromEntries(["play", "track", "cancel", "save-labels", "s
   .map((id) => [id, document.getElementById(id)]));
 // job: the finished tracking job whose frames are shown (null: the video's
 // own frames, points being picked); labels: the shown frame's labels.
-const state = { video: null, name: "", info: null, points: [], clicked: 0, job: null,
+const clicks = new Clicks(() => {
+  listPoints();
+  draw();
+});
+// A negative click's mark on a video: black, apart from the materials'
+// colours.
+const NEGATIVE_FILL = [20, 20, 20];
+const state = { video: null, name: "", info: null, clicked: 0, job: null,
   image: null, labels: null, shown: -1, playing: false, asked: 0 };
 
 function draw() {
@@ -30,20 +40,29 @@ function draw() {
       Number(opacity.value));
   }
   if (state.shown === state.clicked) {
-    for (const [i, [x, y]] of state.points.entries()) ring(context, x, y, PALETTE[i % PALETTE.length]);
+    const radius = markerRadius(canvas);
+    let material = 0;
+    for (const click of clicks.list) {
+      const fill = click.positive ? PALETTE[material++ % PALETTE.length] : NEGATIVE_FILL;
+      drawClick(context, click, radius, fill);
+    }
   }
 }
 
 function listPoints() {
-  pointList.replaceChildren(...state.points.map(([x, y], i) => {
+  let material = 0;
+  pointList.replaceChildren(...clicks.list.map(({ x, y, positive }) => {
     const item = document.createElement("li");
     const swatch = document.createElement("span");
     swatch.className = "swatch";
-    swatch.style.background = `rgb(${PALETTE[i % PALETTE.length].join(",")})`;
-    item.append(swatch, ` ${x}, ${y} on frame ${state.clicked}`);
+    const fill = positive ? PALETTE[material++ % PALETTE.length] : NEGATIVE_FILL;
+    swatch.style.background = `rgb(${fill.join(",")})`;
+    item.append(swatch, ` ${positive ? "" : "not: "}${x}, ${y} on frame ${state.clicked}`);
     return item;
   }));
-  buttons.track.disabled = !state.points.length;
+  buttons.track.disabled = !clicks.count(true);
+  document.getElementById("undo").disabled = !clicks.done.length;
+  document.getElementById("redo").disabled = !clicks.undone.length;
 }
 
 // Shows frame `n`: the job's frame and labels once tracked, else the
@@ -78,7 +97,8 @@ async function open(video, name) {
   for (const item of list.children) item.classList.toggle("open", item.dataset.key === `${video.root}/${video.path}`);
   stop();
   Object.assign(state, { video, name: name.replace(/\.[^.]*$/, "").replace(/[^\w.-]+/g, "_"),
-    points: [], clicked: 0, job: null, labels: null });
+    clicked: 0, job: null, labels: null });
+  clicks.forget();
   delete canvas.dataset.tracked;
   delete canvas.dataset.frame;
   for (const id of ["play", "save-labels", "save-overlay", "save-frame"]) buttons[id].disabled = true;
@@ -98,23 +118,24 @@ async function open(video, name) {
   await show(0);
 }
 
-// A click picks points on the shown frame; after a track, it starts a new
-// choice on that frame.
-canvas.addEventListener("click", (event) => {
-  if (!state.image || state.playing) return;
-  const point = pointOf(canvas, event);
-  if (state.job || state.clicked !== state.shown) {
+// Clicks pick materials on the shown frame. After a track they refine
+// its clicks (on their frame) for the next track; on another frame, the
+// first click starts a new choice there.
+takeClicks(canvas, clicks, () => {
+  if (!state.image || state.playing) return false;
+  if (state.clicked !== state.shown) clicks.forget();
+  if (state.job) {
     state.job = null;
     state.labels = null;
     delete canvas.dataset.tracked;
     for (const id of ["play", "save-labels", "save-overlay", "save-frame"]) buttons[id].disabled = true;
-    state.points = [];
   }
   state.clicked = state.shown;
-  state.points = event.shiftKey ? [...state.points, point] : [point];
-  listPoints();
-  draw();
+  return true;
 });
+bindEditKeys(clicks);
+document.getElementById("undo").addEventListener("click", () => clicks.undo());
+document.getElementById("redo").addEventListener("click", () => clicks.redo());
 
 slider.addEventListener("input", () => {
   const n = Number(slider.value);
@@ -130,22 +151,17 @@ slider.addEventListener("change", () => {
   if (!state.job) show(Number(slider.value));
 });
 opacity.addEventListener("input", draw);
-document.getElementById("clear").addEventListener("click", () => {
-  state.points = [];
-  listPoints();
-  draw();
-});
+document.getElementById("clear").addEventListener("click", () => clicks.clear());
 
 const sleep = (ms) => new Promise((done) => setTimeout(done, ms));
 
 buttons.track.addEventListener("click", async () => {
-  if (!state.points.length) return;
+  if (!clicks.count(true)) return;
   buttons.track.disabled = true;
   const started = performance.now();
   try {
-    const points = state.points.map(([x, y]) => `${x},${y}`).join(";");
-    const { job } = await (await api("/api/track", { ...state.video, frame: state.clicked, points },
-      { method: "POST" })).json();
+    const asked = { ...state.video, frame: state.clicked, points: clicks.query(true), negative: clicks.query(false) };
+    const { job } = await (await api("/api/track", asked, { method: "POST" })).json();
     buttons.cancel.hidden = false;
     buttons.cancel.onclick = () => api("/api/track", { job }, { method: "DELETE" }).catch(() => {});
     for (;;) {
@@ -170,7 +186,7 @@ buttons.track.addEventListener("click", async () => {
     status.textContent = error.message;
   }
   buttons.cancel.hidden = true;
-  buttons.track.disabled = !state.points.length;
+  buttons.track.disabled = !clicks.count(true);
 });
 
 function stop() {

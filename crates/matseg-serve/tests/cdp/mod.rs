@@ -17,6 +17,8 @@ const PAGE_CHANNEL: &str = "sessionId";
 
 /// Key modifier bits of `Input.dispatchMouseEvent`.
 pub const ALT: u32 = 1;
+/// Control.
+pub const CTRL: u32 = 2;
 /// Shift.
 pub const SHIFT: u32 = 8;
 
@@ -206,10 +208,35 @@ impl Browser {
 
     /// Clicks at (x, y) in CSS pixels with `modifiers` held.
     pub fn click_at(&mut self, x: f64, y: f64, modifiers: u32) {
+        self.press_button(x, y, "left", modifiers);
+    }
+
+    /// Presses and releases the mouse `button` (`left`, `right`) at (x, y).
+    pub fn press_button(&mut self, x: f64, y: f64, button: &str, modifiers: u32) {
         for kind in ["mousePressed", "mouseReleased"] {
             self.call(
                 "Input.dispatchMouseEvent",
-                json!({ "type": kind, "x": x, "y": y, "button": "left", "clickCount": 1, "modifiers": modifiers }),
+                json!({ "type": kind, "x": x, "y": y, "button": button, "clickCount": 1, "modifiers": modifiers }),
+            );
+        }
+    }
+
+    /// Presses and releases the key `key` (a DOM key name: `z`, `Escape`)
+    /// with `modifiers` held.
+    pub fn press_key(&mut self, key: &str, modifiers: u32) {
+        let code = match key {
+            "Escape" => 27,
+            _ => key.to_ascii_uppercase().bytes().next().map_or(0, u32::from),
+        };
+        let key = if modifiers & SHIFT != 0 && key.len() == 1 {
+            key.to_ascii_uppercase()
+        } else {
+            key.to_string()
+        };
+        for kind in ["rawKeyDown", "keyUp"] {
+            self.call(
+                "Input.dispatchKeyEvent",
+                json!({ "type": kind, "key": key, "windowsVirtualKeyCode": code, "modifiers": modifiers }),
             );
         }
     }
@@ -231,12 +258,24 @@ impl Browser {
     /// Clicks the image pixel (x, y) of the canvas `selector` finds, drawn
     /// at whatever size the page gives it.
     pub fn click_canvas(&mut self, selector: &str, x: u32, y: u32, modifiers: u32) {
+        self.press_canvas(selector, x, y, "left", modifiers);
+    }
+
+    /// Right-clicks the image pixel (x, y) of the canvas `selector` finds.
+    pub fn right_click_canvas(&mut self, selector: &str, x: u32, y: u32) {
+        self.press_canvas(selector, x, y, "right", 0);
+    }
+
+    /// Presses `button` on the image pixel (x, y) of the canvas `selector`
+    /// finds, drawn at whatever size the page gives it.
+    fn press_canvas(&mut self, selector: &str, x: u32, y: u32, button: &str, modifiers: u32) {
         let at = self.eval(&format!(
             "(() => {{ const c = document.querySelector({selector:?}); c.scrollIntoView({{ block: 'center' }});
                const b = c.getBoundingClientRect();
                return [b.left + ({x} + 0.5) * b.width / c.width, b.top + ({y} + 0.5) * b.height / c.height]; }})()"
         ));
-        self.click_at(at[0].as_f64().unwrap(), at[1].as_f64().unwrap(), modifiers);
+        let (x, y) = (at[0].as_f64().unwrap(), at[1].as_f64().unwrap());
+        self.press_button(x, y, button, modifiers);
     }
 
     /// The RGB of the pixel (x, y) of the canvas `selector` finds.
