@@ -26,7 +26,7 @@ pub struct Args {
     /// A query point `X,Y` in image pixels; repeat for several materials.
     /// `GROUP:X,Y` gives several points of one material (those of one
     /// group number).
-    #[arg(long = "point", required_unless_present = "auto", value_parser = parse_grouped_point, allow_hyphen_values = true)]
+    #[arg(long = "point", value_parser = parse_grouped_point, allow_hyphen_values = true)]
     points: Vec<(Option<u32>, (f32, f32))>,
     /// A negative click `X,Y`: its material is excluded from every
     /// material's selection; repeat for several.

@@ -420,6 +420,33 @@ fn net_cases(f: &Files) -> Vec<Case> {
         }
         add(&args, names);
     }
+    add(
+        &["segment", &coffee, "--not", "1,1", "--out", o],
+        "give a --point",
+    );
+    add(
+        &[
+            "segment", &coffee, "--point", "1,1", "--not", "1,9999", "--out", o,
+        ],
+        "not 1,9999",
+    );
+    add(
+        &["segment", &coffee, "--point", "x:1,1", "--out", o],
+        "x:1,1",
+    );
+    let many: Vec<&str> = std::iter::repeat_n(["--point", "1,1"], 300)
+        .flatten()
+        .collect();
+    add(
+        &[&["segment", coffee.as_str(), "--out", o], many.as_slice()].concat(),
+        "300 points",
+    );
+    for selection in ["text.jpg", "empty.jpg"] {
+        add(
+            &["apply", &f.arg(selection), &coffee, "--out", o],
+            selection,
+        );
+    }
     add(&["segment", &coffee, "--auto", "1", "--out", o], "--auto");
     add(&["segment", &coffee, "--auto", "900", "--out", o], "--auto");
     add(

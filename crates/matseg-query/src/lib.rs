@@ -10,8 +10,10 @@
 
 pub mod cluster;
 pub mod coarse;
+pub mod colours;
 pub mod descriptor;
 pub mod edges;
+pub mod ridge;
 pub mod select;
 pub mod tracking;
 

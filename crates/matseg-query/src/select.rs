@@ -1,20 +1,45 @@
 //! A selection made by clicks, positive and negative: "this material",
-//! "not that one". Each click's material is its point descriptor; every
-//! cell's similarity to the positive clicks (the best of them) is set
-//! against its similarity to the negative ones, and the selection is the
-//! cells closer to a positive click than to any negative one and similar
-//! enough to it. How similar is enough is the selection's own decision
-//! (Otsu's threshold between the two modes of the positive similarities),
-//! not a threshold picked with the truth; then the decision's edges are
-//! made to follow the photo's (a guided filter, the photo as the guide).
+//! "not that one". Each click's material is its point descriptor, and
+//! every cell's similarity to the positive clicks (the best of them) is
+//! set against its similarity to the negative ones.
 //!
-//! With positive clicks alone the soft map is today's similarity map (the
-//! best positive similarity), so one click answers as it always did.
+//! The decision is the selection's own, never a threshold picked with the
+//! truth:
+//! - a cell is selected when it is at least as similar to a positive
+//!   click as Otsu's threshold of the first positive click's map says
+//!   (the split between that map's two modes; later clicks do not move
+//!   it), and no negative click is as similar to it. Clicks after the
+//!   first reach less far: their similarity is lowered with the distance
+//!   from where they were clicked, so a correction takes its own
+//!   neighbourhood before the far side of the photo. The photo's other
+//!   materials (cells spread over its descriptors by farthest-point
+//!   sampling, those below the threshold) count as negative clicks the
+//!   user did not have to make;
+//! - from the second click on, a linear classifier of the descriptors
+//!   (ridge regression, the Gram matrix computed once per photo) is
+//!   fitted on that decision (each cell) and on the clicks (each weighing
+//!   as 500 cells), and decides instead: where the clicks and the
+//!   similarities disagree it finds the direction in the descriptors that
+//!   tells the clicked materials apart, rather than flipping every cell
+//!   near one click;
+//! - the decision is brought to the photo's size, made to follow the
+//!   photo's edges (a guided filter on its lightness) and its uncertain
+//!   pixels decided by the photo's colours (histograms of the sure pixels
+//!   in and out).
+//!
+//! The soft map is the positive similarity, lowered by a sigmoid where a
+//! negative click's material is as near: with positive clicks alone it is
+//! exactly the similarity map, so one click answers as it always did.
 
 use crate::coarse::CoarseDescriptors;
+use crate::colours::ColourBins;
 use crate::descriptor::{check_radius, Comparison, DescriptorMap, RadiusError};
 use crate::edges::EdgeGuide;
+use crate::ridge::{Ridge, WeightedRow};
 use image::RgbImage;
+use rayon::prelude::*;
+use std::borrow::Cow;
+use std::sync::{Arc, OnceLock};
 
 /// The most clicks one selection takes.
 pub const MAX_CLICKS: usize = 255;
@@ -94,6 +119,13 @@ pub trait ClickSpace: Sync {
     fn cell_descriptor(&self, cell: usize) -> Vec<f32>;
     /// Cell values resized to the photo, row by row.
     fn to_photo(&self, cells: Vec<f32>) -> Vec<f32>;
+    /// The centre of cell `cell`, in photo pixels.
+    fn cell_centre(&self, cell: usize) -> (f32, f32);
+    /// The cells a selection's classifier is fitted on (all of them, or
+    /// an even subset of a large space), and their descriptors row by row.
+    fn fit_rows(&self) -> (Vec<usize>, Cow<'_, [f32]>);
+    /// Every cell's descriptor's dot product with `weights`, plus `bias`.
+    fn project(&self, weights: &[f32], bias: f32) -> Vec<f32>;
 }
 
 impl ClickSpace for CoarseDescriptors {
@@ -119,6 +151,34 @@ impl ClickSpace for CoarseDescriptors {
 
     fn to_photo(&self, cells: Vec<f32>) -> Vec<f32> {
         self.resize_to_photo(&cells)
+    }
+
+    fn cell_centre(&self, cell: usize) -> (f32, f32) {
+        let (gw, gh) = (self.grid.width, self.grid.height);
+        (
+            ((cell % gw) as f32 + 0.5) * self.width as f32 / gw as f32,
+            ((cell / gw) as f32 + 0.5) * self.height as f32 / gh as f32,
+        )
+    }
+
+    fn fit_rows(&self) -> (Vec<usize>, Cow<'_, [f32]>) {
+        let cells = even_subset(self.grid.width, self.grid.height);
+        if cells.len() == self.grid.width * self.grid.height {
+            return (cells, Cow::Borrowed(&self.grid.data));
+        }
+        let rows = cells
+            .iter()
+            .flat_map(|&c| self.grid.at(c))
+            .copied()
+            .collect();
+        (cells, Cow::Owned(rows))
+    }
+
+    fn project(&self, weights: &[f32], bias: f32) -> Vec<f32> {
+        self.cell_similarity(weights)
+            .into_iter()
+            .map(|p| p + bias)
+            .collect()
     }
 }
 
@@ -207,6 +267,57 @@ impl ClickSpace for PixelSpace<'_> {
     fn to_photo(&self, cells: Vec<f32>) -> Vec<f32> {
         cells
     }
+
+    fn cell_centre(&self, cell: usize) -> (f32, f32) {
+        (
+            (cell % self.map.width) as f32 + 0.5,
+            (cell / self.map.width) as f32 + 0.5,
+        )
+    }
+
+    fn fit_rows(&self) -> (Vec<usize>, Cow<'_, [f32]>) {
+        let cells = even_subset(self.map.width, self.map.height);
+        let rows = cells
+            .iter()
+            .flat_map(|&c| self.map.at(c))
+            .copied()
+            .collect();
+        (cells, Cow::Owned(rows))
+    }
+
+    fn project(&self, weights: &[f32], bias: f32) -> Vec<f32> {
+        (0..self.map.width * self.map.height)
+            .into_par_iter()
+            .map(|i| {
+                self.map
+                    .at(i)
+                    .iter()
+                    .zip(weights)
+                    .map(|(a, b)| a * b)
+                    .sum::<f32>()
+                    + bias
+            })
+            .collect()
+    }
+}
+
+/// The most rows a selection's classifier is fitted on (cells beyond this
+/// are subsampled evenly): about the cells of the net's stride-4 grid
+/// over a 700 px photo.
+const FIT_ROWS: usize = 32_768;
+
+/// The cells of a `w x h` grid a classifier is fitted on: all of them when
+/// there are [`FIT_ROWS`] at most, else every `step`-th cell of every
+/// `step`-th row, `step` the least that keeps them within.
+fn even_subset(w: usize, h: usize) -> Vec<usize> {
+    let mut step = 1;
+    while w.div_ceil(step) * h.div_ceil(step) > FIT_ROWS {
+        step += 1;
+    }
+    (0..h)
+        .step_by(step)
+        .flat_map(|y| (0..w).step_by(step).map(move |x| y * w + x))
+        .collect()
 }
 
 /// A selection: how strongly each pixel belongs to it, and the pixels in
@@ -232,6 +343,16 @@ impl Selection {
         selected as f64 / self.mask.len().max(1) as f64
     }
 }
+
+/// How much a click other than the first loses of its similarity to a
+/// cell the photo's longer side away from it.
+const REACH: f32 = 0.2;
+
+/// How many cells a click counts as when the classifier is fitted.
+const CLICK_WEIGHT: f64 = 500.0;
+
+/// The classifier's regularisation (squared weights, in cells).
+const RIDGE_LAMBDA: f64 = 10.0;
 
 /// How many of the photo's materials a selection sets the clicks against.
 const PROTOTYPES: usize = 12;
@@ -264,6 +385,8 @@ pub fn select(
 /// cell's similarity to it.
 struct Query {
     positive: bool,
+    /// Where it was clicked, in photo pixels (none for a saved descriptor).
+    at: Option<(f32, f32)>,
     descriptor: Vec<f32>,
     similarities: Vec<f32>,
 }
@@ -276,12 +399,34 @@ pub struct Selector<'a> {
     photo: Option<&'a RgbImage>,
     radius: f32,
     queries: Vec<Query>,
-    /// The photo's materials, as cells spread over its descriptors, each
-    /// with every cell's similarity to it: made once, at the first
-    /// selection.
-    prototypes: std::sync::OnceLock<Vec<(usize, Vec<f32>)>>,
-    /// The photo's edges, made ready at the first selection.
-    edges: std::sync::OnceLock<Option<EdgeGuide>>,
+    /// What the selection needs of the photo whatever the clicks.
+    prep: Arc<PhotoPrep>,
+}
+
+/// What a selection needs of its photo whatever the clicks, each part made
+/// the first time a selection needs it and kept: the photo's materials
+/// (cells spread over its descriptors, each with every cell's similarity
+/// to it), the Gram matrix the classifier is fitted with, and the photo's
+/// edges and colours. Share one between the selections of one photo (the
+/// web app keeps one per described photo) and a click costs only its own
+/// work.
+#[derive(Default)]
+pub struct PhotoPrep {
+    prototypes: OnceLock<Vec<(usize, Vec<f32>)>>,
+    ridge: OnceLock<Ridge>,
+    guides: OnceLock<(EdgeGuide, ColourBins)>,
+}
+
+impl PhotoPrep {
+    /// The most bytes a photo's preparation holds: a `width x height`
+    /// photo, `cells` cells of `dim` values.
+    pub fn bytes_at_most(width: usize, height: usize, cells: usize, dim: usize) -> usize {
+        let pixels = width * height;
+        // The photo's lightness (4 bytes a pixel), its colours' bins (2),
+        // the guide's grid (at most 512 x 512 cells, 3 values of 4 bytes),
+        // the materials' maps and the Gram matrix.
+        6 * pixels + 512 * 512 * 12 + PROTOTYPES * 4 * cells + 8 * (dim + 1) * (dim + 1)
+    }
 }
 
 impl<'a> Selector<'a> {
@@ -292,6 +437,17 @@ impl<'a> Selector<'a> {
         photo: Option<&'a RgbImage>,
         radius: f32,
     ) -> Result<Self, SelectError> {
+        Self::with_prep(space, photo, radius, Arc::default())
+    }
+
+    /// As [`Selector::new`], sharing `prep`, the preparation of this same
+    /// photo and space by earlier selections.
+    pub fn with_prep(
+        space: &'a dyn ClickSpace,
+        photo: Option<&'a RgbImage>,
+        radius: f32,
+        prep: Arc<PhotoPrep>,
+    ) -> Result<Self, SelectError> {
         check_radius(radius)?;
         let (width, height) = space.photo_size();
         let photo = photo.filter(|p| p.dimensions() == (width as u32, height as u32));
@@ -300,8 +456,7 @@ impl<'a> Selector<'a> {
             photo,
             radius,
             queries: Vec::new(),
-            prototypes: std::sync::OnceLock::new(),
-            edges: std::sync::OnceLock::new(),
+            prep,
         })
     }
 
@@ -327,7 +482,7 @@ impl<'a> Selector<'a> {
             });
         }
         let descriptor = self.space.descriptor_at(click.x, click.y, self.radius);
-        self.add_descriptor(descriptor, click.positive)
+        self.push(descriptor, click.positive, Some((click.x, click.y)))
     }
 
     /// Adds a descriptor wanted (`positive`) or not: a click made on
@@ -337,12 +492,23 @@ impl<'a> Selector<'a> {
         descriptor: Vec<f32>,
         positive: bool,
     ) -> Result<(), SelectError> {
+        self.push(descriptor, positive, None)
+    }
+
+    /// Adds a query clicked `at` (or not clicked on this photo).
+    fn push(
+        &mut self,
+        descriptor: Vec<f32>,
+        positive: bool,
+        at: Option<(f32, f32)>,
+    ) -> Result<(), SelectError> {
         if self.queries.len() >= MAX_CLICKS {
             return Err(SelectError::TooMany(self.queries.len() + 1));
         }
         let similarities = self.space.similarities_to(&descriptor);
         self.queries.push(Query {
             positive,
+            at,
             descriptor,
             similarities,
         });
@@ -387,11 +553,73 @@ impl<'a> Selector<'a> {
             })
     }
 
+    /// The best similarity of every cell to the clicks of one kind, each
+    /// click but the first positive one (query `first`) lowered with the
+    /// distance from where it was clicked: [`REACH`] at the photo's longer
+    /// side away. A correcting click takes its own neighbourhood more
+    /// readily than the far side of the photo.
+    fn reach(&self, positive: bool, first: usize) -> Option<Vec<f32>> {
+        let (w, h) = self.space.photo_size();
+        let scale = REACH / w.max(h).max(1) as f32;
+        let mut best: Option<Vec<f32>> = None;
+        for (k, query) in self.queries.iter().enumerate() {
+            if query.positive != positive {
+                continue;
+            }
+            let near: Vec<f32> = match query.at {
+                Some((x, y)) if k != first => (0..query.similarities.len())
+                    .into_par_iter()
+                    .map(|cell| {
+                        let (cx, cy) = self.space.cell_centre(cell);
+                        let distance = ((cx - x).powi(2) + (cy - y).powi(2)).sqrt();
+                        query.similarities[cell] - scale * distance
+                    })
+                    .collect(),
+                _ => query.similarities.clone(),
+            };
+            best = Some(match best {
+                None => near,
+                Some(b) => b.iter().zip(&near).map(|(a, n)| a.max(*n)).collect(),
+            });
+        }
+        best
+    }
+
+    /// The decision of a linear classifier of the descriptors fitted on
+    /// `prior` (each cell's decision by similarity, weight 1 a cell) and
+    /// on the clicks ([`CLICK_WEIGHT`] each): where the clicks and the
+    /// similarities disagree, the classifier finds the direction in the
+    /// descriptors that tells the clicked materials apart.
+    fn fitted(&self, prior: &[f32]) -> Vec<f32> {
+        let (cells, rows) = self.space.fit_rows();
+        let dim = rows.len() / cells.len().max(1);
+        let ridge = self.prep.ridge.get_or_init(|| Ridge::new(&rows, dim));
+        let targets: Vec<f32> = cells.iter().map(|&c| prior[c] - 0.5).collect();
+        // A subset of the cells stands for all of them: the clicks and the
+        // regularisation weigh as they would against every cell.
+        let share = cells.len() as f64 / self.space.cells().max(1) as f64;
+        let clicks: Vec<WeightedRow<'_>> = self
+            .queries
+            .iter()
+            .map(|q| WeightedRow {
+                values: &q.descriptor,
+                weight: CLICK_WEIGHT * share,
+                target: if q.positive { 0.5 } else { -0.5 },
+            })
+            .collect();
+        let weights = ridge.fit(&rows, &targets, &clicks, RIDGE_LAMBDA * share);
+        self.space
+            .project(&weights[..dim], weights[dim])
+            .into_iter()
+            .map(|v| if v > 0.0 { 1.0 } else { 0.0 })
+            .collect()
+    }
+
     /// The photo's materials: [`PROTOTYPES`] cells chosen one at a time,
     /// each the cell least like all chosen before (the first the one
     /// least like the photo's middle cell), with their similarity maps.
     fn prototypes(&self) -> &[(usize, Vec<f32>)] {
-        self.prototypes.get_or_init(|| {
+        self.prep.prototypes.get_or_init(|| {
             let cells = self.space.cells();
             let of_cell = |cell: usize| {
                 self.space
@@ -420,12 +648,22 @@ impl<'a> Selector<'a> {
         let (width, height) = self.space.photo_size();
         let positive = self.best(true).ok_or(SelectError::NoPositive)?;
         let negative = self.best(false);
-        let threshold = otsu_threshold(&positive);
+        // The first positive click's map sets how similar is enough, so
+        // that later clicks move the selection where they are, not its
+        // threshold everywhere.
+        let first = self
+            .queries
+            .iter()
+            .position(|q| q.positive)
+            .ok_or(SelectError::NoPositive)?;
+        let threshold = otsu_threshold(&self.queries[first].similarities);
+        let near_positive = self.reach(true, first).ok_or(SelectError::NoPositive)?;
+        let near_negative = self.reach(false, first);
         // The photo's materials unlike the positive clicks count, for the
         // decision, as negative clicks the user did not have to make.
-        let mut against = negative.clone();
+        let mut against = near_negative;
         for (cell, map) in self.prototypes() {
-            if positive[*cell] < threshold {
+            if near_positive[*cell] < threshold {
                 against = Some(match against {
                     None => map.clone(),
                     Some(n) => n.iter().zip(map).map(|(a, b)| a.max(*b)).collect(),
@@ -443,9 +681,9 @@ impl<'a> Selector<'a> {
                 })
                 .collect(),
         };
-        let decision: Vec<f32> = (0..positive.len())
+        let prior: Vec<f32> = (0..near_positive.len())
             .map(|i| {
-                let p = positive[i];
+                let p = near_positive[i];
                 let beaten = against.as_ref().is_some_and(|n| n[i] >= p);
                 if p >= threshold && !beaten {
                     1.0
@@ -454,21 +692,37 @@ impl<'a> Selector<'a> {
                 }
             })
             .collect();
+        let decision = if self.queries.len() > 1 {
+            self.fitted(&prior)
+        } else {
+            prior
+        };
         let soft = self.space.to_photo(soft);
         let decision = self.space.to_photo(decision);
-        let edges = self.edges.get_or_init(|| {
-            self.photo
-                .map(|p| EdgeGuide::new(p, GUIDE_RADIUS, GUIDE_EPSILON))
+        let guides = self.photo.map(|p| {
+            self.prep.guides.get_or_init(|| {
+                (
+                    EdgeGuide::new(p, GUIDE_RADIUS, GUIDE_EPSILON),
+                    ColourBins::new(p),
+                )
+            })
         });
-        let decision = match edges {
-            Some(edges) => edges.refine(&decision),
-            None => decision,
+        let mask = match guides {
+            Some((edges, colours)) => {
+                let strength: Vec<f32> = edges
+                    .refine(&decision)
+                    .into_iter()
+                    .map(|d| d.clamp(0.0, 1.0))
+                    .collect();
+                colours.decide(&strength)
+            }
+            None => decision.iter().map(|&d| d >= 0.5).collect(),
         };
         Ok(Selection {
             width,
             height,
             soft,
-            mask: decision.iter().map(|&d| d >= 0.5).collect(),
+            mask,
         })
     }
 }

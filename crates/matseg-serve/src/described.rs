@@ -6,19 +6,40 @@
 use image::RgbImage;
 use matseg_image::ByteLru;
 use matseg_query::coarse::CoarseDescriptors;
+use matseg_query::select::PhotoPrep;
+use std::sync::Arc;
 
-/// A photo and its descriptors.
+/// A photo, its descriptors, and what its selections prepared of it.
 pub struct Described {
     /// The photo's pixels.
     pub photo: RgbImage,
     /// The model's descriptors of it.
     pub map: CoarseDescriptors,
+    /// Shared by every selection on the photo, made as they need it.
+    pub prep: Arc<PhotoPrep>,
 }
 
 impl Described {
-    /// Bytes it holds.
+    /// `photo` and its descriptors `map`, nothing prepared yet.
+    pub fn new(photo: RgbImage, map: CoarseDescriptors) -> Self {
+        Self {
+            photo,
+            map,
+            prep: Arc::default(),
+        }
+    }
+
+    /// Bytes it holds, its selections' preparation counted at its most.
     pub fn bytes(&self) -> usize {
-        self.photo.as_raw().len() + 4 * self.map.grid.data.len()
+        let grid = &self.map.grid;
+        self.photo.as_raw().len()
+            + 4 * grid.data.len()
+            + PhotoPrep::bytes_at_most(
+                self.map.width,
+                self.map.height,
+                grid.width * grid.height,
+                grid.dim,
+            )
     }
 }
 

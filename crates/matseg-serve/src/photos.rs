@@ -282,7 +282,7 @@ pub async fn described(
     let described = blocking(move || {
         let image = source.pixels(&state, &photo)?;
         let map = state.model.describe_click(&image);
-        let described = Arc::new(Described { photo: image, map });
+        let described = Arc::new(Described::new(image, map));
         state
             .described
             .insert(key, described.clone(), described.bytes());

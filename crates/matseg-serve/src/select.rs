@@ -12,7 +12,7 @@ use axum::response::{IntoResponse, Response};
 use axum::Json;
 use image::RgbImage;
 use matseg_image::io::encode_png_rgb;
-use matseg_query::select::{select, Click, SavedSelection, Selection, Selector, MAX_CLICKS};
+use matseg_query::select::{Click, SavedSelection, Selection, Selector, MAX_CLICKS};
 use serde::Deserialize;
 use std::sync::Arc;
 
@@ -111,9 +111,18 @@ pub async fn selection(
     let described = described(&state, &photo).await?;
     check_inside(&clicks, &described.photo, &photo.path)?;
     let png = blocking(move || {
-        let selection = select(&described.map, Some(&described.photo), &clicks, radius)
-            .map_err(|e| ApiError::bad(e.to_string()))?;
-        Ok(selection_png(&selection))
+        let bad = |e: matseg_query::select::SelectError| ApiError::bad(e.to_string());
+        let mut selector = Selector::with_prep(
+            &described.map,
+            Some(&described.photo),
+            radius,
+            described.prep.clone(),
+        )
+        .map_err(bad)?;
+        for click in clicks {
+            selector.add(click).map_err(bad)?;
+        }
+        Ok(selection_png(&selector.selection().map_err(bad)?))
     })
     .await?;
     Ok(([(header::CONTENT_TYPE, "image/png")], png).into_response())

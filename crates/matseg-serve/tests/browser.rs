@@ -670,15 +670,15 @@ fn the_segment_page_refines_a_selection_by_clicks() {
     browser.click_canvas(CANVAS, 290, 130, 0);
     let (coffee, coffee_area) = answer(browser, 1);
     let mask = downloaded_mask(browser, "coffee-mask.png");
-    assert_eq!(mask.get_pixel(150, 300).0, [255], "the saucer is taken");
+    assert_eq!(mask.get_pixel(150, 315).0, [255], "the saucer is taken");
     assert_eq!(
         mask.pixels().filter(|p| p.0[0] == 255).count() as u64,
         coffee_area.as_u64().unwrap()
     );
-    browser.right_click_canvas(CANVAS, 150, 300);
+    browser.right_click_canvas(CANVAS, 150, 315);
     let (refined, refined_area) = answer(browser, 2);
     let mask = downloaded_mask(browser, "coffee-mask.png");
-    assert_eq!(mask.get_pixel(150, 300).0, [0], "the saucer is left out");
+    assert_eq!(mask.get_pixel(150, 315).0, [0], "the saucer is left out");
     assert_eq!(mask.get_pixel(290, 130).0, [255], "the coffee stays");
     assert!(
         refined_area.as_u64() < coffee_area.as_u64(),
@@ -712,7 +712,7 @@ fn the_segment_page_refines_a_selection_by_clicks() {
     );
     browser.click_canvas(CANVAS, 561, 352, 0);
     assert_eq!(answer(browser, 8).0, refined);
-    browser.click_canvas(CANVAS, 151, 299, 0);
+    browser.click_canvas(CANVAS, 151, 314, 0);
     assert_eq!(answer(browser, 9), (coffee.clone(), coffee_area.clone()));
 
     // The views: an outline (white edged in black) and the photo greyed
