@@ -348,11 +348,13 @@ impl Selection {
 /// cell the photo's longer side away from it.
 const REACH: f32 = 0.2;
 
-/// How many cells a click counts as when the classifier is fitted.
-const CLICK_WEIGHT: f64 = 500.0;
+/// The share of the photo a click weighs as when the classifier is
+/// fitted: 500 of the 23,000 cells of the net's grid over a 700 px photo.
+const CLICK_SHARE: f64 = 500.0 / 23_000.0;
 
-/// The classifier's regularisation (squared weights, in cells).
-const RIDGE_LAMBDA: f64 = 10.0;
+/// The classifier's regularisation of its squared weights, as a share of
+/// the cells fitted (10 of 23,000).
+const RIDGE_SHARE: f64 = 10.0 / 23_000.0;
 
 /// How many of the photo's materials a selection sets the clicks against.
 const PROTOTYPES: usize = 12;
@@ -587,7 +589,7 @@ impl<'a> Selector<'a> {
 
     /// The decision of a linear classifier of the descriptors fitted on
     /// `prior` (each cell's decision by similarity, weight 1 a cell) and
-    /// on the clicks ([`CLICK_WEIGHT`] each): where the clicks and the
+    /// on the clicks ([`CLICK_SHARE`] of the photo each): where the clicks and the
     /// similarities disagree, the classifier finds the direction in the
     /// descriptors that tells the clicked materials apart.
     fn fitted(&self, prior: &[f32]) -> Vec<f32> {
@@ -595,19 +597,19 @@ impl<'a> Selector<'a> {
         let dim = rows.len() / cells.len().max(1);
         let ridge = self.prep.ridge.get_or_init(|| Ridge::new(&rows, dim));
         let targets: Vec<f32> = cells.iter().map(|&c| prior[c] - 0.5).collect();
-        // A subset of the cells stands for all of them: the clicks and the
-        // regularisation weigh as they would against every cell.
-        let share = cells.len() as f64 / self.space.cells().max(1) as f64;
+        // The clicks and the regularisation weigh as shares of the photo,
+        // whatever its size and however finely it is described.
+        let rows_fitted = cells.len() as f64;
         let clicks: Vec<WeightedRow<'_>> = self
             .queries
             .iter()
             .map(|q| WeightedRow {
                 values: &q.descriptor,
-                weight: CLICK_WEIGHT * share,
+                weight: CLICK_SHARE * rows_fitted,
                 target: if q.positive { 0.5 } else { -0.5 },
             })
             .collect();
-        let weights = ridge.fit(&rows, &targets, &clicks, RIDGE_LAMBDA * share);
+        let weights = ridge.fit(&rows, &targets, &clicks, RIDGE_SHARE * rows_fitted);
         self.space
             .project(&weights[..dim], weights[dim])
             .into_iter()
