@@ -100,6 +100,26 @@ pub enum SelectError {
     /// A radius out of range.
     #[error(transparent)]
     Radius(#[from] RadiusError),
+    /// A saved descriptor of another length than the model's.
+    #[error("{kind}[{index}]: {len} values, but the model's descriptors have {dim}")]
+    WrongLength {
+        /// `positive` or `negative`.
+        kind: &'static str,
+        /// Which of them.
+        index: usize,
+        /// Its length.
+        len: usize,
+        /// The model's.
+        dim: usize,
+    },
+    /// A saved descriptor with a value that is not a finite number.
+    #[error("{kind}[{index}]: a value that is not a finite number")]
+    NotFinite {
+        /// `positive` or `negative`.
+        kind: &'static str,
+        /// Which of them.
+        index: usize,
+    },
 }
 
 /// What a selection is made from: descriptors on cells (a photo's pixels,
@@ -749,24 +769,26 @@ impl SavedSelection {
     /// Checks that the selection can be applied with descriptors of `dim`
     /// values: a positive descriptor at least, at most [`MAX_CLICKS`] in
     /// all, each of `dim` finite values.
-    pub fn check(&self, dim: usize) -> Result<(), String> {
+    pub fn check(&self, dim: usize) -> Result<(), SelectError> {
         if self.positive.is_empty() {
-            return Err("no positive descriptor: nothing to select".into());
+            return Err(SelectError::NoPositive);
         }
         let count = self.positive.len() + self.negative.len();
         if count > MAX_CLICKS {
-            return Err(format!("{count} descriptors: at most {MAX_CLICKS}"));
+            return Err(SelectError::TooMany(count));
         }
         for (kind, list) in [("positive", &self.positive), ("negative", &self.negative)] {
-            for (i, d) in list.iter().enumerate() {
+            for (index, d) in list.iter().enumerate() {
                 if d.len() != dim {
-                    return Err(format!(
-                        "{kind}[{i}]: {} values, but the model's descriptors have {dim}",
-                        d.len()
-                    ));
+                    return Err(SelectError::WrongLength {
+                        kind,
+                        index,
+                        len: d.len(),
+                        dim,
+                    });
                 }
                 if d.iter().any(|v| !v.is_finite()) {
-                    return Err(format!("{kind}[{i}]: a value that is not a finite number"));
+                    return Err(SelectError::NotFinite { kind, index });
                 }
             }
         }
@@ -780,17 +802,15 @@ impl SavedSelection {
         space: &dyn ClickSpace,
         photo: Option<&RgbImage>,
         dim: usize,
-    ) -> Result<Selection, String> {
+    ) -> Result<Selection, SelectError> {
         self.check(dim)?;
-        let mut selector = Selector::new(space, photo, self.radius).map_err(|e| e.to_string())?;
+        let mut selector = Selector::new(space, photo, self.radius)?;
         for (list, positive) in [(&self.positive, true), (&self.negative, false)] {
             for d in list {
-                selector
-                    .add_descriptor(d.clone(), positive)
-                    .map_err(|e| e.to_string())?;
+                selector.add_descriptor(d.clone(), positive)?;
             }
         }
-        selector.selection().map_err(|e| e.to_string())
+        selector.selection()
     }
 }
 
