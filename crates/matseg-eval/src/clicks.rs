@@ -686,4 +686,66 @@ mod tests {
         assert_ne!(label[4], label[9], "diagonal neighbours are apart");
         assert_eq!(areas[label[3] as usize], 3);
     }
+
+    /// A model whose descriptors are one unit vector left of column
+    /// `split` and another right of it (`split` 0: the same everywhere).
+    struct Halves {
+        split: u32,
+    }
+
+    impl DescriptorModel for Halves {
+        fn name(&self) -> &str {
+            "halves"
+        }
+        fn comparison(&self) -> matseg_query::descriptor::Comparison {
+            matseg_query::descriptor::Comparison::Cosine
+        }
+        fn describe(&self, image: &image::RgbImage) -> matseg_query::descriptor::DescriptorMap {
+            let (w, h) = (image.width() as usize, image.height() as usize);
+            let data = (0..w * h)
+                .flat_map(|i| {
+                    if (i % w) < self.split as usize {
+                        [1.0, 0.0]
+                    } else {
+                        [0.0, 1.0]
+                    }
+                })
+                .collect();
+            matseg_query::descriptor::DescriptorMap {
+                width: w,
+                height: h,
+                dim: 2,
+                data,
+            }
+        }
+    }
+
+    #[test]
+    fn a_perfect_model_needs_one_click_and_a_constant_one_never_gets_there() {
+        // A 40 x 30 photo, grey on the left and white on the right; the
+        // mask is the left 16 columns.
+        let dir = tempfile::tempdir().unwrap();
+        let photo = image::RgbImage::from_fn(40, 30, |x, _| {
+            image::Rgb(if x < 16 {
+                [90, 90, 90]
+            } else {
+                [250, 250, 250]
+            })
+        });
+        photo.save(dir.path().join("p.png")).unwrap();
+        let mask =
+            image::GrayImage::from_fn(40, 30, |x, _| image::Luma([if x < 16 { 255 } else { 0 }]));
+        mask.save(dir.path().join("p.mask0.png")).unwrap();
+        let images = crate::masks::scan_mask_benchmark(dir.path()).unwrap();
+        let options = ClickOptions {
+            max_side: 0,
+            ..ClickOptions::default()
+        };
+        let perfect = evaluate_clicks(&Halves { split: 16 }, &images, &options).unwrap();
+        assert_eq!((perfect.noc85, perfect.noc90), (Some(1.0), Some(1.0)));
+        assert_eq!(perfect.miou_at["1"], 1.0);
+        let constant = evaluate_clicks(&Halves { split: 0 }, &images, &options).unwrap();
+        assert_eq!(constant.noc85, Some(20.0), "{:?}", constant.images);
+        assert!(constant.miou_at["5"] < 0.85);
+    }
 }
