@@ -383,15 +383,51 @@ mod tests {
             alone[0].soft,
             map.similarity_map(&map.point_descriptor(5.0, 5.0, 2.0))
         );
-        // A negative click on the left excludes the left from the
-        // selection of both halves.
+        // Two points of one material and a negative click: the saved
+        // selection holds all three.
         let both = MaterialClicks::group(
-            &[(Some(1), (5.0, 5.0)), (Some(1), (35.0, 5.0))],
-            vec![(8.0, 15.0)],
+            &[(Some(1), (5.0, 5.0)), (Some(1), (6.0, 15.0))],
+            vec![(35.0, 5.0)],
         );
         let s = &select_materials(&map, &photo, &both, 2.0, "m").unwrap()[0];
-        assert!(!s.mask[40 * 10 + 5] && s.mask[40 * 10 + 35]);
+        assert!(s.mask[40 * 10 + 5] && !s.mask[40 * 10 + 35]);
         assert_eq!((s.saved.positive.len(), s.saved.negative.len()), (2, 1));
+    }
+
+    #[test]
+    fn a_negative_click_takes_a_like_material_out_of_the_selection() {
+        // Three stripes over a 60 x 20 photo: a, then b (cosine 0.8 to a),
+        // then c (unlike both), on a 6 x 2 grid.
+        let photo = RgbImage::from_fn(60, 20, |x, _| image::Rgb([40 * (x / 20) as u8, 90, 90]));
+        let stripe = |column: usize| match column / 2 {
+            0 => [1.0, 0.0, 0.0],
+            1 => [0.8, 0.6, 0.0],
+            _ => [0.0, 0.0, 1.0],
+        };
+        let data = (0..12).flat_map(|i| stripe(i % 6)).collect();
+        let map = CoarseDescriptors {
+            grid: DescriptorMap {
+                width: 6,
+                height: 2,
+                dim: 3,
+                data,
+            },
+            width: 60,
+            height: 20,
+        };
+        let at = |x: usize| 60 * 10 + x;
+        let one = MaterialClicks::group(&[(None, (5.0, 5.0))], vec![]);
+        let s = &select_materials(&map, &photo, &one, 2.0, "m").unwrap()[0];
+        assert!(
+            s.mask[at(5)] && s.mask[at(30)] && !s.mask[at(55)],
+            "a and b"
+        );
+        let not_b = MaterialClicks::group(&[(None, (5.0, 5.0))], vec![(30.0, 15.0)]);
+        let s = &select_materials(&map, &photo, &not_b, 2.0, "m").unwrap()[0];
+        assert!(
+            s.mask[at(5)] && !s.mask[at(30)] && !s.mask[at(55)],
+            "a alone"
+        );
     }
 
     #[test]
