@@ -94,8 +94,10 @@ at all.</p>
 <html><head><meta charset="utf-8"><title>matseg demo: the net</title>
 <style>
 body {{ font-family: sans-serif; margin: 1.5em; background: #fafafa; }}
+table {{ width: 100%; table-layout: fixed; }}
 td {{ font-size: .8em; padding: 3px; vertical-align: top; }}
-td img {{ width: 220px; }}
+td img {{ width: 100%; max-width: 220px; }}
+img {{ max-width: 100%; }}
 pre {{ font-size: .75em; white-space: pre-wrap; }}
 </style></head><body>
 <h1>matseg demo: the material-descriptor net</h1>
