@@ -57,7 +57,7 @@ pub fn run(args: Args) -> Result<()> {
         println!(
             "{}: {} materials clicked; balanced accuracy of the points not clicked",
             args.data.display(),
-            reports.first().map_or(0, |r| r.sessions.len())
+            reports.first().map_or(0, |r| r.runs.len())
         );
         println!("| model | after 1 click | after 3 | after 5 |");
         println!("|---|---|---|---|");

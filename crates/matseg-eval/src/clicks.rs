@@ -52,9 +52,9 @@ impl Default for ClickOptions {
     }
 }
 
-/// One mask's session: the IoU after each click.
+/// One mask's run: the IoU after each click.
 #[derive(Clone, Debug, Serialize)]
-pub struct MaskSession {
+pub struct MaskRun {
     /// Which mask of the image.
     pub mask: usize,
     /// The IoU after click 1, 2, ...
@@ -68,13 +68,13 @@ pub struct MaskSession {
     pub one_click_oracle: f64,
 }
 
-/// One image's sessions.
+/// One image's runs.
 #[derive(Clone, Debug, Serialize)]
-pub struct ImageSessions {
+pub struct ImageRuns {
     /// The image.
     pub name: String,
-    /// Its masks' sessions.
-    pub masks: Vec<MaskSession>,
+    /// Its masks' runs.
+    pub masks: Vec<MaskRun>,
 }
 
 /// A model's scores on a mask benchmark by clicks.
@@ -94,8 +94,8 @@ pub struct ClickReport {
     pub masks: usize,
     /// Masks left out (smaller than the least area).
     pub skipped_masks: usize,
-    /// Every image's sessions.
-    pub images: Vec<ImageSessions>,
+    /// Every image's runs.
+    pub images: Vec<ImageRuns>,
 }
 
 /// The squared Euclidean distance of each pixel of `inside` to the nearest
@@ -284,9 +284,9 @@ pub fn clicks_to(ious: &[f64], target: f64, most: usize) -> usize {
         .map_or(most, |k| k + 1)
 }
 
-/// One mask's session on a photo: clicks until IoU 0.90 (and 5 clicks at
+/// One mask's run on a photo: clicks until IoU 0.90 (and 5 clicks at
 /// least, for the reported means) or the most clicks.
-fn mask_session(
+fn mask_run(
     selector: &mut Selector<'_>,
     truth: &[bool],
     scored: &[bool],
@@ -364,7 +364,7 @@ pub fn evaluate_clicks(
         };
         let map = model.describe(&pixels);
         let space = PixelSpace::new(&map, comparison);
-        let mut sessions = Vec::new();
+        let mut runs = Vec::new();
         for (k, path) in image.mask_paths.iter().enumerate() {
             let truth = inside(path)?;
             let area = (0..w * h).filter(|&i| truth[i] && scored[i]).count();
@@ -374,7 +374,7 @@ pub fn evaluate_clicks(
             }
             let mut selector =
                 Selector::new(&space, Some(&pixels), options.radius).map_err(select_error)?;
-            let (ious, first) = mask_session(&mut selector, &truth, &scored, (w, h), options)?;
+            let (ious, first) = mask_run(&mut selector, &truth, &scored, (w, h), options)?;
             let scores: Vec<f32> = (0..w * h)
                 .filter(|&i| scored[i])
                 .map(|i| first.soft[i])
@@ -384,7 +384,7 @@ pub fn evaluate_clicks(
                 .map(|i| truth[i])
                 .collect();
             let oracle = best_iou(&scores, &truths).map_or(0.0, |b| b.iou);
-            sessions.push(MaskSession {
+            runs.push(MaskRun {
                 mask: k,
                 noc85: clicks_to(&ious, NOC_TARGETS[0], options.max_clicks),
                 noc90: clicks_to(&ious, NOC_TARGETS[1], options.max_clicks),
@@ -392,14 +392,14 @@ pub fn evaluate_clicks(
                 one_click_oracle: oracle,
             });
         }
-        report.masks += sessions.len();
-        report.images.push(ImageSessions {
+        report.masks += runs.len();
+        report.images.push(ImageRuns {
             name: image.name.clone(),
-            masks: sessions,
+            masks: runs,
         });
     }
-    let all: Vec<&MaskSession> = report.images.iter().flat_map(|i| &i.masks).collect();
-    let mean = |f: &dyn Fn(&MaskSession) -> f64| {
+    let all: Vec<&MaskRun> = report.images.iter().flat_map(|i| &i.masks).collect();
+    let mean = |f: &dyn Fn(&MaskRun) -> f64| {
         (!all.is_empty()).then(|| all.iter().map(|s| f(s)).sum::<f64>() / all.len() as f64)
     };
     report.noc85 = mean(&|s| s.noc85 as f64);
@@ -413,10 +413,10 @@ pub fn evaluate_clicks(
     Ok(report)
 }
 
-/// One target material's session on a point benchmark image: the
+/// One target material's run on a point benchmark image: the
 /// balanced accuracy of the points not clicked, after each click.
 #[derive(Clone, Debug, Serialize)]
-pub struct PointSession {
+pub struct PointRun {
     /// The image.
     pub image: String,
     /// The target material's group number in the image.
@@ -433,8 +433,8 @@ pub struct PointClickReport {
     /// Mean balanced accuracy of the points not clicked, after 1, 3 and 5
     /// clicks (keys "1", "3", "5").
     pub balanced_accuracy_at: BTreeMap<String, f64>,
-    /// Every session.
-    pub sessions: Vec<PointSession>,
+    /// Every run.
+    pub runs: Vec<PointRun>,
 }
 
 /// Scores `model` by clicks on a point benchmark: each material of each
@@ -450,7 +450,7 @@ pub fn evaluate_point_clicks(
 ) -> Result<PointClickReport, BenchError> {
     let comparison = model.comparison();
     let most = *REPORTED_CLICKS.iter().max().expect("reported clicks");
-    let mut sessions = Vec::new();
+    let mut runs = Vec::new();
     for image in &bench.images {
         let (pixels, scale) = resize_longer_side(read_rgb(&image.image_path)?, options.max_side);
         let map = model.describe(&pixels);
@@ -536,7 +536,7 @@ pub fn evaluate_point_clicks(
                     }
                 }
             }
-            sessions.push(PointSession {
+            runs.push(PointRun {
                 image: image.name.clone(),
                 group: target,
                 balanced_accuracy: accuracies,
@@ -545,7 +545,7 @@ pub fn evaluate_point_clicks(
     }
     let mut balanced_accuracy_at = BTreeMap::new();
     for k in REPORTED_CLICKS {
-        let values: Vec<f64> = sessions
+        let values: Vec<f64> = runs
             .iter()
             .filter_map(|s| s.balanced_accuracy.get(k - 1).copied())
             .collect();
@@ -559,7 +559,7 @@ pub fn evaluate_point_clicks(
     Ok(PointClickReport {
         model: model.name().to_string(),
         balanced_accuracy_at,
-        sessions,
+        runs,
     })
 }
 

@@ -414,7 +414,7 @@ struct Query {
 }
 
 /// Clicks added one at a time to a selection, each click's similarities
-/// computed once: what a session of many clicks (the click benchmark, an
+/// computed once: what a run of many clicks (the click benchmark, an
 /// undo) keeps.
 pub struct Selector<'a> {
     space: &'a dyn ClickSpace,
