@@ -50,9 +50,7 @@ pub fn run(args: Args) -> Result<()> {
             .map(|m| evaluate_point_clicks(m.as_ref(), &bench, &options))
             .collect::<Result<Vec<_>, _>>()?;
         if args.model.json {
-            let out = serde_json::json!({ "data": args.data, "max_side": options.max_side, "models": reports });
-            println!("{}", serde_json::to_string_pretty(&out)?);
-            return Ok(());
+            return print_json(&args.data, &options, serde_json::to_value(&reports)?);
         }
         println!(
             "{}: {} materials clicked; balanced accuracy of the points not clicked",
@@ -79,9 +77,7 @@ pub fn run(args: Args) -> Result<()> {
         .map(|m| evaluate_clicks(m.as_ref(), &images, &options))
         .collect::<Result<Vec<_>, _>>()?;
     if args.model.json {
-        let out = serde_json::json!({ "data": args.data, "max_side": options.max_side, "models": reports });
-        println!("{}", serde_json::to_string_pretty(&out)?);
-        return Ok(());
+        return print_json(&args.data, &options, serde_json::to_value(&reports)?);
     }
     println!(
         "{}: {} masks clicked ({} too small), at most {} clicks each",
@@ -105,5 +101,16 @@ pub fn run(args: Args) -> Result<()> {
             score(r.one_click_oracle)
         );
     }
+    Ok(())
+}
+
+/// Prints the models' reports as `{"data", "max_side", "models": [...]}`.
+fn print_json(
+    data: &std::path::Path,
+    options: &ClickOptions,
+    models: serde_json::Value,
+) -> Result<()> {
+    let out = serde_json::json!({ "data": data, "max_side": options.max_side, "models": models });
+    println!("{}", serde_json::to_string_pretty(&out)?);
     Ok(())
 }

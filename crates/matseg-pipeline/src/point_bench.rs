@@ -13,7 +13,8 @@ use matseg_eval::{evaluate_points, load_point_benchmark, PointReport};
 use matseg_image::io::{encode_jpeg, encode_png_grey, encode_png_rgb, read_rgb};
 use matseg_image::progress::Progress;
 use matseg_query::descriptor::DescriptorModel;
-use matseg_scene::{generate_2d, Recipe2d};
+use matseg_scene::{generate_2d, Recipe2d, Scene2d};
+use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -78,6 +79,35 @@ pub fn make_point_benchmark(
             "--points must be at least 1".into(),
         ));
     }
+    let options = SyntheticOptions {
+        points_per_material: points,
+        ..SyntheticOptions::default()
+    };
+    let (mut written, mut left_out) = (0u64, 0u64);
+    for_each_scene(scenes, seed, libraries, |name, rng, scene| {
+        let weights: Vec<_> = scene.weights.iter().map(|w| w.to_plane()).collect();
+        let annotation = annotate_points(rng, &weights, &options);
+        if annotation.groups.len() < 2 {
+            left_out += 1;
+            return Ok(());
+        }
+        write_point_image(out, name, &scene.image, &annotation)
+            .map_err(|e| PipelineError::file(out.display(), format!("cannot write {name}: {e}")))?;
+        written += 1;
+        Ok(())
+    })?;
+    Ok((written, left_out))
+}
+
+/// Generates `scenes` 2D scenes with the default recipe, scene i from
+/// (seed, i), and hands each to `each` with its name (`sceneNNNNN`) and
+/// the generator it was drawn with; one scene at least.
+fn for_each_scene(
+    scenes: u64,
+    seed: u64,
+    libraries: &Libraries,
+    mut each: impl FnMut(&str, &mut ChaCha8Rng, Scene2d) -> Result<(), PipelineError>,
+) -> Result<(), PipelineError> {
     if scenes < 1 {
         return Err(PipelineError::setting(
             "scenes",
@@ -86,26 +116,12 @@ pub fn make_point_benchmark(
         ));
     }
     let recipe = Recipe2d::default();
-    let options = SyntheticOptions {
-        points_per_material: points,
-        ..SyntheticOptions::default()
-    };
-    let (mut written, mut left_out) = (0u64, 0u64);
     for i in 0..scenes {
         let mut rng = sample_rng(seed, i);
         let scene = generate_2d(&mut rng, &recipe, libraries.sources())?;
-        let weights: Vec<_> = scene.weights.iter().map(|w| w.to_plane()).collect();
-        let annotation = annotate_points(&mut rng, &weights, &options);
-        if annotation.groups.len() < 2 {
-            left_out += 1;
-            continue;
-        }
-        let name = format!("scene{i:05}");
-        write_point_image(out, &name, &scene.image, &annotation)
-            .map_err(|e| PipelineError::file(out.display(), format!("cannot write {name}: {e}")))?;
-        written += 1;
+        each(&format!("scene{i:05}"), &mut rng, scene)?;
     }
-    Ok((written, left_out))
+    Ok(())
 }
 
 /// Writes a mask benchmark (the layout `matseg eval masks` and `eval
@@ -119,19 +135,8 @@ pub fn make_mask_benchmark(
     seed: u64,
     libraries: &Libraries,
 ) -> Result<u64, PipelineError> {
-    if scenes < 1 {
-        return Err(PipelineError::setting(
-            "scenes",
-            Some(scenes),
-            "a benchmark needs one scene at least",
-        ));
-    }
-    let recipe = Recipe2d::default();
     create_folder(out)?;
-    for i in 0..scenes {
-        let mut rng = sample_rng(seed, i);
-        let scene = generate_2d(&mut rng, &recipe, libraries.sources())?;
-        let name = format!("scene{i:05}");
+    for_each_scene(scenes, seed, libraries, |name, _, scene| {
         let (w, h) = scene.image.dimensions();
         for (k, weight) in scene.weights.iter().enumerate() {
             let levels = weight.to_plane().to_u8();
@@ -144,8 +149,8 @@ pub fn make_mask_benchmark(
         write_file(
             &out.join(format!("{name}.jpg")),
             &encode_jpeg(&scene.image, 95),
-        )?;
-    }
+        )
+    })?;
     Ok(scenes)
 }
 

@@ -5,6 +5,7 @@
 //! `selection.json` (the clicks' descriptors) to apply to other photos.
 
 use crate::app::{blocking, ApiError, AppState};
+use crate::described::Described;
 use crate::photos::{checked_radius, described, PhotoRef};
 use axum::extract::{Query, State};
 use axum::http::header;
@@ -96,33 +97,54 @@ pub fn selection_png(selection: &Selection) -> Vec<u8> {
     encode_png_rgb(&RgbImage::from_raw(w, h, raw).expect("one value per pixel"))
 }
 
-/// `GET /api/select?root=R&path=P&positive=X,Y;...&negative=X,Y;...[&radius=5]`:
-/// the selection the clicks make, as [`selection_png`].
-pub async fn selection(
-    State(state): State<Arc<AppState>>,
-    Query(query): Query<SelectQuery>,
-) -> Result<Response, ApiError> {
+/// The photo a select request names, described, and its clicks, checked
+/// against it; the disc radius.
+async fn described_clicks(
+    state: &Arc<AppState>,
+    query: SelectQuery,
+) -> Result<(Arc<Described>, Vec<Click>, f32), ApiError> {
     let clicks = clicks_of(&query)?;
     let radius = checked_radius(query.radius)?;
     let photo = PhotoRef {
         root: query.root,
         path: query.path,
     };
-    let described = described(&state, &photo).await?;
+    let described = described(state, &photo).await?;
     check_inside(&clicks, &described.photo, &photo.path)?;
+    Ok((described, clicks, radius))
+}
+
+/// A selector on `described` with `clicks` added (following the photo's
+/// edges when `edges`), sharing the photo's preparation.
+fn selector_with(
+    described: &Described,
+    clicks: Vec<Click>,
+    radius: f32,
+    edges: bool,
+) -> Result<Selector<'_>, ApiError> {
+    let bad = |e: matseg_query::select::SelectError| ApiError::bad(e.to_string());
+    let photo = edges.then_some(&described.photo);
+    let mut selector =
+        Selector::with_prep(&described.map, photo, radius, described.prep.clone()).map_err(bad)?;
+    for click in clicks {
+        selector.add(click).map_err(bad)?;
+    }
+    Ok(selector)
+}
+
+/// `GET /api/select?root=R&path=P&positive=X,Y;...&negative=X,Y;...[&radius=5]`:
+/// the selection the clicks make, as [`selection_png`].
+pub async fn selection(
+    State(state): State<Arc<AppState>>,
+    Query(query): Query<SelectQuery>,
+) -> Result<Response, ApiError> {
+    let (described, clicks, radius) = described_clicks(&state, query).await?;
     let png = blocking(move || {
-        let bad = |e: matseg_query::select::SelectError| ApiError::bad(e.to_string());
-        let mut selector = Selector::with_prep(
-            &described.map,
-            Some(&described.photo),
-            radius,
-            described.prep.clone(),
-        )
-        .map_err(bad)?;
-        for click in clicks {
-            selector.add(click).map_err(bad)?;
-        }
-        Ok(selection_png(&selector.selection().map_err(bad)?))
+        let selector = selector_with(&described, clicks, radius, true)?;
+        let selection = selector
+            .selection()
+            .map_err(|e| ApiError::bad(e.to_string()))?;
+        Ok(selection_png(&selection))
     })
     .await?;
     Ok(([(header::CONTENT_TYPE, "image/png")], png).into_response())
@@ -135,19 +157,8 @@ pub async fn save(
     State(state): State<Arc<AppState>>,
     Query(query): Query<SelectQuery>,
 ) -> Result<Json<SavedSelection>, ApiError> {
-    let clicks = clicks_of(&query)?;
-    let radius = checked_radius(query.radius)?;
-    let photo = PhotoRef {
-        root: query.root,
-        path: query.path,
-    };
-    let described = described(&state, &photo).await?;
-    check_inside(&clicks, &described.photo, &photo.path)?;
-    let bad = |e: matseg_query::select::SelectError| ApiError::bad(e.to_string());
-    let mut selector = Selector::new(&described.map, None, radius).map_err(bad)?;
-    for click in clicks {
-        selector.add(click).map_err(bad)?;
-    }
+    let (described, clicks, radius) = described_clicks(&state, query).await?;
+    let selector = selector_with(&described, clicks, radius, false)?;
     Ok(Json(selector.saved(state.model.name())))
 }
 
