@@ -210,6 +210,9 @@ pub struct PixelSpace<'a> {
     map: &'a DescriptorMap,
     comparison: Comparison,
     spread: f32,
+    /// The pixels a classifier is fitted on and their descriptors,
+    /// gathered at the first fit.
+    fit: OnceLock<(Vec<usize>, Vec<f32>)>,
 }
 
 impl<'a> PixelSpace<'a> {
@@ -223,6 +226,7 @@ impl<'a> PixelSpace<'a> {
             map,
             comparison,
             spread,
+            fit: OnceLock::new(),
         }
     }
 }
@@ -296,13 +300,16 @@ impl ClickSpace for PixelSpace<'_> {
     }
 
     fn fit_rows(&self) -> (Vec<usize>, Cow<'_, [f32]>) {
-        let cells = even_subset(self.map.width, self.map.height);
-        let rows = cells
-            .iter()
-            .flat_map(|&c| self.map.at(c))
-            .copied()
-            .collect();
-        (cells, Cow::Owned(rows))
+        let (cells, rows) = self.fit.get_or_init(|| {
+            let cells = even_subset(self.map.width, self.map.height);
+            let rows = cells
+                .iter()
+                .flat_map(|&c| self.map.at(c))
+                .copied()
+                .collect();
+            (cells, rows)
+        });
+        (cells.clone(), Cow::Borrowed(rows))
     }
 
     fn project(&self, weights: &[f32], bias: f32) -> Vec<f32> {
@@ -407,10 +414,11 @@ pub fn select(
 /// cell's similarity to it.
 struct Query {
     positive: bool,
-    /// Where it was clicked, in photo pixels (none for a saved descriptor).
-    at: Option<(f32, f32)>,
     descriptor: Vec<f32>,
     similarities: Vec<f32>,
+    /// The similarities lowered with the distance from where it was
+    /// clicked (see [`Selector::reach`]); none for a saved descriptor.
+    near: Option<Vec<f32>>,
 }
 
 /// Clicks added one at a time to a selection, each click's similarities
@@ -528,13 +536,28 @@ impl<'a> Selector<'a> {
             return Err(SelectError::TooMany(self.queries.len() + 1));
         }
         let similarities = self.space.similarities_to(&descriptor);
+        let near = at.map(|at| self.lowered(&similarities, at));
         self.queries.push(Query {
             positive,
-            at,
             descriptor,
             similarities,
+            near,
         });
         Ok(())
+    }
+
+    /// `similarities` lowered with each cell's distance from `(x, y)`:
+    /// [`REACH`] at the photo's longer side away.
+    fn lowered(&self, similarities: &[f32], (x, y): (f32, f32)) -> Vec<f32> {
+        let (w, h) = self.space.photo_size();
+        let scale = REACH / w.max(h).max(1) as f32;
+        (0..similarities.len())
+            .into_par_iter()
+            .map(|cell| {
+                let (cx, cy) = self.space.cell_centre(cell);
+                similarities[cell] - scale * ((cx - x).powi(2) + (cy - y).powi(2)).sqrt()
+            })
+            .collect()
     }
 
     /// Removes the click at `index` (in the order they were added).
@@ -577,31 +600,22 @@ impl<'a> Selector<'a> {
 
     /// The best similarity of every cell to the clicks of one kind, each
     /// click but the first positive one (query `first`) lowered with the
-    /// distance from where it was clicked: [`REACH`] at the photo's longer
-    /// side away. A correcting click takes its own neighbourhood more
-    /// readily than the far side of the photo.
+    /// distance from where it was clicked ([`Selector::lowered`]): a
+    /// correcting click takes its own neighbourhood more readily than the
+    /// far side of the photo.
     fn reach(&self, positive: bool, first: usize) -> Option<Vec<f32>> {
-        let (w, h) = self.space.photo_size();
-        let scale = REACH / w.max(h).max(1) as f32;
         let mut best: Option<Vec<f32>> = None;
         for (k, query) in self.queries.iter().enumerate() {
             if query.positive != positive {
                 continue;
             }
-            let near: Vec<f32> = match query.at {
-                Some((x, y)) if k != first => (0..query.similarities.len())
-                    .into_par_iter()
-                    .map(|cell| {
-                        let (cx, cy) = self.space.cell_centre(cell);
-                        let distance = ((cx - x).powi(2) + (cy - y).powi(2)).sqrt();
-                        query.similarities[cell] - scale * distance
-                    })
-                    .collect(),
-                _ => query.similarities.clone(),
+            let near = match &query.near {
+                Some(near) if k != first => near,
+                _ => &query.similarities,
             };
             best = Some(match best {
-                None => near,
-                Some(b) => b.iter().zip(&near).map(|(a, n)| a.max(*n)).collect(),
+                None => near.clone(),
+                Some(b) => b.iter().zip(near).map(|(a, n)| a.max(*n)).collect(),
             });
         }
         best
