@@ -422,8 +422,7 @@ struct Query {
 }
 
 /// Clicks added one at a time to a selection, each click's similarities
-/// computed once: what a run of many clicks (the click benchmark, an
-/// undo) keeps.
+/// computed once: what a run of many clicks (the click benchmark) keeps.
 pub struct Selector<'a> {
     space: &'a dyn ClickSpace,
     photo: Option<&'a RgbImage>,
@@ -490,16 +489,6 @@ impl<'a> Selector<'a> {
         })
     }
 
-    /// How many clicks (or saved descriptors) the selection has.
-    pub fn len(&self) -> usize {
-        self.queries.len()
-    }
-
-    /// Whether the selection has no clicks yet.
-    pub fn is_empty(&self) -> bool {
-        self.queries.is_empty()
-    }
-
     /// Adds `click`.
     pub fn add(&mut self, click: Click) -> Result<(), SelectError> {
         let (width, height) = self.space.photo_size();
@@ -558,13 +547,6 @@ impl<'a> Selector<'a> {
                 similarities[cell] - scale * ((cx - x).powi(2) + (cy - y).powi(2)).sqrt()
             })
             .collect()
-    }
-
-    /// Removes the click at `index` (in the order they were added).
-    pub fn remove(&mut self, index: usize) {
-        if index < self.queries.len() {
-            self.queries.remove(index);
-        }
     }
 
     /// The clicks' descriptors, to apply the selection to other photos.
