@@ -14,6 +14,9 @@ import { api, pixels, bitmap, blend, download, greyPng, rgbPng, takeFiles, uploa
   Clicks, bindEditKeys, takeClicks, drawClick, markerRadius, pixelsPerCss, setBusy, drawOutline, greyOut }
   from "/common.js";
 
+// The solid tints to choose from: the one farthest from the photo's mean
+// colour is used, so that a selection shows on red and orange photos too.
+const SOLID_TINTS = [[255, 0, 0], [0, 255, 255], [255, 255, 0]];
 const canvas = document.getElementById("canvas");
 const context = canvas.getContext("2d", { willReadFrequently: true });
 const view = document.getElementById("view");
@@ -28,10 +31,26 @@ const clicks = new Clicks(update);
 // asked: the newest request (older answers are dropped); describing,
 // waiting: what the busy mark says.
 const state = { photo: null, name: "", image: null, layer: null, asked: 0, described: null,
-  describing: false, waiting: false };
+  describing: false, waiting: false, solid: SOLID_TINTS[0] };
+
+// The solid tint farthest from `image`'s mean colour.
+function contrastingTint(image) {
+  const small = document.createElement("canvas");
+  small.width = small.height = 16;
+  const c = small.getContext("2d");
+  c.drawImage(image, 0, 0, 16, 16);
+  const px = c.getImageData(0, 0, 16, 16).data;
+  const mean = [0, 1, 2].map((k) => {
+    let sum = 0;
+    for (let i = k; i < px.length; i += 4) sum += px[i];
+    return sum / (px.length / 4);
+  });
+  const distance = (t) => t.reduce((d, v, k) => d + (v - mean[k]) ** 2, 0);
+  return SOLID_TINTS.reduce((best, t) => (distance(t) > distance(best) ? t : best));
+}
 
 // The tints of a selection: a strength 0..1 to [r, g, b, a].
-const TINTS = { solid: () => [255, 0, 0, 1], ...COLOUR_MAPS };
+const TINTS = { solid: () => [...state.solid, 1], ...COLOUR_MAPS };
 // The colour of a selection over the greyed photo.
 const ON_GREY = [0, 255, 255, 1];
 
@@ -176,6 +195,7 @@ async function open(photo, name) {
   delete canvas.dataset.described;
   try {
     state.image = await bitmap(await api("/api/photo", photo));
+    state.solid = contrastingTint(state.image);
   } catch (error) {
     status.textContent = error.message;
     return;
