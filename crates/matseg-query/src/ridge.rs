@@ -1,16 +1,20 @@
 //! A linear classifier fitted on the fly on a photo's descriptors: ridge
 //! regression of targets in -0.5..0.5 on the descriptors and a constant.
-//! The rows' Gram matrix is computed once per photo ([`Ridge::new`]); each
-//! fit then adds its weighted extra rows (clicks) and solves a system of
-//! the descriptors' size (Cholesky, in f64).
+//! The rows' regularised Gram matrix is factorised once per photo
+//! ([`Ridge::new`], Cholesky in f64); each fit then solves with its few
+//! weighted extra rows (clicks) by the Woodbury identity, a handful of
+//! triangular solves instead of a new factorisation.
 
-/// The Gram matrix of a photo's descriptor rows, each with a constant 1
-/// appended.
+use rayon::prelude::*;
+
+/// A photo's descriptor rows, each with a constant 1 appended, ready to
+/// be fitted: the Cholesky factor of their Gram matrix plus `lambda`.
 pub struct Ridge {
     /// Descriptor values a row (without the constant).
     dim: usize,
-    /// `(dim + 1) x (dim + 1)`, row by row.
-    gram: Vec<f64>,
+    /// The lower Cholesky factor of `Gram + lambda I`, `(dim + 1) x (dim
+    /// + 1)`, row by row.
+    factor: Vec<f64>,
 }
 
 /// A row the fit weighs more than the photo's: a click's descriptor, its
@@ -24,93 +28,147 @@ pub struct WeightedRow<'a> {
     pub target: f64,
 }
 
+/// Rows summed in f32 before their sum joins the f64 total.
+const ROWS_A_CHUNK: usize = 256;
+
 impl Ridge {
-    /// The Gram matrix of `rows` (`dim` values each, row by row).
-    pub fn new(rows: &[f32], dim: usize) -> Self {
-        let n = rows.len() / dim.max(1);
-        let mut product = vec![0f32; dim * dim];
-        // SAFETY: the slices hold n x dim (A, B) and dim x dim (C) values,
-        // with the strides given.
-        unsafe {
-            matrixmultiply::sgemm(
-                dim,
-                n,
-                dim,
-                1.0,
-                rows.as_ptr(),
-                1,
-                dim as isize,
-                rows.as_ptr(),
-                dim as isize,
-                1,
-                0.0,
-                product.as_mut_ptr(),
-                dim as isize,
-                1,
-            );
-        }
+    /// `rows` (`dim` values each, row by row), to be fitted with `lambda`
+    /// times the squared weights added.
+    pub fn new(rows: &[f32], dim: usize, lambda: f64) -> Self {
         let side = dim + 1;
-        let mut gram = vec![0f64; side * side];
-        for i in 0..dim {
-            for j in 0..dim {
-                gram[i * side + j] = product[i * dim + j] as f64;
-            }
+        let mut factor = gram(rows, dim);
+        for i in 0..side {
+            factor[i * side + i] += lambda;
         }
-        let mut sums = vec![0f64; dim];
-        for row in rows.chunks_exact(dim) {
-            for (s, &v) in sums.iter_mut().zip(row) {
-                *s += v as f64;
-            }
-        }
-        for (i, s) in sums.into_iter().enumerate() {
-            gram[i * side + dim] = s;
-            gram[dim * side + i] = s;
-        }
-        gram[dim * side + dim] = n as f64;
-        Self { dim, gram }
+        cholesky(&mut factor, side);
+        Self { dim, factor }
     }
 
     /// The weights (`dim` values, then the constant's) that best map
     /// `rows` (the rows of [`Ridge::new`]) to `targets`, and each extra
-    /// row to its target, with `lambda` times the squared weights added.
-    pub fn fit(
-        &self,
-        rows: &[f32],
-        targets: &[f32],
-        extra: &[WeightedRow<'_>],
-        lambda: f64,
-    ) -> Vec<f32> {
+    /// row to its target.
+    pub fn fit(&self, rows: &[f32], targets: &[f32], extra: &[WeightedRow<'_>]) -> Vec<f32> {
         let (dim, side) = (self.dim, self.dim + 1);
-        let mut a = self.gram.clone();
-        for i in 0..side {
-            a[i * side + i] += lambda;
-        }
-        let mut b = vec![0f64; side];
-        for (row, &t) in rows.chunks_exact(dim).zip(targets) {
-            if t != 0.0 {
-                for (bi, &v) in b.iter_mut().zip(row) {
-                    *bi += v as f64 * t as f64;
-                }
-                b[dim] += t as f64;
+        // The right-hand side: the rows and the extra rows times their
+        // targets.
+        let mut b = weighted_sum(rows, targets, dim);
+        let extended: Vec<Vec<f64>> = extra
+            .iter()
+            .map(|row| row.values.iter().map(|&v| v as f64).chain([1.0]).collect())
+            .collect();
+        for (row, x) in extra.iter().zip(&extended) {
+            for (bi, xi) in b.iter_mut().zip(x) {
+                *bi += row.weight * row.target * xi;
             }
         }
-        for row in extra {
-            let x: Vec<f64> = row.values.iter().map(|&v| v as f64).chain([1.0]).collect();
-            for i in 0..side {
-                b[i] += row.weight * x[i] * row.target;
-                for j in 0..side {
-                    a[i * side + j] += row.weight * x[i] * x[j];
-                }
+        // (A + X W X')^-1 b = y - Z (W^-1 + X' Z)^-1 X' y, with y = A^-1 b
+        // and Z = A^-1 X.
+        let y = self.solve(b);
+        let z: Vec<Vec<f64>> = extended.iter().map(|x| self.solve(x.clone())).collect();
+        let k = extra.len();
+        let mut small = vec![0f64; k * k];
+        for i in 0..k {
+            for j in 0..k {
+                small[i * k + j] = dot(&extended[i], &z[j]);
+            }
+            small[i * k + i] += 1.0 / extra[i].weight;
+        }
+        let mut c: Vec<f64> = extended.iter().map(|x| dot(x, &y)).collect();
+        cholesky(&mut small, k);
+        substitute(&small, &mut c, k);
+        let mut weights = y;
+        for (zi, ci) in z.iter().zip(&c) {
+            for (w, v) in weights.iter_mut().zip(zi) {
+                *w -= ci * v;
             }
         }
-        solve_positive_definite(&mut a, &mut b, side);
-        b.into_iter().map(|v| v as f32).collect()
+        debug_assert_eq!(weights.len(), side);
+        weights.into_iter().map(|v| v as f32).collect()
+    }
+
+    /// `(Gram + lambda I)^-1 b`.
+    fn solve(&self, mut b: Vec<f64>) -> Vec<f64> {
+        substitute(&self.factor, &mut b, self.dim + 1);
+        b
     }
 }
 
-/// Solves `a x = b` for a symmetric positive definite `a` (`n x n`, row
-/// by row) by Cholesky's factorisation; `b` becomes `x`.
-fn solve_positive_definite(a: &mut [f64], b: &mut [f64], n: usize) {
+/// The Gram matrix of `rows` (`dim` values each) with a constant 1
+/// appended to each: `(dim + 1) x (dim + 1)`, row by row.
+fn gram(rows: &[f32], dim: usize) -> Vec<f64> {
+    let n = rows.len() / dim.max(1);
+    let mut product = vec![0f32; dim * dim];
+    // SAFETY: the slices hold n x dim (A, B) and dim x dim (C) values,
+    // with the strides given.
+    unsafe {
+        matrixmultiply::sgemm(
+            dim,
+            n,
+            dim,
+            1.0,
+            rows.as_ptr(),
+            1,
+            dim as isize,
+            rows.as_ptr(),
+            dim as isize,
+            1,
+            0.0,
+            product.as_mut_ptr(),
+            dim as isize,
+            1,
+        );
+    }
+    let side = dim + 1;
+    let mut gram = vec![0f64; side * side];
+    for i in 0..dim {
+        for j in 0..dim {
+            gram[i * side + j] = product[i * dim + j] as f64;
+        }
+    }
+    let sums = weighted_sum(rows, &vec![1.0; n], dim);
+    for (i, &s) in sums[..dim].iter().enumerate() {
+        gram[i * side + dim] = s;
+        gram[dim * side + i] = s;
+    }
+    gram[dim * side + dim] = n as f64;
+    gram
+}
+
+/// The sum of `rows` (`dim` values each, a constant 1 appended) each
+/// times its weight in `weights`: `dim + 1` values.
+fn weighted_sum(rows: &[f32], weights: &[f32], dim: usize) -> Vec<f64> {
+    rows.par_chunks(dim * ROWS_A_CHUNK)
+        .zip(weights.par_chunks(ROWS_A_CHUNK))
+        .map(|(rows, weights)| {
+            let mut sum = vec![0f32; dim + 1];
+            for (row, &w) in rows.chunks_exact(dim).zip(weights) {
+                if w != 0.0 {
+                    for (s, &v) in sum.iter_mut().zip(row) {
+                        *s += v * w;
+                    }
+                    sum[dim] += w;
+                }
+            }
+            sum.into_iter().map(f64::from).collect::<Vec<f64>>()
+        })
+        .reduce(
+            || vec![0f64; dim + 1],
+            |mut a, b| {
+                for (x, y) in a.iter_mut().zip(b) {
+                    *x += y;
+                }
+                a
+            },
+        )
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// Replaces the symmetric positive definite `a` (`n x n`, row by row)
+/// with its lower Cholesky factor `L` (`a = L L'`) in its lower triangle.
+fn cholesky(a: &mut [f64], n: usize) {
     for j in 0..n {
         let mut d = a[j * n + j];
         for k in 0..j {
@@ -126,19 +184,23 @@ fn solve_positive_definite(a: &mut [f64], b: &mut [f64], n: usize) {
             a[i * n + j] = s / d;
         }
     }
+}
+
+/// Solves `L L' x = b` for the factor `L` of [`cholesky`]; `b` becomes `x`.
+fn substitute(factor: &[f64], b: &mut [f64], n: usize) {
     for i in 0..n {
         let mut s = b[i];
         for k in 0..i {
-            s -= a[i * n + k] * b[k];
+            s -= factor[i * n + k] * b[k];
         }
-        b[i] = s / a[i * n + i];
+        b[i] = s / factor[i * n + i];
     }
     for i in (0..n).rev() {
         let mut s = b[i];
         for k in i + 1..n {
-            s -= a[k * n + i] * b[k];
+            s -= factor[k * n + i] * b[k];
         }
-        b[i] = s / a[i * n + i];
+        b[i] = s / factor[i * n + i];
     }
 }
 
@@ -156,9 +218,9 @@ mod tests {
             .chunks_exact(2)
             .map(|r| if r[0] > r[1] { 0.5 } else { -0.5 })
             .collect();
-        let ridge = Ridge::new(&rows, 2);
-        assert_eq!(ridge.gram[2 * 3 + 2], 100.0);
-        let w = ridge.fit(&rows, &targets, &[], 1e-6);
+        assert_eq!(gram(&rows, 2)[2 * 3 + 2], 100.0);
+        let ridge = Ridge::new(&rows, 2, 1e-6);
+        let w = ridge.fit(&rows, &targets, &[]);
         let right = rows
             .chunks_exact(2)
             .zip(&targets)
@@ -171,15 +233,63 @@ mod tests {
             weight: 1e4,
             target: 0.5,
         }];
-        let w = ridge.fit(&rows, &targets, &heavy, 1e-6);
+        let w = ridge.fit(&rows, &targets, &heavy);
         assert!(0.9 * w[1] + w[2] > 0.0);
+    }
+
+    #[test]
+    fn extra_rows_by_woodbury_match_a_direct_solve() {
+        // 600 rows of 5 pseudo-random values (more than a chunk), three
+        // heavy extra rows.
+        let value = |i: usize| ((i * 7919 % 1009) as f32 / 1009.0) - 0.5;
+        let (dim, side) = (5, 6);
+        let rows: Vec<f32> = (0..600 * dim).map(value).collect();
+        let targets: Vec<f32> = (0..600).map(|i| value(i * 13) - 0.1).collect();
+        let extra_values: Vec<Vec<f32>> = (0..3)
+            .map(|k| (0..dim).map(|j| value(5000 + 31 * k + j)).collect())
+            .collect();
+        let extra: Vec<WeightedRow<'_>> = extra_values
+            .iter()
+            .enumerate()
+            .map(|(k, values)| WeightedRow {
+                values,
+                weight: 50.0 * (k + 1) as f64,
+                target: if k == 1 { -0.5 } else { 0.5 },
+            })
+            .collect();
+        let lambda = 0.3;
+        let w = Ridge::new(&rows, dim, lambda).fit(&rows, &targets, &extra);
+        // The normal equations, made whole and factorised.
+        let mut a = gram(&rows, dim);
+        let mut b = weighted_sum(&rows, &targets, dim);
+        for i in 0..side {
+            a[i * side + i] += lambda;
+        }
+        for row in &extra {
+            let x: Vec<f64> = row.values.iter().map(|&v| v as f64).chain([1.0]).collect();
+            for i in 0..side {
+                b[i] += row.weight * row.target * x[i];
+                for j in 0..side {
+                    a[i * side + j] += row.weight * x[i] * x[j];
+                }
+            }
+        }
+        cholesky(&mut a, side);
+        substitute(&a, &mut b, side);
+        for (fitted, direct) in w.iter().zip(&b) {
+            assert!(
+                (*fitted as f64 - direct).abs() < 1e-5,
+                "{w:?} against {b:?}"
+            );
+        }
     }
 
     #[test]
     fn cholesky_solves_a_small_system() {
         let mut a = vec![4.0, 2.0, 2.0, 3.0];
         let mut b = vec![2.0, 1.0];
-        solve_positive_definite(&mut a, &mut b, 2);
+        cholesky(&mut a, 2);
+        substitute(&a, &mut b, 2);
         // 4x + 2y = 2, 2x + 3y = 1: x = 0.5, y = 0.
         assert!((b[0] - 0.5).abs() < 1e-12 && b[1].abs() < 1e-12);
     }

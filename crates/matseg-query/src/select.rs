@@ -456,6 +456,70 @@ impl PhotoPrep {
         // the materials' maps and the Gram matrix.
         6 * pixels + 512 * 512 * 12 + PROTOTYPES * 4 * cells + 8 * (dim + 1) * (dim + 1)
     }
+
+    /// Every part made now for `space` and `photo` (as a selection would
+    /// be given them), so that no click waits for one: what the web app
+    /// does as soon as it has described a photo.
+    pub fn prepare(&self, space: &dyn ClickSpace, photo: Option<&RgbImage>) {
+        self.prototypes(space);
+        let (cells, rows) = space.fit_rows();
+        self.ridge(&rows, rows.len() / cells.len().max(1));
+        if let Some(photo) = photo.filter(|p| fits(p, space)) {
+            self.guides(photo);
+        }
+    }
+
+    /// The photo's materials: [`PROTOTYPES`] cells chosen one at a time,
+    /// each the cell least like all chosen before (the first the one
+    /// least like the photo's middle cell), with their similarity maps.
+    fn prototypes(&self, space: &dyn ClickSpace) -> &[(usize, Vec<f32>)] {
+        self.prototypes.get_or_init(|| {
+            let cells = space.cells();
+            let of_cell = |cell: usize| space.similarities_to(&space.cell_descriptor(cell));
+            let mut closest = of_cell(cells / 2);
+            let mut chosen: Vec<(usize, Vec<f32>)> = Vec::new();
+            while chosen.len() < PROTOTYPES.min(cells) {
+                let (next, _) = closest
+                    .iter()
+                    .enumerate()
+                    .min_by(|(i, a), (j, b)| a.total_cmp(b).then(i.cmp(j)))
+                    .expect("cells");
+                let map = of_cell(next);
+                for (c, &s) in closest.iter_mut().zip(&map) {
+                    *c = c.max(s);
+                }
+                chosen.push((next, map));
+            }
+            chosen
+        })
+    }
+
+    /// The classifier's factorised Gram matrix of `rows` (`dim` values
+    /// each), the space's fitted rows ([`ClickSpace::fit_rows`]). The
+    /// regularisation weighs as a share of the photo, whatever its size
+    /// and however finely it is described.
+    fn ridge(&self, rows: &[f32], dim: usize) -> &Ridge {
+        self.ridge.get_or_init(|| {
+            let fitted = rows.len() / dim.max(1);
+            Ridge::new(rows, dim, RIDGE_SHARE * fitted as f64)
+        })
+    }
+
+    /// The photo's edges and colours.
+    fn guides(&self, photo: &RgbImage) -> &(EdgeGuide, ColourBins) {
+        self.guides.get_or_init(|| {
+            (
+                EdgeGuide::new(photo, GUIDE_RADIUS, GUIDE_EPSILON),
+                ColourBins::new(photo),
+            )
+        })
+    }
+}
+
+/// Whether `photo` is of `space`'s photo size.
+fn fits(photo: &RgbImage, space: &dyn ClickSpace) -> bool {
+    let (width, height) = space.photo_size();
+    photo.dimensions() == (width as u32, height as u32)
 }
 
 impl<'a> Selector<'a> {
@@ -478,8 +542,7 @@ impl<'a> Selector<'a> {
         prep: Arc<PhotoPrep>,
     ) -> Result<Self, SelectError> {
         check_radius(radius)?;
-        let (width, height) = space.photo_size();
-        let photo = photo.filter(|p| p.dimensions() == (width as u32, height as u32));
+        let photo = photo.filter(|p| fits(p, space));
         Ok(Self {
             space,
             photo,
@@ -611,10 +674,10 @@ impl<'a> Selector<'a> {
     fn fitted(&self, prior: &[f32]) -> Vec<f32> {
         let (cells, rows) = self.space.fit_rows();
         let dim = rows.len() / cells.len().max(1);
-        let ridge = self.prep.ridge.get_or_init(|| Ridge::new(&rows, dim));
+        let ridge = self.prep.ridge(&rows, dim);
         let targets: Vec<f32> = cells.iter().map(|&c| prior[c] - 0.5).collect();
-        // The clicks and the regularisation weigh as shares of the photo,
-        // whatever its size and however finely it is described.
+        // The clicks weigh as shares of the photo, whatever its size and
+        // however finely it is described.
         let rows_fitted = cells.len() as f64;
         let clicks: Vec<WeightedRow<'_>> = self
             .queries
@@ -625,40 +688,12 @@ impl<'a> Selector<'a> {
                 target: if q.positive { 0.5 } else { -0.5 },
             })
             .collect();
-        let weights = ridge.fit(&rows, &targets, &clicks, RIDGE_SHARE * rows_fitted);
+        let weights = ridge.fit(&rows, &targets, &clicks);
         self.space
             .project(&weights[..dim], weights[dim])
             .into_iter()
             .map(|v| if v > 0.0 { 1.0 } else { 0.0 })
             .collect()
-    }
-
-    /// The photo's materials: [`PROTOTYPES`] cells chosen one at a time,
-    /// each the cell least like all chosen before (the first the one
-    /// least like the photo's middle cell), with their similarity maps.
-    fn prototypes(&self) -> &[(usize, Vec<f32>)] {
-        self.prep.prototypes.get_or_init(|| {
-            let cells = self.space.cells();
-            let of_cell = |cell: usize| {
-                self.space
-                    .similarities_to(&self.space.cell_descriptor(cell))
-            };
-            let mut closest = of_cell(cells / 2);
-            let mut chosen: Vec<(usize, Vec<f32>)> = Vec::new();
-            while chosen.len() < PROTOTYPES.min(cells) {
-                let (next, _) = closest
-                    .iter()
-                    .enumerate()
-                    .min_by(|(i, a), (j, b)| a.total_cmp(b).then(i.cmp(j)))
-                    .expect("cells");
-                let map = of_cell(next);
-                for (c, &s) in closest.iter_mut().zip(&map) {
-                    *c = c.max(s);
-                }
-                chosen.push((next, map));
-            }
-            chosen
-        })
     }
 
     /// The selection the clicks make.
@@ -680,7 +715,7 @@ impl<'a> Selector<'a> {
         // The photo's materials unlike the positive clicks count, for the
         // decision, as negative clicks the user did not have to make.
         let mut against = near_negative;
-        for (cell, map) in self.prototypes() {
+        for (cell, map) in self.prep.prototypes(self.space) {
             if near_positive[*cell] < threshold {
                 against = Some(match against {
                     None => map.clone(),
@@ -717,14 +752,7 @@ impl<'a> Selector<'a> {
         };
         let soft = self.space.to_photo(soft);
         let decision = self.space.to_photo(decision);
-        let guides = self.photo.map(|p| {
-            self.prep.guides.get_or_init(|| {
-                (
-                    EdgeGuide::new(p, GUIDE_RADIUS, GUIDE_EPSILON),
-                    ColourBins::new(p),
-                )
-            })
-        });
+        let guides = self.photo.map(|p| self.prep.guides(p));
         let mask = match guides {
             Some((edges, colours)) => {
                 let strength: Vec<f32> = edges

@@ -15,17 +15,21 @@ pub struct Described {
     pub photo: RgbImage,
     /// The model's descriptors of it.
     pub map: CoarseDescriptors,
-    /// Shared by every selection on the photo, made as they need it.
+    /// Shared by every selection on the photo, made with the photo's
+    /// description so that no click waits for it.
     pub prep: Arc<PhotoPrep>,
 }
 
 impl Described {
-    /// `photo` and its descriptors `map`, nothing prepared yet.
+    /// `photo` and its descriptors `map`, with the preparation of its
+    /// selections.
     pub fn new(photo: RgbImage, map: CoarseDescriptors) -> Self {
+        let prep = PhotoPrep::default();
+        prep.prepare(&map, Some(&photo));
         Self {
             photo,
             map,
-            prep: Arc::default(),
+            prep: Arc::new(prep),
         }
     }
 
