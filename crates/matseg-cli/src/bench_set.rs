@@ -7,7 +7,7 @@ use crate::common::LibraryArgs;
 use anyhow::Result;
 use clap::Subcommand;
 use matseg_pipeline::point_bench::{
-    draw_point_benchmark, make_mask_benchmark, make_point_benchmark,
+    draw_point_benchmark, make_mask_benchmark, make_point_benchmark, mask_benchmark_from_dataset,
 };
 use matseg_pipeline::sources::DEFAULT_CACHE_MB;
 use std::path::PathBuf;
@@ -18,7 +18,8 @@ pub enum Command {
     /// Write a point benchmark (MatSeg layout) made from generated 2D scenes.
     Make(MakeArgs),
     /// Write a mask benchmark (NAME.jpg, NAME.maskK.png; for `eval masks`
-    /// and `eval clicks`) made from generated 2D scenes.
+    /// and `eval clicks`) made from generated 2D scenes, or from the
+    /// samples of a generated dataset (`--from`, e.g. video frames).
     Masks(MasksArgs),
     /// Draw each image's points on it (NAME.png: rings in one colour per
     /// material, labelled with its id), to check an annotation by eye.
@@ -70,6 +71,11 @@ pub struct MasksArgs {
     /// Seed: scene i depends only on (seed, i).
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Instead of generating scenes, take every sample of this dataset
+    /// (`matseg generate` output: folders or shards) with its masks and
+    /// region of interest.
+    #[arg(long, conflicts_with_all = ["n", "seed"])]
+    from: Option<PathBuf>,
     #[command(flatten)]
     libraries: LibraryArgs,
 }
@@ -84,6 +90,15 @@ pub fn run(command: Command) -> Result<()> {
 }
 
 fn masks(args: MasksArgs) -> Result<()> {
+    if let Some(data) = &args.from {
+        let written = mask_benchmark_from_dataset(data, &args.out)?;
+        println!(
+            "{}: mask benchmark of {written} samples of {}",
+            args.out.display(),
+            data.display()
+        );
+        return Ok(());
+    }
     let libraries = args.libraries.load(DEFAULT_CACHE_MB)?;
     let written = make_mask_benchmark(&args.out, args.n, args.seed, &libraries)?;
     println!("{}: mask benchmark of {written} scenes", args.out.display());

@@ -6,7 +6,7 @@
 use crate::error::PipelineError;
 use crate::files::{create_folder, write_file};
 use crate::sources::Libraries;
-use matseg_data::sample_rng;
+use matseg_data::{sample_rng, Dataset};
 use matseg_eval::overlay::draw_points;
 use matseg_eval::synthetic::{annotate_points, write_point_image, SyntheticOptions};
 use matseg_eval::{evaluate_points, load_point_benchmark, PointReport};
@@ -154,6 +154,43 @@ pub fn make_mask_benchmark(
     Ok(scenes)
 }
 
+/// Writes the samples of the generated dataset `data` (MatSeg folders or
+/// WebDataset shards, e.g. the frames of a 3D sequence) into `out` as a
+/// mask benchmark: `KEY.png` (the image, losslessly), `KEY.maskK.png`
+/// (each material's weight as 8-bit grey, as training reads it: its
+/// share of the masks' sum) and `KEY.roi.png` (white where a material is:
+/// the background is not scored). Every sample is read before anything is
+/// written, so a damaged one leaves nothing. Returns the samples written.
+pub fn mask_benchmark_from_dataset(data: &Path, out: &Path) -> Result<usize, PipelineError> {
+    let dataset = Dataset::open(data)?;
+    for sample in dataset.iter() {
+        sample?;
+    }
+    create_folder(out)?;
+    for sample in dataset.iter() {
+        let sample = sample?;
+        let (w, h) = sample.image.dimensions();
+        let targets = sample.targets();
+        let name = &sample.key;
+        for (k, weight) in targets.weights.iter().enumerate() {
+            write_file(
+                &out.join(format!("{name}.mask{k}.png")),
+                &encode_png_grey(w, h, &weight.to_u8()),
+            )?;
+        }
+        write_file(
+            &out.join(format!("{name}.roi.png")),
+            &encode_png_grey(w, h, &targets.roi.to_u8()),
+        )?;
+        // The image last: an image with its masks is a complete one.
+        write_file(
+            &out.join(format!("{name}.png")),
+            &encode_png_rgb(&sample.image),
+        )?;
+    }
+    Ok(dataset.len())
+}
+
 /// Draws each image's points of the benchmark `bench` on it into
 /// `out/NAME.png` (rings in one colour per material, labelled with its id;
 /// photos whose longer side is below `magnify_below` pixels magnified
@@ -214,5 +251,60 @@ mod tests {
         assert_eq!(points, want);
         assert!(drawn.join(format!("{}.png", read.images[0].name)).is_file());
         assert!(make_point_benchmark(&bench, 1, 1, 0, &libraries).is_err());
+    }
+
+    #[test]
+    fn a_dataset_becomes_a_mask_benchmark_with_its_roi() {
+        use matseg_data::folders::{FINISHED_FILE, IMAGE_FILE, ROI_FILE};
+        let dir = tempfile::tempdir().unwrap();
+        let (w, h) = (8u32, 6u32);
+        // Material 0 on the left half, material 1 on the top right, the
+        // bottom right background.
+        let level = |k: usize, x: u32, y: u32| -> u8 {
+            let inside = match k {
+                0 => x < w / 2,
+                _ => x >= w / 2 && y < h / 2,
+            };
+            if inside {
+                255
+            } else {
+                0
+            }
+        };
+        let sample = dir.path().join("data").join("00000000");
+        create_folder(&sample).unwrap();
+        let image = image::RgbImage::from_fn(w, h, |x, _| image::Rgb([30 * x as u8, 90, 200]));
+        let file = |name: &str, bytes: &[u8]| std::fs::write(sample.join(name), bytes).unwrap();
+        file(IMAGE_FILE, &encode_jpeg(&image, 95));
+        for k in 0..2 {
+            let levels: Vec<u8> = (0..w * h).map(|i| level(k, i % w, i / w)).collect();
+            file(&format!("mask{k}.png"), &encode_png_grey(w, h, &levels));
+        }
+        let roi: Vec<u8> = (0..w * h)
+            .map(|i| level(0, i % w, i / w).max(level(1, i % w, i / w)))
+            .collect();
+        file(ROI_FILE, &encode_png_grey(w, h, &roi));
+        file(FINISHED_FILE, b"");
+
+        let bench = dir.path().join("bench");
+        assert_eq!(
+            mask_benchmark_from_dataset(&dir.path().join("data"), &bench).unwrap(),
+            1
+        );
+        let images = matseg_eval::scan_mask_benchmark(&bench).unwrap();
+        assert_eq!(images.len(), 1);
+        assert_eq!(images[0].mask_paths.len(), 2);
+        let grey = |path: &Path| image::open(path).unwrap().to_luma8().into_raw();
+        for (k, path) in images[0].mask_paths.iter().enumerate() {
+            let want: Vec<u8> = (0..w * h).map(|i| level(k, i % w, i / w)).collect();
+            assert_eq!(grey(path), want, "mask {k}");
+        }
+        assert_eq!(grey(images[0].roi_path.as_ref().unwrap()), roi);
+
+        // A damaged mask: refused, and nothing written.
+        file("mask1.png", b"not a png");
+        let refused = dir.path().join("refused");
+        assert!(mask_benchmark_from_dataset(&dir.path().join("data"), &refused).is_err());
+        assert!(!refused.exists());
     }
 }
