@@ -11,6 +11,9 @@ use rayon::prelude::*;
 /// Levels per colour channel of the histograms (16: 4096 bins).
 const LEVELS: usize = 16;
 
+/// The number of colour bins.
+pub const BINS: usize = LEVELS * LEVELS * LEVELS;
+
 /// How sure a pixel's strength must be (this far from 0 or 1) to lend its
 /// colour to a histogram.
 const SURE: f32 = 0.25;
@@ -43,21 +46,45 @@ impl ColourBins {
         Self { bins }
     }
 
+    /// Each pixel's bin, row by row.
+    pub fn bins(&self) -> &[u16] {
+        &self.bins
+    }
+
     /// Whether each pixel is selected, from its strength in `strength`
     /// (0..1, the photo's size) and its colour's likelihood in and out.
     pub fn decide(&self, strength: &[f32]) -> Vec<bool> {
-        let histogram = |keep: &dyn Fn(f32) -> bool| {
-            let mut counts = vec![1f64; LEVELS * LEVELS * LEVELS];
-            for (&bin, &s) in self.bins.iter().zip(strength) {
-                if keep(s) {
-                    counts[bin as usize] += 1.0;
-                }
-            }
+        // The sure pixels' colours, in and out, counted in one pass.
+        let counts = self
+            .bins
+            .par_chunks(1 << 16)
+            .zip(strength.par_chunks(1 << 16))
+            .fold(
+                || vec![0u32; 2 * BINS],
+                |mut counts, (bins, strength)| {
+                    for (&bin, &s) in bins.iter().zip(strength) {
+                        if s > 1.0 - SURE {
+                            counts[bin as usize] += 1;
+                        } else if s < SURE {
+                            counts[BINS + bin as usize] += 1;
+                        }
+                    }
+                    counts
+                },
+            )
+            .reduce(
+                || vec![0u32; 2 * BINS],
+                |mut a, b| {
+                    a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+                    a
+                },
+            );
+        let frequencies = |counts: &[u32]| {
+            let counts: Vec<f64> = counts.iter().map(|&c| c as f64 + 1.0).collect();
             let total: f64 = counts.iter().sum();
             counts.iter().map(|c| c / total).collect::<Vec<f64>>()
         };
-        let inside = histogram(&|s| s > 1.0 - SURE);
-        let outside = histogram(&|s| s < SURE);
+        let (inside, outside) = (frequencies(&counts[..BINS]), frequencies(&counts[BINS..]));
         let ratio: Vec<f32> = inside
             .iter()
             .zip(&outside)
@@ -69,6 +96,17 @@ impl ColourBins {
             .map(|(&bin, &s)| STRENGTH * (s - 0.5) + COLOUR * ratio[bin as usize] > 0.0)
             .collect()
     }
+}
+
+/// The colour in the middle of bin `bin`.
+pub fn bin_colour(bin: usize) -> [u8; 3] {
+    let step = 256 / LEVELS;
+    let level = |l: usize| (l * step + step / 2) as u8;
+    [
+        level(bin / (LEVELS * LEVELS)),
+        level(bin / LEVELS % LEVELS),
+        level(bin % LEVELS),
+    ]
 }
 
 #[cfg(test)]
@@ -105,5 +143,22 @@ mod tests {
         let sure: Vec<f32> = (0..21 * 8).map(|i| (i % 21 < 10) as u8 as f32).collect();
         let kept = ColourBins::new(&photo).decide(&sure);
         assert!(kept.iter().zip(&sure).all(|(&k, &s)| k == (s > 0.5)));
+    }
+
+    #[test]
+    fn a_bins_colour_falls_in_that_bin() {
+        let photo = RgbImage::from_fn(3, 1, |x, _| {
+            image::Rgb([[0, 0, 0], [17, 130, 255], [255, 255, 255]][x as usize])
+        });
+        let bins = ColourBins::new(&photo);
+        assert_eq!(bins.bins(), &[0, (16 + 8) * 16 + 15, BINS as u16 - 1]);
+        for &bin in bins.bins() {
+            let again = ColourBins::new(&RgbImage::from_pixel(
+                1,
+                1,
+                image::Rgb(bin_colour(bin as usize)),
+            ));
+            assert_eq!(again.bins(), &[bin]);
+        }
     }
 }

@@ -92,20 +92,17 @@ impl EdgeGuide {
             })
             .unzip();
         let (a, b) = (box_mean(&a, lw, lh, r), box_mean(&b, lw, lh, r));
-        let (a, b) = (self.upsample(&a), self.upsample(&b));
-        self.guide
-            .par_iter()
-            .zip(a.par_iter().zip(&b))
-            .map(|(i, (a, b))| a * i + b)
-            .collect()
-    }
-
-    /// Values on the filter's grid resized bilinearly to the photo.
-    fn upsample(&self, low: &[f32]) -> Vec<f32> {
+        // a and b resized bilinearly to the photo, each pixel's a * guide
+        // + b made as they are.
         if self.scale == 1 {
-            return low.to_vec();
+            return self
+                .guide
+                .par_iter()
+                .zip(a.par_iter().zip(&b))
+                .map(|(i, (a, b))| a * i + b)
+                .collect();
         }
-        let (lw, lh, s) = (self.low_width, self.low_height, self.scale as f32);
+        let s = self.scale as f32;
         let tap = |i: usize, n: usize| {
             let g = ((i as f32 + 0.5) / s - 0.5).clamp(0.0, (n - 1) as f32);
             let lo = g.floor() as usize;
@@ -114,14 +111,21 @@ impl EdgeGuide {
         let columns: Vec<_> = (0..self.width).map(|x| tap(x, lw)).collect();
         let mut out = vec![0f32; self.width * self.height];
         out.par_chunks_mut(self.width)
+            .zip(self.guide.par_chunks(self.width))
             .enumerate()
-            .for_each(|(y, line)| {
+            .for_each(|(y, (line, guide))| {
                 let (y0, y1, fy) = tap(y, lh);
-                let (top, bottom) = (&low[y0 * lw..(y0 + 1) * lw], &low[y1 * lw..(y1 + 1) * lw]);
-                for (v, &(x0, x1, fx)) in line.iter_mut().zip(&columns) {
+                let (rows_a, rows_b) = (
+                    (&a[y0 * lw..(y0 + 1) * lw], &a[y1 * lw..(y1 + 1) * lw]),
+                    (&b[y0 * lw..(y0 + 1) * lw], &b[y1 * lw..(y1 + 1) * lw]),
+                );
+                let at = |(top, bottom): (&[f32], &[f32]), (x0, x1, fx): (usize, usize, f32)| {
                     let t = top[x0] + (top[x1] - top[x0]) * fx;
                     let b = bottom[x0] + (bottom[x1] - bottom[x0]) * fx;
-                    *v = t + (b - t) * fy;
+                    t + (b - t) * fy
+                };
+                for ((v, &i), &column) in line.iter_mut().zip(guide).zip(&columns) {
+                    *v = at(rows_a, column) * i + at(rows_b, column);
                 }
             });
         out
