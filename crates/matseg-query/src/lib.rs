@@ -10,6 +10,7 @@
 
 pub mod cluster;
 pub mod coarse;
+pub mod colour_features;
 pub mod colours;
 pub mod descriptor;
 pub mod edges;

@@ -1,26 +1,37 @@
-//! A linear classifier fitted on the fly on a photo's descriptors: ridge
-//! regression of targets in -0.5..0.5 on the descriptors and a constant.
-//! The rows' regularised Gram matrix is factorised once per photo
+//! A linear classifier fitted on the fly on a photo's rows: ridge
+//! regression of targets in -0.5..0.5 on each row's values and a
+//! constant. A row's values may come in blocks of columns held apart (the
+//! descriptors, the colours), so no joined copy of the rows is made. The
+//! rows' regularised Gram matrix is factorised once per photo
 //! ([`Ridge::new`], Cholesky in f64); each fit then solves with its few
 //! weighted extra rows (clicks) by the Woodbury identity, a handful of
 //! triangular solves instead of a new factorisation.
 
 use rayon::prelude::*;
 
-/// A photo's descriptor rows, each with a constant 1 appended, ready to
-/// be fitted: the Cholesky factor of their Gram matrix plus `lambda`.
+/// A block of columns of every row: `width` values a row, row by row.
+#[derive(Clone, Copy)]
+pub struct Columns<'a> {
+    /// The values.
+    pub values: &'a [f32],
+    /// Values a row.
+    pub width: usize,
+}
+
+/// A photo's rows, each with a constant 1 appended, ready to be fitted:
+/// the Cholesky factor of their Gram matrix plus `lambda`.
 pub struct Ridge {
-    /// Descriptor values a row (without the constant).
+    /// Values a row (without the constant).
     dim: usize,
     /// The lower Cholesky factor of `Gram + lambda I`, `(dim + 1) x (dim
     /// + 1)`, row by row.
     factor: Vec<f64>,
 }
 
-/// A row the fit weighs more than the photo's: a click's descriptor, its
-/// weight and its target (0.5 wanted, -0.5 not).
+/// A row the fit weighs more than the photo's: a click's values (every
+/// block's, joined), its weight and its target (0.5 wanted, -0.5 not).
 pub struct WeightedRow<'a> {
-    /// The descriptor (`dim` values).
+    /// The values (`dim` of them).
     pub values: &'a [f32],
     /// How many photo rows it counts as.
     pub weight: f64,
@@ -32,11 +43,12 @@ pub struct WeightedRow<'a> {
 const ROWS_A_CHUNK: usize = 256;
 
 impl Ridge {
-    /// `rows` (`dim` values each, row by row), to be fitted with `lambda`
-    /// times the squared weights added.
-    pub fn new(rows: &[f32], dim: usize, lambda: f64) -> Self {
+    /// The rows whose columns are `blocks` (each block of as many rows),
+    /// to be fitted with `lambda` times the squared weights added.
+    pub fn new(blocks: &[Columns<'_>], lambda: f64) -> Self {
+        let dim: usize = blocks.iter().map(|b| b.width).sum();
         let side = dim + 1;
-        let mut factor = gram(rows, dim);
+        let mut factor = gram(blocks);
         for i in 0..side {
             factor[i * side + i] += lambda;
         }
@@ -44,14 +56,23 @@ impl Ridge {
         Self { dim, factor }
     }
 
-    /// The weights (`dim` values, then the constant's) that best map
-    /// `rows` (the rows of [`Ridge::new`]) to `targets`, and each extra
-    /// row to its target.
-    pub fn fit(&self, rows: &[f32], targets: &[f32], extra: &[WeightedRow<'_>]) -> Vec<f32> {
-        let (dim, side) = (self.dim, self.dim + 1);
+    /// Values a row, without the constant.
+    pub fn dim(&self) -> usize {
+        self.dim
+    }
+
+    /// The weights (a value per column, in the blocks' order, then the
+    /// constant's) that best map the rows (`blocks`, as given to
+    /// [`Ridge::new`]) to `targets`, and each extra row to its target.
+    pub fn fit(
+        &self,
+        blocks: &[Columns<'_>],
+        targets: &[f32],
+        extra: &[WeightedRow<'_>],
+    ) -> Vec<f32> {
         // The right-hand side: the rows and the extra rows times their
         // targets.
-        let mut b = weighted_sum(rows, targets, dim);
+        let mut b = weighted_sums(blocks, targets);
         let extended: Vec<Vec<f64>> = extra
             .iter()
             .map(|row| row.values.iter().map(|&v| v as f64).chain([1.0]).collect())
@@ -82,7 +103,6 @@ impl Ridge {
                 *w -= ci * v;
             }
         }
-        debug_assert_eq!(weights.len(), side);
         weights.into_iter().map(|v| v as f32).collect()
     }
 
@@ -93,39 +113,32 @@ impl Ridge {
     }
 }
 
-/// The Gram matrix of `rows` (`dim` values each) with a constant 1
-/// appended to each: `(dim + 1) x (dim + 1)`, row by row.
-fn gram(rows: &[f32], dim: usize) -> Vec<f64> {
-    let n = rows.len() / dim.max(1);
-    let mut product = vec![0f32; dim * dim];
-    // SAFETY: the slices hold n x dim (A, B) and dim x dim (C) values,
-    // with the strides given.
-    unsafe {
-        matrixmultiply::sgemm(
-            dim,
-            n,
-            dim,
-            1.0,
-            rows.as_ptr(),
-            1,
-            dim as isize,
-            rows.as_ptr(),
-            dim as isize,
-            1,
-            0.0,
-            product.as_mut_ptr(),
-            dim as isize,
-            1,
-        );
-    }
+/// The Gram matrix of the rows whose columns are `blocks`, with a
+/// constant 1 appended to each: `(dim + 1) x (dim + 1)`, row by row.
+fn gram(blocks: &[Columns<'_>]) -> Vec<f64> {
+    let dim: usize = blocks.iter().map(|b| b.width).sum();
+    let n = blocks
+        .first()
+        .map_or(0, |b| b.values.len() / b.width.max(1));
     let side = dim + 1;
     let mut gram = vec![0f64; side * side];
-    for i in 0..dim {
-        for j in 0..dim {
-            gram[i * side + j] = product[i * dim + j] as f64;
+    let mut first = 0;
+    for (i, a) in blocks.iter().enumerate() {
+        let mut second = first;
+        for b in &blocks[i..] {
+            let product = cross(a, b, n);
+            for r in 0..a.width {
+                for c in 0..b.width {
+                    let v = product[r * b.width + c] as f64;
+                    gram[(first + r) * side + second + c] = v;
+                    gram[(second + c) * side + first + r] = v;
+                }
+            }
+            second += b.width;
         }
+        first += a.width;
     }
-    let sums = weighted_sum(rows, &vec![1.0; n], dim);
+    let sums = weighted_sums(blocks, &vec![1.0; n]);
     for (i, &s) in sums[..dim].iter().enumerate() {
         gram[i * side + dim] = s;
         gram[dim * side + i] = s;
@@ -134,25 +147,69 @@ fn gram(rows: &[f32], dim: usize) -> Vec<f64> {
     gram
 }
 
-/// The sum of `rows` (`dim` values each, a constant 1 appended) each
-/// times its weight in `weights`: `dim + 1` values.
-fn weighted_sum(rows: &[f32], weights: &[f32], dim: usize) -> Vec<f64> {
-    rows.par_chunks(dim * ROWS_A_CHUNK)
+/// `a' b` for two blocks of `n` rows: `a.width x b.width`, row by row.
+fn cross(a: &Columns<'_>, b: &Columns<'_>, n: usize) -> Vec<f32> {
+    let mut product = vec![0f32; a.width * b.width];
+    // SAFETY: a holds n x a.width values and b n x b.width (read with
+    // their row strides), the product a.width x b.width.
+    unsafe {
+        matrixmultiply::sgemm(
+            a.width,
+            n,
+            b.width,
+            1.0,
+            a.values.as_ptr(),
+            1,
+            a.width as isize,
+            b.values.as_ptr(),
+            b.width as isize,
+            1,
+            0.0,
+            product.as_mut_ptr(),
+            b.width as isize,
+            1,
+        );
+    }
+    product
+}
+
+/// The sum of the rows whose columns are `blocks` (a constant 1
+/// appended), each times its weight in `weights`: `dim + 1` values.
+fn weighted_sums(blocks: &[Columns<'_>], weights: &[f32]) -> Vec<f64> {
+    let mut sums: Vec<f64> = blocks
+        .iter()
+        .flat_map(|b| weighted_sum(b, weights))
+        .collect();
+    sums.push(
+        weights
+            .iter()
+            .filter(|w| **w != 0.0)
+            .map(|&w| w as f64)
+            .sum(),
+    );
+    sums
+}
+
+/// The sum of a block's rows, each times its weight in `weights`.
+fn weighted_sum(block: &Columns<'_>, weights: &[f32]) -> Vec<f64> {
+    let width = block.width;
+    block
+        .values
+        .par_chunks(width * ROWS_A_CHUNK)
         .zip(weights.par_chunks(ROWS_A_CHUNK))
         .map(|(rows, weights)| {
-            let mut sum = vec![0f32; dim + 1];
-            for (row, &w) in rows.chunks_exact(dim).zip(weights) {
+            let mut sum = vec![0f32; width];
+            for (row, &w) in rows.chunks_exact(width).zip(weights) {
                 if w != 0.0 {
                     for (s, &v) in sum.iter_mut().zip(row) {
                         *s += v * w;
                     }
-                    sum[dim] += w;
                 }
             }
             sum.into_iter().map(f64::from).collect::<Vec<f64>>()
         })
         .reduce(
-            || vec![0f64; dim + 1],
+            || vec![0f64; width],
             |mut a, b| {
                 for (x, y) in a.iter_mut().zip(b) {
                     *x += y;
@@ -208,6 +265,10 @@ fn substitute(factor: &[f64], b: &mut [f64], n: usize) {
 mod tests {
     use super::*;
 
+    fn whole(values: &[f32], width: usize) -> [Columns<'_>; 1] {
+        [Columns { values, width }]
+    }
+
     #[test]
     fn a_fit_recovers_a_linear_rule() {
         // Targets +0.5 where x0 > x1, -0.5 elsewhere, on a grid of 2-d rows.
@@ -218,9 +279,10 @@ mod tests {
             .chunks_exact(2)
             .map(|r| if r[0] > r[1] { 0.5 } else { -0.5 })
             .collect();
-        assert_eq!(gram(&rows, 2)[2 * 3 + 2], 100.0);
-        let ridge = Ridge::new(&rows, 2, 1e-6);
-        let w = ridge.fit(&rows, &targets, &[]);
+        let blocks = whole(&rows, 2);
+        assert_eq!(gram(&blocks)[2 * 3 + 2], 100.0);
+        let ridge = Ridge::new(&blocks, 1e-6);
+        let w = ridge.fit(&blocks, &targets, &[]);
         let right = rows
             .chunks_exact(2)
             .zip(&targets)
@@ -233,17 +295,35 @@ mod tests {
             weight: 1e4,
             target: 0.5,
         }];
-        let w = ridge.fit(&rows, &targets, &heavy);
+        let w = ridge.fit(&blocks, &targets, &heavy);
         assert!(0.9 * w[1] + w[2] > 0.0);
     }
 
     #[test]
-    fn extra_rows_by_woodbury_match_a_direct_solve() {
-        // 600 rows of 5 pseudo-random values (more than a chunk), three
-        // heavy extra rows.
+    fn blocks_and_extra_rows_by_woodbury_match_a_direct_solve() {
+        // 600 rows of 5 pseudo-random values (more than a chunk), held as
+        // blocks of 3 and 2 columns; three heavy extra rows.
         let value = |i: usize| ((i * 7919 % 1009) as f32 / 1009.0) - 0.5;
         let (dim, side) = (5, 6);
         let rows: Vec<f32> = (0..600 * dim).map(value).collect();
+        let (left, right): (Vec<f32>, Vec<f32>) = {
+            let (mut l, mut r) = (Vec::new(), Vec::new());
+            for row in rows.chunks_exact(dim) {
+                l.extend_from_slice(&row[..3]);
+                r.extend_from_slice(&row[3..]);
+            }
+            (l, r)
+        };
+        let blocks = [
+            Columns {
+                values: &left,
+                width: 3,
+            },
+            Columns {
+                values: &right,
+                width: 2,
+            },
+        ];
         let targets: Vec<f32> = (0..600).map(|i| value(i * 13) - 0.1).collect();
         let extra_values: Vec<Vec<f32>> = (0..3)
             .map(|k| (0..dim).map(|j| value(5000 + 31 * k + j)).collect())
@@ -258,10 +338,18 @@ mod tests {
             })
             .collect();
         let lambda = 0.3;
-        let w = Ridge::new(&rows, dim, lambda).fit(&rows, &targets, &extra);
-        // The normal equations, made whole and factorised.
-        let mut a = gram(&rows, dim);
-        let mut b = weighted_sum(&rows, &targets, dim);
+        let w = Ridge::new(&blocks, lambda).fit(&blocks, &targets, &extra);
+        // The normal equations of the joined rows, made whole and
+        // factorised.
+        let joined = whole(&rows, dim);
+        let mut a = gram(&joined);
+        for (x, y) in a.iter().zip(gram(&blocks)) {
+            assert!(
+                (x - y).abs() < 1e-3,
+                "the blocks' Gram matrix is the joined rows'"
+            );
+        }
+        let mut b = weighted_sums(&joined, &targets);
         for i in 0..side {
             a[i * side + i] += lambda;
         }

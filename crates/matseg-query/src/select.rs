@@ -16,12 +16,13 @@
 //!   sampling, those below the threshold) count as negative clicks the
 //!   user did not have to make;
 //! - from the second click on, a linear classifier of the descriptors
-//!   (ridge regression, the Gram matrix computed once per photo) is
-//!   fitted on that decision (each cell) and on the clicks (each weighing
-//!   as 500 cells), and decides instead: where the clicks and the
-//!   similarities disagree it finds the direction in the descriptors that
-//!   tells the clicked materials apart, rather than flipping every cell
-//!   near one click;
+//!   and of the photo's colours ([`crate::colour_features`]; ridge
+//!   regression, the Gram matrix factorised once per photo) is fitted on
+//!   that decision (each cell) and on the clicks (each weighing as 500
+//!   cells), and decides instead, each pixel by its cell's descriptor and
+//!   its own colour: where the clicks and the similarities disagree it
+//!   finds the direction that tells the clicked materials apart, rather
+//!   than flipping every cell near one click;
 //! - the decision is brought to the photo's size, made to follow the
 //!   photo's edges (a guided filter on its lightness) and its uncertain
 //!   pixels decided by the photo's colours (histograms of the sure pixels
@@ -32,13 +33,15 @@
 //! exactly the similarity map, so one click answers as it always did.
 
 use crate::coarse::CoarseDescriptors;
+use crate::colour_features::{bin_scores, disc_features, mean_features, FEATURES};
 use crate::colours::ColourBins;
 use crate::descriptor::{check_radius, Comparison, DescriptorMap, RadiusError};
 use crate::edges::EdgeGuide;
-use crate::ridge::{Ridge, WeightedRow};
+use crate::ridge::{Columns, Ridge, WeightedRow};
 use image::RgbImage;
 use rayon::prelude::*;
 use std::borrow::Cow;
+use std::ops::Range;
 use std::sync::{Arc, OnceLock};
 
 /// The most clicks one selection takes.
@@ -100,10 +103,11 @@ pub enum SelectError {
     /// A radius out of range.
     #[error(transparent)]
     Radius(#[from] RadiusError),
-    /// A saved descriptor of another length than the model's.
-    #[error("{kind}[{index}]: {len} values, but the model's descriptors have {dim}")]
+    /// A saved descriptor of another length than the model's, or saved
+    /// colour features of another length than [`FEATURES`].
+    #[error("{kind}[{index}]: {len} values where {dim} are expected (the model's descriptors, or the colour features)")]
     WrongLength {
-        /// `positive` or `negative`.
+        /// `positive`, `negative`, `positive colours` or `negative colours`.
         kind: &'static str,
         /// Which of them.
         index: usize,
@@ -115,10 +119,20 @@ pub enum SelectError {
     /// A saved descriptor with a value that is not a finite number.
     #[error("{kind}[{index}]: a value that is not a finite number")]
     NotFinite {
-        /// `positive` or `negative`.
+        /// `positive`, `negative`, `positive colours` or `negative colours`.
         kind: &'static str,
         /// Which of them.
         index: usize,
+    },
+    /// Saved colour features not one for each click of their kind.
+    #[error("{count} {kind} for {clicks} clicks: one for each, or none at all")]
+    Colours {
+        /// `positive colours` or `negative colours`.
+        kind: &'static str,
+        /// How many were saved.
+        count: usize,
+        /// The clicks of that kind.
+        clicks: usize,
     },
 }
 
@@ -141,6 +155,9 @@ pub trait ClickSpace: Sync {
     fn to_photo(&self, cells: Vec<f32>) -> Vec<f32>;
     /// The centre of cell `cell`, in photo pixels.
     fn cell_centre(&self, cell: usize) -> (f32, f32);
+    /// The photo pixels cell `cell` covers: columns and rows (one pixel
+    /// at least).
+    fn cell_pixels(&self, cell: usize) -> (Range<usize>, Range<usize>);
     /// The cells a selection's classifier is fitted on (all of them, or
     /// an even subset of a large space), and their descriptors row by row.
     fn fit_rows(&self) -> (Vec<usize>, Cow<'_, [f32]>);
@@ -178,6 +195,19 @@ impl ClickSpace for CoarseDescriptors {
         (
             ((cell % gw) as f32 + 0.5) * self.width as f32 / gw as f32,
             ((cell / gw) as f32 + 0.5) * self.height as f32 / gh as f32,
+        )
+    }
+
+    fn cell_pixels(&self, cell: usize) -> (Range<usize>, Range<usize>) {
+        let (gw, gh) = (self.grid.width, self.grid.height);
+        // The pixels whose nearest cell it is.
+        let span = |c: usize, cells: usize, pixels: usize| {
+            let start = (c * pixels / cells).min(pixels - 1);
+            start..((c + 1) * pixels / cells).clamp(start + 1, pixels)
+        };
+        (
+            span(cell % gw, gw, self.width),
+            span(cell / gw, gh, self.height),
         )
     }
 
@@ -297,6 +327,11 @@ impl ClickSpace for PixelSpace<'_> {
             (cell % self.map.width) as f32 + 0.5,
             (cell / self.map.width) as f32 + 0.5,
         )
+    }
+
+    fn cell_pixels(&self, cell: usize) -> (Range<usize>, Range<usize>) {
+        let (x, y) = (cell % self.map.width, cell / self.map.width);
+        (x..x + 1, y..y + 1)
     }
 
     fn fit_rows(&self) -> (Vec<usize>, Cow<'_, [f32]>) {
@@ -419,6 +454,9 @@ struct Query {
     /// The similarities lowered with the distance from where it was
     /// clicked (see [`Selector::reach`]); none for a saved descriptor.
     near: Option<Vec<f32>>,
+    /// The colour features of the click's disc, when the selection has
+    /// the photo or the saved selection kept them.
+    colour: Option<Vec<f32>>,
 }
 
 /// Clicks added one at a time to a selection, each click's similarities
@@ -435,14 +473,17 @@ pub struct Selector<'a> {
 /// What a selection needs of its photo whatever the clicks, each part made
 /// the first time a selection needs it and kept: the photo's materials
 /// (cells spread over its descriptors, each with every cell's similarity
-/// to it), the Gram matrix the classifier is fitted with, and the photo's
-/// edges and colours. Share one between the selections of one photo (the
-/// web app keeps one per described photo) and a click costs only its own
-/// work.
+/// to it), the classifier's factorised Gram matrix (of the descriptors
+/// and the colours, or of the descriptors alone for clicks without their
+/// colours), the fitted cells' colour features, and the photo's edges and
+/// colours. Share one between the selections of one photo (the web app
+/// keeps one per described photo) and a click costs only its own work.
 #[derive(Default)]
 pub struct PhotoPrep {
     prototypes: OnceLock<Vec<(usize, Vec<f32>)>>,
     ridge: OnceLock<Ridge>,
+    colour_ridge: OnceLock<Ridge>,
+    colour_rows: OnceLock<Vec<f32>>,
     guides: OnceLock<(EdgeGuide, ColourBins)>,
 }
 
@@ -451,10 +492,17 @@ impl PhotoPrep {
     /// photo, `cells` cells of `dim` values.
     pub fn bytes_at_most(width: usize, height: usize, cells: usize, dim: usize) -> usize {
         let pixels = width * height;
+        let factor = |side: usize| 8 * side * side;
         // The photo's lightness (4 bytes a pixel), its colours' bins (2),
         // the guide's grid (at most 512 x 512 cells, 3 values of 4 bytes),
-        // the materials' maps and the Gram matrix.
-        6 * pixels + 512 * 512 * 12 + PROTOTYPES * 4 * cells + 8 * (dim + 1) * (dim + 1)
+        // the materials' maps, the fitted cells' colours and the two
+        // factorised Gram matrices.
+        6 * pixels
+            + 512 * 512 * 12
+            + PROTOTYPES * 4 * cells
+            + FEATURES * 4 * cells.min(FIT_ROWS)
+            + factor(dim + 1)
+            + factor(dim + FEATURES + 1)
     }
 
     /// Every part made now for `space` and `photo` (as a selection would
@@ -463,9 +511,19 @@ impl PhotoPrep {
     pub fn prepare(&self, space: &dyn ClickSpace, photo: Option<&RgbImage>) {
         self.prototypes(space);
         let (cells, rows) = space.fit_rows();
-        self.ridge(&rows, rows.len() / cells.len().max(1));
-        if let Some(photo) = photo.filter(|p| fits(p, space)) {
-            self.guides(photo);
+        let descriptors = Columns {
+            values: &rows,
+            width: rows.len() / cells.len().max(1),
+        };
+        match photo.filter(|p| fits(p, space)) {
+            Some(photo) => {
+                let bins = &self.guides(photo).1;
+                let colours = self.colour_rows(space, bins, &cells);
+                self.colour_ridge(&[descriptors, colours]);
+            }
+            None => {
+                self.ridge(&[descriptors]);
+            }
         }
     }
 
@@ -494,15 +552,40 @@ impl PhotoPrep {
         })
     }
 
-    /// The classifier's factorised Gram matrix of `rows` (`dim` values
-    /// each), the space's fitted rows ([`ClickSpace::fit_rows`]). The
-    /// regularisation weighs as a share of the photo, whatever its size
-    /// and however finely it is described.
-    fn ridge(&self, rows: &[f32], dim: usize) -> &Ridge {
-        self.ridge.get_or_init(|| {
-            let fitted = rows.len() / dim.max(1);
-            Ridge::new(rows, dim, RIDGE_SHARE * fitted as f64)
-        })
+    /// The classifier's factorised Gram matrix of the space's fitted
+    /// rows ([`ClickSpace::fit_rows`]), their descriptors alone.
+    fn ridge(&self, blocks: &[Columns<'_>; 1]) -> &Ridge {
+        self.ridge.get_or_init(|| ridge_of(blocks))
+    }
+
+    /// The classifier's factorised Gram matrix of the space's fitted
+    /// rows, their descriptors and their colours.
+    fn colour_ridge(&self, blocks: &[Columns<'_>; 2]) -> &Ridge {
+        self.colour_ridge.get_or_init(|| ridge_of(blocks))
+    }
+
+    /// The colour features of each of `cells` (the fitted cells): the
+    /// mean of its pixels' ([`FEATURES`] values a cell).
+    fn colour_rows(
+        &self,
+        space: &dyn ClickSpace,
+        bins: &ColourBins,
+        cells: &[usize],
+    ) -> Columns<'_> {
+        let rows = self.colour_rows.get_or_init(|| {
+            let width = space.photo_size().0;
+            cells
+                .par_iter()
+                .flat_map_iter(|&cell| {
+                    let (xs, ys) = space.cell_pixels(cell);
+                    mean_features(bins, width, xs, ys)
+                })
+                .collect()
+        });
+        Columns {
+            values: rows,
+            width: FEATURES,
+        }
     }
 
     /// The photo's edges and colours.
@@ -514,6 +597,16 @@ impl PhotoPrep {
             )
         })
     }
+}
+
+/// The factorised Gram matrix of `blocks`, regularised as a share of the
+/// rows fitted, whatever the photo's size and however finely it is
+/// described.
+fn ridge_of(blocks: &[Columns<'_>]) -> Ridge {
+    let fitted = blocks
+        .first()
+        .map_or(0, |b| b.values.len() / b.width.max(1));
+    Ridge::new(blocks, RIDGE_SHARE * fitted as f64)
 }
 
 /// Whether `photo` is of `space`'s photo size.
@@ -563,24 +656,32 @@ impl<'a> Selector<'a> {
                 height,
             });
         }
+        let at = (click.x, click.y);
         let descriptor = self.space.descriptor_at(click.x, click.y, self.radius);
-        self.push(descriptor, click.positive, Some((click.x, click.y)))
+        let colour = self.photo.map(|photo| {
+            let bins = &self.prep.guides(photo).1;
+            disc_features(bins, self.space.photo_size(), at, self.radius)
+        });
+        self.push(descriptor, colour, click.positive, Some(at))
     }
 
-    /// Adds a descriptor wanted (`positive`) or not: a click made on
-    /// another photo of the same model.
+    /// Adds a descriptor wanted (`positive`) or not, with its colour
+    /// features when known: a click made on another photo of the same
+    /// model.
     pub fn add_descriptor(
         &mut self,
         descriptor: Vec<f32>,
+        colour: Option<Vec<f32>>,
         positive: bool,
     ) -> Result<(), SelectError> {
-        self.push(descriptor, positive, None)
+        self.push(descriptor, colour, positive, None)
     }
 
     /// Adds a query clicked `at` (or not clicked on this photo).
     fn push(
         &mut self,
         descriptor: Vec<f32>,
+        colour: Option<Vec<f32>>,
         positive: bool,
         at: Option<(f32, f32)>,
     ) -> Result<(), SelectError> {
@@ -594,6 +695,7 @@ impl<'a> Selector<'a> {
             descriptor,
             similarities,
             near,
+            colour: colour.filter(|c| c.len() == FEATURES),
         });
         Ok(())
     }
@@ -612,20 +714,32 @@ impl<'a> Selector<'a> {
             .collect()
     }
 
-    /// The clicks' descriptors, to apply the selection to other photos.
+    /// The clicks' descriptors (and colours, when every click has them),
+    /// to apply the selection to other photos.
     pub fn saved(&self, model: &str) -> SavedSelection {
-        let of = |positive: bool| {
+        let of = |positive: bool| -> Vec<&Query> {
             self.queries
                 .iter()
                 .filter(|q| q.positive == positive)
-                .map(|q| q.descriptor.clone())
                 .collect()
         };
+        let descriptors =
+            |queries: &[&Query]| queries.iter().map(|q| q.descriptor.clone()).collect();
+        let coloured = self.queries.iter().all(|q| q.colour.is_some());
+        let colours = |queries: &[&Query]| {
+            queries
+                .iter()
+                .filter_map(|q| q.colour.clone().filter(|_| coloured))
+                .collect()
+        };
+        let (positive, negative) = (of(true), of(false));
         SavedSelection {
             model: model.to_string(),
             radius: self.radius,
-            positive: of(true),
-            negative: of(false),
+            positive: descriptors(&positive),
+            negative: descriptors(&negative),
+            positive_colours: colours(&positive),
+            negative_colours: colours(&negative),
         }
     }
 
@@ -666,34 +780,85 @@ impl<'a> Selector<'a> {
         best
     }
 
-    /// The decision of a linear classifier of the descriptors fitted on
-    /// `prior` (each cell's decision by similarity, weight 1 a cell) and
-    /// on the clicks ([`CLICK_SHARE`] of the photo each): where the clicks and the
-    /// similarities disagree, the classifier finds the direction in the
-    /// descriptors that tells the clicked materials apart.
+    /// The decision, at the photo's size, of a linear classifier fitted
+    /// on `prior` (each cell's decision by similarity, weight 1 a cell)
+    /// and on the clicks ([`CLICK_SHARE`] of the photo each): where the
+    /// clicks and the similarities disagree, it finds the direction that
+    /// tells the clicked materials apart. Its columns are the descriptors
+    /// and, when every click has its colour, the colour features, which
+    /// then decide each pixel by its own colour.
     fn fitted(&self, prior: &[f32]) -> Vec<f32> {
         let (cells, rows) = self.space.fit_rows();
         let dim = rows.len() / cells.len().max(1);
-        let ridge = self.prep.ridge(&rows, dim);
+        let descriptors = Columns {
+            values: &rows,
+            width: dim,
+        };
         let targets: Vec<f32> = cells.iter().map(|&c| prior[c] - 0.5).collect();
         // The clicks weigh as shares of the photo, whatever its size and
         // however finely it is described.
-        let rows_fitted = cells.len() as f64;
-        let clicks: Vec<WeightedRow<'_>> = self
-            .queries
-            .iter()
-            .map(|q| WeightedRow {
-                values: &q.descriptor,
-                weight: CLICK_SHARE * rows_fitted,
-                target: if q.positive { 0.5 } else { -0.5 },
-            })
-            .collect();
-        let weights = ridge.fit(&rows, &targets, &clicks);
-        self.space
-            .project(&weights[..dim], weights[dim])
-            .into_iter()
-            .map(|v| if v > 0.0 { 1.0 } else { 0.0 })
-            .collect()
+        let weight = CLICK_SHARE * cells.len() as f64;
+        let target = |q: &Query| if q.positive { 0.5 } else { -0.5 };
+        let coloured = self.queries.iter().all(|q| q.colour.is_some());
+        match self.photo.filter(|_| coloured) {
+            Some(photo) => {
+                let bins = &self.prep.guides(photo).1;
+                let blocks = [descriptors, self.prep.colour_rows(self.space, bins, &cells)];
+                let joined: Vec<Vec<f32>> = self
+                    .queries
+                    .iter()
+                    .map(|q| [&q.descriptor[..], q.colour.as_deref().unwrap_or_default()].concat())
+                    .collect();
+                let clicks: Vec<WeightedRow<'_>> = joined
+                    .iter()
+                    .zip(&self.queries)
+                    .map(|(values, q)| WeightedRow {
+                        values,
+                        weight,
+                        target: target(q),
+                    })
+                    .collect();
+                let weights = self
+                    .prep
+                    .colour_ridge(&blocks)
+                    .fit(&blocks, &targets, &clicks);
+                let by_colour = bin_scores(&weights[dim..dim + FEATURES]);
+                let by_cell = self
+                    .space
+                    .to_photo(self.space.project(&weights[..dim], weights[dim + FEATURES]));
+                by_cell
+                    .par_iter()
+                    .zip(bins.bins())
+                    .map(|(&s, &bin)| {
+                        if s + by_colour[bin as usize] > 0.0 {
+                            1.0
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect()
+            }
+            None => {
+                let clicks: Vec<WeightedRow<'_>> = self
+                    .queries
+                    .iter()
+                    .map(|q| WeightedRow {
+                        values: &q.descriptor,
+                        weight,
+                        target: target(q),
+                    })
+                    .collect();
+                let blocks = [descriptors];
+                let weights = self.prep.ridge(&blocks).fit(&blocks, &targets, &clicks);
+                let decision = self
+                    .space
+                    .project(&weights[..dim], weights[dim])
+                    .into_iter()
+                    .map(|v| if v > 0.0 { 1.0 } else { 0.0 })
+                    .collect();
+                self.space.to_photo(decision)
+            }
+        }
     }
 
     /// The selection the clicks make.
@@ -748,18 +913,14 @@ impl<'a> Selector<'a> {
         let decision = if self.queries.len() > 1 {
             self.fitted(&prior)
         } else {
-            prior
+            self.space.to_photo(prior)
         };
         let soft = self.space.to_photo(soft);
-        let decision = self.space.to_photo(decision);
         let guides = self.photo.map(|p| self.prep.guides(p));
         let mask = match guides {
             Some((edges, colours)) => {
-                let strength: Vec<f32> = edges
-                    .refine(&decision)
-                    .into_iter()
-                    .map(|d| d.clamp(0.0, 1.0))
-                    .collect();
+                let mut strength = edges.refine(&decision);
+                strength.par_iter_mut().for_each(|d| *d = d.clamp(0.0, 1.0));
                 colours.decide(&strength)
             }
             None => decision.iter().map(|&d| d >= 0.5).collect(),
@@ -787,6 +948,13 @@ pub struct SavedSelection {
     pub positive: Vec<Vec<f32>>,
     /// The descriptors of the materials excluded.
     pub negative: Vec<Vec<f32>>,
+    /// The colour features of each positive click (none when a click had
+    /// none; older selections have none): the classifier's colour columns.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub positive_colours: Vec<Vec<f32>>,
+    /// The colour features of each negative click, as `positive_colours`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub negative_colours: Vec<Vec<f32>>,
 }
 
 impl SavedSelection {
@@ -801,22 +969,24 @@ impl SavedSelection {
         if count > MAX_CLICKS {
             return Err(SelectError::TooMany(count));
         }
-        for (kind, list) in [("positive", &self.positive), ("negative", &self.negative)] {
-            for (index, d) in list.iter().enumerate() {
-                if d.len() != dim {
-                    return Err(SelectError::WrongLength {
+        let colours = [&self.positive_colours, &self.negative_colours];
+        if colours.iter().any(|c| !c.is_empty()) {
+            for (kind, list, descriptors) in [
+                ("positive colours", colours[0], &self.positive),
+                ("negative colours", colours[1], &self.negative),
+            ] {
+                if list.len() != descriptors.len() {
+                    return Err(SelectError::Colours {
                         kind,
-                        index,
-                        len: d.len(),
-                        dim,
+                        count: list.len(),
+                        clicks: descriptors.len(),
                     });
                 }
-                if d.iter().any(|v| !v.is_finite()) {
-                    return Err(SelectError::NotFinite { kind, index });
-                }
+                check_values(kind, list, FEATURES)?;
             }
         }
-        Ok(())
+        check_values("positive", &self.positive, dim)?;
+        check_values("negative", &self.negative, dim)
     }
 
     /// The selection applied to the photo `space` describes (`photo` to
@@ -829,13 +999,35 @@ impl SavedSelection {
     ) -> Result<Selection, SelectError> {
         self.check(dim)?;
         let mut selector = Selector::new(space, photo, self.radius)?;
-        for (list, positive) in [(&self.positive, true), (&self.negative, false)] {
-            for d in list {
-                selector.add_descriptor(d.clone(), positive)?;
+        for (list, colours, positive) in [
+            (&self.positive, &self.positive_colours, true),
+            (&self.negative, &self.negative_colours, false),
+        ] {
+            for (k, d) in list.iter().enumerate() {
+                selector.add_descriptor(d.clone(), colours.get(k).cloned(), positive)?;
             }
         }
         selector.selection()
     }
+}
+
+/// Checks that each of `list` (the `kind` of a saved selection) holds
+/// `dim` finite values.
+fn check_values(kind: &'static str, list: &[Vec<f32>], dim: usize) -> Result<(), SelectError> {
+    for (index, d) in list.iter().enumerate() {
+        if d.len() != dim {
+            return Err(SelectError::WrongLength {
+                kind,
+                index,
+                len: d.len(),
+                dim,
+            });
+        }
+        if d.iter().any(|v| !v.is_finite()) {
+            return Err(SelectError::NotFinite { kind, index });
+        }
+    }
+    Ok(())
 }
 
 /// Otsu's threshold of `values`: the value that best splits them into two
@@ -980,6 +1172,90 @@ mod tests {
         ));
         let many = vec![Click::positive(1.0, 1.0); MAX_CLICKS + 1];
         assert_eq!(refused(&many, 5.0), SelectError::TooMany(MAX_CLICKS + 1));
+    }
+
+    #[test]
+    fn the_colours_tell_apart_what_the_descriptors_do_not() {
+        // The map's two halves; the photo red up to column 25 and blue
+        // beyond, so the right half's material is red on its first five
+        // columns. Clicked: the left half, a red pixel of the right half,
+        // not a blue one.
+        let map = halves();
+        let (w, h) = (map.width, map.height);
+        let photo = RgbImage::from_fn(w as u32, h as u32, |x, _| {
+            image::Rgb(if x < 25 { [200, 40, 30] } else { [30, 60, 200] })
+        });
+        let space = PixelSpace::new(&map, Comparison::Cosine);
+        let clicks = [
+            Click::positive(5.5, 5.5),
+            Click::negative(35.5, 5.5),
+            Click::positive(22.5, 5.5),
+        ];
+        let with_colours = select(&space, Some(&photo), &clicks, 0.0).unwrap();
+        for y in 0..h {
+            assert!(with_colours.mask[y * w + 3], "the left half stays in");
+            assert!(with_colours.mask[y * w + 22], "red of the right half in");
+            assert!(!with_colours.mask[y * w + 35], "blue goes out");
+        }
+        // Without the photo, the descriptors alone cannot split the right
+        // half.
+        let without = select(&space, None, &clicks, 0.0).unwrap();
+        assert_eq!(without.mask[5 * w + 22], without.mask[5 * w + 35]);
+        // Saved, the clicks keep their colours through JSON, and a saved
+        // selection applied uses them.
+        let mut selector = Selector::new(&space, Some(&photo), 0.0).unwrap();
+        for &click in &clicks {
+            selector.add(click).unwrap();
+        }
+        let saved = selector.saved("test");
+        assert_eq!(saved.positive_colours.len(), 2);
+        assert_eq!(saved.negative_colours[0].len(), FEATURES);
+        let json = serde_json::to_string(&saved).unwrap();
+        assert_eq!(
+            serde_json::from_str::<SavedSelection>(&json).unwrap(),
+            saved
+        );
+        let plain = SavedSelection {
+            positive_colours: Vec::new(),
+            negative_colours: Vec::new(),
+            ..saved.clone()
+        };
+        let old_json = serde_json::to_string(&plain).unwrap();
+        assert!(!old_json.contains("colours"), "{old_json}");
+        assert_eq!(
+            serde_json::from_str::<SavedSelection>(&old_json).unwrap(),
+            plain
+        );
+        let mut by_hand = Selector::new(&space, Some(&photo), 0.0).unwrap();
+        for (k, d) in saved.positive.iter().enumerate() {
+            by_hand
+                .add_descriptor(d.clone(), Some(saved.positive_colours[k].clone()), true)
+                .unwrap();
+        }
+        by_hand
+            .add_descriptor(
+                saved.negative[0].clone(),
+                Some(saved.negative_colours[0].clone()),
+                false,
+            )
+            .unwrap();
+        assert_eq!(
+            saved.apply(&space, Some(&photo), 2).unwrap().mask,
+            by_hand.selection().unwrap().mask
+        );
+        // Colours not one a click are refused.
+        let short = SavedSelection {
+            negative_colours: Vec::new(),
+            ..saved
+        };
+        assert!(matches!(
+            short.check(2),
+            Err(SelectError::Colours {
+                count: 0,
+                clicks: 1,
+                ..
+            })
+        ));
     }
 
     #[test]
