@@ -46,6 +46,10 @@ impl Files {
         files.write("range.toml", b"[scene]\nsize_min = 5\n");
         files.write("frames-inf.toml", b"frames = 100000000000\n");
         files.write("empty.json", b"");
+        files.write(
+            "colours.json",
+            br#"{"model": "default", "radius": 5, "positive": [[1.0]], "negative": [], "positive_colours": [[1.0, 2.0]]}"#,
+        );
         files.write("junk.json", b"{\"objects\": [1, 2,");
         files.write("empty.pth", b"");
         files.write("text.pth", b"not a checkpoint");
@@ -441,7 +445,7 @@ fn net_cases(f: &Files) -> Vec<Case> {
         &[&["segment", coffee.as_str(), "--out", o], many.as_slice()].concat(),
         "300 points",
     );
-    for selection in ["text.jpg", "empty.jpg"] {
+    for selection in ["text.jpg", "empty.jpg", "colours.json"] {
         add(
             &["apply", &f.arg(selection), &coffee, "--out", o],
             selection,

@@ -115,15 +115,14 @@ async fn described_clicks(
 }
 
 /// A selector on `described` with `clicks` added (following the photo's
-/// edges when `edges`), sharing the photo's preparation.
+/// edges and colours), sharing the photo's preparation.
 fn selector_with(
     described: &Described,
     clicks: Vec<Click>,
     radius: f32,
-    edges: bool,
 ) -> Result<Selector<'_>, ApiError> {
     let bad = |e: matseg_query::select::SelectError| ApiError::bad(e.to_string());
-    let photo = edges.then_some(&described.photo);
+    let photo = Some(&described.photo);
     let mut selector =
         Selector::with_prep(&described.map, photo, radius, described.prep.clone()).map_err(bad)?;
     for click in clicks {
@@ -140,7 +139,7 @@ pub async fn selection(
 ) -> Result<Response, ApiError> {
     let (described, clicks, radius) = described_clicks(&state, query).await?;
     let png = blocking(move || {
-        let selector = selector_with(&described, clicks, radius, true)?;
+        let selector = selector_with(&described, clicks, radius)?;
         let selection = selector
             .selection()
             .map_err(|e| ApiError::bad(e.to_string()))?;
@@ -151,14 +150,14 @@ pub async fn selection(
 }
 
 /// `GET /api/select/save?root=R&path=P&positive=X,Y;...&negative=X,Y;...[&radius=5]`:
-/// the clicks' descriptors and the served model's name, as `selection.json`
-/// holds them.
+/// the clicks' descriptors and colour features and the served model's
+/// name, as `selection.json` holds them.
 pub async fn save(
     State(state): State<Arc<AppState>>,
     Query(query): Query<SelectQuery>,
 ) -> Result<Json<SavedSelection>, ApiError> {
     let (described, clicks, radius) = described_clicks(&state, query).await?;
-    let selector = selector_with(&described, clicks, radius, false)?;
+    let selector = selector_with(&described, clicks, radius)?;
     Ok(Json(selector.saved(state.model.name())))
 }
 

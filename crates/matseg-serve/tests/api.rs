@@ -370,6 +370,10 @@ async fn a_selection_is_saved_as_its_clicks_descriptors() {
     let saved: matseg_query::select::SavedSelection = serde_json::from_slice(&body).unwrap();
     assert_eq!(saved.model, "default");
     assert_eq!((saved.positive.len(), saved.negative.len()), (1, 2));
+    assert_eq!(
+        (saved.positive_colours.len(), saved.negative_colours.len()),
+        (1, 2)
+    );
     let dim = saved.positive[0].len();
     assert!(dim > 0);
     saved.check(dim).unwrap();
