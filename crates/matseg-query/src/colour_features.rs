@@ -62,6 +62,21 @@ fn of_bin(bin: u16) -> &'static [f32] {
     &OF_BIN[bin as usize * FEATURES..(bin as usize + 1) * FEATURES]
 }
 
+/// The mean features of the colours of the bins `bins` (one at least).
+fn mean_of(bins: impl Iterator<Item = u16>) -> Vec<f32> {
+    let mut sum = vec![0f32; FEATURES];
+    let mut count = 0usize;
+    for bin in bins {
+        for (s, f) in sum.iter_mut().zip(of_bin(bin)) {
+            *s += f;
+        }
+        count += 1;
+    }
+    let count = count.max(1) as f32;
+    sum.iter_mut().for_each(|s| *s /= count);
+    sum
+}
+
 /// The mean features of the pixels of a `width`-wide photo's `bins` in
 /// columns `xs` and rows `ys` (one pixel at least).
 pub fn mean_features(
@@ -70,19 +85,12 @@ pub fn mean_features(
     xs: Range<usize>,
     ys: Range<usize>,
 ) -> Vec<f32> {
-    let mut sum = vec![0f32; FEATURES];
-    let mut count = 0usize;
-    for y in ys {
-        for &bin in &bins.bins()[y * width + xs.start..y * width + xs.end] {
-            for (s, f) in sum.iter_mut().zip(of_bin(bin)) {
-                *s += f;
-            }
-            count += 1;
-        }
-    }
-    let count = count.max(1) as f32;
-    sum.iter_mut().for_each(|s| *s /= count);
-    sum
+    let bins = bins.bins();
+    mean_of(ys.flat_map(|y| {
+        bins[y * width + xs.start..y * width + xs.end]
+            .iter()
+            .copied()
+    }))
 }
 
 /// The mean features of the pixels within `radius` of `(x, y)` (the pixel
@@ -98,21 +106,18 @@ pub fn disc_features(
     let span = |c: f32, n: usize| {
         ((c - r).floor().max(0.0) as usize).min(n - 1)..((c + r).floor() as usize + 1).min(n)
     };
-    let mut sum = of_bin(bins.bins()[centre.1 * width + centre.0]).to_vec();
-    let mut count = 1usize;
-    for py in span(y, height) {
-        for px in span(x, width) {
+    let others = span(y, height)
+        .flat_map(|py| span(x, width).map(move |px| (px, py)))
+        .filter(|&(px, py)| {
             let inside = (px as f32 + 0.5 - x).powi(2) + (py as f32 + 0.5 - y).powi(2) <= r * r;
-            if inside && (px, py) != centre {
-                for (s, f) in sum.iter_mut().zip(of_bin(bins.bins()[py * width + px])) {
-                    *s += f;
-                }
-                count += 1;
-            }
-        }
-    }
-    sum.iter_mut().for_each(|s| *s /= count as f32);
-    sum
+            inside && (px, py) != centre
+        });
+    let bins = bins.bins();
+    mean_of(
+        std::iter::once(centre)
+            .chain(others)
+            .map(|(px, py)| bins[py * width + px]),
+    )
 }
 
 /// Each bin's score under the colour columns' `weights` ([`FEATURES`]

@@ -180,13 +180,7 @@ fn weighted_sums(blocks: &[Columns<'_>], weights: &[f32]) -> Vec<f64> {
         .iter()
         .flat_map(|b| weighted_sum(b, weights))
         .collect();
-    sums.push(
-        weights
-            .iter()
-            .filter(|w| **w != 0.0)
-            .map(|&w| w as f64)
-            .sum(),
-    );
+    sums.push(weights.iter().map(|&w| w as f64).sum());
     sums
 }
 

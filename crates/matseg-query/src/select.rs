@@ -160,7 +160,7 @@ pub trait ClickSpace: Sync {
     fn cell_pixels(&self, cell: usize) -> (Range<usize>, Range<usize>);
     /// The cells a selection's classifier is fitted on (all of them, or
     /// an even subset of a large space), and their descriptors row by row.
-    fn fit_rows(&self) -> (Vec<usize>, Cow<'_, [f32]>);
+    fn fit_rows(&self) -> (Cow<'_, [usize]>, Cow<'_, [f32]>);
     /// Every cell's descriptor's dot product with `weights`, plus `bias`.
     fn project(&self, weights: &[f32], bias: f32) -> Vec<f32>;
 }
@@ -211,17 +211,17 @@ impl ClickSpace for CoarseDescriptors {
         )
     }
 
-    fn fit_rows(&self) -> (Vec<usize>, Cow<'_, [f32]>) {
+    fn fit_rows(&self) -> (Cow<'_, [usize]>, Cow<'_, [f32]>) {
         let cells = even_subset(self.grid.width, self.grid.height);
         if cells.len() == self.grid.width * self.grid.height {
-            return (cells, Cow::Borrowed(&self.grid.data));
+            return (Cow::Owned(cells), Cow::Borrowed(&self.grid.data));
         }
         let rows = cells
             .iter()
             .flat_map(|&c| self.grid.at(c))
             .copied()
             .collect();
-        (cells, Cow::Owned(rows))
+        (Cow::Owned(cells), Cow::Owned(rows))
     }
 
     fn project(&self, weights: &[f32], bias: f32) -> Vec<f32> {
@@ -334,7 +334,7 @@ impl ClickSpace for PixelSpace<'_> {
         (x..x + 1, y..y + 1)
     }
 
-    fn fit_rows(&self) -> (Vec<usize>, Cow<'_, [f32]>) {
+    fn fit_rows(&self) -> (Cow<'_, [usize]>, Cow<'_, [f32]>) {
         let (cells, rows) = self.fit.get_or_init(|| {
             let cells = even_subset(self.map.width, self.map.height);
             let rows = cells
@@ -344,7 +344,7 @@ impl ClickSpace for PixelSpace<'_> {
                 .collect();
             (cells, rows)
         });
-        (cells.clone(), Cow::Borrowed(rows))
+        (Cow::Borrowed(cells), Cow::Borrowed(rows))
     }
 
     fn project(&self, weights: &[f32], bias: f32) -> Vec<f32> {
@@ -609,6 +609,29 @@ fn ridge_of(blocks: &[Columns<'_>]) -> Ridge {
     Ridge::new(blocks, RIDGE_SHARE * fitted as f64)
 }
 
+/// 1 where `score` is above 0, else 0: a classifier's decision.
+fn step(score: f32) -> f32 {
+    if score > 0.0 {
+        1.0
+    } else {
+        0.0
+    }
+}
+
+/// `best` (when there is one) raised to `map` where `map` is higher, or
+/// `map` itself.
+fn raised(best: Option<Vec<f32>>, map: &[f32]) -> Vec<f32> {
+    match best {
+        None => map.to_vec(),
+        Some(mut best) => {
+            for (b, &m) in best.iter_mut().zip(map) {
+                *b = b.max(m);
+            }
+            best
+        }
+    }
+}
+
 /// Whether `photo` is of `space`'s photo size.
 fn fits(photo: &RgbImage, space: &dyn ClickSpace) -> bool {
     let (width, height) = space.photo_size();
@@ -726,11 +749,9 @@ impl<'a> Selector<'a> {
         let descriptors =
             |queries: &[&Query]| queries.iter().map(|q| q.descriptor.clone()).collect();
         let coloured = self.queries.iter().all(|q| q.colour.is_some());
-        let colours = |queries: &[&Query]| {
-            queries
-                .iter()
-                .filter_map(|q| q.colour.clone().filter(|_| coloured))
-                .collect()
+        let colours = |queries: &[&Query]| match coloured {
+            true => queries.iter().filter_map(|q| q.colour.clone()).collect(),
+            false => Vec::new(),
         };
         let (positive, negative) = (of(true), of(false));
         SavedSelection {
@@ -748,13 +769,7 @@ impl<'a> Selector<'a> {
         self.queries
             .iter()
             .filter(|q| q.positive == positive)
-            .map(|q| &q.similarities)
-            .fold(None, |acc: Option<Vec<f32>>, m| {
-                Some(match acc {
-                    None => m.clone(),
-                    Some(a) => a.iter().zip(m).map(|(x, y)| x.max(*y)).collect(),
-                })
-            })
+            .fold(None, |best, q| Some(raised(best, &q.similarities)))
     }
 
     /// The best similarity of every cell to the clicks of one kind, each
@@ -763,7 +778,7 @@ impl<'a> Selector<'a> {
     /// correcting click takes its own neighbourhood more readily than the
     /// far side of the photo.
     fn reach(&self, positive: bool, first: usize) -> Option<Vec<f32>> {
-        let mut best: Option<Vec<f32>> = None;
+        let mut best = None;
         for (k, query) in self.queries.iter().enumerate() {
             if query.positive != positive {
                 continue;
@@ -772,10 +787,7 @@ impl<'a> Selector<'a> {
                 Some(near) if k != first => near,
                 _ => &query.similarities,
             };
-            best = Some(match best {
-                None => near.clone(),
-                Some(b) => b.iter().zip(near).map(|(a, n)| a.max(*n)).collect(),
-            });
+            best = Some(raised(best, near));
         }
         best
     }
@@ -795,29 +807,34 @@ impl<'a> Selector<'a> {
             width: dim,
         };
         let targets: Vec<f32> = cells.iter().map(|&c| prior[c] - 0.5).collect();
+        let coloured = self.queries.iter().all(|q| q.colour.is_some());
+        let bins = self
+            .photo
+            .filter(|_| coloured)
+            .map(|photo| &self.prep.guides(photo).1);
+        // Each click's row: its descriptor, then its colour's features.
+        let values: Vec<Cow<'_, [f32]>> = self
+            .queries
+            .iter()
+            .map(|q| match (bins, &q.colour) {
+                (Some(_), Some(colour)) => Cow::Owned([&q.descriptor[..], colour].concat()),
+                _ => Cow::Borrowed(&q.descriptor[..]),
+            })
+            .collect();
         // The clicks weigh as shares of the photo, whatever its size and
         // however finely it is described.
-        let weight = CLICK_SHARE * cells.len() as f64;
-        let target = |q: &Query| if q.positive { 0.5 } else { -0.5 };
-        let coloured = self.queries.iter().all(|q| q.colour.is_some());
-        match self.photo.filter(|_| coloured) {
-            Some(photo) => {
-                let bins = &self.prep.guides(photo).1;
+        let clicks: Vec<WeightedRow<'_>> = values
+            .iter()
+            .zip(&self.queries)
+            .map(|(values, q)| WeightedRow {
+                values,
+                weight: CLICK_SHARE * cells.len() as f64,
+                target: if q.positive { 0.5 } else { -0.5 },
+            })
+            .collect();
+        match bins {
+            Some(bins) => {
                 let blocks = [descriptors, self.prep.colour_rows(self.space, bins, &cells)];
-                let joined: Vec<Vec<f32>> = self
-                    .queries
-                    .iter()
-                    .map(|q| [&q.descriptor[..], q.colour.as_deref().unwrap_or_default()].concat())
-                    .collect();
-                let clicks: Vec<WeightedRow<'_>> = joined
-                    .iter()
-                    .zip(&self.queries)
-                    .map(|(values, q)| WeightedRow {
-                        values,
-                        weight,
-                        target: target(q),
-                    })
-                    .collect();
                 let weights = self
                     .prep
                     .colour_ridge(&blocks)
@@ -829,32 +846,17 @@ impl<'a> Selector<'a> {
                 by_cell
                     .par_iter()
                     .zip(bins.bins())
-                    .map(|(&s, &bin)| {
-                        if s + by_colour[bin as usize] > 0.0 {
-                            1.0
-                        } else {
-                            0.0
-                        }
-                    })
+                    .map(|(&s, &bin)| step(s + by_colour[bin as usize]))
                     .collect()
             }
             None => {
-                let clicks: Vec<WeightedRow<'_>> = self
-                    .queries
-                    .iter()
-                    .map(|q| WeightedRow {
-                        values: &q.descriptor,
-                        weight,
-                        target: target(q),
-                    })
-                    .collect();
                 let blocks = [descriptors];
                 let weights = self.prep.ridge(&blocks).fit(&blocks, &targets, &clicks);
                 let decision = self
                     .space
                     .project(&weights[..dim], weights[dim])
                     .into_iter()
-                    .map(|v| if v > 0.0 { 1.0 } else { 0.0 })
+                    .map(step)
                     .collect();
                 self.space.to_photo(decision)
             }
@@ -882,10 +884,7 @@ impl<'a> Selector<'a> {
         let mut against = near_negative;
         for (cell, map) in self.prep.prototypes(self.space) {
             if near_positive[*cell] < threshold {
-                against = Some(match against {
-                    None => map.clone(),
-                    Some(n) => n.iter().zip(map).map(|(a, b)| a.max(*b)).collect(),
-                });
+                against = Some(raised(against, map));
             }
         }
         let soft: Vec<f32> = match &negative {
