@@ -49,6 +49,12 @@ pub fn run(args: Args) -> Result<()> {
             .iter()
             .map(|m| evaluate_point_clicks(m.as_ref(), &bench, &options))
             .collect::<Result<Vec<_>, _>>()?;
+        if reports.first().is_some_and(|r| r.runs.is_empty()) {
+            anyhow::bail!(
+                "{}: no material could be clicked: no image has a material with points",
+                args.data.display()
+            );
+        }
         if args.model.json {
             return print_json(&args.data, &options, serde_json::to_value(&reports)?);
         }
@@ -76,6 +82,15 @@ pub fn run(args: Args) -> Result<()> {
         .iter()
         .map(|m| evaluate_clicks(m.as_ref(), &images, &options))
         .collect::<Result<Vec<_>, _>>()?;
+    if let Some(r) = reports.first().filter(|r| r.masks == 0) {
+        anyhow::bail!(
+            "{}: no mask could be scored: all {} are empty or smaller than --min-area {} pixels at the evaluated size (--max-side {}; masks are read as 8-bit grey, 128 and above inside)",
+            args.data.display(),
+            r.skipped_masks,
+            options.min_area,
+            options.max_side
+        );
+    }
     if args.model.json {
         return print_json(&args.data, &options, serde_json::to_value(&reports)?);
     }

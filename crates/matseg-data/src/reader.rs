@@ -229,6 +229,53 @@ fn mask_index(name: &str) -> Option<u32> {
         .ok()
 }
 
+/// The masks a sample's sidecar (our `meta.json`) says it has: a 2D
+/// scene's material layers, or a 3D scene's main-object materials; none
+/// for a sidecar that does not say (another tool's dataset).
+fn listed_masks(meta: &serde_json::Value) -> Option<usize> {
+    match meta["kind"].as_str()? {
+        "2d" => meta["scene"]["materials"].as_array().map(Vec::len),
+        "3d" => {
+            serde_json::from_value::<matseg_render::scene::SceneDescription>(meta["scene"].clone())
+                .ok()
+                .map(|scene| scene.annotated_materials().len())
+        }
+        _ => None,
+    }
+}
+
+/// Refuses a sample folder `dir` whose masks (`mask0.png`... by index)
+/// are not the `mask0.png` to `maskK.png` its sidecar lists, naming the
+/// first missing or extra one: a lost mask must not shift the others'
+/// materials.
+fn check_listed_masks(
+    dir: &Path,
+    indices: &[u32],
+    meta: Option<&serde_json::Value>,
+) -> Result<(), ReadError> {
+    let Some(listed) = meta.and_then(listed_masks) else {
+        return Ok(());
+    };
+    let want = 0..listed as u32;
+    let missing = want.clone().find(|k| !indices.contains(k));
+    let extra = indices.iter().find(|k| !want.contains(k));
+    let reason = match (missing, extra) {
+        (Some(k), _) => format!(
+            "{} is missing: meta.json lists {listed} materials",
+            crate::folders::mask_file(k as usize)
+        ),
+        (None, Some(&k)) => format!(
+            "holds {} beyond the {listed} materials meta.json lists",
+            crate::folders::mask_file(k as usize)
+        ),
+        (None, None) => return Ok(()),
+    };
+    Err(ReadError::Format {
+        path: dir.to_path_buf(),
+        reason,
+    })
+}
+
 /// Reads one MatSeg sample folder.
 pub fn read_folder_sample(dir: &Path) -> Result<Sample, ReadError> {
     let read = |name: &str| {
@@ -248,6 +295,19 @@ pub fn read_folder_sample(dir: &Path) -> Result<Sample, ReadError> {
         })
         .collect();
     masks.sort();
+    let meta = if dir.join(META_FILE).is_file() {
+        let p = dir.join(META_FILE);
+        Some(
+            serde_json::from_slice(&read(META_FILE)?).map_err(|e| ReadError::Format {
+                path: p,
+                reason: e.to_string(),
+            })?,
+        )
+    } else {
+        None
+    };
+    let indices: Vec<u32> = masks.iter().map(|(k, _)| *k).collect();
+    check_listed_masks(dir, &indices, meta.as_ref())?;
     let masks = masks
         .iter()
         .map(|(_, p)| {
@@ -259,17 +319,6 @@ pub fn read_folder_sample(dir: &Path) -> Result<Sample, ReadError> {
         .collect::<Result<Vec<_>, ReadError>>()?;
     let roi = if dir.join(ROI_FILE).is_file() {
         Some(decode_grey(&read(ROI_FILE)?, &dir.join(ROI_FILE))?)
-    } else {
-        None
-    };
-    let meta = if dir.join(META_FILE).is_file() {
-        let p = dir.join(META_FILE);
-        Some(
-            serde_json::from_slice(&read(META_FILE)?).map_err(|e| ReadError::Format {
-                path: p,
-                reason: e.to_string(),
-            })?,
-        )
     } else {
         None
     };

@@ -26,6 +26,12 @@ const BANDWIDTH: f32 = 0.1;
 /// features of a colour have a length of about this.
 const WEIGHT: f32 = 0.5;
 
+/// The largest magnitude a feature takes (a cosine's amplitude): saved
+/// features beyond it were made by no colour.
+pub fn largest_feature() -> f32 {
+    WEIGHT * (2.0 / FEATURES as f32).sqrt()
+}
+
 /// Every bin's features ([`BINS`] x [`FEATURES`], bin by bin), the same
 /// for every photo.
 static OF_BIN: LazyLock<Vec<f32>> = LazyLock::new(|| {
@@ -42,7 +48,7 @@ static OF_BIN: LazyLock<Vec<f32>> = LazyLock::new(|| {
     let phases: Vec<f32> = (0..FEATURES)
         .map(|_| rng.random_range(0.0..std::f32::consts::TAU))
         .collect();
-    let scale = WEIGHT * (2.0 / FEATURES as f32).sqrt();
+    let scale = largest_feature();
     (0..BINS)
         .flat_map(|bin| {
             let lab = srgb_to_lab(bin_colour(bin)).map(|v| v / 100.0);

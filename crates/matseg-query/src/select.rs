@@ -116,6 +116,36 @@ pub enum SelectError {
         /// The model's.
         dim: usize,
     },
+    /// A saved descriptor with no direction: all zeros, or so large that
+    /// its length is not a finite number.
+    #[error("{kind}[{index}]: its length is {length}, not a finite, non-zero number")]
+    NoDirection {
+        /// `positive` or `negative`.
+        kind: &'static str,
+        /// Which of them.
+        index: usize,
+        /// Its length.
+        length: f32,
+    },
+    /// Saved colour features beyond what any colour gives.
+    #[error("{kind}[{index}]: a value beyond {bound}, which no colour's features reach")]
+    ColourRange {
+        /// `positive colours` or `negative colours`.
+        kind: &'static str,
+        /// Which of them.
+        index: usize,
+        /// The features' largest magnitude.
+        bound: f32,
+    },
+    /// A positive and a negative click of the same descriptor and colour:
+    /// a click cannot both select and exclude.
+    #[error("positive[{positive}] and negative[{negative}] are the same click (descriptor and colour): a material cannot be both selected and excluded")]
+    Contradictory {
+        /// The positive click.
+        positive: usize,
+        /// The negative click.
+        negative: usize,
+    },
     /// A saved descriptor with a value that is not a finite number.
     #[error("{kind}[{index}]: a value that is not a finite number")]
     NotFinite {
@@ -961,9 +991,28 @@ impl SavedSelection {
     /// values: a positive descriptor at least, at most [`MAX_CLICKS`] in
     /// all, each of `dim` finite values.
     pub fn check(&self, dim: usize) -> Result<(), SelectError> {
+        self.validate()?;
+        check_values("positive", &self.positive, dim)?;
+        check_values("negative", &self.negative, dim)?;
+        for (kind, list) in [
+            ("positive colours", &self.positive_colours),
+            ("negative colours", &self.negative_colours),
+        ] {
+            check_values(kind, list, FEATURES)?;
+        }
+        Ok(())
+    }
+
+    /// Checks what needs no model: a positive descriptor at least, at most
+    /// [`MAX_CLICKS`] in all, a radius in range, every value finite, every
+    /// descriptor with a direction (a finite, non-zero length), colour
+    /// features one per click (or none) within the range colours give, and
+    /// no positive click equal to a negative one (descriptor and colour).
+    pub fn validate(&self) -> Result<(), SelectError> {
         if self.positive.is_empty() {
             return Err(SelectError::NoPositive);
         }
+        check_radius(self.radius)?;
         let count = self.positive.len() + self.negative.len();
         if count > MAX_CLICKS {
             return Err(SelectError::TooMany(count));
@@ -981,11 +1030,25 @@ impl SavedSelection {
                         clicks: descriptors.len(),
                     });
                 }
-                check_values(kind, list, FEATURES)?;
+                check_colour_range(kind, list)?;
             }
         }
-        check_values("positive", &self.positive, dim)?;
-        check_values("negative", &self.negative, dim)
+        for (kind, list) in [("positive", &self.positive), ("negative", &self.negative)] {
+            check_direction(kind, list)?;
+        }
+        // The same click, descriptor and colour, both wanted and not.
+        let click = |list: &[Vec<f32>], colours: &[Vec<f32>], k: usize| {
+            (list[k].clone(), colours.get(k).cloned())
+        };
+        for positive in 0..self.positive.len() {
+            let wanted = click(&self.positive, &self.positive_colours, positive);
+            if let Some(negative) = (0..self.negative.len())
+                .find(|&n| click(&self.negative, &self.negative_colours, n) == wanted)
+            {
+                return Err(SelectError::Contradictory { positive, negative });
+            }
+        }
+        Ok(())
     }
 
     /// The selection applied to the photo `space` describes (`photo` to
@@ -1008,6 +1071,40 @@ impl SavedSelection {
         }
         selector.selection()
     }
+}
+
+/// Checks that each of `list` (the `kind` of a saved selection) has only
+/// finite values and a finite, non-zero length.
+fn check_direction(kind: &'static str, list: &[Vec<f32>]) -> Result<(), SelectError> {
+    for (index, d) in list.iter().enumerate() {
+        if d.iter().any(|v| !v.is_finite()) {
+            return Err(SelectError::NotFinite { kind, index });
+        }
+        let length = d.iter().map(|v| v * v).sum::<f32>().sqrt();
+        if !length.is_finite() || length == 0.0 {
+            return Err(SelectError::NoDirection {
+                kind,
+                index,
+                length,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Checks that each of `list` (the `kind` of a saved selection's colour
+/// features) has only finite values within the features' range.
+fn check_colour_range(kind: &'static str, list: &[Vec<f32>]) -> Result<(), SelectError> {
+    let bound = crate::colour_features::largest_feature();
+    for (index, d) in list.iter().enumerate() {
+        if d.iter().any(|v| !v.is_finite()) {
+            return Err(SelectError::NotFinite { kind, index });
+        }
+        if d.iter().any(|v| v.abs() > bound * 1.001) {
+            return Err(SelectError::ColourRange { kind, index, bound });
+        }
+    }
+    Ok(())
 }
 
 /// Checks that each of `list` (the `kind` of a saved selection) holds
@@ -1171,6 +1268,69 @@ mod tests {
         ));
         let many = vec![Click::positive(1.0, 1.0); MAX_CLICKS + 1];
         assert_eq!(refused(&many, 5.0), SelectError::TooMany(MAX_CLICKS + 1));
+    }
+
+    #[test]
+    fn saved_selections_without_a_direction_or_contradicting_themselves_are_refused() {
+        let saved = SavedSelection {
+            model: "m".into(),
+            radius: 5.0,
+            positive: vec![vec![0.6, 0.8]],
+            negative: vec![vec![1.0, 0.0]],
+            positive_colours: Vec::new(),
+            negative_colours: Vec::new(),
+        };
+        assert_eq!(saved.check(2), Ok(()));
+        let with = |f: &dyn Fn(&mut SavedSelection)| {
+            let mut s = saved.clone();
+            f(&mut s);
+            s.validate().unwrap_err()
+        };
+        assert!(matches!(
+            with(&|s| s.positive[0] = vec![0.0, 0.0]),
+            SelectError::NoDirection {
+                kind: "positive",
+                ..
+            }
+        ));
+        for huge in [1e30, 3e38] {
+            assert!(matches!(
+                with(&|s| s.negative[0] = vec![huge, 1.0]),
+                SelectError::NoDirection {
+                    kind: "negative",
+                    ..
+                }
+            ));
+        }
+        assert!(matches!(
+            with(&|s| s.positive[0][1] = f32::NAN),
+            SelectError::NotFinite { .. }
+        ));
+        assert!(matches!(
+            with(&|s| s.negative = s.positive.clone()),
+            SelectError::Contradictory {
+                positive: 0,
+                negative: 0
+            }
+        ));
+        assert!(matches!(with(&|s| s.radius = -1.0), SelectError::Radius(_)));
+        let colours = vec![vec![0.01; FEATURES]];
+        assert!(matches!(
+            with(&|s| {
+                s.positive_colours = vec![vec![1e30; FEATURES]];
+                s.negative_colours = colours.clone();
+            }),
+            SelectError::ColourRange {
+                kind: "positive colours",
+                ..
+            }
+        ));
+        // The same descriptor of another colour is another click.
+        let mut two_colours = saved.clone();
+        two_colours.negative = two_colours.positive.clone();
+        two_colours.positive_colours = vec![vec![0.02; FEATURES]];
+        two_colours.negative_colours = colours;
+        assert_eq!(two_colours.validate(), Ok(()));
     }
 
     #[test]

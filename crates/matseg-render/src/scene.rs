@@ -426,6 +426,16 @@ pub struct LoadedScene {
 }
 
 impl SceneDescription {
+    /// The materials of the main object(s), in annotation order: one mask
+    /// each in a rendered sample.
+    pub fn annotated_materials(&self) -> Vec<usize> {
+        let mut annotated = Vec::new();
+        for o in self.objects.iter().filter(|o| o.main) {
+            o.surface.materials(&mut annotated);
+        }
+        annotated
+    }
+
     /// Reads a scene file.
     pub fn read(path: &Path) -> Result<SceneDescription, SceneError> {
         let file = |message: String| SceneError::File {
@@ -571,10 +581,7 @@ impl SceneDescription {
             }
             None => Environment::uniform(env.colour * env.strength),
         };
-        let mut annotated = Vec::new();
-        for o in self.objects.iter().filter(|o| o.main) {
-            o.surface.materials(&mut annotated);
-        }
+        let annotated = self.annotated_materials();
         Ok(LoadedScene {
             description: self.clone(),
             mesh,
