@@ -65,6 +65,6 @@ pub fn write_safetensors(
         .iter()
         .map(|(k, v)| (k.as_str(), v.as_str()))
         .collect();
-    matseg_image::io::write_atomic(&path, &write_tensors(&tensors, &metadata))
+    matseg_image::outputs::write_atomic(&path, &write_tensors(&tensors, &metadata))
         .map_err(|e| PyOSError::new_err(format!("{}: cannot write: {e}", path.display())))
 }

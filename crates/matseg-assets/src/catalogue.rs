@@ -125,7 +125,7 @@ impl Catalogue {
     pub fn write(&self, corpus: &Path) -> Result<(), AssetError> {
         let path = corpus.join(CATALOGUE_FILE);
         let text = serde_json::to_vec_pretty(self).expect("serialisable");
-        matseg_image::io::write_atomic(&path, &text)
+        matseg_image::outputs::write_atomic(&path, &text)
             .map_err(|e| AssetError::File(format!("{}: cannot write: {e}", path.display())))
     }
 

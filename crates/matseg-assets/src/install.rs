@@ -164,7 +164,7 @@ pub fn install(
     let records = corpus.join(PACKAGES_DIR);
     std::fs::create_dir_all(&records).map_err(|e| io(e, &records))?;
     let path = records.join(PackageRecord::file_name(spec.kind, &folder));
-    matseg_image::io::write_atomic(
+    matseg_image::outputs::write_atomic(
         &path,
         &serde_json::to_vec_pretty(&record).expect("serialisable"),
     )

@@ -5,6 +5,7 @@
 use crate::net_args::parse_device;
 use anyhow::{bail, Result};
 use matseg_image::io::{find_files, IMAGE_EXTENSIONS};
+use matseg_image::outputs::StagedOutput;
 use matseg_pipeline::segment::Model;
 use matseg_pipeline::select::{apply_to_folder, read_selection};
 use std::path::{Path, PathBuf};
@@ -26,7 +27,9 @@ pub struct Args {
     /// cpu, cuda or cuda:N.
     #[arg(long, default_value = "cpu")]
     device: String,
-    /// Output folder: `masks/NAME.png`, `areas.csv`, `selection.json`.
+    /// Output folder: `masks/NAME.png`, `areas.csv`, `selection.json`;
+    /// written whole, replacing only an earlier apply output
+    /// (docs/outputs.md).
     #[arg(long)]
     out: PathBuf,
 }
@@ -34,19 +37,36 @@ pub struct Args {
 /// Runs `matseg apply`.
 pub fn run(args: Args) -> Result<()> {
     let saved = read_selection(&args.selection)?;
-    let model = args
-        .model
-        .clone()
-        .unwrap_or_else(|| PathBuf::from(&saved.model));
-    let photos = photos_outside(&args.photos, &args.out)?;
-    let net = Model::load(&model, parse_device(&args.device)?)?;
+    let named = |what: &str| format!("{}: {what}", args.selection.display());
+    let model = match &args.model {
+        Some(model) => model.clone(),
+        None if saved.model.trim().is_empty() => {
+            bail!(
+                "{}",
+                named("names no model (\"model\" is empty): give --model")
+            )
+        }
+        None => PathBuf::from(&saved.model),
+    };
+    let photos = find_photos(&args.photos)?;
+    let inputs: Vec<&Path> = [args.selection.as_path()]
+        .into_iter()
+        .chain(args.photos.iter().map(PathBuf::as_path))
+        .collect();
+    let staged = StagedOutput::begin(&args.out, "apply", &inputs)?;
+    let device = parse_device(&args.device)?;
+    let net = match &args.model {
+        Some(_) => Model::load(&model, device)?,
+        None => Model::load(&model, device)
+            .map_err(|e| anyhow::anyhow!("{}", named(&format!("its model: {e}"))))?,
+    };
     saved
         .check(net.output_dim() as usize)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", args.selection.display()))?;
+        .map_err(|e| anyhow::anyhow!("{}", named(&e.to_string())))?;
     let started = Instant::now();
     let total = photos.len();
     let mut done = 0;
-    let areas = apply_to_folder(&net, &saved, &photos, &args.out, &mut |area| {
+    let areas = apply_to_folder(&net, &saved, &photos, staged.dir(), &mut |area| {
         done += 1;
         eprintln!(
             "[{done}/{total}] {}: {:.2}% selected",
@@ -54,6 +74,7 @@ pub fn run(args: Args) -> Result<()> {
             100.0 * area.share()
         );
     })?;
+    staged.finish()?;
     let mean = areas.iter().map(|a| a.share()).sum::<f64>() / areas.len().max(1) as f64;
     println!(
         "{}: {} masks and areas.csv (mean share {:.2}%), {:.2} s a photo",
@@ -65,19 +86,10 @@ pub fn run(args: Args) -> Result<()> {
     Ok(())
 }
 
-/// The photos `roots` name (folders searched recursively), leaving out
-/// anything inside the output folder `out` (an earlier run's masks).
-fn photos_outside(roots: &[PathBuf], out: &Path) -> Result<Vec<PathBuf>> {
-    let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
-    let out = absolute(out);
-    let partial = matseg_image::io::partial_folder(&out);
-    let photos: Vec<PathBuf> = find_files(roots, &IMAGE_EXTENSIONS)?
-        .into_iter()
-        .filter(|p| {
-            let p = absolute(p);
-            !p.starts_with(&out) && !p.starts_with(&partial)
-        })
-        .collect();
+/// The photos `roots` name (folders searched recursively); none is an
+/// error naming the first root.
+fn find_photos(roots: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let photos = find_files(roots, &IMAGE_EXTENSIONS)?;
     if photos.is_empty() {
         bail!(
             "{}: no photos (jpg, jpeg, png) to apply the selection to",

@@ -6,6 +6,7 @@ use anyhow::{bail, Context, Result};
 use clap::Subcommand;
 use matseg_assets::fetch::CacheLayout;
 use matseg_assets::{fetch, Catalogue, Kind, Manifest, RegistryClients};
+use matseg_image::outputs::{Layout, SharedFolder};
 use matseg_pipeline::sources::cache_root;
 use std::path::{Path, PathBuf};
 
@@ -25,7 +26,9 @@ pub struct FetchArgs {
     /// Only these kinds (comma-separated: photos,textures,hdris,meshes,weights).
     #[arg(long)]
     only: Option<String>,
-    /// Cache folder (default: `$MATSEG_CACHE`, else `$XDG_CACHE_HOME/matseg`, else `~/.cache/matseg`).
+    /// Cache folder (default: `$MATSEG_CACHE`, else `$XDG_CACHE_HOME/matseg`,
+    /// else `~/.cache/matseg`): a new or empty one, or matseg's cache
+    /// (docs/outputs.md).
     #[arg(long)]
     cache: Option<PathBuf>,
     /// A manifest of your own instead of the built-in one (`matseg assets
@@ -59,6 +62,15 @@ pub fn run(command: Command) -> Result<()> {
         Command::Fetch(args) => run_fetch(args),
         Command::List(args) => run_list(args),
     }
+}
+
+/// Whether `path`, an entry of a cache folder, is one matseg keeps there:
+/// downloads, the corpus, its tools' state, the materials and weights it
+/// makes.
+fn is_cache_entry(path: &Path) -> bool {
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    ["downloads", "corpus", "tools", "materials", "weights"].contains(&name.as_ref())
+        && path.is_dir()
 }
 
 fn cache(given: Option<PathBuf>) -> Result<PathBuf> {
@@ -102,7 +114,19 @@ fn run_fetch(args: FetchArgs) -> Result<()> {
         }
         None => Manifest::builtin(),
     };
-    let layout = CacheLayout::new(&cache(args.cache)?);
+    let root = cache(args.cache)?;
+    let mut inputs: Vec<&Path> = Vec::new();
+    inputs.extend(args.manifest.as_deref());
+    SharedFolder::open(
+        &root,
+        &Layout {
+            command: "assets",
+            signed: None,
+            owns: &is_cache_entry,
+        },
+        &inputs,
+    )?;
+    let layout = CacheLayout::new(&root);
     let clients = RegistryClients {
         apt_state: layout.tools.join("apt"),
     };

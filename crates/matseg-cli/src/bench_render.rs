@@ -23,7 +23,8 @@ pub struct Args {
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
-    /// Also write the scene (scene.json, object_K.obj, image.png) here.
+    /// Also write the scene (scene.json, object_K.obj, image.png) into
+    /// this folder, written whole (docs/outputs.md).
     #[arg(long)]
     write_scene: Option<PathBuf>,
     /// Print JSON instead of a table row.

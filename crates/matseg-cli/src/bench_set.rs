@@ -6,6 +6,7 @@
 use crate::common::LibraryArgs;
 use anyhow::Result;
 use clap::Subcommand;
+use matseg_image::outputs::StagedOutput;
 use matseg_pipeline::point_bench::{
     draw_point_benchmark, make_mask_benchmark, make_point_benchmark, mask_benchmark_from_dataset,
 };
@@ -31,7 +32,8 @@ pub enum Command {
 pub struct DrawArgs {
     /// Benchmark folder (images/, data/NAME/data.json).
     bench: PathBuf,
-    /// Output folder for the NAME.png overlays.
+    /// Output folder for the NAME.png overlays; written whole, replacing
+    /// only an earlier `bench-set draw` output (docs/outputs.md).
     #[arg(long)]
     out: PathBuf,
     /// Magnify photos whose longer side is below this many pixels twofold.
@@ -42,7 +44,8 @@ pub struct DrawArgs {
 /// Arguments of `matseg bench-set make`.
 #[derive(clap::Args)]
 pub struct MakeArgs {
-    /// Output folder (images/, data/).
+    /// Output folder (images/, data/); written whole, replacing only an
+    /// earlier `bench-set make` output (docs/outputs.md).
     #[arg(long)]
     out: PathBuf,
     /// Number of scenes to generate (scenes with fewer than two pointed
@@ -62,7 +65,9 @@ pub struct MakeArgs {
 /// Arguments of `matseg bench-set masks`.
 #[derive(clap::Args)]
 pub struct MasksArgs {
-    /// Output folder (NAME.jpg, NAME.mask0.png, ...).
+    /// Output folder (NAME.jpg, NAME.mask0.png, ...); written whole,
+    /// replacing only an earlier `bench-set masks` output
+    /// (docs/outputs.md).
     #[arg(long)]
     out: PathBuf,
     /// Number of scenes to generate.
@@ -91,7 +96,9 @@ pub fn run(command: Command) -> Result<()> {
 
 fn masks(args: MasksArgs) -> Result<()> {
     if let Some(data) = &args.from {
-        let written = mask_benchmark_from_dataset(data, &args.out)?;
+        let staged = StagedOutput::begin(&args.out, "bench-set masks", &[data])?;
+        let written = mask_benchmark_from_dataset(data, staged.dir())?;
+        staged.finish()?;
         println!(
             "{}: mask benchmark of {written} samples of {}",
             args.out.display(),
@@ -100,13 +107,17 @@ fn masks(args: MasksArgs) -> Result<()> {
         return Ok(());
     }
     let libraries = args.libraries.load(DEFAULT_CACHE_MB)?;
-    let written = make_mask_benchmark(&args.out, args.n, args.seed, &libraries)?;
+    let staged = StagedOutput::begin(&args.out, "bench-set masks", &libraries.roots())?;
+    let written = make_mask_benchmark(staged.dir(), args.n, args.seed, &libraries)?;
+    staged.finish()?;
     println!("{}: mask benchmark of {written} scenes", args.out.display());
     Ok(())
 }
 
 fn draw(args: DrawArgs) -> Result<()> {
-    let (overlays, points) = draw_point_benchmark(&args.bench, &args.out, args.magnify_below)?;
+    let staged = StagedOutput::begin(&args.out, "bench-set draw", &[&args.bench])?;
+    let (overlays, points) = draw_point_benchmark(&args.bench, staged.dir(), args.magnify_below)?;
+    staged.finish()?;
     println!(
         "{}: {overlays} overlays, {points} points",
         args.out.display()
@@ -116,8 +127,10 @@ fn draw(args: DrawArgs) -> Result<()> {
 
 fn make(args: MakeArgs) -> Result<()> {
     let libraries = args.libraries.load(DEFAULT_CACHE_MB)?;
+    let staged = StagedOutput::begin(&args.out, "bench-set make", &libraries.roots())?;
     let (written, left_out) =
-        make_point_benchmark(&args.out, args.n, args.seed, args.points, &libraries)?;
+        make_point_benchmark(staged.dir(), args.n, args.seed, args.points, &libraries)?;
+    staged.finish()?;
     println!(
         "{}: point benchmark of {written} scenes ({left_out} with fewer than two pointed materials left out)",
         args.out.display()

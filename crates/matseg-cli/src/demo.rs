@@ -9,7 +9,8 @@ use std::path::PathBuf;
 /// Arguments of `matseg demo`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Output folder for the samples and `index.html`.
+    /// Output folder for the samples and `index.html`; a rerun continues
+    /// it (docs/outputs.md).
     #[arg(long, default_value = "demo-out")]
     out: PathBuf,
     /// Number of 2D samples.

@@ -4,6 +4,7 @@
 use crate::common::{BarProgress, LibraryArgs};
 use crate::net_args::parse_device;
 use anyhow::{bail, Result};
+use matseg_image::outputs::check_apart;
 use matseg_net::data::Zoom;
 use matseg_pipeline::features::{make_features, FeaturesConfig};
 use matseg_pipeline::sources::DEFAULT_CACHE_MB;
@@ -22,7 +23,8 @@ enum ZoomArg {
 /// Arguments of `matseg features`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// The cache's folder (rerun the same command to finish an interrupted cache).
+    /// The cache's folder (rerun the same command to finish an interrupted
+    /// cache; docs/outputs.md).
     #[arg(long)]
     out: PathBuf,
     /// Scenes from this dataset (MatSeg folders or WebDataset shards).
@@ -104,6 +106,10 @@ pub fn run(args: Args) -> Result<()> {
         ..FeaturesConfig::new(&args.out, data)
     };
     let libraries = args.libraries.load(args.cache_mb)?;
+    let mut inputs = libraries.roots();
+    inputs.extend(args.data.as_deref());
+    inputs.extend(args.mix_data.as_deref());
+    check_apart(&args.out, &inputs)?;
     let report = make_features(
         &config,
         &libraries,

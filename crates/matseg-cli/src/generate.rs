@@ -6,6 +6,7 @@ use crate::common::{
 use anyhow::Result;
 use clap::ValueEnum;
 use matseg_data::{generate_with, Format, GenerateOptions, JobSlice};
+use matseg_image::outputs::check_apart;
 use matseg_pipeline::files3d::recipe_3d;
 use matseg_pipeline::scenes::{SceneFolders, SceneRecipe, SceneSources};
 use matseg_pipeline::sources::{Defaults, DEFAULT_CACHE_MB};
@@ -28,7 +29,8 @@ pub struct Args {
     /// Scene kind.
     #[arg(long, value_enum, default_value = "2d")]
     kind: Kind,
-    /// Output folder.
+    /// Output folder: a new or empty one, or a dataset to resume
+    /// (docs/outputs.md).
     #[arg(long)]
     out: PathBuf,
     /// Number of samples in the whole dataset.
@@ -114,6 +116,11 @@ pub fn run(args: Args) -> Result<()> {
     };
     job.validate()?;
     let camera_path = camera_path(&args)?;
+    let inputs = input_paths(&args);
+    check_apart(
+        &args.out,
+        &inputs.iter().map(PathBuf::as_path).collect::<Vec<_>>(),
+    )?;
     let frames = camera_path.as_ref().map_or(1, |p| p.frames as u64);
     let opts = GenerateOptions {
         out: args.out.clone(),
@@ -169,6 +176,20 @@ pub fn run(args: Args) -> Result<()> {
         report.generated as f64 / secs.max(1e-9)
     );
     Ok(())
+}
+
+/// Every file and folder the run reads, the default sources included:
+/// inputs the dataset must not overlap.
+fn input_paths(args: &Args) -> Vec<PathBuf> {
+    let defaults = Defaults::CorpusOrBundled;
+    let mut inputs = defaults.or(&args.sources, "photos");
+    inputs.extend(defaults.or(&args.textures, "textures"));
+    inputs.extend(defaults.or(&args.meshes, "meshes"));
+    inputs.extend(defaults.or(&args.hdris, "hdris"));
+    inputs.extend(args.materials.iter().cloned());
+    inputs.extend(args.config.clone());
+    inputs.extend(args.camera_path.clone());
+    inputs
 }
 
 /// The camera path of 3D sequences: the TOML file's (or the defaults), with

@@ -2,6 +2,7 @@
 //! (`matseg_pipeline::soft_maps`).
 
 use anyhow::Result;
+use matseg_image::outputs::StagedOutput;
 use matseg_pipeline::soft_maps::PhotoMaps;
 use std::path::PathBuf;
 
@@ -10,7 +11,8 @@ use std::path::PathBuf;
 pub struct Args {
     /// The photo to cut maps from.
     photo: PathBuf,
-    /// Output folder.
+    /// Output folder; written whole, replacing only an earlier maps output
+    /// (docs/outputs.md).
     #[arg(long)]
     out: PathBuf,
     /// Number of maps.
@@ -39,7 +41,11 @@ pub fn run(args: Args) -> Result<()> {
         hard: args.hard,
         max_side: args.max_side,
     };
-    let s = maps.write(&args.photo, &recipe, &args.out)?;
+    let mut inputs = vec![args.photo.as_path()];
+    inputs.extend(args.config.as_deref());
+    let staged = StagedOutput::begin(&args.out, "maps", &inputs)?;
+    let s = maps.write(&args.photo, &recipe, staged.dir())?;
+    staged.finish()?;
     eprintln!(
         "{}: {} maps of {}x{} ({}) written",
         args.out.display(),

@@ -11,7 +11,8 @@ pub struct Args {
     /// Texture images or folders of them (e.g. a `matseg textures` library).
     #[arg(required = true, num_args = 1..)]
     textures: Vec<PathBuf>,
-    /// Output folder: one folder per material.
+    /// Output folder: one folder per material; a rerun adds the missing
+    /// ones (docs/outputs.md).
     #[arg(long)]
     out: PathBuf,
     /// Materials per texture.

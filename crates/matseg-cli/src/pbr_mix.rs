@@ -11,7 +11,8 @@ use std::path::PathBuf;
 pub struct Args {
     /// A folder of material folders (ours, ambientCG, MatSeg or MatSynth naming).
     materials: PathBuf,
-    /// Output folder: one folder per mix.
+    /// Output folder: one folder per mix; a rerun adds the missing ones
+    /// (docs/outputs.md).
     #[arg(long)]
     out: PathBuf,
     /// Number of mixes.

@@ -3,6 +3,7 @@
 //! (`matseg_pipeline::render`).
 
 use anyhow::Result;
+use matseg_image::outputs::StagedOutput;
 use matseg_pipeline::render::{render_scene_file, RenderOverrides};
 use std::path::PathBuf;
 
@@ -11,7 +12,8 @@ use std::path::PathBuf;
 pub struct Args {
     /// The scene description (JSON); relative paths in it are relative to its folder.
     scene: PathBuf,
-    /// Output folder.
+    /// Output folder; written whole, replacing only an earlier render
+    /// output (docs/outputs.md).
     #[arg(long)]
     out: PathBuf,
     /// Samples per pixel (default: the scene's).
@@ -36,7 +38,9 @@ pub fn run(args: Args) -> Result<()> {
         threads: args.threads,
         denoise: args.denoise,
     };
-    let r = render_scene_file(&args.scene, &overrides, &args.out)?;
+    let staged = StagedOutput::begin(&args.out, "render", &[&args.scene])?;
+    let r = render_scene_file(&args.scene, &overrides, staged.dir())?;
+    staged.finish()?;
     println!(
         "{}x{} at {} spp, {} triangles: {:.2} s ({} CPU s) -> {}",
         r.width,

@@ -8,6 +8,7 @@ use crate::net_args::parse_device;
 use crate::query_args::{parse_grouped_point, parse_point, parse_radius};
 use anyhow::Result;
 use matseg_image::io::read_rgb;
+use matseg_image::outputs::StagedOutput;
 use matseg_pipeline::segment::{describe, write_clusters, write_point_maps, Model, DEFAULT_RADIUS};
 use matseg_pipeline::select::MaterialClicks;
 use matseg_query::ClusterOptions;
@@ -45,7 +46,8 @@ pub struct Args {
     /// cpu, cuda or cuda:N.
     #[arg(long, default_value = "cpu")]
     device: String,
-    /// Output folder.
+    /// Output folder; written whole, replacing only an earlier segment
+    /// output (docs/outputs.md).
     #[arg(long)]
     out: PathBuf,
 }
@@ -57,6 +59,7 @@ pub fn run(args: Args) -> Result<()> {
     if args.auto.is_none() {
         clicks.check(&photo, &args.image.display().to_string())?;
     }
+    let staged = StagedOutput::begin(&args.out, "segment", &[&args.image])?;
     let net = Model::load(&args.model, parse_device(&args.device)?)?;
     let started = Instant::now();
     let map = describe(&net, &photo);
@@ -66,7 +69,8 @@ pub fn run(args: Args) -> Result<()> {
             seed: args.seed,
             ..ClusterOptions::new(k as usize)
         };
-        let clusters = write_clusters(&photo, &map, &options, &args.out)?;
+        let clusters = write_clusters(&photo, &map, &options, staged.dir())?;
+        staged.finish()?;
         println!(
             "{}: segmentation.png and labels.png, {clusters} clusters",
             args.out.display()
@@ -74,7 +78,8 @@ pub fn run(args: Args) -> Result<()> {
         return Ok(());
     }
     let model = args.model.display().to_string();
-    let queried = write_point_maps(&photo, &map, &clicks, args.radius, &model, &args.out)?;
+    let queried = write_point_maps(&photo, &map, &clicks, args.radius, &model, staged.dir())?;
+    staged.finish()?;
     let materials = clicks.materials.len();
     println!(
         "{}: {materials} similarity map(s) and mask(s){}",

@@ -13,7 +13,8 @@ pub struct Args {
     /// Photos or folders of photos (walked recursively).
     #[arg(required = true, num_args = 1..)]
     photos: Vec<PathBuf>,
-    /// Output texture library.
+    /// Output texture library; a rerun adds the photos not yet done
+    /// (docs/outputs.md).
     #[arg(long)]
     out: PathBuf,
     /// Cell side in pixels.

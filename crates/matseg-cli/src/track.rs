@@ -37,7 +37,8 @@ pub struct Args {
     /// Write the overlay as an animated PNG preview even where ffmpeg could encode an MP4.
     #[arg(long)]
     preview: bool,
-    /// Output folder (replaced when it holds an earlier track output).
+    /// Output folder; written whole, replacing only an earlier track
+    /// output (docs/outputs.md).
     #[arg(long)]
     out: PathBuf,
 }

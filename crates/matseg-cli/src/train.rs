@@ -117,7 +117,7 @@ pub struct Args {
     /// Seed of the batch stream and of the generator.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// The run folder.
+    /// The run folder: a new or empty one (docs/outputs.md).
     #[arg(long, required_unless_present = "resume")]
     out: Option<PathBuf>,
     /// Continue the run in this folder from its last checkpoint.

@@ -26,7 +26,8 @@ pub enum Command {
 pub struct HalfArgs {
     /// The safetensors file.
     file: PathBuf,
-    /// Output safetensors file.
+    /// Output safetensors file; replaces only one matseg wrote
+    /// (docs/outputs.md).
     #[arg(long)]
     out: PathBuf,
 }
@@ -55,7 +56,8 @@ pub struct ImportArgs {
     /// Check that the parameters are those of this architecture.
     #[arg(long, value_enum)]
     arch: Option<ArchArg>,
-    /// Output safetensors file.
+    /// Output safetensors file; replaces only one matseg wrote
+    /// (docs/outputs.md).
     #[arg(long)]
     out: PathBuf,
 }

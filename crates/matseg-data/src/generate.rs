@@ -5,6 +5,7 @@ use crate::encode::EncodedSample;
 use crate::folders;
 use crate::maker::{Generator2d, SampleMaker};
 use crate::wds::{shard_path, ShardWriter};
+use matseg_image::outputs::{self, OutputError, SharedFolder};
 use matseg_image::progress::Progress;
 use matseg_scene::{Recipe2d, Sources};
 use rayon::prelude::*;
@@ -183,6 +184,9 @@ pub enum GenerateError {
     /// Shards of no samples.
     #[error("--shard-size must be at least 1")]
     EmptyShards,
+    /// The output folder, or a name in it, is not the dataset's to write.
+    #[error(transparent)]
+    Output(#[from] OutputError),
 }
 
 /// A job index that does not fit the split of the work.
@@ -269,6 +273,40 @@ fn holds_samples(dir: &Path) -> Result<bool, GenerateError> {
         .any(|e| e.file_name() != MANIFEST_FILE))
 }
 
+/// Whether `path`, an entry of a dataset folder, is one `matseg generate`
+/// writes: a sample folder holding only a sample's files, a sample's
+/// staging folder, a shard or a shard being written, or the manifest.
+fn is_dataset_entry(path: &Path) -> bool {
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    let digits = |s: &str, n: usize| s.len() == n && s.bytes().all(|b| b.is_ascii_digit());
+    if name == MANIFEST_FILE {
+        return path.is_file();
+    }
+    if digits(&name, 8) {
+        return folders::holds_only_sample_files(path);
+    }
+    if let Some(index) = name.strip_suffix(folders::PARTIAL_SUFFIX) {
+        return digits(index, 8) && outputs::is_marked(path, folders::COMMAND);
+    }
+    name.strip_prefix("shard-")
+        .and_then(|s| s.split_once(".tar"))
+        .is_some_and(|(index, rest)| {
+            digits(index, 6) && (rest.is_empty() || rest.starts_with(".tmp"))
+        })
+}
+
+/// Opens the dataset folder `out` (made when missing): a folder holding
+/// anything but a dataset's entries and no manifest is refused.
+fn open_dataset_folder(out: &Path) -> Result<SharedFolder, GenerateError> {
+    let has_manifest = |dir: &Path| dir.join(MANIFEST_FILE).is_file();
+    let layout = outputs::Layout {
+        command: folders::COMMAND,
+        signed: Some(&has_manifest),
+        owns: &is_dataset_entry,
+    };
+    Ok(SharedFolder::open(out, &layout, &[])?)
+}
+
 /// Checks the manifest of a folder against this run's settings, or writes
 /// it. A folder with a manifest but no samples (a run that failed before
 /// its first sample) takes the new settings.
@@ -305,7 +343,7 @@ fn check_manifest(path: &Path, want: &DatasetManifest) -> Result<(), GenerateErr
         return Ok(());
     }
     let json = serde_json::to_vec_pretty(want).expect("manifest serialises");
-    matseg_image::io::write_atomic(path, &json).map_err(io_err(path))
+    matseg_image::outputs::write_atomic(path, &json).map_err(io_err(path))
 }
 
 /// Writes the samples of `opts.job`'s slice of a 2D dataset (see
@@ -332,7 +370,11 @@ pub fn generate_with(
     if opts.format == Format::Wds && opts.shard_size == 0 {
         return Err(GenerateError::EmptyShards);
     }
-    std::fs::create_dir_all(&opts.out).map_err(io_err(&opts.out))?;
+    let folder = open_dataset_folder(&opts.out)?;
+    let opts = &GenerateOptions {
+        out: folder.dir().to_path_buf(),
+        ..opts.clone()
+    };
     let manifest = DatasetManifest {
         kind: maker.kind().into(),
         format: opts.format,
@@ -351,7 +393,7 @@ pub fn generate_with(
     };
     progress.start(opts.samples_in_job(), "samples");
     let report = match opts.format {
-        Format::Folders => generate_folders(opts, &make, progress, &mine),
+        Format::Folders => generate_folders(opts, &folder, &make, progress, &mine),
         Format::Wds => generate_shards(opts, &make, progress, &mine),
     };
     progress.finish();
@@ -363,14 +405,24 @@ type Make<'a> = dyn Fn(u64) -> Result<EncodedSample, GenerateError> + Sync + 'a;
 
 fn generate_folders(
     opts: &GenerateOptions,
+    folder: &SharedFolder,
     make: &Make<'_>,
     progress: &dyn Progress,
     mine: &(dyn Fn(u64) -> bool + Sync),
 ) -> Result<GenerateReport, GenerateError> {
-    folders::remove_stale_partials(&opts.out, mine).map_err(io_err(&opts.out))?;
     let (done, pending): (Vec<u64>, Vec<u64>) = (0..opts.n)
         .filter(|&i| mine(i))
         .partition(|&i| folders::is_complete(&opts.out, i));
+    // Every folder this job writes, checked before its first byte.
+    let names: Vec<PathBuf> = pending
+        .iter()
+        .flat_map(|&i| {
+            let dir = folders::sample_dir(Path::new(""), i);
+            [folders::partial_dir(&dir), dir]
+        })
+        .collect();
+    folder.claim(names.iter().map(PathBuf::as_path), &is_dataset_entry)?;
+    folders::remove_stale_partials(&opts.out, mine).map_err(io_err(&opts.out))?;
     progress.advance_by(done.len() as u64);
     let bytes = pending
         .par_iter()

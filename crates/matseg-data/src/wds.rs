@@ -3,7 +3,7 @@
 //! name and renamed when complete.
 
 use crate::encode::EncodedSample;
-use matseg_image::io::temporary_path;
+use matseg_image::outputs::temporary_path;
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 

@@ -6,7 +6,7 @@
 //! writer and the web app's annotate page all go through it.
 
 use crate::points::{BenchError, ROUND_RELATION, SQUARE_RELATION};
-use matseg_image::io::write_atomic;
+use matseg_image::outputs::write_atomic;
 use matseg_query::descriptor::{check_radius, RadiusError};
 use serde::{Deserialize, Serialize};
 use std::fmt;

@@ -7,7 +7,8 @@
 use crate::annotation::{Annotation, Group, Relation};
 use crate::points::{BenchError, SQUARE_RELATION};
 use image::RgbImage;
-use matseg_image::io::{encode_jpeg, write_atomic};
+use matseg_image::io::encode_jpeg;
+use matseg_image::outputs::write_atomic;
 use matseg_image::Plane;
 use rand::seq::index::sample;
 use rand::Rng;

@@ -8,6 +8,7 @@
 
 use crate::pbr::MapKind;
 use image::{GrayImage, RgbImage};
+use matseg_image::outputs;
 use std::path::{Path, PathBuf};
 
 /// What went wrong reading or writing a material folder; the message names
@@ -45,6 +46,9 @@ pub enum MaterialError {
     /// A mix recipe value out of its range.
     #[error("mix recipe: {0}")]
     MixRecipe(#[from] crate::OutOfRange),
+    /// A library folder, or a name in it, that is not matseg's to write.
+    #[error(transparent)]
+    Output(#[from] matseg_image::outputs::OutputError),
 }
 
 /// The maps of one material; only the colour is required.
@@ -199,15 +203,19 @@ pub fn find_materials(root: &Path) -> Result<Vec<PathBuf>, MaterialError> {
     Ok(found)
 }
 
-/// Writes a material folder: `write_maps` fills `DIR.partial.PID/`, then a
-/// `licenses.json` giving every file `licence` and `material.json` (the
+/// Writes a material folder for `command` (`pbr`, `pbr-mix`):
+/// `write_maps` fills `DIR.partial.PID/` (made with matseg's marker), then
+/// a `licenses.json` giving every file `licence` and `material.json` (the
 /// `record` object plus the licence, the colour spaces and the normal
 /// convention) go beside the maps, and the folder is renamed to `dir`: a
-/// folder with `material.json` is complete, anything else is redone.
-/// Processes writing the same library at once do not clash: each has its
-/// own partial folders, and the first complete folder stands.
+/// folder with `material.json` is complete, and an incomplete one is
+/// redone when it holds nothing but a material's files
+/// ([`is_material_folder`]); anything else there is refused, never
+/// removed. Processes writing the same library at once do not clash: each
+/// has its own partial folders, and the first complete folder stands.
 pub fn write_material_folder(
     dir: &Path,
+    command: &str,
     licence: &str,
     write_maps: impl FnOnce(&Path) -> std::io::Result<()>,
     mut record: serde_json::Value,
@@ -224,21 +232,25 @@ pub fn write_material_folder(
         let path = path.to_path_buf();
         move |source| MaterialError::Write { path, source }
     };
-    if partial.exists() {
-        std::fs::remove_dir_all(&partial).map_err(failed(&partial))?;
+    if dir.exists() && !is_material_folder(dir) {
+        return Err(foreign(dir).into());
     }
-    std::fs::create_dir_all(&partial).map_err(failed(&partial))?;
+    outputs::stage_folder(&partial, command)?;
     record["licence"] = licence.into();
     record["color_space"] = serde_json::json!({"Color": "sRGB", "other maps": "linear"});
     record["normal_convention"] = "OpenGL (+Y up)".into();
     let json = serde_json::to_vec_pretty(&record).expect("a JSON value serialises");
-    write_maps(&partial)
+    let written = write_maps(&partial)
         .and_then(|()| {
             let licences = serde_json::json!({ "*": licence }).to_string();
             std::fs::write(partial.join("licenses.json"), licences)?;
             std::fs::write(partial.join(MATERIAL_RECORD), json)
         })
-        .map_err(failed(&partial))?;
+        .map_err(failed(&partial));
+    if let Err(e) = written.and_then(|()| Ok(outputs::unmark(&partial)?)) {
+        let _ = std::fs::remove_dir_all(&partial);
+        return Err(e);
+    }
     // The rename completes the folder. A complete one already there was
     // made by another process from the same inputs: it stands.
     if dir.join(MATERIAL_RECORD).is_file() {
@@ -253,6 +265,32 @@ pub fn write_material_folder(
         }
         renamed => renamed.map_err(failed(dir)),
     }
+}
+
+/// Whether `dir` is a folder holding nothing but a material's files (its
+/// maps, `licenses.json`, `material.json`): one a material library's
+/// command wrote, whole or in part, as far as names tell.
+pub fn is_material_folder(dir: &Path) -> bool {
+    outputs::holds_only(dir, &|name| {
+        name == MATERIAL_RECORD
+            || name == "licenses.json"
+            || matseg_image::io::has_image_extension(Path::new(name))
+    })
+}
+
+/// Whether `path`, an entry of a material library, is one the library's
+/// `command` writes: a material folder ([`is_material_folder`]) or a
+/// staging folder of its own (with matseg's marker).
+pub fn is_library_entry(path: &Path, command: &str) -> bool {
+    is_material_folder(path) || (is_partial(path) && outputs::is_marked(path, command))
+}
+
+/// The refusal of a material folder that holds what no material has.
+fn foreign(dir: &Path) -> outputs::OutputError {
+    outputs::OutputError::new(
+        dir,
+        "holds files that are not a material's and was not made by matseg: move it or choose another --out",
+    )
 }
 
 /// The record a complete material folder holds (written inside the
@@ -285,6 +323,7 @@ mod tests {
         for name in names {
             write_material_folder(
                 &root.path().join(name),
+                "pbr",
                 "CC0",
                 |partial| {
                     let own = format!("{name}.partial.{}", std::process::id());
@@ -321,6 +360,7 @@ mod tests {
         let write = |text: &'static str| {
             write_material_folder(
                 &dir,
+                "pbr",
                 "CC0",
                 move |p| std::fs::write(p.join("Color.png"), text),
                 serde_json::json!({"name": "brick"}),
@@ -339,6 +379,41 @@ mod tests {
         std::fs::create_dir_all(&stale).unwrap();
         std::fs::write(stale.join("Color.png"), "x").unwrap();
         assert_eq!(find_materials(root.path()).unwrap(), vec![dir]);
+    }
+
+    #[test]
+    fn a_folder_of_a_materials_name_is_replaced_only_when_it_holds_a_materials_files() {
+        let root = tempfile::tempdir().unwrap();
+        let write = |dir: &Path| {
+            write_material_folder(
+                dir,
+                "pbr",
+                "CC0",
+                |p| std::fs::write(p.join("Color.png"), "new"),
+                serde_json::json!({}),
+            )
+        };
+        // An incomplete material (no material.json): redone.
+        let half = root.path().join("brick__pbr0");
+        std::fs::create_dir(&half).unwrap();
+        std::fs::write(half.join("Color.png"), "half").unwrap();
+        write(&half).unwrap();
+        assert_eq!(
+            std::fs::read_to_string(half.join("Color.png")).unwrap(),
+            "new"
+        );
+        // Someone's folder of that name: refused, kept as it was.
+        let mine = root.path().join("tile__pbr0");
+        std::fs::create_dir(&mine).unwrap();
+        std::fs::write(mine.join("notes.txt"), "mine").unwrap();
+        let e = write(&mine).unwrap_err().to_string();
+        assert!(e.contains("tile__pbr0"), "{e}");
+        assert_eq!(
+            std::fs::read_to_string(mine.join("notes.txt")).unwrap(),
+            "mine"
+        );
+        assert!(!is_library_entry(&mine, "pbr"));
+        assert!(is_library_entry(&half, "pbr"));
     }
 
     #[test]

@@ -5,7 +5,7 @@ use image::{
     DynamicImage, ExtendedColorType, GrayImage, ImageEncoder, ImageFormat, ImageReader, RgbImage,
 };
 use std::io::Cursor;
-use std::path::{Component, Path, PathBuf};
+use std::path::{Path, PathBuf};
 
 /// An image that could not be read or decoded, with the file it came from.
 #[derive(Debug, thiserror::Error)]
@@ -232,63 +232,6 @@ pub fn encode_png_rgb(img: &RgbImage) -> Vec<u8> {
     )
 }
 
-/// A folder output as a command line names it, as the path it is written
-/// to: trailing slashes and `.` parts dropped, and a last part of `.` or
-/// `..` resolved against the folders that exist, so that the folder's
-/// `.partial` sibling ([`partial_folder`]) lies beside it, never inside it.
-/// The file system's root and an empty path are refused.
-pub fn output_folder(out: &Path) -> Result<PathBuf, ImageIoError> {
-    let refused = || ImageIoError::new(out, "not a folder to write into: name the folder itself");
-    let normal: PathBuf = out.components().collect();
-    let named = matches!(normal.components().next_back(), Some(Component::Normal(_)));
-    let resolved = if named {
-        normal
-    } else {
-        let absolute = std::path::absolute(&normal).map_err(|e| ImageIoError::new(out, e))?;
-        absolute
-            .canonicalize()
-            .map_err(|e| ImageIoError::new(out, e))?
-    };
-    if resolved.file_name().is_none() {
-        return Err(refused());
-    }
-    Ok(resolved)
-}
-
-/// Where the folder `out` (as [`output_folder`] gives it) is written
-/// before it is renamed into place: `OUT.partial` beside it.
-pub fn partial_folder(out: &Path) -> PathBuf {
-    let mut name = out.as_os_str().to_owned();
-    name.push(".partial");
-    PathBuf::from(name)
-}
-
-/// Where a file is written before it is renamed to `path`: `path` + `.tmp`.
-/// Readers skip such names, so a half-written file is never taken as whole.
-pub fn temporary_path(path: &Path) -> PathBuf {
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".tmp");
-    PathBuf::from(tmp)
-}
-
-/// Writes `bytes` to `path` through a temporary file renamed into place, so
-/// a reader never sees a half-written file. The temporary name is
-/// [`temporary_path`] plus this process's id and a counter, so writers of
-/// the same file in several processes (jobs of an array on shared storage)
-/// or threads never write into each other's temporary file.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    static WRITES: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-    let write = WRITES.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let mut tmp = temporary_path(path).into_os_string();
-    tmp.push(format!(".{}.{write}", std::process::id()));
-    let tmp = PathBuf::from(tmp);
-    let written = std::fs::write(&tmp, bytes).and_then(|()| std::fs::rename(&tmp, path));
-    if written.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    written
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -327,29 +270,6 @@ mod tests {
     }
 
     #[test]
-    fn output_folders_have_their_partial_folder_beside_them() {
-        let cwd = std::env::current_dir().unwrap();
-        for (given, written) in [
-            ("out", PathBuf::from("out")),
-            ("out/", PathBuf::from("out")),
-            ("a/out//", PathBuf::from("a/out")),
-            ("./a/./out/.", PathBuf::from("./a/out")),
-            (".", cwd.clone()),
-            ("./", cwd.clone()),
-            ("..", cwd.parent().unwrap().to_path_buf()),
-        ] {
-            let out = output_folder(Path::new(given)).unwrap();
-            assert_eq!(out, written, "{given}");
-            let partial = partial_folder(&out);
-            assert_eq!(partial.parent(), out.parent(), "{given}: beside it");
-            assert!(partial.to_string_lossy().ends_with(".partial"), "{given}");
-        }
-        for refused in ["/", "", "/.."] {
-            assert!(output_folder(Path::new(refused)).is_err(), "{refused}");
-        }
-    }
-
-    #[test]
     fn jpeg_structure_walks_segments_scans_and_restarts() {
         // SOI, an APP0 of 4 bytes, SOS of 3, data with a stuffed 0xFF and a
         // restart marker, then EOI.
@@ -366,25 +286,6 @@ mod tests {
             0xFF, 0xD8, 0xFF, 0xE1, 0x00, 0x04, 0xFF, 0xD9, 0xFF, 0xDA, 0x00, 0x02, 0x11,
         ];
         assert!(!jpeg_is_complete(&hidden));
-    }
-
-    #[test]
-    fn concurrent_writers_of_one_file_all_succeed_and_leave_it_whole() {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("dataset.json");
-        let content = vec![b'x'; 1 << 20];
-        std::thread::scope(|scope| {
-            for _ in 0..8 {
-                scope.spawn(|| {
-                    for _ in 0..10 {
-                        write_atomic(&path, &content).unwrap();
-                    }
-                });
-            }
-        });
-        assert_eq!(std::fs::read(&path).unwrap(), content);
-        let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
-        assert_eq!(left.len(), 1, "no temporary file left");
     }
 
     #[test]

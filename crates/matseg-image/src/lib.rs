@@ -22,6 +22,7 @@ pub mod levels;
 pub mod library;
 pub mod licence;
 pub mod mirrors;
+pub mod outputs;
 pub mod plane;
 pub mod progress;
 pub mod ramp;

@@ -22,7 +22,7 @@ use crate::optim::{AdamW, AdamWConfig};
 use crate::plot::plot_losses;
 use crate::weights::load_tensors;
 use crate::NetError;
-use matseg_image::io::temporary_path;
+use matseg_image::outputs::temporary_path;
 use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::Path;
@@ -403,9 +403,9 @@ pub fn write_run_config(dir: &Path, config: &RunConfig) -> Result<(), NetError> 
     write_atomic(&path, text.as_bytes())
 }
 
-/// [`matseg_image::io::write_atomic`] with the error naming `path`.
+/// [`matseg_image::outputs::write_atomic`] with the error naming `path`.
 pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), NetError> {
-    matseg_image::io::write_atomic(path, bytes).map_err(|e| NetError::File {
+    matseg_image::outputs::write_atomic(path, bytes).map_err(|e| NetError::File {
         file: path.display().to_string(),
         message: format!("cannot write: {e}"),
     })

@@ -26,6 +26,10 @@ pub enum PipelineError {
     /// An image could not be read or written.
     #[error(transparent)]
     Image(#[from] ImageIoError),
+    /// An output refused (it overlaps an input, or holds what matseg did
+    /// not write) or that could not be put in place.
+    #[error(transparent)]
+    Output(#[from] matseg_image::outputs::OutputError),
     /// A registry package could not be fetched or installed.
     #[error(transparent)]
     Asset(#[from] matseg_assets::AssetError),

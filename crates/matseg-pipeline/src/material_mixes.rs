@@ -2,13 +2,14 @@
 //! max or flexible weights, each mix carrying every source's licence.
 
 use crate::error::PipelineError;
-use crate::files::create_folder;
 use crate::progress::Progress;
 use matseg_data::sample_rng;
 use matseg_extract::material_library::{
-    find_materials, read_material, write_material_folder, MaterialError, MaterialMaps,
+    find_materials, is_library_entry, is_material_folder, read_material, write_material_folder,
+    MaterialError, MaterialMaps,
 };
 use matseg_extract::pbr_mix::{mix_materials, MixRecipe};
+use matseg_image::outputs::{Layout, SharedFolder};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -24,7 +25,9 @@ pub struct MixReport {
 }
 
 /// Writes `count` mixes (mix i from (seed, i)) of the materials under
-/// `materials` into `out/mixNNNNN`, skipping mixes an earlier run wrote.
+/// `materials` into `out/mixNNNNN` (a folder `matseg pbr-mix` adds to:
+/// matseg_image::outputs::SharedFolder), skipping mixes an earlier run
+/// wrote.
 pub fn make_mixes(
     materials: &Path,
     out: &Path,
@@ -46,10 +49,20 @@ pub fn make_mixes(
         .par_iter()
         .map(|d| read_material(d))
         .collect::<Result<_, _>>()?;
-    create_folder(out)?;
+    let owns = |path: &Path| is_library_entry(path, COMMAND);
+    let layout = Layout {
+        command: COMMAND,
+        signed: None,
+        owns: &owns,
+    };
+    let shared = SharedFolder::open(out, &layout, &[materials])?;
+    let out = shared.dir();
     let todo: Vec<u64> = (0..count)
         .filter(|&i| !mix_dir(out, i).join("material.json").is_file())
         .collect();
+    // Every mix folder this run writes, checked before its first byte.
+    let names: Vec<PathBuf> = todo.iter().map(|&i| mix_dir(out, i)).collect();
+    shared.claim(names.iter().map(PathBuf::as_path), &is_material_folder)?;
     progress.start(todo.len() as u64, "mixes");
     let recipe = MixRecipe::default();
     todo.par_iter()
@@ -67,6 +80,10 @@ pub fn make_mixes(
     })
 }
 
+/// The command that mixes materials, in matseg's markers.
+const COMMAND: &str = "pbr-mix";
+
+/// The folder of mix `i`.
 fn mix_dir(out: &Path, i: u64) -> PathBuf {
     out.join(format!("mix{i:05}"))
 }
@@ -105,7 +122,13 @@ fn write_mix(
         "weights": record.weights,
         "seed": seed,
     });
-    write_material_folder(&mix_dir(out, i), &licence, |d| mixed.write_maps(d), json)
+    write_material_folder(
+        &mix_dir(out, i),
+        COMMAND,
+        &licence,
+        |d| mixed.write_maps(d),
+        json,
+    )
 }
 
 /// The licence a material folder's `licenses.json` gives all its files

@@ -6,9 +6,12 @@ use crate::error::PipelineError;
 use crate::progress::Progress;
 use crate::sources::{assets_dir, cache_root, Defaults, SourceError};
 use matseg_data::sample_rng;
-use matseg_extract::material_library::{write_material_folder, MaterialError};
+use matseg_extract::material_library::{
+    is_library_entry, is_material_folder, write_material_folder, MaterialError,
+};
 use matseg_extract::pbr::{make_pbr, PbrRecipe};
 use matseg_image::io::read_rgb;
+use matseg_image::outputs::{Layout, SharedFolder};
 use matseg_image::PhotoLibrary;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -32,7 +35,9 @@ pub struct LibraryReport {
 }
 
 /// Makes `per_texture` PBR materials from each texture under `textures`
-/// into `out`, one folder each (`TEXTURE__pbrJ`), skipping complete ones,
+/// into the library `out` (a folder `matseg pbr` adds to:
+/// matseg_image::outputs::SharedFolder), one folder each
+/// (`TEXTURE__pbrJ`), skipping complete ones,
 /// on the current rayon pool. Material `j` of texture `i` depends only on
 /// (`seed`, `i`, `j`). Unreadable textures and failed materials are
 /// reported to `progress` and skipped; textures of which none decodes are
@@ -50,15 +55,28 @@ pub fn make_library(
         progress.warn(&format!("{}: {}", s.path.display(), s.reason));
     }
     library.ensure_usable()?;
-    std::fs::create_dir_all(out).map_err(|source| MaterialError::Write {
-        path: out.to_path_buf(),
-        source,
-    })?;
+    let owns = |path: &Path| is_library_entry(path, COMMAND);
+    let layout = Layout {
+        command: COMMAND,
+        signed: None,
+        owns: &owns,
+    };
+    let inputs: Vec<&Path> = textures.iter().map(PathBuf::as_path).collect();
+    let shared = SharedFolder::open(out, &layout, &inputs).map_err(MaterialError::from)?;
+    let out = shared.dir();
     let recipe = PbrRecipe::default();
     let jobs: Vec<(usize, u64)> = (0..library.len())
         .flat_map(|i| (0..per_texture).map(move |j| (i, j)))
         .filter(|&(i, j)| !folder(out, &library, i, j).join("material.json").is_file())
         .collect();
+    // Every material folder this run writes, checked before its first byte.
+    let names: Vec<PathBuf> = jobs
+        .iter()
+        .map(|&(i, j)| folder(out, &library, i, j))
+        .collect();
+    shared
+        .claim(names.iter().map(PathBuf::as_path), &is_material_folder)
+        .map_err(MaterialError::from)?;
     progress.start(jobs.len() as u64, "materials");
     let results: Vec<Result<Timing, PipelineError>> = jobs
         .par_iter()
@@ -89,6 +107,9 @@ pub fn make_library(
     }
     Ok(total)
 }
+
+/// The command that makes material libraries, in matseg's markers.
+const COMMAND: &str = "pbr";
 
 /// The folder of material `j` of texture `i`.
 fn folder(out: &Path, library: &PhotoLibrary, i: usize, j: u64) -> PathBuf {
@@ -128,6 +149,7 @@ fn make_one(
     });
     write_material_folder(
         &folder(out, library, i, j),
+        COMMAND,
         &entry.licence,
         |d| material.write_maps(d),
         json,

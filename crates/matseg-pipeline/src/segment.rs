@@ -79,6 +79,27 @@ pub fn check_clicks(
     Ok(())
 }
 
+/// Refuses a negative click on the pixel of a positive one: a click
+/// cannot both select and exclude a material.
+pub fn check_contradictions(
+    points: &[(f32, f32)],
+    negatives: &[(f32, f32)],
+) -> Result<(), PipelineError> {
+    let pixel = |(x, y): (f32, f32)| (x.floor() as i64, y.floor() as i64);
+    for &negative in negatives {
+        if let Some(&(x, y)) = points.iter().find(|&&p| pixel(p) == pixel(negative)) {
+            return Err(PipelineError::setting(
+                "not",
+                Some(format!("{},{}", negative.0, negative.1)),
+                format!(
+                    "on the pixel of --point {x},{y}: a click cannot both select and exclude a material"
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Each point's answer, and the segmentation of several points.
 pub struct PointMaps {
     /// Per point, the cosine similarity of every pixel to the point's

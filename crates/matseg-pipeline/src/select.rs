@@ -6,8 +6,8 @@
 //! photos, a mask each and the share of each photo it covers.
 
 use crate::error::PipelineError;
-use crate::files::{create_folder, replace_folder, write_file};
-use crate::segment::{check_clicks, describe, Model, MAX_POINTS};
+use crate::files::{create_folder, write_file};
+use crate::segment::{check_clicks, check_contradictions, describe, Model, MAX_POINTS};
 use image::RgbImage;
 use matseg_image::io::{encode_png_grey, read_rgb};
 use matseg_query::coarse::CoarseDescriptors;
@@ -72,7 +72,8 @@ impl MaterialClicks {
             ));
         }
         check_clicks(photo, &points, label, "point")?;
-        check_clicks(photo, &self.negatives, label, "not")
+        check_clicks(photo, &self.negatives, label, "not")?;
+        check_contradictions(&points, &self.negatives)
     }
 }
 
@@ -158,16 +159,21 @@ pub fn write_selection(
     )
 }
 
-/// Reads a saved selection (`selection.json`, `selection_K.json`).
+/// Reads a saved selection (`selection.json`, `selection_K.json`) and
+/// checks what needs no model (SavedSelection::validate).
 pub fn read_selection(file: &Path) -> Result<SavedSelection, PipelineError> {
     let bytes = std::fs::read(file)
         .map_err(|e| PipelineError::file(file.display(), format!("cannot read: {e}")))?;
-    serde_json::from_slice(&bytes).map_err(|e| {
+    let saved: SavedSelection = serde_json::from_slice(&bytes).map_err(|e| {
         PipelineError::file(
             file.display(),
             format!("not a saved selection (model, radius, positive, negative): {e}"),
         )
-    })
+    })?;
+    saved
+        .validate()
+        .map_err(|e| PipelineError::file(file.display(), e.to_string()))?;
+    Ok(saved)
 }
 
 /// One photo's share of a selection applied to it.
@@ -190,57 +196,52 @@ impl AppliedArea {
     }
 }
 
-/// What [`apply_to_folder`] writes into its folder.
-const APPLY_OUTPUT: [&str; 3] = ["masks", "areas.csv", "selection.json"];
-
-/// Applies `saved` with `model` to each of `photos` and writes into `out`:
+/// Applies `saved` with `model` to each of `photos` and writes into the
+/// new folder `dir` (a staged output, matseg_image::outputs):
 /// `masks/NAME.png` per photo (NAME its file name's stem; 255 where
 /// selected), `areas.csv` (each photo's size, pixels selected and share)
 /// and the selection as `selection.json`. Photos are checked first (each
-/// decodes, names unique) and everything is written into `OUT.partial`,
-/// renamed into place at the end: a failure leaves nothing half-written.
-/// `advance` is called after each photo.
+/// decodes, names unique), before any is described. `advance` is called
+/// after each photo.
 pub fn apply_to_folder(
     model: &Model,
     saved: &SavedSelection,
     photos: &[PathBuf],
-    out: &Path,
+    dir: &Path,
     advance: &mut dyn FnMut(&AppliedArea),
 ) -> Result<Vec<AppliedArea>, PipelineError> {
     let names = mask_names(photos)?;
     for photo in photos {
-        matseg_image::io::read_dimensions(photo)?;
+        matseg_image::io::read_rgb(photo)?;
     }
-    replace_folder(out, &APPLY_OUTPUT, "apply", |dir| {
-        create_folder(&dir.join("masks"))?;
-        let mut areas = Vec::with_capacity(photos.len());
-        for (file, name) in photos.iter().zip(names) {
-            let photo = read_rgb(file)?;
-            let map = describe(model, &photo);
-            let selection = saved
-                .apply(&map, Some(&photo), map.grid.dim)
-                .map_err(|e| PipelineError::Settings(format!("selection: {e}")))?;
-            let (w, h) = photo.dimensions();
-            write_file(
-                &dir.join("masks").join(&name),
-                &encode_png_grey(w, h, &mask_grey(&selection.mask)),
-            )?;
-            let area = AppliedArea {
-                photo: file.clone(),
-                mask: name,
-                size: (w, h),
-                pixels: selection.mask.iter().filter(|&&m| m).count() as u64,
-            };
-            advance(&area);
-            areas.push(area);
-        }
-        write_file(&dir.join("areas.csv"), areas_csv(&areas).as_bytes())?;
+    create_folder(&dir.join("masks"))?;
+    let mut areas = Vec::with_capacity(photos.len());
+    for (file, name) in photos.iter().zip(names) {
+        let photo = read_rgb(file)?;
+        let map = describe(model, &photo);
+        let selection = saved
+            .apply(&map, Some(&photo), map.grid.dim)
+            .map_err(|e| PipelineError::Settings(format!("selection: {e}")))?;
+        let (w, h) = photo.dimensions();
         write_file(
-            &dir.join("selection.json"),
-            &serde_json::to_vec(saved).expect("a selection serialises"),
+            &dir.join("masks").join(&name),
+            &encode_png_grey(w, h, &mask_grey(&selection.mask)),
         )?;
-        Ok(areas)
-    })
+        let area = AppliedArea {
+            photo: file.clone(),
+            mask: name,
+            size: (w, h),
+            pixels: selection.mask.iter().filter(|&&m| m).count() as u64,
+        };
+        advance(&area);
+        areas.push(area);
+    }
+    write_file(&dir.join("areas.csv"), areas_csv(&areas).as_bytes())?;
+    write_file(
+        &dir.join("selection.json"),
+        &serde_json::to_vec(saved).expect("a selection serialises"),
+    )?;
+    Ok(areas)
 }
 
 /// Each photo's mask name, `STEM.png`; two photos of one stem are

@@ -48,7 +48,8 @@ struct MapsFile {
 }
 
 impl PhotoMaps {
-    /// Draws the maps of `photo` under `recipe` and writes into `out` each
+    /// Draws the maps of `photo` under `recipe` and writes into the folder
+    /// `out` (made when missing; a staged output, matseg_image::outputs) each
     /// raw map and weight (`raw_KK.png`, `weight_KK.png`), the background,
     /// the colour preview and `maps.json` (the records that redraw them).
     pub fn write(

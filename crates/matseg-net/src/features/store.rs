@@ -6,7 +6,7 @@ use super::{CacheManifest, MANIFEST_FILE, MEMBER_SUFFIX};
 use crate::NetError;
 use matseg_data::wds::{append_member, sample_key, shard_path};
 use matseg_data::{index_tar, read_tar_member, TarMember};
-use matseg_image::io::temporary_path;
+use matseg_image::outputs::{temporary_path, Layout, SharedFolder};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -113,6 +113,19 @@ impl FeatureCache {
     }
 }
 
+/// Whether `path`, an entry of a cache folder, is one a cache writer
+/// writes: a shard, or one being written.
+fn is_cache_entry(path: &Path) -> bool {
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    name.strip_prefix("shard-")
+        .and_then(|s| s.split_once(".tar"))
+        .is_some_and(|(index, rest)| {
+            !index.is_empty()
+                && index.bytes().all(|b| b.is_ascii_digit())
+                && (rest.is_empty() || rest.starts_with(".tmp"))
+        })
+}
+
 /// Writes a cache's shards: the manifest first (or the check that the
 /// folder's matches), then each shard whole.
 pub struct CacheWriter {
@@ -121,10 +134,20 @@ pub struct CacheWriter {
 }
 
 impl CacheWriter {
-    /// Starts (or continues) the cache `manifest` describes in `dir`. A
-    /// folder holding a cache made with other settings is refused.
+    /// Starts (or continues) the cache `manifest` describes in `dir` (a
+    /// folder `matseg features` adds to: matseg_image::outputs::SharedFolder).
+    /// A folder holding a cache made with other settings, or anything but a
+    /// cache's files, is refused.
     pub fn create(dir: &Path, manifest: CacheManifest) -> Result<Self, NetError> {
-        std::fs::create_dir_all(dir).map_err(|e| file_error(dir, format!("cannot create: {e}")))?;
+        let has_manifest = |d: &Path| d.join(MANIFEST_FILE).is_file();
+        let layout = Layout {
+            command: "features",
+            signed: Some(&has_manifest),
+            owns: &is_cache_entry,
+        };
+        let folder =
+            SharedFolder::open(dir, &layout, &[]).map_err(|e| file_error(&e.path, e.message))?;
+        let dir = folder.dir();
         let path = dir.join(MANIFEST_FILE);
         if path.is_file() {
             let have = CacheManifest::read(dir)?;
@@ -139,7 +162,7 @@ impl CacheWriter {
             }
         } else {
             let json = serde_json::to_vec_pretty(&manifest).expect("a manifest serialises");
-            matseg_image::io::write_atomic(&path, &json)
+            matseg_image::outputs::write_atomic(&path, &json)
                 .map_err(|e| file_error(&path, format!("cannot write: {e}")))?;
         }
         Ok(Self {

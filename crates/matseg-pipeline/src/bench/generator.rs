@@ -188,6 +188,11 @@ impl GeneratorBench {
                 "matseg-bench-{}-{t}-{format:?}",
                 std::process::id()
             ));
+            // A folder of this run's own, made new, so that removing it
+            // after the row removes nothing of anyone else's.
+            std::fs::create_dir(&dir).map_err(|e| {
+                PipelineError::file(dir.display(), format!("cannot make a scratch folder: {e}"))
+            })?;
             let opts = GenerateOptions {
                 out: dir.clone(),
                 n: self.scenes,

@@ -11,6 +11,7 @@ use crate::materials::bundled_materials;
 use crate::progress::Progress;
 use crate::sources::assets_dir;
 use matseg_extract::material_library::find_materials;
+use matseg_image::outputs::StagedOutput;
 use matseg_image::{Channel, Ramp};
 use matseg_render::camera::Camera;
 use matseg_render::mesh::Mesh;
@@ -76,6 +77,11 @@ impl RenderBench {
             .num_threads(self.threads)
             .build()
             .map_err(|e| PipelineError::Settings(format!("threads {}: {e}", self.threads)))?;
+        let staged = self
+            .write_scene
+            .as_ref()
+            .map(|dir| StagedOutput::begin(dir, "bench-render", &[&assets_dir()]))
+            .transpose()?;
         let library = bundled_materials(progress)?;
         let materials = find_materials(&library)?;
         if materials.is_empty() {
@@ -110,12 +116,14 @@ impl RenderBench {
             }
             last = Some(out);
         }
-        if let (Some(dir), Some(out)) = (&self.write_scene, &last) {
+        if let (Some(staged), Some(out)) = (staged, &last) {
+            let dir = staged.dir();
             let failed = |e: String| PipelineError::file(dir.display(), e);
             write_scene(dir, &scene, &loaded).map_err(|e| failed(e.to_string()))?;
             let img = matseg_render::tone_map(&out.radiance, out.width, out.height, 0.0);
             img.save(dir.join("image.png"))
                 .map_err(|e| failed(e.to_string()))?;
+            staged.finish()?;
         }
         let cpu = median(cpu);
         Ok(RenderReport {
@@ -269,9 +277,9 @@ pub fn reference_scene(
     }
 }
 
-/// Writes the scene description and each object's world-space mesh.
+/// Writes the scene description and each object's world-space mesh into
+/// the (staged) folder `dir`.
 fn write_scene(dir: &Path, scene: &SceneDescription, loaded: &LoadedScene) -> std::io::Result<()> {
-    std::fs::create_dir_all(dir)?;
     std::fs::write(dir.join("scene.json"), serde_json::to_vec_pretty(scene)?)?;
     for k in 0..scene.objects.len() {
         let mut mesh = Mesh::default();

@@ -19,6 +19,7 @@ use matseg_data::{generate_dataset, sample_rng, Dataset, Format, GenerateOptions
 use matseg_extract::pbr::{make_pbr, preview_sphere, PbrRecipe};
 use matseg_extract::textures::{extract_textures, TextureOptions};
 use matseg_image::io::{encode_png_grey, encode_png_rgb, read_rgb};
+use matseg_image::outputs::{Layout, SharedFolder};
 use matseg_image::{LicenceFilter, PhotoLibrary};
 use matseg_scene::Recipe2d;
 use page::{sample_cards, STYLE};
@@ -83,6 +84,16 @@ pub fn run(options: &DemoOptions, progress: &dyn Progress) -> Result<DemoReport,
             crate::error::NO_NET,
         ));
     }
+    let layout = Layout {
+        command: "demo",
+        signed: None,
+        owns: &is_demo_entry,
+    };
+    let folder = SharedFolder::open(&options.out, &layout, &[&assets_dir()])?;
+    let options = &DemoOptions {
+        out: folder.dir().to_path_buf(),
+        ..options.clone()
+    };
     let libs = Libraries::load(
         &[],
         &[],
@@ -167,6 +178,16 @@ Samples are in MatSeg folder layout under <code>samples-2d/</code>.</p>
         samples: dataset.len(),
         training,
     })
+}
+
+/// Whether `path`, an entry of a demo folder, is one the demo writes (a
+/// page, or the folder of a page's files).
+fn is_demo_entry(path: &Path) -> bool {
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    let pages = ["index.html", "materials.html", "scenes-3d.html", "net.html"];
+    let folders = ["materials", "samples-2d", "samples-3d", "net", "net-run"];
+    (pages.contains(&name.as_ref()) && path.is_file())
+        || (folders.contains(&name.as_ref()) && path.is_dir())
 }
 
 /// `materials.html`: uniform textures extracted from the bundled photos

@@ -7,7 +7,7 @@
 
 use super::DemoTraining;
 use crate::error::PipelineError;
-use crate::files::write_file;
+use crate::files::{write_file, write_folder};
 use crate::progress::Progress;
 use crate::segment::{describe, write_clusters, write_point_maps, Model, DEFAULT_RADIUS};
 use crate::select::MaterialClicks;
@@ -215,15 +215,15 @@ fn segmentation_rows(
         let map = describe(net, &image);
         let grouped: Vec<_> = points.iter().map(|&p| (None, p)).collect();
         let clicks = MaterialClicks::group(&grouped, Vec::new());
-        write_point_maps(
-            &image,
-            &map,
-            &clicks,
-            DEFAULT_RADIUS,
-            model,
-            &out.join(&by_points),
-        )?;
-        write_clusters(&image, &map, &ClusterOptions::new(AUTO_K), &out.join(&auto))?;
+        // Written as `matseg segment` writes them, so the commands shown
+        // beside them redo them in place.
+        let inputs = [photo.as_path()];
+        write_folder(&out.join(&by_points), "segment", &inputs, |dir| {
+            write_point_maps(&image, &map, &clicks, DEFAULT_RADIUS, model, dir)
+        })?;
+        write_folder(&out.join(&auto), "segment", &inputs, |dir| {
+            write_clusters(&image, &map, &ClusterOptions::new(AUTO_K), dir)
+        })?;
         let point_args: String = points
             .iter()
             .map(|(x, y)| format!(" --point {x},{y}"))
