@@ -916,7 +916,7 @@ fn a_feature_cache_trains_resumes_and_refuses_other_encoders_and_caches() {
         &matseg(&[
             "train",
             "--features",
-            dir.path().to_str().unwrap(),
+            &photos,
             "--out",
             run.to_str().unwrap(),
         ]),
@@ -1073,31 +1073,6 @@ fn bench_net_reports_one_batch_and_refuses_odd_sides() {
     }
     let odd = matseg(&["bench-net", "--side", "100"]);
     assert_one_line_error(&odd, "--side must be a positive multiple of 32");
-}
-
-/// A small scene: a split blob lit by the bundled forest HDRI, on a ground.
-fn write_scene(dir: &Path) -> std::path::PathBuf {
-    let scene = serde_json::json!({
-        "width": 40, "height": 30, "spp": 4, "seed": 2,
-        "camera": {"position": {"x": 0, "y": -150, "z": 60}, "target": {"x": 0, "y": 0, "z": 30}},
-        "environment": {"hdri": assets("hdris/forest.exr"), "rotation_deg": 40},
-        "materials": [
-            {"base_color": {"x": 0.8, "y": 0.1, "z": 0.1}},
-            {"base_color": {"x": 0.9, "y": 0.9, "z": 0.9}, "metallic": 1.0, "roughness": 0.2},
-            {"base_color": {"x": 0.3, "y": 0.3, "z": 0.3}}
-        ],
-        "maps": [{"photo": assets("photos/coffee.jpg"), "channel": "R", "normalise": "max"}],
-        "objects": [
-            {"mesh": {"primitive": {"shape": "blob", "seed": 1, "bumps": 5, "amplitude": 0.2}}, "radius": 30,
-             "main": true, "transform": {"translation": {"x": 0, "y": 0, "z": 30}},
-             "surface": {"split": {"map": 0, "placement": {"scale": 0.5}, "ramp": {"low": 0.4, "high": 0.6},
-                                   "below": {"material": 0}, "above": {"material": 1}}}},
-            {"mesh": "plane", "transform": {"scale": 300}, "surface": {"material": 2}}
-        ]
-    });
-    let path = dir.join("scene.json");
-    std::fs::write(&path, serde_json::to_vec_pretty(&scene).unwrap()).unwrap();
-    path
 }
 
 #[test]

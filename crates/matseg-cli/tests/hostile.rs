@@ -51,6 +51,45 @@ impl Files {
             br#"{"model": "default", "radius": 5, "positive": [[1.0]], "negative": [], "positive_colours": [[1.0, 2.0]]}"#,
         );
         files.write("junk.json", b"{\"objects\": [1, 2,");
+        // Saved selections that read as JSON but select nothing sound.
+        let colours = format!("[{}]", vec!["1e30"; 32].join(", "));
+        for (name, fields) in [
+            (
+                "zero.json",
+                r#""positive": [[0.0, 0.0]], "negative": []"#.to_string(),
+            ),
+            (
+                "huge.json",
+                r#""positive": [[1e30, 1.0]], "negative": []"#.to_string(),
+            ),
+            (
+                "max.json",
+                r#""positive": [[3e38, 3e38]], "negative": []"#.to_string(),
+            ),
+            (
+                "bright.json",
+                format!(
+                    r#""positive": [[1.0, 0.0]], "negative": [], "positive_colours": [{colours}]"#
+                ),
+            ),
+            (
+                "both.json",
+                r#""positive": [[0.6, 0.8]], "negative": [[0.6, 0.8]]"#.to_string(),
+            ),
+        ] {
+            files.write(
+                name,
+                format!(r#"{{"model": "default", "radius": 5, {fields}}}"#).as_bytes(),
+            );
+        }
+        files.write(
+            "far.json",
+            br#"{"model": "default", "radius": -1, "positive": [[1.0]], "negative": []}"#,
+        );
+        files.write(
+            "nameless.json",
+            br#"{"model": "", "radius": 5, "positive": [[1.0]], "negative": []}"#,
+        );
         files.write("empty.pth", b"");
         files.write("text.pth", b"not a checkpoint");
         files.write(
@@ -58,7 +97,13 @@ impl Files {
             b"\x10\x00\x00\x00\x00\x00\x00\x00{\"a\":",
         );
         files.write("lying.safetensors", &lying_safetensors());
-        for folder in ["bad-photos", "bench/images", "bench/data/cut", "masks"] {
+        for folder in [
+            "bad-photos",
+            "bench/images",
+            "bench/data/cut",
+            "masks",
+            "blank",
+        ] {
             std::fs::create_dir_all(files.path(folder)).unwrap();
         }
         for name in ["empty.jpg", "text.jpg", "cut.jpg"] {
@@ -71,6 +116,44 @@ impl Files {
         );
         std::fs::copy(files.path("cut.jpg"), files.path("masks/a.jpg")).unwrap();
         files.write("masks/a.mask0.png", &png[..png.len() / 3]);
+        // A mask benchmark with nothing to score: its one mask is empty.
+        let grass = image::load_from_memory(&png).unwrap();
+        files.write("blank/a.png", &png);
+        image::GrayImage::new(grass.width(), grass.height())
+            .save(files.path("blank/a.mask0.png"))
+            .unwrap();
+        // Three small frames of a clip.
+        std::fs::create_dir_all(files.path("frames")).unwrap();
+        let frame = grass.resize_exact(64, 48, image::imageops::FilterType::Triangle);
+        for k in 0..3 {
+            frame
+                .save(files.path(&format!("frames/{k:04}.png")))
+                .unwrap();
+        }
+        // A generated dataset whose one sample lost its first mask.
+        matseg_ok(&[
+            "generate",
+            "-n",
+            "1",
+            "--size-range",
+            "64..64",
+            "--out",
+            &files.arg("gen-no-mask0"),
+        ]);
+        std::fs::remove_file(files.path("gen-no-mask0/00000000/mask0.png")).unwrap();
+        // A selection the shipped model made, to apply.
+        if cfg!(feature = "net") {
+            let made = files.path("made");
+            matseg_ok(&[
+                "segment",
+                &assets("photos/coffee.jpg"),
+                "--point",
+                "290,130",
+                "--out",
+                made.to_str().unwrap(),
+            ]);
+            std::fs::rename(made.join("selection_0.json"), files.path("selection.json")).unwrap();
+        }
         files
     }
 
@@ -383,6 +466,29 @@ fn cases(f: &Files) -> Vec<Case> {
         "radius",
     );
     add(&["bench-set", "make", "-n", "0", "--out", o], "--scenes");
+    add(
+        &[
+            "eval",
+            "clicks",
+            &f.arg("blank"),
+            "--baseline",
+            "rgb",
+            "--model",
+            "none",
+        ],
+        "no mask could be scored",
+    );
+    add(
+        &[
+            "bench-set",
+            "masks",
+            "--from",
+            &f.arg("gen-no-mask0"),
+            "--out",
+            o,
+        ],
+        "mask0.png is missing",
+    );
     // Weights.
     for file in ["empty.pth", "text.pth", "cut.jpg", "missing.pth"] {
         add(&["weights", "import", &f.arg(file), "--out", o], file);
@@ -445,12 +551,61 @@ fn net_cases(f: &Files) -> Vec<Case> {
         &[&["segment", coffee.as_str(), "--out", o], many.as_slice()].concat(),
         "300 points",
     );
-    for selection in ["text.jpg", "empty.jpg", "colours.json"] {
+    for selection in [
+        "text.jpg",
+        "empty.jpg",
+        "colours.json",
+        "zero.json",
+        "huge.json",
+        "max.json",
+        "bright.json",
+        "both.json",
+        "far.json",
+        "nameless.json",
+    ] {
         add(
             &["apply", &f.arg(selection), &coffee, "--out", o],
             selection,
         );
     }
+    add(
+        &[
+            "track",
+            &f.arg("frames"),
+            "--point",
+            "30,45",
+            "--not",
+            "30,45",
+            "--out",
+            o,
+        ],
+        "not 30,45",
+    );
+    add(
+        &[
+            "segment",
+            &coffee,
+            "--point",
+            "30,45",
+            "--not",
+            "30.5,45.2",
+            "--out",
+            o,
+        ],
+        "not 30.5,45.2",
+    );
+    // A truncated photo among good ones: refused before any is described.
+    add(
+        &[
+            "apply",
+            &f.arg("selection.json"),
+            &coffee,
+            &f.arg("cut.jpg"),
+            "--out",
+            o,
+        ],
+        "cut.jpg",
+    );
     add(&["segment", &coffee, "--auto", "1", "--out", o], "--auto");
     add(&["segment", &coffee, "--auto", "900", "--out", o], "--auto");
     add(

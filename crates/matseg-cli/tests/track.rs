@@ -375,7 +375,7 @@ fn bad_videos_and_settings_are_one_line_errors_that_leave_nothing() {
         "--out",
         taken.to_str().unwrap(),
     ]);
-    assert_one_line_error(&out, "holds \"keep.txt\", which no track output has");
+    assert_one_line_error(&out, "holds \"keep.txt\", which matseg did not write");
     assert!(taken.join("keep.txt").is_file());
     // Nor is an earlier output with a file of the user's beside it.
     let track_into = |out: &str| {
@@ -401,7 +401,10 @@ fn bad_videos_and_settings_are_one_line_errors_that_leave_nothing() {
     };
     let before = listing(&earlier);
     let out = track_into(&format!("{}/", earlier.display()));
-    assert_one_line_error(&out, "holds \"notes.txt\", which no track output has");
+    assert_one_line_error(
+        &out,
+        "holds \"notes.txt\", which `matseg track` did not write",
+    );
     assert_eq!(listing(&earlier), before);
     // A trailing slash names the folder itself: its earlier output is
     // replaced, and nothing is left beside or inside it.

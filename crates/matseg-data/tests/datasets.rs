@@ -162,9 +162,11 @@ fn rerun_skips_complete_samples_and_redoes_interrupted_ones() {
 
     // Simulate an interruption: one sample lost its marker, one left a partial folder.
     std::fs::remove_file(dir.path().join("00000002/Finished.txt")).unwrap();
-    // A crash just before the rename leaves a partial folder that looks whole.
+    // A crash just before the rename leaves a partial folder that looks
+    // whole, with the marker matseg staged it with.
     let partial = dir.path().join("00000003.partial");
     std::fs::create_dir(&partial).unwrap();
+    std::fs::write(partial.join(".matseg-output"), r#"{"command": "generate"}"#).unwrap();
     for name in [
         "RGB__RGB.jpg",
         "mask0.png",
@@ -177,13 +179,49 @@ fn rerun_skips_complete_samples_and_redoes_interrupted_ones() {
     assert_eq!(ds.len(), 3, "an unfinished sample is not read as complete");
     assert_eq!(ds.incomplete(), 2);
 
+    // Someone else's folder of a staging name, without the marker.
+    let foreign = dir.path().join("00000001.partial");
+    std::fs::create_dir(&foreign).unwrap();
+    std::fs::write(foreign.join("notes.txt"), "mine").unwrap();
+
     let report = run(&opts, 2);
     assert_eq!((report.generated, report.skipped), (1, 3));
     assert!(!partial.exists(), "the rerun removes leftovers");
+    assert_eq!(std::fs::read(foreign.join("notes.txt")).unwrap(), b"mine");
+    std::fs::remove_dir_all(&foreign).unwrap();
     assert!(
         tree(dir.path()) == before,
         "regenerated sample is byte-identical"
     );
+
+    // An unfinished sample's folder holding someone else's file is
+    // refused, naming it, and left as it was; so is a staging folder of a
+    // sample to write that matseg did not make.
+    let refusal = |opts: &GenerateOptions| {
+        let (photos, textures) = libraries();
+        let sources = Sources {
+            photos: &photos,
+            textures: &textures,
+        };
+        generate_dataset(opts, &small_recipe(), sources, &Silent)
+            .unwrap_err()
+            .to_string()
+    };
+    std::fs::remove_file(dir.path().join("00000002/Finished.txt")).unwrap();
+    std::fs::write(dir.path().join("00000002/notes.txt"), "mine").unwrap();
+    let e = refusal(&opts);
+    assert!(e.contains("00000002"), "{e}");
+    assert_eq!(
+        std::fs::read(dir.path().join("00000002/notes.txt")).unwrap(),
+        b"mine"
+    );
+    std::fs::remove_file(dir.path().join("00000002/notes.txt")).unwrap();
+    std::fs::create_dir(dir.path().join("00000002.partial")).unwrap();
+    let e = refusal(&opts);
+    assert!(e.contains("00000002.partial"), "{e}");
+    std::fs::remove_dir(dir.path().join("00000002.partial")).unwrap();
+    run(&opts, 1);
+    assert!(tree(dir.path()) == before);
 
     // A stale .tmp shard is ignored by readers and replaced on rerun.
     let wds = tempfile::tempdir().unwrap();
@@ -259,4 +297,49 @@ fn a_job_counts_the_samples_of_its_own_units() {
         options(dir.path(), 7, Format::Wds, JobSlice::ALL).samples_in_job(),
         7
     );
+}
+
+#[test]
+fn a_sample_missing_a_mask_its_sidecar_lists_is_refused_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let opts = options(dir.path(), 2, Format::Folders, JobSlice::ALL);
+    run(&opts, 1);
+    let sample = dir.path().join("00000001");
+    let masks = std::fs::read_dir(&sample)
+        .unwrap()
+        .filter(|e| {
+            e.as_ref()
+                .unwrap()
+                .file_name()
+                .to_string_lossy()
+                .starts_with("mask")
+        })
+        .count();
+    assert!(masks >= 1);
+    let ds = Dataset::open(dir.path()).unwrap();
+    assert_eq!(ds.get(1).unwrap().masks.len(), masks);
+    // mask0 lost: the other masks must not move up to take its place.
+    std::fs::remove_file(sample.join("mask0.png")).unwrap();
+    let e = Dataset::open(dir.path())
+        .unwrap()
+        .get(1)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("00000001") && e.contains("mask0.png is missing"),
+        "{e}"
+    );
+    // A mask beyond the listed ones.
+    std::fs::copy(sample.join("RGB__RGB.jpg"), sample.join("mask0.png")).unwrap();
+    std::fs::copy(
+        sample.join("ObjectMaskOcluded.png"),
+        sample.join(format!("mask{masks}.png")),
+    )
+    .unwrap();
+    let e = Dataset::open(dir.path())
+        .unwrap()
+        .get(1)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains(&format!("mask{masks}.png beyond")), "{e}");
 }
