@@ -167,22 +167,20 @@ fn rows(f: &Inputs) -> Vec<Row> {
         staged,
     };
     let (photos, textures) = (f.arg("photos"), f.arg("textures"));
+    // A generator's arguments, reading the test's photos and textures.
+    let sources = [
+        "--sources",
+        &photos,
+        "--textures",
+        &textures,
+        "--out",
+        "OUT",
+    ];
+    let sourced = |args: &[&'static str]| [args, &sources[..]].concat();
     let coffee = f.arg("photos/coffee.jpg");
     let mut rows = vec![
         row(
-            &[
-                "generate",
-                "-n",
-                "1",
-                "--size-range",
-                "64..64",
-                "--sources",
-                &photos,
-                "--textures",
-                &textures,
-                "--out",
-                "OUT",
-            ],
+            &sourced(&["generate", "-n", "1", "--size-range", "64..64"]),
             "photos",
             "00000000",
             false,
@@ -218,18 +216,7 @@ fn rows(f: &Inputs) -> Vec<Row> {
             true,
         ),
         row(
-            &[
-                "bench-set",
-                "make",
-                "-n",
-                "2",
-                "--sources",
-                &photos,
-                "--textures",
-                &textures,
-                "--out",
-                "OUT",
-            ],
+            &sourced(&["bench-set", "make", "-n", "2"]),
             "photos",
             "images",
             true,
