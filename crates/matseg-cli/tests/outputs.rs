@@ -148,12 +148,13 @@ fn assert_refused(root: &Path, args: &[&str], out: &Path, names: &[&str]) {
 }
 
 /// One command as the table runs it: its arguments (`OUT` for the
-/// output), an input it reads (an `--out` inside it, or holding it, is
-/// refused) and a name it writes in its output folder (a file or folder of
-/// the user's by that name is refused).
+/// output), an input of the test's it reads (an `--out` inside it, or
+/// holding it, is refused; none for commands that read only the bundled
+/// assets) and a name it writes in its output folder (a file or folder of
+/// the user's by that name is refused; empty: the output is that file).
 struct Row {
     args: Vec<String>,
-    input: PathBuf,
+    input: Option<PathBuf>,
     writes: &'static str,
     /// Whether it writes its folder whole through `OUT.partial`.
     staged: bool,
@@ -162,7 +163,7 @@ struct Row {
 fn rows(f: &Inputs) -> Vec<Row> {
     let row = |args: &[&str], input: &str, writes: &'static str, staged: bool| Row {
         args: args.iter().map(|a| a.to_string()).collect(),
-        input: f.path(input),
+        input: (!input.is_empty()).then(|| f.path(input)),
         writes,
         staged,
     };
@@ -240,6 +241,56 @@ fn rows(f: &Inputs) -> Vec<Row> {
             "scene00000.png",
             true,
         ),
+        row(
+            &[
+                "weights",
+                "half",
+                &f.arg("weights/model.safetensors"),
+                "--out",
+                "OUT",
+            ],
+            "weights/model.safetensors",
+            "",
+            false,
+        ),
+        row(
+            &[
+                "demo",
+                "-n",
+                "1",
+                "--samples-3d",
+                "0",
+                "--train-steps",
+                "0",
+                "--out",
+                "OUT",
+            ],
+            "",
+            "index.html",
+            false,
+        ),
+        row(
+            &["assets", "fetch", "--only", "weights", "--cache", "OUT"],
+            "",
+            "notes.txt",
+            false,
+        ),
+        row(
+            &[
+                "bench-render",
+                "--size",
+                "8",
+                "--spp",
+                "1",
+                "--repeats",
+                "1",
+                "--write-scene",
+                "OUT",
+            ],
+            "",
+            "scene.json",
+            true,
+        ),
     ];
     if cfg!(feature = "net") {
         rows.extend([
@@ -309,25 +360,30 @@ fn no_command_deletes_or_changes_a_file_it_did_not_make() {
     let root = f.dir.path();
     for (k, row) in rows(&f).iter().enumerate() {
         let args: Vec<&str> = row.args.iter().map(String::as_str).collect();
-        // An --out inside an input (or the input file itself), and one
-        // holding it.
-        let inside = if row.input.is_dir() {
-            row.input.join("out")
-        } else {
-            row.input.clone()
-        };
-        let input = row.input.display().to_string();
-        let out = inside.display().to_string();
-        assert_refused(root, &args, &inside, &[&out, &input]);
-        // The folder holding it holds an input (this one, or another).
-        let holding = row.input.parent().unwrap().to_path_buf();
-        let out = holding.display().to_string();
-        assert_refused(root, &args, &holding, &[&out, "holds the input"]);
+        if let Some(input) = &row.input {
+            // An --out inside an input (or the input file itself), and one
+            // holding it.
+            let inside = if input.is_dir() {
+                input.join("out")
+            } else {
+                input.clone()
+            };
+            let (out, input_name) = (inside.display().to_string(), input.display().to_string());
+            assert_refused(root, &args, &inside, &[&out, &input_name]);
+            // The folder holding it holds an input (this one, or another).
+            let holding = input.parent().unwrap().to_path_buf();
+            let out = holding.display().to_string();
+            assert_refused(root, &args, &holding, &[&out, "holds the input"]);
+        }
         // Someone else's file or folder under a name the command writes,
-        // in a folder of its own.
-        let out = f.path(&format!("case{k}/out"));
+        // in a folder of its own (or someone's file as the output file).
+        let folder = f.path(&format!("case{k}"));
+        let out = folder.join("out");
         let foreign = out.join(row.writes);
-        if row.writes.contains('.') {
+        if row.writes.is_empty() {
+            std::fs::create_dir_all(&folder).unwrap();
+            std::fs::write(&out, "mine").unwrap();
+        } else if row.writes.contains('.') {
             std::fs::create_dir_all(&out).unwrap();
             std::fs::write(&foreign, "mine").unwrap();
         } else {
@@ -335,15 +391,22 @@ fn no_command_deletes_or_changes_a_file_it_did_not_make() {
             std::fs::write(foreign.join("notes.txt"), "mine").unwrap();
         }
         assert_refused(root, &args, &out, &[&out.display().to_string()]);
-        std::fs::remove_dir_all(&out).unwrap();
+        std::fs::remove_dir_all(&folder).unwrap();
         if row.staged {
             // Someone else's folder where the staging folder goes.
-            let staging = f.path(&format!("case{k}/out.partial"));
+            let staging = partial(&out);
             std::fs::create_dir_all(&staging).unwrap();
             std::fs::write(staging.join("keep.txt"), "mine").unwrap();
             assert_refused(root, &args, &out, &[&staging.display().to_string()]);
         }
     }
+}
+
+/// The staging folder of the output folder `out`: `OUT.partial`.
+fn partial(out: &Path) -> PathBuf {
+    let mut name = out.as_os_str().to_owned();
+    name.push(".partial");
+    PathBuf::from(name)
 }
 
 /// The files of the output of `args` (`OUT` for the output) run into a

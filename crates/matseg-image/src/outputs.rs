@@ -274,7 +274,7 @@ fn replace_refusal(out: &Path, command: &str) -> Option<String> {
         return None;
     };
     if !meta.is_dir() {
-        return Some("is a file, not a folder: choose another --out".into());
+        return Some("is not a folder (a file, or a link): choose another --out".into());
     }
     let Some(marker) = Marker::read(out) else {
         let first = first_entry(out)?;
@@ -520,7 +520,7 @@ impl SharedFolder {
         if dir.symlink_metadata().is_ok() && !dir.is_dir() {
             return Err(OutputError::new(
                 &dir,
-                "is a file, not a folder: choose another --out",
+                "is not a folder (a file, or a link): choose another --out",
             ));
         }
         let marked = Marker::read(&dir);

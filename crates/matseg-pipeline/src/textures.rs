@@ -44,9 +44,12 @@ fn photo_paths(photos: &[PathBuf]) -> Vec<&Path> {
 }
 
 /// Whether `path`, an entry of a texture library, is one `matseg
-/// textures` writes: a crop (`STEM__K.jpg`), the records, or the library's
-/// `licenses.json` beside them.
+/// textures` writes in a library it made (one with `records/`): a crop
+/// (`STEM__K.jpg`), the records, or the library's `licenses.json`.
 fn is_library_entry(path: &Path) -> bool {
+    if !path.with_file_name("records").is_dir() {
+        return false;
+    }
     let name = path.file_name().unwrap_or_default().to_string_lossy();
     let crop = name
         .strip_suffix(".jpg")
@@ -54,7 +57,7 @@ fn is_library_entry(path: &Path) -> bool {
         .is_some_and(|(_, k)| !k.is_empty() && k.bytes().all(|b| b.is_ascii_digit()));
     match name.as_ref() {
         "records" => path.is_dir(),
-        LICENCES => path.is_file() && path.with_file_name("records").is_dir(),
+        LICENCES => path.is_file(),
         _ => crop && path.is_file(),
     }
 }

@@ -181,11 +181,26 @@ Samples are in MatSeg folder layout under <code>samples-2d/</code>.</p>
 }
 
 /// Whether `path`, an entry of a demo folder, is one the demo writes (a
-/// page, or the folder of a page's files).
+/// page, or the folder of a page's files) in a folder the demo made: one
+/// holding the demo's dataset, `samples-2d/dataset.json`.
 fn is_demo_entry(path: &Path) -> bool {
+    if !path
+        .with_file_name("samples-2d")
+        .join("dataset.json")
+        .is_file()
+    {
+        return false;
+    }
     let name = path.file_name().unwrap_or_default().to_string_lossy();
     let pages = ["index.html", "materials.html", "scenes-3d.html", "net.html"];
-    let folders = ["materials", "samples-2d", "samples-3d", "net", "net-run"];
+    let folders = [
+        "materials",
+        "previews",
+        "samples-2d",
+        "samples-3d",
+        "net",
+        "net-run",
+    ];
     (pages.contains(&name.as_ref()) && path.is_file())
         || (folders.contains(&name.as_ref()) && path.is_dir())
 }
