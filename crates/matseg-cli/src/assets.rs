@@ -6,7 +6,7 @@ use anyhow::{bail, Context, Result};
 use clap::Subcommand;
 use matseg_assets::fetch::CacheLayout;
 use matseg_assets::{fetch, Catalogue, Kind, Manifest, RegistryClients};
-use matseg_image::outputs::{Layout, SharedFolder};
+use matseg_image::outputs::{Layout, SharedFolder, Sign};
 use matseg_pipeline::sources::cache_root;
 use std::path::{Path, PathBuf};
 
@@ -121,7 +121,7 @@ fn run_fetch(args: FetchArgs) -> Result<()> {
         &root,
         &Layout {
             command: "assets",
-            signed: None,
+            sign: Sign::Marker,
             owns: &is_cache_entry,
         },
         &inputs,

@@ -301,7 +301,7 @@ fn open_dataset_folder(out: &Path) -> Result<SharedFolder, GenerateError> {
     let has_manifest = |dir: &Path| dir.join(MANIFEST_FILE).is_file();
     let layout = outputs::Layout {
         command: folders::COMMAND,
-        signed: Some(&has_manifest),
+        sign: outputs::Sign::Own(&has_manifest),
         owns: &is_dataset_entry,
     };
     Ok(SharedFolder::open(out, &layout, &[])?)

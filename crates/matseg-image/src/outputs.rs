@@ -476,13 +476,24 @@ pub struct SharedFolder {
 pub struct Layout<'a> {
     /// The command (`generate`, `textures`...).
     pub command: &'a str,
-    /// Whether an existing folder carries the command's sign other than
-    /// matseg's marker (a dataset's manifest); `None` for commands that
-    /// use the marker alone.
-    pub signed: Option<&'a dyn Fn(&Path) -> bool>,
+    /// What tells that a folder is the command's.
+    pub sign: Sign<'a>,
     /// Whether an entry of the folder (by its path) is one the command
-    /// writes, whole or in part.
+    /// writes, whole or in part: a folder without the command's sign is
+    /// the command's only when all its entries are.
     pub owns: &'a dyn Fn(&Path) -> bool,
+}
+
+/// What tells that a shared folder is a command's.
+pub enum Sign<'a> {
+    /// matseg's marker, written when the folder is opened.
+    Marker,
+    /// A file of the command's own (a dataset's manifest), which this
+    /// tells is in the folder; no marker is written.
+    Own(&'a dyn Fn(&Path) -> bool),
+    /// Nothing but its entries (a training run's new folder); no marker
+    /// is written.
+    Entries,
 }
 
 impl SharedFolder {
@@ -495,7 +506,7 @@ impl SharedFolder {
         let marked = Marker::read(&dir).is_some();
         std::fs::create_dir_all(&dir)
             .map_err(|e| OutputError::new(&dir, format!("cannot create: {e}")))?;
-        if !marked && layout.signed.is_none() {
+        if !marked && matches!(layout.sign, Sign::Marker) {
             Marker {
                 command: layout.command.to_string(),
                 ..Marker::default()
@@ -535,7 +546,11 @@ impl SharedFolder {
                 ));
             }
         }
-        let signed = marked.is_some() || layout.signed.is_some_and(|signed| signed(&dir));
+        let signed = marked.is_some()
+            || match layout.sign {
+                Sign::Own(signed) => signed(&dir),
+                Sign::Marker | Sign::Entries => false,
+            };
         if !signed {
             if let Some(foreign) = foreign_entry(&dir, layout.owns) {
                 return Err(OutputError::new(
@@ -862,7 +877,7 @@ mod tests {
         };
         let layout = Layout {
             command: "textures",
-            signed: None,
+            sign: Sign::Marker,
             owns: &texture,
         };
         let lib = dir.path().join("lib");
@@ -893,7 +908,7 @@ mod tests {
         let signed = |d: &Path| d.join("dataset.json").is_file();
         let generate = Layout {
             command: "generate",
-            signed: Some(&signed),
+            sign: Sign::Own(&signed),
             owns: &|_: &Path| false,
         };
         let data = dir.path().join("data");

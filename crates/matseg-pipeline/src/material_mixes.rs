@@ -9,7 +9,7 @@ use matseg_extract::material_library::{
     MaterialError, MaterialMaps,
 };
 use matseg_extract::pbr_mix::{mix_materials, MixRecipe};
-use matseg_image::outputs::{Layout, SharedFolder};
+use matseg_image::outputs::{Layout, SharedFolder, Sign};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -52,7 +52,7 @@ pub fn make_mixes(
     let owns = |path: &Path| is_library_entry(path, COMMAND);
     let layout = Layout {
         command: COMMAND,
-        signed: None,
+        sign: Sign::Marker,
         owns: &owns,
     };
     let shared = SharedFolder::open(out, &layout, &[materials])?;

@@ -11,7 +11,7 @@ use matseg_extract::material_library::{
 };
 use matseg_extract::pbr::{make_pbr, PbrRecipe};
 use matseg_image::io::read_rgb;
-use matseg_image::outputs::{Layout, SharedFolder};
+use matseg_image::outputs::{Layout, SharedFolder, Sign};
 use matseg_image::PhotoLibrary;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -58,7 +58,7 @@ pub fn make_library(
     let owns = |path: &Path| is_library_entry(path, COMMAND);
     let layout = Layout {
         command: COMMAND,
-        signed: None,
+        sign: Sign::Marker,
         owns: &owns,
     };
     let inputs: Vec<&Path> = textures.iter().map(PathBuf::as_path).collect();

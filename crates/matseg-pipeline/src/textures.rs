@@ -11,7 +11,7 @@ use crate::sources::SourceError;
 use matseg_extract::textures::{extract_textures, TextureOptions, TextureSquare, CHANNEL_NAMES};
 use matseg_image::io::{encode_jpeg, read_rgb};
 use matseg_image::library::PhotoEntry;
-use matseg_image::outputs::{Layout, SharedFolder};
+use matseg_image::outputs::{Layout, SharedFolder, Sign};
 use matseg_image::PhotoLibrary;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -121,7 +121,7 @@ pub fn make_texture_library(
         .collect();
     let library_layout = Layout {
         command: "textures",
-        signed: None,
+        sign: Sign::Marker,
         owns: &is_library_entry,
     };
     let folder = SharedFolder::open(out, &library_layout, &photo_paths(photos))?;

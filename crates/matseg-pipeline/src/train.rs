@@ -10,7 +10,7 @@ use crate::sources::Libraries;
 use crate::weights::{imagenet_weights, read_weights};
 use matseg_data::Dataset;
 use matseg_eval::{evaluate_points, load_point_benchmark, PointBenchmark};
-use matseg_image::outputs::{Layout, SharedFolder};
+use matseg_image::outputs::{Layout, SharedFolder, Sign};
 use matseg_image::progress::Silent;
 use matseg_net::colour::COLOUR_PART;
 use matseg_net::data::{BatchPlan, DatasetSource, GeneratorSource, MixedSource, SampleSource};
@@ -291,7 +291,7 @@ pub fn start(config: &TrainConfig, device: ComputeDevice) -> Result<TrainingRun,
     }
     let layout = Layout {
         command: "train",
-        signed: Some(&|_: &Path| false),
+        sign: Sign::Entries,
         owns: &is_run_entry,
     };
     SharedFolder::check(&dir, &layout, &inputs)?;

@@ -6,7 +6,7 @@ use super::{CacheManifest, MANIFEST_FILE, MEMBER_SUFFIX};
 use crate::NetError;
 use matseg_data::wds::{append_member, sample_key, shard_path};
 use matseg_data::{index_tar, read_tar_member, TarMember};
-use matseg_image::outputs::{temporary_path, Layout, SharedFolder};
+use matseg_image::outputs::{temporary_path, Layout, SharedFolder, Sign};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -142,7 +142,7 @@ impl CacheWriter {
         let has_manifest = |d: &Path| d.join(MANIFEST_FILE).is_file();
         let layout = Layout {
             command: "features",
-            signed: Some(&has_manifest),
+            sign: Sign::Own(&has_manifest),
             owns: &is_cache_entry,
         };
         let folder =

@@ -19,7 +19,7 @@ use matseg_data::{generate_dataset, sample_rng, Dataset, Format, GenerateOptions
 use matseg_extract::pbr::{make_pbr, preview_sphere, PbrRecipe};
 use matseg_extract::textures::{extract_textures, TextureOptions};
 use matseg_image::io::{encode_png_grey, encode_png_rgb, read_rgb};
-use matseg_image::outputs::{Layout, SharedFolder};
+use matseg_image::outputs::{Layout, SharedFolder, Sign};
 use matseg_image::{LicenceFilter, PhotoLibrary};
 use matseg_scene::Recipe2d;
 use page::{sample_cards, STYLE};
@@ -86,7 +86,7 @@ pub fn run(options: &DemoOptions, progress: &dyn Progress) -> Result<DemoReport,
     }
     let layout = Layout {
         command: "demo",
-        signed: None,
+        sign: Sign::Marker,
         owns: &is_demo_entry,
     };
     let folder = SharedFolder::open(&options.out, &layout, &[&assets_dir()])?;
