@@ -5,10 +5,11 @@
 //! `matseg eval points` and the evaluate page read what this saves.
 
 use crate::app::{blocking, ApiError, AppState};
+use crate::roots::{inside, plain_name, Roots};
 use axum::body::Bytes;
 use axum::extract::{Query, State};
 use axum::Json;
-use matseg_eval::annotation::{find_image, list_images, Annotation};
+use matseg_eval::annotation::{find_image, list_images, Annotation, DATA_FILE, RELATIONS_FILE};
 use serde::Deserialize;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
@@ -34,22 +35,70 @@ impl BenchFolder {
     }
 
     /// The benchmark's images (names without extension and files), sorted
-    /// by name, as `matseg eval points` finds them.
+    /// by name, as `matseg eval points` finds them; names that are not
+    /// plain file names ([`plain_name`]) are left out.
     pub fn images(&self) -> Result<Vec<(String, PathBuf)>, ApiError> {
-        list_images(&self.folder).map_err(|e| ApiError::not_found(e.to_string()))
+        let listed = list_images(&self.folder).map_err(|e| ApiError::not_found(e.to_string()))?;
+        Ok(listed
+            .into_iter()
+            .filter(|(name, _)| plain_name(name).is_ok())
+            .collect())
     }
 
-    /// The folder of `name`'s annotation.
-    fn data_dir(&self, name: &str) -> PathBuf {
-        self.folder.join("data").join(name)
+    /// The image `name` of this benchmark: the one way the annotate routes
+    /// turn a name into files. `name` must be a plain file name (403
+    /// otherwise: no folder, no `..`) of an image the benchmark lists
+    /// (`images/NAME.EXT`; 404 otherwise); its file, its annotation's
+    /// folder `data/NAME` and the files in it must lie under the benchmark
+    /// once symlinks are followed (403 otherwise).
+    pub fn image(&self, roots: &Roots, name: &str) -> Result<BenchImage, ApiError> {
+        if name.is_empty() {
+            return Err(ApiError::bad(
+                "name: give the name of one of the benchmark's images",
+            ));
+        }
+        let name = plain_name(name)?;
+        let missing = || {
+            ApiError::not_found(format!(
+                "{name:?}: no such image in {}/images",
+                self.folder.display()
+            ))
+        };
+        let found = find_image(&self.folder, name).ok_or_else(missing)?;
+        let file_name = found
+            .file_name()
+            .and_then(|f| f.to_str())
+            .ok_or_else(missing)?;
+        let file = roots.resolve(&self.root, &format!("images/{file_name}"))?;
+        let data_dir = inside(&self.folder, &self.folder.join("data").join(name), name)?;
+        for part in [DATA_FILE, RELATIONS_FILE] {
+            inside(&self.folder, &data_dir.join(part), name)?;
+        }
+        Ok(BenchImage {
+            name: name.to_string(),
+            file,
+            data_dir,
+        })
     }
 
-    /// The annotation saved for `name` (no groups when there is none).
-    fn annotation(&self, name: &str) -> Result<Annotation, ApiError> {
-        Annotation::read(&self.data_dir(name))
+    /// The annotation saved for `image` (no groups when there is none).
+    fn annotation(&self, image: &BenchImage) -> Result<Annotation, ApiError> {
+        Annotation::read(&image.data_dir)
             .map(Option::unwrap_or_default)
             .map_err(|e| ApiError::bad(e.to_string()))
     }
+}
+
+/// An image of a benchmark and its annotation's folder, found and checked
+/// by [`BenchFolder::image`].
+pub struct BenchImage {
+    /// Its name (the file name without its extension).
+    pub name: String,
+    /// Its file, under the benchmark's `images/`.
+    pub file: PathBuf,
+    /// The folder its annotation is saved in, `data/NAME` (made when the
+    /// first annotation is saved).
+    pub data_dir: PathBuf,
 }
 
 /// The benchmark folder named `root`.
@@ -74,7 +123,10 @@ pub async fn benches(
                 .images()?
                 .into_iter()
                 .map(|(name, file)| {
-                    let groups = bench.annotation(&name).map(|a| a.groups.len()).unwrap_or(0);
+                    let groups = bench
+                        .image(&state.roots, &name)
+                        .and_then(|image| bench.annotation(&image))
+                        .map_or(0, |a| a.groups.len());
                     let path = file
                         .strip_prefix(&bench.folder)
                         .unwrap_or(&file)
@@ -103,30 +155,16 @@ pub struct ImageQuery {
     name: String,
 }
 
-/// The image file of `name` in `bench` (checked to be inside it) and its
-/// size.
+/// The image `name` of `bench` ([`BenchFolder::image`]) and its size.
 fn image_of(
     state: &AppState,
     bench: &BenchFolder,
     name: &str,
-) -> Result<(PathBuf, u32, u32), ApiError> {
-    let file = find_image(&bench.folder, name)
-        .and_then(|file| {
-            let file_name = file.file_name()?.to_str()?;
-            state
-                .roots
-                .resolve(&bench.root, &format!("images/{file_name}"))
-                .ok()
-        })
-        .ok_or_else(|| {
-            ApiError::not_found(format!(
-                "{name:?}: no such image in {}/images",
-                bench.folder.display()
-            ))
-        })?;
+) -> Result<(BenchImage, u32, u32), ApiError> {
+    let image = bench.image(&state.roots, name)?;
     let (w, h) =
-        matseg_image::io::read_dimensions(&file).map_err(|e| ApiError::bad(e.to_string()))?;
-    Ok((file, w, h))
+        matseg_image::io::read_dimensions(&image.file).map_err(|e| ApiError::bad(e.to_string()))?;
+    Ok((image, w, h))
 }
 
 /// `GET /api/annotation`: an image's annotation as saved (no groups when
@@ -137,11 +175,12 @@ pub async fn load(
 ) -> Result<Json<serde_json::Value>, ApiError> {
     blocking(move || {
         let bench = bench(&state, &query.root)?;
-        let (file, width, height) = image_of(&state, bench, &query.name)?;
-        let annotation = bench.annotation(&query.name)?;
-        let path = file
+        let (image, width, height) = image_of(&state, bench, &query.name)?;
+        let annotation = bench.annotation(&image)?;
+        let path = image
+            .file
             .strip_prefix(&bench.folder)
-            .unwrap_or(&file)
+            .unwrap_or(&image.file)
             .to_path_buf();
         Ok(Json(serde_json::json!({
             "name": query.name,
@@ -170,13 +209,13 @@ pub async fn save(
     })?;
     blocking(move || {
         let bench = bench(&state, &query.root)?;
-        let (_, width, height) = image_of(&state, bench, &query.name)?;
+        let (image, width, height) = image_of(&state, bench, &query.name)?;
         annotation
             .check(width, height)
             .map_err(|m| ApiError::bad(format!("annotation of {:?}: {m}", query.name)))?;
         let _saving = matseg_image::sync::lock(&bench.saving);
         annotation
-            .write(&bench.data_dir(&query.name))
+            .write(&image.data_dir)
             .map_err(|e| ApiError::internal(e.to_string()))?;
         Ok(Json(serde_json::json!({
             "saved": query.name,

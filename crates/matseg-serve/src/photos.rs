@@ -8,6 +8,7 @@
 
 use crate::app::{blocking, ApiError, AppState, UploadName};
 use crate::described::{release_freed_memory, Described};
+use crate::roots::plain_name;
 use crate::uploads::Upload;
 use axum::body::Body;
 use axum::extract::{Query, State};
@@ -101,7 +102,7 @@ impl Source {
         if photo.root == UPLOAD_ROOT {
             let upload = state
                 .uploads
-                .get(&photo.path)
+                .get(plain_name(&photo.path)?)
                 .filter(|_| is_photo_upload(&photo.path))
                 .ok_or_else(|| {
                     ApiError::not_found(format!(

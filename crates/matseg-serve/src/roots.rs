@@ -1,6 +1,9 @@
 //! The folders the server may read from, and the one way a request's path
 //! becomes a file: relative to a named root, with no `..`, no absolute
 //! part, no percent-encoded escape and no symlink that leaves the root.
+//! A request's *name* (an image of a benchmark, an upload) is one plain
+//! file name ([`plain_name`]), and a file made from it is checked to lie
+//! under its folder once symlinks are followed ([`inside`]).
 
 use std::path::{Component, Path, PathBuf};
 
@@ -72,6 +75,54 @@ impl Roots {
     }
 }
 
+/// `name` when it is one plain file name: not empty, no `/` or `\`, not
+/// `.` or `..`, no NUL or other control character. Anything else would
+/// name a file elsewhere when joined onto a folder, and is refused as
+/// outside the served folders.
+pub fn plain_name(name: &str) -> Result<&str, PathError> {
+    let plain = !name.is_empty()
+        && name != "."
+        && name != ".."
+        && !name
+            .chars()
+            .any(|c| matches!(c, '/' | '\\') || c.is_control());
+    if plain {
+        Ok(name)
+    } else {
+        Err(PathError::Outside(name.to_string()))
+    }
+}
+
+/// `path` when it lies under the folder `base` (canonical) once every
+/// symlink of the part of it that exists is followed; `shown` names it in
+/// the error. The part that does not exist yet (a folder about to be
+/// made) must be plain names.
+pub fn inside(base: &Path, path: &Path, shown: &str) -> Result<PathBuf, PathError> {
+    let outside = || PathError::Outside(shown.to_string());
+    let mut existing = path;
+    let mut rest = Vec::new();
+    // Entries that exist, dangling symlinks included, are followed.
+    while existing.symlink_metadata().is_err() {
+        let (Some(parent), Some(last)) = (existing.parent(), existing.file_name()) else {
+            return Err(outside());
+        };
+        rest.push(last);
+        existing = parent;
+    }
+    let mut resolved = existing.canonicalize().map_err(|_| outside())?;
+    for part in rest.into_iter().rev() {
+        resolved.push(part);
+    }
+    let plain = resolved
+        .strip_prefix(base)
+        .is_ok_and(|r| r.components().all(|c| matches!(c, Component::Normal(_))));
+    if plain {
+        Ok(resolved)
+    } else {
+        Err(outside())
+    }
+}
+
 /// The files with one of `extensions` under `roots` (name and folder),
 /// each as its root's name and its path inside: the photo and video lists,
 /// made once when the server starts.
@@ -131,6 +182,55 @@ mod tests {
         let file = roots.resolve("photos", "sub/a.jpg").unwrap();
         assert!(file.ends_with("served/sub/a.jpg"));
         assert_eq!(roots.resolve("photos", "sub%2Fa.jpg").unwrap(), file);
+    }
+
+    #[test]
+    fn names_are_plain_file_names() {
+        for name in ["coffee", "a b.c", ".hidden", "..a", "é"] {
+            assert_eq!(plain_name(name), Ok(name), "{name}");
+        }
+        for name in ["", ".", "..", "a/b", "../a", "a\\b", "/etc", "a\0b", "a\nb"] {
+            assert_eq!(
+                plain_name(name),
+                Err(PathError::Outside(name.to_string())),
+                "{name:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn made_paths_must_stay_under_their_folder() {
+        let (dir, roots) = roots();
+        let base = roots.resolve("photos", "sub/a.jpg").unwrap();
+        let base = base.parent().unwrap().parent().unwrap();
+        // Not there yet: judged by the part that is.
+        let made = inside(base, &base.join("data/new/data.json"), "new").unwrap();
+        assert_eq!(made, base.join("data/new/data.json"));
+        assert_eq!(
+            inside(base, &base.join("sub/a.jpg"), "a").unwrap(),
+            base.join("sub/a.jpg")
+        );
+        let outside = |p: &Path| inside(base, p, "x");
+        assert_eq!(
+            outside(&base.join("../secret.txt")),
+            Err(PathError::Outside("x".into()))
+        );
+        assert!(outside(&dir.path().join("elsewhere/new")).is_err());
+        #[cfg(unix)]
+        {
+            // A symlink out of the folder, to a folder or a file, or dangling.
+            std::os::unix::fs::symlink(dir.path(), base.join("out")).unwrap();
+            std::os::unix::fs::symlink(dir.path().join("none"), base.join("dangling")).unwrap();
+            for path in [
+                "out/new/data.json",
+                "out",
+                "link.txt",
+                "dangling/new",
+                "dangling",
+            ] {
+                assert!(outside(&base.join(path)).is_err(), "{path}");
+            }
+        }
     }
 
     #[test]

@@ -5,6 +5,7 @@
 //! go, except those in use (a video being tracked, a photo being read).
 
 use crate::app::ApiError;
+use crate::roots::plain_name;
 use axum::body::Body;
 use axum::http::StatusCode;
 use http_body_util::BodyExt;
@@ -199,7 +200,7 @@ impl Arrived<'_> {
     /// replacing an upload of that name; in use while the answer is held.
     pub fn keep(mut self, name: &str) -> Result<Upload, ApiError> {
         let folder = self.folder;
-        let file = folder.dir.join(name);
+        let file = folder.dir.join(plain_name(name)?);
         let mut state = folder.state();
         std::fs::rename(&self.file, &file)
             .map_err(|e| ApiError::internal(format!("{name}: cannot be kept: {e}")))?;

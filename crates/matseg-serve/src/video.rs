@@ -102,7 +102,7 @@ impl VideoRef {
         if self.root == VIDEO_UPLOAD_ROOT {
             let upload = state
                 .uploads
-                .get(&self.path)
+                .get(crate::roots::plain_name(&self.path)?)
                 .filter(|_| is_video_name(&self.path))
                 .ok_or_else(|| {
                     ApiError::not_found(format!(

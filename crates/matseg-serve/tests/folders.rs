@@ -323,14 +323,17 @@ async fn annotations_are_saved_in_the_benchmark_layout_and_evaluated() {
         read,
         format!("{}: {problem}", chelsea.join("data.json").display())
     );
-    for name in ["../coffee", "nothing"] {
+    for (name, refused) in [
+        ("../coffee", StatusCode::FORBIDDEN),
+        ("nothing", StatusCode::NOT_FOUND),
+    ] {
         let (status, _) = post_json(
             &app,
             &format!("/api/annotation?root=bench0&name={name}"),
             COFFEE,
         )
         .await;
-        assert_eq!(status, StatusCode::NOT_FOUND, "{name}");
+        assert_eq!(status, refused, "{name}");
     }
 
     // Evaluate: the model and the rgb baseline, scored as the library does.

@@ -163,6 +163,22 @@ fn forged_requests(token: Option<&'static str>) -> Vec<Forged> {
             with_own(&[json, ("sec-fetch-site", "cross-site")]),
             S::FORBIDDEN,
         ),
+        // Even the page's own request, with a name that leaves the
+        // benchmark.
+        (
+            "escaping save",
+            M::POST,
+            "/api/annotation?root=bench0&name=..%2F..%2Fbalance",
+            with_own(&[json]),
+            S::FORBIDDEN,
+        ),
+        (
+            "escaping removal",
+            M::POST,
+            "/api/annotation?root=bench0&name=..",
+            with_own(&[json]),
+            S::FORBIDDEN,
+        ),
         // A body type a plain form can send.
         (
             "form save",

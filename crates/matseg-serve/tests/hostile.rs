@@ -1,9 +1,9 @@
 //! Hostile requests to every route of the API, through the router on the
 //! shipped model: missing, malformed, out-of-range and huge parameters,
-//! paths that leave the served folders, and empty, foreign, truncated and
-//! oversized uploads. Each must be refused with a 4xx status and a
-//! one-line JSON error, never a panic or a 5xx; nothing refused is kept;
-//! and the server goes on answering.
+//! paths and names that leave the served folders, and empty, foreign,
+//! truncated and oversized uploads. Each must be refused with a 4xx status
+//! and a one-line JSON error, never a panic or a 5xx; nothing refused is
+//! kept, and no file outside changed; and the server goes on answering.
 
 mod ffmpeg;
 mod router;
@@ -72,6 +72,8 @@ fn requests(coffee: &[u8]) -> Vec<Hostile> {
         get("/api/photo?root=nowhere&path=a.jpg", S::NOT_FOUND),
         get("/api/photo?root=photos&path=licenses.json", S::BAD_REQUEST),
         get("/api/photo?root=upload&path=0123456789abcdef.png", S::NOT_FOUND),
+        get("/api/photo?root=upload&path=../../etc/passwd", S::FORBIDDEN),
+        get("/api/select?root=upload&path=..&positive=5,5", S::FORBIDDEN),
         get("/api/photo?root=data0&path=sample/99999", S::NOT_FOUND),
         get("/api/photo?root=data0&path=sample/x", S::BAD_REQUEST),
         // Clicks: points and radii.
@@ -122,8 +124,19 @@ fn requests(coffee: &[u8]) -> Vec<Hostile> {
         get("/api/sample?root=data0&index=-1", S::BAD_REQUEST),
         get("/api/sample/image?root=data0&index=0&part=secrets", S::BAD_REQUEST),
         get("/api/sample/image?root=data0&index=0&part=mask&mask=99", S::NOT_FOUND),
-        // Annotations.
-        get("/api/annotation?root=bench0&name=../../etc/passwd", S::NOT_FOUND),
+        // Annotations: a name is a plain name of a listed image.
+        get("/api/annotation?root=bench0&name=../../etc/passwd", S::FORBIDDEN),
+        get("/api/annotation?root=bench0&name=..%2F..%2Fetc%2Fpasswd", S::FORBIDDEN),
+        get("/api/annotation?root=bench0&name=/etc/passwd", S::FORBIDDEN),
+        get("/api/annotation?root=bench0&name=..", S::FORBIDDEN),
+        get("/api/annotation?root=bench0&name=.", S::FORBIDDEN),
+        get("/api/annotation?root=bench0&name=a%00b", S::FORBIDDEN),
+        get("/api/annotation?root=bench0&name=", S::BAD_REQUEST),
+        get("/api/annotation?root=bench0", S::BAD_REQUEST),
+        get("/api/annotation?root=bench0&name=nothere", S::NOT_FOUND),
+        get("/api/annotation?root=bench0&name=coffee.jpg", S::NOT_FOUND),
+        post("/api/annotation?root=bench0&name=../coffee", br#"{"groups": []}"#.to_vec(), S::FORBIDDEN),
+        post("/api/annotation?root=bench0&name=..", br#"{"groups": []}"#.to_vec(), S::FORBIDDEN),
         get("/api/annotation?root=nowhere&name=coffee", S::NOT_FOUND),
         post("/api/annotation?root=bench0&name=coffee", b"{not json".to_vec(), S::BAD_REQUEST),
         post("/api/annotation?root=bench0&name=coffee", b"".to_vec(), S::BAD_REQUEST),
@@ -154,6 +167,8 @@ fn requests(coffee: &[u8]) -> Vec<Hostile> {
         delete("/api/evaluate?root=nowhere", S::NOT_FOUND),
         // Videos and tracks.
         get("/api/video?root=data1&path=missing.mp4", S::NOT_FOUND),
+        get("/api/video?root=data1&path=../clip.mkv", S::FORBIDDEN),
+        get("/api/video?root=upload&path=../../clip.mkv", S::FORBIDDEN),
         get(format!("/api/video?{photo}"), S::BAD_REQUEST),
         get(format!("/api/video/frame?{clip}&frame=999999"), S::BAD_REQUEST),
         get(format!("/api/video/frame?{clip}&frame=-1"), S::BAD_REQUEST),
@@ -262,4 +277,147 @@ async fn every_hostile_request_is_refused_in_one_line_and_nothing_is_kept() {
     )
     .await;
     assert_eq!(status, StatusCode::OK);
+}
+
+/// `text` with every byte but letters and digits percent-encoded, as a
+/// query parameter's value.
+fn encoded(text: &str) -> String {
+    text.bytes()
+        .map(|b| match b {
+            b'a'..=b'z' | b'A'..=b'Z' | b'0'..=b'9' => (b as char).to_string(),
+            _ => format!("%{b:02X}"),
+        })
+        .collect()
+}
+
+/// Every file under `dir` (symlinks not followed) with its bytes.
+fn snapshot(dir: &std::path::Path) -> Vec<(String, Vec<u8>)> {
+    let mut files = Vec::new();
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let path = entry.unwrap().path();
+        let kind = std::fs::symlink_metadata(&path).unwrap().file_type();
+        if kind.is_dir() {
+            files.extend(snapshot(&path));
+        } else if kind.is_symlink() {
+            let target = std::fs::read_link(&path).unwrap();
+            files.push((
+                path.display().to_string(),
+                target.display().to_string().into(),
+            ));
+        } else {
+            files.push((path.display().to_string(), std::fs::read(&path).unwrap()));
+        }
+    }
+    files.sort();
+    files
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn annotation_names_that_leave_the_benchmark_change_and_show_nothing_outside() {
+    // A user's files beside the benchmarks: an image and an annotation of
+    // the same name as a benchmark's, and a file whose first line is
+    // private.
+    let top = tempfile::tempdir().unwrap();
+    let elsewhere = top.path().join("elsewhere");
+    let coffee = matseg_pipeline::sources::assets_dir().join("photos/coffee.jpg");
+    std::fs::create_dir_all(elsewhere.join("balance")).unwrap();
+    std::fs::create_dir_all(elsewhere.join("notes")).unwrap();
+    for name in ["balance.jpg", "notes.jpg"] {
+        std::fs::copy(&coffee, elsewhere.join(name)).unwrap();
+    }
+    std::fs::write(
+        elsewhere.join("balance/data.json"),
+        r#"{"1": {"pt_im": [[290, 130, 5]]}, "2": {"pt_im": [[540, 80, 5]]}}"#,
+    )
+    .unwrap();
+    std::fs::write(elsewhere.join("balance/group_relations.txt"), "[1, 2]\n").unwrap();
+    std::fs::write(
+        elsewhere.join("notes/data.json"),
+        "private: the first line\n",
+    )
+    .unwrap();
+    std::fs::write(
+        elsewhere.join("notes/group_relations.txt"),
+        "private: the first line\n",
+    )
+    .unwrap();
+    // Two benchmarks with images of those names: one plain, one whose
+    // annotation folder is a symlink to the user's.
+    let bench = top.path().join("x/bench");
+    let linked = top.path().join("x/linked");
+    for dir in [&bench, &linked] {
+        std::fs::create_dir_all(dir.join("images")).unwrap();
+        for name in ["balance.jpg", "notes.jpg"] {
+            std::fs::copy(&coffee, dir.join("images").join(name)).unwrap();
+        }
+    }
+    std::fs::create_dir(linked.join("data")).unwrap();
+    std::os::unix::fs::symlink(elsewhere.join("balance"), linked.join("data/balance")).unwrap();
+    std::os::unix::fs::symlink(elsewhere.join("notes"), linked.join("data/notes")).unwrap();
+    let app_state = state(&options(Vec::new(), vec![bench.clone(), linked.clone()])).unwrap();
+    let app = router(app_state.clone());
+    let outside = snapshot(&elsewhere);
+    let linked_before = snapshot(&linked);
+
+    let one_group = r#"{"groups": [{"id": "1", "points": [[1, 1, 5]]}], "relations": []}"#;
+    let no_groups = r#"{"groups": [], "relations": []}"#;
+    let absolute = elsewhere.join("balance").display().to_string();
+    let mut asked: Vec<(&str, String)> = [
+        "../../../elsewhere/balance",
+        "../../../elsewhere/notes",
+        "balance/../../../../elsewhere/balance",
+        "..\\..\\..\\elsewhere\\balance",
+        absolute.as_str(),
+    ]
+    .into_iter()
+    .map(|name| ("bench0", name.to_string()))
+    .collect();
+    asked.push(("bench1", "balance".into()));
+    asked.push(("bench1", "notes".into()));
+    let mut wrong = Vec::new();
+    for (root, name) in &asked {
+        let uri = format!("/api/annotation?root={root}&name={}", encoded(name));
+        for (what, answer) in [
+            ("write", router::post(&app, &uri, one_group).await),
+            ("delete", router::post(&app, &uri, no_groups).await),
+            ("read", router::get(&app, &uri).await),
+        ] {
+            let (status, _, body) = answer;
+            let text = String::from_utf8_lossy(&body).into_owned();
+            let one_line = serde_json::from_slice::<serde_json::Value>(&body)
+                .ok()
+                .and_then(|v| v["error"].as_str().map(|e| !e.contains('\n')))
+                == Some(true);
+            if status != StatusCode::FORBIDDEN || !one_line || text.contains("private") {
+                wrong.push(format!("{what} {root} {name:?}: {status} {text}"));
+            }
+        }
+    }
+    assert!(
+        wrong.is_empty(),
+        "not refused with 403:\n{}",
+        wrong.join("\n")
+    );
+    assert_eq!(
+        snapshot(&elsewhere),
+        outside,
+        "the files outside are as they were"
+    );
+    assert_eq!(snapshot(&linked), linked_before);
+    assert!(
+        !bench.join("data").exists(),
+        "nothing made in the benchmark"
+    );
+    // The listing does not read through the symlink either.
+    let (_, _, listing) = router::get(&app, "/api/benches").await;
+    let listing = router::json(&listing);
+    let linked_images = listing["benches"][1]["images"].as_array().unwrap();
+    assert_eq!(linked_images.len(), 2);
+    assert!(linked_images.iter().all(|i| i["groups"] == 0), "{listing}");
+    // The benchmark's own image is still annotated as before.
+    let (status, _, body) =
+        router::post(&app, "/api/annotation?root=bench0&name=balance", one_group).await;
+    assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
+    assert!(bench.join("data/balance/data.json").is_file());
+    assert_eq!(snapshot(&elsewhere), outside);
 }
