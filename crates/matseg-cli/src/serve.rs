@@ -31,7 +31,8 @@ pub struct Args {
     #[arg(long, default_value_t = ServeOptions::PORT)]
     port: u16,
     /// The token every API call must carry (header `x-matseg-token` or
-    /// query `token`), instead of a new random one each run.
+    /// query `token`), instead of a new random one each run: 8 characters
+    /// or more of A-Z a-z 0-9 . _ ~ -.
     #[arg(long, conflicts_with = "no_token")]
     token: Option<String>,
     /// No token: any page of this machine's browser that passes the
@@ -58,7 +59,6 @@ pub struct Args {
 /// Runs `matseg serve` until interrupted (SIGINT or SIGTERM).
 pub fn run(args: Args) -> Result<()> {
     let token = match (args.token, args.no_token) {
-        (Some(token), _) if token.is_empty() => anyhow::bail!("--token: give a non-empty token"),
         (Some(token), _) => TokenChoice::Given(token),
         (None, true) => TokenChoice::Off,
         (None, false) => TokenChoice::PerRun,

@@ -1,7 +1,8 @@
 //! `matseg serve` as a process: the address it prints carries its token,
 //! a stop (SIGTERM, or Ctrl-C's SIGINT) in the middle of an evaluation
 //! stops it and leaves no temporary folder behind, and settings it cannot
-//! serve are one-line errors.
+//! serve (an open address without a token, a token too short or not
+//! URL-safe, a benchmark without images) are one-line errors.
 #![cfg(feature = "net")]
 
 mod common;
@@ -118,7 +119,7 @@ fn a_stopped_server_stops_its_jobs_and_removes_its_folder() {
 }
 
 #[test]
-fn serve_refuses_an_open_address_without_a_token_and_a_bench_without_images() {
+fn serve_refuses_an_open_address_without_a_token_an_unusable_token_and_a_bench_without_images() {
     let open = matseg(&["serve", "--host", "0.0.0.0", "--port", "0", "--no-token"]);
     assert_one_line_error(
         &open,
@@ -126,8 +127,16 @@ fn serve_refuses_an_open_address_without_a_token_and_a_bench_without_images() {
     );
     let both = matseg(&["serve", "--token", "t", "--no-token"]);
     assert!(!both.status.success());
-    let empty = matseg(&["serve", "--token", ""]);
-    assert_one_line_error(&empty, "--token: give a non-empty token");
+    for (token, said) in [
+        ("", "--token: too short (0 of at least 8 characters"),
+        ("a", "--token: too short (1 of at least 8 characters"),
+        (" ", "--token: ' ' is not a URL-safe character"),
+        ("secret token", "--token: ' ' is not a URL-safe character"),
+        ("s3cret/tok", "--token: '/' is not a URL-safe character"),
+    ] {
+        let refused = matseg(&["serve", "--port", "0", "--token", token]);
+        assert_one_line_error(&refused, said);
+    }
     let dir = tempfile::tempdir().unwrap();
     let bench = matseg(&[
         "serve",

@@ -4,7 +4,10 @@
 //!
 //! - the `Host` header names an address the server answers to (loopback
 //!   names, `--host`, `--allowed-host`), so a page on another domain that
-//!   rebinds its name to 127.0.0.1 is refused;
+//!   rebinds its name to 127.0.0.1 is refused; a request with two `Host`
+//!   headers, or whose request line names a host itself (the absolute
+//!   form `GET http://HOST/...`, which takes precedence over `Host`), is
+//!   refused too;
 //! - an `Origin` header, when a browser sends one, is the server's own,
 //!   and API calls a browser marks as coming from another site
 //!   (`Sec-Fetch-Site`) are refused, so another page can neither send nor
@@ -20,7 +23,7 @@
 
 use crate::app::ApiError;
 use axum::extract::{Request, State};
-use axum::http::{header, HeaderMap, HeaderValue, Method, StatusCode};
+use axum::http::{header, HeaderMap, HeaderValue, Method, StatusCode, Uri};
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
 use std::net::IpAddr;
@@ -83,15 +86,21 @@ impl Access {
     }
 
     /// Why `request` is refused, if it is.
-    fn refusal(
-        &self,
-        method: &Method,
-        path: &str,
-        headers: &HeaderMap,
-        query: Option<&str>,
-    ) -> Option<ApiError> {
+    fn refusal(&self, method: &Method, uri: &Uri, headers: &HeaderMap) -> Option<ApiError> {
+        let (path, query) = (uri.path(), uri.query());
         let forbidden = |message: String| ApiError::new(StatusCode::FORBIDDEN, message);
         let text = |name: header::HeaderName| headers.get(name).map(|v| v.to_str().unwrap_or("?"));
+        if uri.scheme().is_some() || uri.authority().is_some() {
+            return Some(ApiError::bad(format!(
+                "request target {:?}: give the path alone (/api/...), with the server's address in Host",
+                uri.to_string()
+            )));
+        }
+        if headers.get_all(header::HOST).iter().nth(1).is_some() {
+            return Some(ApiError::bad(
+                "a request with two Host headers: give one, the server's address",
+            ));
+        }
         let Some(host) = text(header::HOST) else {
             return Some(ApiError::bad("a request without a Host header"));
         };
@@ -196,6 +205,32 @@ fn same_secret(given: &str, token: &str) -> bool {
             == 0
 }
 
+/// The fewest characters a chosen token (`--token`) may have.
+pub const MIN_TOKEN_CHARS: usize = 8;
+
+/// Why `token` cannot be the server's token, if it cannot: it must have
+/// [`MIN_TOKEN_CHARS`] characters or more, each URL-safe (`A-Z a-z 0-9 .
+/// _ ~ -`), so that it goes into the printed address and a header as it
+/// is and is not guessed at once.
+pub fn check_token(token: &str) -> Result<(), String> {
+    const SAFE: &str = "A-Z a-z 0-9 . _ ~ -";
+    if let Some(c) = token
+        .chars()
+        .find(|c| !(c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '~' | '-')))
+    {
+        return Err(format!(
+            "--token: {c:?} is not a URL-safe character; use only {SAFE}"
+        ));
+    }
+    let chars = token.chars().count();
+    if chars < MIN_TOKEN_CHARS {
+        return Err(format!(
+            "--token: too short ({chars} of at least {MIN_TOKEN_CHARS} characters from {SAFE})"
+        ));
+    }
+    Ok(())
+}
+
 /// A new per-run token: 128 random bits as 32 hex digits.
 pub fn new_token() -> Result<String, getrandom::Error> {
     let mut bytes = [0u8; 16];
@@ -207,12 +242,7 @@ pub fn new_token() -> Result<String, getrandom::Error> {
 /// that keep the pages out of other pages' frames and their address out of
 /// `Referer`.
 pub async fn check(State(access): State<Arc<Access>>, request: Request, next: Next) -> Response {
-    let refused = access.refusal(
-        request.method(),
-        request.uri().path(),
-        request.headers(),
-        request.uri().query(),
-    );
+    let refused = access.refusal(request.method(), request.uri(), request.headers());
     let mut response = match refused {
         Some(error) => error.into_response(),
         None => next.run(request).await,
@@ -247,11 +277,9 @@ mod tests {
         path: &str,
         pairs: &[(&'static str, &str)],
     ) -> StatusCode {
-        let (path, query) = path
-            .split_once('?')
-            .map_or((path, None), |(p, q)| (p, Some(q)));
+        let uri: Uri = path.parse().unwrap();
         access
-            .refusal(&method, path, &headers(pairs), query)
+            .refusal(&method, &uri, &headers(pairs))
             .map_or(StatusCode::OK, |e| e.status())
     }
 
@@ -420,6 +448,55 @@ mod tests {
             status(&access, Method::GET, "/api/photos", &[]),
             StatusCode::BAD_REQUEST
         );
+    }
+
+    #[test]
+    fn a_second_host_or_a_host_in_the_request_line_is_refused() {
+        let access = Access::new("127.0.0.1", &[], None);
+        let own = [("host", "127.0.0.1:8080")];
+        assert_eq!(
+            status(&access, Method::GET, "/api/photos", &own),
+            StatusCode::OK
+        );
+        for target in [
+            "http://evil.example/api/photos",
+            "http://127.0.0.1:8080/api/photos",
+            "evil.example:80",
+        ] {
+            assert_eq!(
+                status(&access, Method::GET, target, &own),
+                StatusCode::BAD_REQUEST,
+                "{target}"
+            );
+        }
+        for second in ["evil.example", "127.0.0.1:8080"] {
+            let mut two = headers(&own);
+            two.append("host", HeaderValue::from_static(second));
+            let uri: Uri = "/api/photos".parse().unwrap();
+            let refused = access.refusal(&Method::GET, &uri, &two).unwrap();
+            assert_eq!(refused.status(), StatusCode::BAD_REQUEST, "{second}");
+        }
+    }
+
+    #[test]
+    fn chosen_tokens_are_long_enough_and_url_safe() {
+        for good in ["test-token", "abcdefgh", "A.b_c~d-12345678"] {
+            assert_eq!(check_token(good), Ok(()), "{good}");
+        }
+        for (bad, said) in [
+            ("", "too short (0 of at least 8 characters"),
+            ("a", "too short (1 of at least 8 characters"),
+            ("abcdefg", "too short (7 of"),
+            (" ", "' ' is not a URL-safe character"),
+            ("abcdefgh ", "' ' is not a URL-safe character"),
+            ("abcd&efgh", "'&' is not a URL-safe character"),
+            ("abcdéfgh", "'é' is not a URL-safe character"),
+        ] {
+            let message = check_token(bad).unwrap_err();
+            assert!(message.starts_with("--token: "), "{message}");
+            assert!(message.contains(said), "{bad:?}: {message}");
+            assert!(!message.contains('\n'));
+        }
     }
 
     #[test]

@@ -54,6 +54,9 @@ pub enum ServeError {
     /// Another host than the loopback without a token.
     #[error("--host {0}: serving beyond this machine needs a token (leave out --no-token)")]
     NoToken(String),
+    /// A chosen token that cannot be used (too short, or not URL-safe).
+    #[error("{0}")]
+    Token(String),
     /// The server's temporary folder or token could not be made.
     #[error("cannot start: {0}")]
     Setup(String),
@@ -151,7 +154,10 @@ pub fn state(options: &ServeOptions) -> Result<Arc<AppState>, ServeError> {
             return Err(ServeError::NoToken(options.host.clone()))
         }
         TokenChoice::Off => None,
-        TokenChoice::Given(token) => Some(token.clone()),
+        TokenChoice::Given(token) => {
+            guard::check_token(token).map_err(ServeError::Token)?;
+            Some(token.clone())
+        }
         TokenChoice::PerRun => {
             Some(new_token().map_err(|e| ServeError::Setup(format!("no random token: {e}")))?)
         }

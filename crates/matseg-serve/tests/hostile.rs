@@ -4,6 +4,8 @@
 //! truncated and oversized uploads. Each must be refused with a 4xx status
 //! and a one-line JSON error, never a panic or a 5xx; nothing refused is
 //! kept, and no file outside changed; and the server goes on answering.
+//! Then what the router alone cannot show: unusable tokens, and requests
+//! that name a second host (sent over a socket as raw HTTP).
 
 mod ffmpeg;
 mod router;
@@ -420,4 +422,148 @@ async fn annotation_names_that_leave_the_benchmark_change_and_show_nothing_outsi
     assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
     assert!(bench.join("data/balance/data.json").is_file());
     assert_eq!(snapshot(&elsewhere), outside);
+}
+
+#[test]
+fn unusable_tokens_are_refused_naming_the_option() {
+    for (token, said) in [
+        ("a", "--token: too short (1 of at least 8 characters"),
+        (" ", "--token: ' ' is not a URL-safe character"),
+        (
+            "long enough but spaced",
+            "--token: ' ' is not a URL-safe character",
+        ),
+        ("", "--token: too short (0 of"),
+    ] {
+        let refused = state(&matseg_serve::ServeOptions {
+            token: matseg_serve::TokenChoice::Given(token.into()),
+            ..options(Vec::new(), Vec::new())
+        });
+        match refused {
+            Err(e @ matseg_serve::ServeError::Token(_)) => {
+                let message = e.to_string();
+                assert!(message.starts_with(said), "{token:?}: {message}");
+                assert!(!message.contains('\n'));
+            }
+            Err(e) => panic!("{token:?}: {e}"),
+            Ok(_) => panic!("{token:?}: accepted"),
+        }
+    }
+}
+
+/// The status and body of `request` (raw HTTP/1.1, closed after the
+/// answer) sent to `address`.
+fn raw(address: std::net::SocketAddr, request: &[u8]) -> (u16, String) {
+    use std::io::{Read, Write};
+    let mut stream = std::net::TcpStream::connect(address).unwrap();
+    stream
+        .set_read_timeout(Some(std::time::Duration::from_secs(60)))
+        .unwrap();
+    stream.write_all(request).unwrap();
+    let mut answer = Vec::new();
+    stream.read_to_end(&mut answer).unwrap();
+    let answer = String::from_utf8_lossy(&answer);
+    let status = answer
+        .split_whitespace()
+        .nth(1)
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no status: {answer:?}"));
+    let body = answer.split_once("\r\n\r\n").map_or("", |(_, b)| b);
+    (status, body.to_string())
+}
+
+/// `matseg serve` on a free port of the loopback, in a thread of its own,
+/// stopped (and waited for) when dropped.
+struct Running {
+    address: std::net::SocketAddr,
+    stop: Option<tokio::sync::oneshot::Sender<()>>,
+    server: Option<std::thread::JoinHandle<Result<(), matseg_serve::ServeError>>>,
+}
+
+impl Running {
+    fn start(served: matseg_serve::ServeOptions) -> Self {
+        let (ready_send, ready) = std::sync::mpsc::channel();
+        let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+        let server = std::thread::spawn(move || {
+            matseg_serve::serve_until(
+                &served,
+                |ready| ready_send.send(ready.address).unwrap(),
+                |_| async move {
+                    let _ = stopped.await;
+                },
+            )
+        });
+        Self {
+            address: ready.recv().unwrap(),
+            stop: Some(stop),
+            server: Some(server),
+        }
+    }
+}
+
+impl Drop for Running {
+    fn drop(&mut self) {
+        let _ = self.stop.take().unwrap().send(());
+        let stopped = self.server.take().unwrap().join();
+        if !std::thread::panicking() {
+            stopped.unwrap().unwrap();
+        }
+    }
+}
+
+#[test]
+fn a_second_host_or_a_host_in_the_request_line_is_refused() {
+    let running = Running::start(options(Vec::new(), Vec::new()));
+    let address = running.address;
+    let own = format!("127.0.0.1:{}", address.port());
+    let own_absolute = format!("GET http://{own}/api/photos HTTP/1.1");
+    let token = router::TOKEN;
+    let ask = |line: &str, hosts: &[&str]| {
+        let hosts: String = hosts.iter().map(|h| format!("Host: {h}\r\n")).collect();
+        raw(
+            address,
+            format!("{line}\r\n{hosts}x-matseg-token: {token}\r\nConnection: close\r\n\r\n")
+                .as_bytes(),
+        )
+    };
+    // The page's own request is answered.
+    let (status, body) = ask("GET /api/photos HTTP/1.1", &[&own]);
+    assert_eq!(status, 200, "{body}");
+    let mut wrong = Vec::new();
+    for (line, hosts) in [
+        (
+            "GET /api/photos HTTP/1.1",
+            vec![own.as_str(), "evil.example"],
+        ),
+        (
+            "GET /api/photos HTTP/1.1",
+            vec!["evil.example", own.as_str()],
+        ),
+        ("GET /api/photos HTTP/1.1", vec![own.as_str(), own.as_str()]),
+        ("GET / HTTP/1.1", vec![own.as_str(), "evil.example"]),
+        (
+            "GET http://evil.example/api/photos HTTP/1.1",
+            vec![own.as_str()],
+        ),
+        ("GET http://evil.example/ HTTP/1.1", vec![own.as_str()]),
+        (
+            "POST http://evil.example/api/annotation?root=bench0&name=a HTTP/1.1",
+            vec![own.as_str()],
+        ),
+        (own_absolute.as_str(), vec![own.as_str()]),
+    ] {
+        let (status, body) = ask(line, &hosts);
+        let error = serde_json::from_str::<serde_json::Value>(&body)
+            .ok()
+            .and_then(|v| v["error"].as_str().map(str::to_string));
+        match error {
+            Some(e) if status == 400 && !e.is_empty() && !e.contains('\n') => {}
+            _ => wrong.push(format!("{line} {hosts:?}: {status} {body}")),
+        }
+    }
+    assert!(
+        wrong.is_empty(),
+        "not refused with 400:\n{}",
+        wrong.join("\n")
+    );
 }
