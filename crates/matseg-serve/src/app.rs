@@ -206,6 +206,11 @@ impl ApiError {
         self.status
     }
 
+    /// Its one-line message.
+    pub fn message(&self) -> &str {
+        &self.message
+    }
+
     /// A 400: the request is wrong.
     pub fn bad(message: impl Into<String>) -> Self {
         Self::new(StatusCode::BAD_REQUEST, message)

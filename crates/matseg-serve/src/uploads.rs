@@ -6,7 +6,7 @@
 
 use crate::app::ApiError;
 use crate::roots::plain_name;
-use axum::body::Body;
+use axum::body::{Body, HttpBody};
 use axum::http::StatusCode;
 use http_body_util::BodyExt;
 use std::collections::HashMap;
@@ -121,11 +121,27 @@ impl UploadFolder {
         names
     }
 
-    /// Reads `body` into a new file as it arrives: 413 once it passes
-    /// `cap` bytes (`what` names it), 507 when the folder's bound leaves no
-    /// room even with every unused upload removed. Nothing is left behind
-    /// when it fails.
-    pub async fn receive(&self, body: Body, cap: u64, what: &str) -> Result<Arrived<'_>, ApiError> {
+    /// Reads `body` into a new file as it arrives: 413 when it is larger
+    /// than `cap` bytes or than the folder's whole bound (`what` names it;
+    /// at once when its length is declared, else once it passes), 507
+    /// when the bound leaves no room even with every unused upload
+    /// removed. Nothing is left behind when it fails. A client reads the
+    /// answer only once it has sent its body, so the rest of a body
+    /// refused as larger than the bound is read and dropped, up to `cap`.
+    pub async fn receive(
+        &self,
+        mut body: Body,
+        cap: u64,
+        what: &str,
+    ) -> Result<Arrived<'_>, ApiError> {
+        if let Some(declared) = body.size_hint().exact() {
+            if let Err(refused) = self.check_size(declared, true, cap, what) {
+                if declared <= cap {
+                    discard(&mut body, cap).await;
+                }
+                return Err(refused);
+            }
+        }
         let file = {
             let mut state = self.state();
             state.arrivals += 1;
@@ -143,7 +159,6 @@ impl UploadFolder {
         let mut out = tokio::fs::File::create(&arrived.file)
             .await
             .map_err(failed)?;
-        let mut body = body;
         while let Some(frame) = body.frame().await {
             let frame =
                 frame.map_err(|e| ApiError::bad(format!("{what}: the upload broke off: {e}")))?;
@@ -151,11 +166,9 @@ impl UploadFolder {
                 continue;
             };
             let size = chunk.len() as u64;
-            if arrived.bytes + size > cap {
-                return Err(ApiError::new(
-                    StatusCode::PAYLOAD_TOO_LARGE,
-                    format!("{what} larger than {} MiB", cap >> 20),
-                ));
+            if let Err(refused) = self.check_size(arrived.bytes + size, false, cap, what) {
+                discard(&mut body, cap.saturating_sub(arrived.bytes + size)).await;
+                return Err(refused);
             }
             self.reserve(size, what)?;
             arrived.bytes += size;
@@ -164,6 +177,32 @@ impl UploadFolder {
         }
         out.flush().await.map_err(failed)?;
         Ok(arrived)
+    }
+
+    /// A 413 when `bytes` (the whole upload when `whole`, else what has
+    /// arrived so far) is more than `cap` or than the folder's bound: an
+    /// upload no room could ever be made for.
+    fn check_size(&self, bytes: u64, whole: bool, cap: u64, what: &str) -> Result<(), ApiError> {
+        let mib = |bytes: u64| bytes as f64 / (1 << 20) as f64;
+        let size = if whole {
+            format!("{:.1} MiB ({bytes} bytes)", mib(bytes))
+        } else {
+            format!("at least {:.1} MiB", mib(bytes))
+        };
+        let message = if bytes > cap && cap <= self.limit {
+            format!(
+                "{what} of {size}: larger than {}, the most one may have",
+                mib_text(cap)
+            )
+        } else if bytes > self.limit {
+            format!(
+                "{what} of {size}: larger than the server's whole bound on uploads, {} (--upload-mb)",
+                mib_text(self.limit)
+            )
+        } else {
+            return Ok(());
+        };
+        Err(ApiError::new(StatusCode::PAYLOAD_TOO_LARGE, message))
     }
 
     /// Counts `bytes` more arriving, removing the least recently used
@@ -234,6 +273,26 @@ impl Drop for Arrived<'_> {
     }
 }
 
+/// Reads what is left of `body` and drops it, `most` bytes at most.
+async fn discard(body: &mut Body, most: u64) {
+    let mut read = 0u64;
+    while read <= most {
+        match body.frame().await {
+            Some(Ok(frame)) => read += frame.data_ref().map_or(0, |d| d.len() as u64),
+            _ => break,
+        }
+    }
+}
+
+/// `bytes` in MiB as a bound is given: whole MiB when it is one.
+fn mib_text(bytes: u64) -> String {
+    if bytes.is_multiple_of(1 << 20) {
+        format!("{} MiB", bytes >> 20)
+    } else {
+        format!("{:.1} MiB", bytes as f64 / (1 << 20) as f64)
+    }
+}
+
 const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
 
 /// FNV-1a over `bytes`, continuing from `hash`.
@@ -301,6 +360,47 @@ mod tests {
         assert_eq!(big.status(), StatusCode::PAYLOAD_TOO_LARGE);
         assert_eq!(files(&dir.path().join("uploads")), ["d"]);
         assert_eq!(folder.bytes(), 70);
+    }
+
+    #[tokio::test]
+    async fn an_upload_larger_than_the_whole_bound_is_too_large_not_out_of_room() {
+        let dir = tempfile::tempdir().unwrap();
+        let limit = 5 << 20;
+        let folder = UploadFolder::new(dir.path().to_path_buf(), limit).unwrap();
+        let bytes = vec![7; 7_235_174];
+        let declared = folder.receive(body(&bytes), 32 << 20, "upload").await;
+        let refused = declared.err().unwrap();
+        assert_eq!(refused.status(), StatusCode::PAYLOAD_TOO_LARGE);
+        assert_eq!(
+            refused.message(),
+            "upload of 6.9 MiB (7235174 bytes): larger than the server's whole bound on uploads, 5 MiB (--upload-mb)"
+        );
+        // Its length not declared: refused once it passes the bound.
+        let streamed = Body::from_stream(body(&bytes).into_data_stream());
+        let refused = folder
+            .receive(streamed, 32 << 20, "upload")
+            .await
+            .err()
+            .unwrap();
+        assert_eq!(refused.status(), StatusCode::PAYLOAD_TOO_LARGE);
+        assert!(
+            refused.message().starts_with("upload of at least 6.9 MiB: larger than the server's whole bound on uploads, 5 MiB"),
+            "{}",
+            refused.message()
+        );
+        // Past its own cap, the cap is named.
+        let refused = folder
+            .receive(body(&[1; 81]), 80, "upload")
+            .await
+            .err()
+            .unwrap();
+        assert_eq!(refused.status(), StatusCode::PAYLOAD_TOO_LARGE);
+        assert_eq!(
+            refused.message(),
+            "upload of 0.0 MiB (81 bytes): larger than 0.0 MiB, the most one may have"
+        );
+        assert_eq!(folder.bytes(), 0);
+        assert_eq!(files(dir.path()), Vec::<String>::new());
     }
 
     #[tokio::test]

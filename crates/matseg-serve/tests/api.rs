@@ -158,7 +158,10 @@ async fn uploads_are_described_and_bad_ones_refused_with_a_reason() {
     );
     let (status, _, body) = post(&app, "/api/upload?name=big.png", vec![0; (32 << 20) + 1]).await;
     assert_eq!(status, StatusCode::PAYLOAD_TOO_LARGE);
-    assert_eq!(error_of(&body), "upload larger than 32 MiB");
+    assert_eq!(
+        error_of(&body),
+        "upload of 32.0 MiB (33554433 bytes): larger than 32 MiB, the most one may have"
+    );
     let huge = matseg_image::io::encode_png_grey(8000, 6000, &vec![0; 8000 * 6000]);
     let (status, _, body) = post(&app, "/api/upload?name=huge.png", huge).await;
     assert_eq!(status, StatusCode::PAYLOAD_TOO_LARGE);

@@ -4,8 +4,9 @@
 //! truncated and oversized uploads. Each must be refused with a 4xx status
 //! and a one-line JSON error, never a panic or a 5xx; nothing refused is
 //! kept, and no file outside changed; and the server goes on answering.
-//! Then what the router alone cannot show: unusable tokens, and requests
-//! that name a second host (sent over a socket as raw HTTP).
+//! Then what the router alone cannot show: an upload larger than the
+//! whole uploads bound, unusable tokens, and requests that name a second
+//! host (sent over a socket as raw HTTP).
 
 mod ffmpeg;
 mod router;
@@ -424,6 +425,32 @@ async fn annotation_names_that_leave_the_benchmark_change_and_show_nothing_outsi
     assert_eq!(snapshot(&elsewhere), outside);
 }
 
+#[tokio::test(flavor = "multi_thread")]
+async fn an_upload_larger_than_the_whole_uploads_bound_is_too_large() {
+    let app_state = state(&matseg_serve::ServeOptions {
+        upload_mb: 5,
+        ..options(Vec::new(), Vec::new())
+    })
+    .unwrap();
+    let app = router(app_state.clone());
+    let big = vec![0xFF; 7_235_174];
+    for uri in ["/api/upload?name=big.jpg", "/api/video/upload?name=big.mp4"] {
+        let (status, _, body) = router::post(&app, uri, big.clone()).await;
+        assert_eq!(status, StatusCode::PAYLOAD_TOO_LARGE, "{uri}");
+        let error = router::error_of(&body);
+        assert!(
+            error.contains("6.9 MiB (7235174 bytes)")
+                && error.contains("whole bound on uploads, 5 MiB (--upload-mb)"),
+            "{uri}: {error}"
+        );
+    }
+    let kept: Vec<_> = std::fs::read_dir(app_state.folder.path().join("uploads"))
+        .unwrap()
+        .collect();
+    assert!(kept.is_empty(), "{kept:?}");
+    assert_eq!(app_state.uploads.bytes(), 0);
+}
+
 #[test]
 fn unusable_tokens_are_refused_naming_the_option() {
     for (token, said) in [
@@ -565,5 +592,28 @@ fn a_second_host_or_a_host_in_the_request_line_is_refused() {
         wrong.is_empty(),
         "not refused with 400:\n{}",
         wrong.join("\n")
+    );
+}
+
+#[test]
+fn a_client_still_sending_an_upload_too_large_reads_why() {
+    let running = Running::start(matseg_serve::ServeOptions {
+        upload_mb: 5,
+        ..options(Vec::new(), Vec::new())
+    });
+    let size = 7_235_174;
+    let mut request = format!(
+        "POST /api/upload?name=big.jpg HTTP/1.1\r\nHost: 127.0.0.1:{}\r\nx-matseg-token: {}\r\ncontent-type: image/jpeg\r\ncontent-length: {size}\r\nConnection: close\r\n\r\n",
+        running.address.port(),
+        router::TOKEN
+    )
+    .into_bytes();
+    request.extend(std::iter::repeat_n(0xFF, size));
+    let (status, body) = raw(running.address, &request);
+    assert_eq!(status, 413, "{body}");
+    let error = router::error_of(body.as_bytes());
+    assert!(
+        error.contains("6.9 MiB (7235174 bytes)") && error.contains("5 MiB (--upload-mb)"),
+        "{error}"
     );
 }
