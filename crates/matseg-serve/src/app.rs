@@ -4,7 +4,7 @@
 
 use crate::annotate::BenchFolder;
 use crate::browse::DatasetFolder;
-use crate::described::DescribedCache;
+use crate::described::{DescribedCache, PhotoWork};
 use crate::evaluate::Evaluations;
 use crate::guard::Access;
 use crate::jobs::Workers;
@@ -35,6 +35,8 @@ pub struct AppState {
     pub roots: Roots,
     /// Photos described so far.
     pub described: DescribedCache,
+    /// Turns at the work on photos' full pixels (decoding, describing).
+    pub photo_work: PhotoWork,
     /// The bound on the described photos kept in memory.
     pub budget: Arc<MemoryBudget>,
     /// The server's own temporary folder (uploads, tracks), removed when

@@ -226,6 +226,7 @@ pub fn state(options: &ServeOptions) -> Result<Arc<AppState>, ServeError> {
         roots,
         photos,
         described: DescribedCache::new(budget.clone()),
+        photo_work: Default::default(),
         budget,
         folder,
         uploads,
@@ -287,6 +288,7 @@ pub fn serve_until<F>(
 where
     F: std::future::Future<Output = ()> + Send + 'static,
 {
+    described::map_large_allocations();
     let state = state(options)?;
     let address = format!("{}:{}", options.host, options.port);
     let bind_error = |message: String| ServeError::Bind {

@@ -21,15 +21,39 @@ use std::time::Duration;
 pub struct ServedModel {
     net: NetModel,
     clicks: AtomicUsize,
+    /// The longest side the net sees a photo at (`None`: as it is).
+    side: Option<u32>,
+    /// Values of each descriptor.
+    dim: usize,
 }
 
 impl ServedModel {
     /// `net`, served.
     pub fn new(net: NetModel) -> Self {
+        let (side, dim) = {
+            let net = net.lock();
+            (net.inference_side, net.output_dim() as usize)
+        };
         Self {
             net,
             clicks: AtomicUsize::new(0),
+            side,
+            dim,
         }
+    }
+
+    /// The bytes a description of a photo described at `size` will hold
+    /// ([`Described::bytes`](crate::described::Described::bytes)) at
+    /// most, known before it is made: the net's grid is a quarter of the
+    /// photo shrunk to the inference side, each side rounded to a multiple
+    /// of 32.
+    pub fn described_bytes(&self, size: (u32, u32)) -> usize {
+        let longer = size.0.max(size.1).max(1) as f64;
+        let shrink = self
+            .side
+            .map_or(1.0, |side| (side as f64 / longer).min(1.0));
+        let cells = |n: u32| ((n as f64 * shrink).round() as usize + 32) / 4 + 1;
+        crate::described::bytes_held(size, cells(size.0) * cells(size.1), self.dim)
     }
 
     /// The model's name in reports (`default` for the shipped model).
@@ -104,6 +128,31 @@ mod tests {
             DescriptorModel::describe(&model, &photo),
             DescriptorModel::describe(&model.net, &photo)
         );
+    }
+
+    #[test]
+    fn a_description_holds_no_more_than_was_counted_for_it() {
+        let model = served();
+        let coffee = matseg_image::io::read_rgb(
+            &matseg_pipeline::sources::assets_dir().join("photos/coffee.jpg"),
+        )
+        .unwrap();
+        for (w, h) in [(600, 400), (150, 100), (1000, 90), (33, 700)] {
+            let photo =
+                image::imageops::resize(&coffee, w, h, image::imageops::FilterType::Triangle);
+            let map = model.describe_click(&photo);
+            let described = crate::described::Described::new(photo, map, (w, h));
+            let counted = model.described_bytes((w, h));
+            assert!(
+                described.bytes() <= counted,
+                "{w}x{h}: {} > {counted}",
+                described.bytes()
+            );
+            assert!(
+                described.bytes() * 2 >= counted,
+                "{w}x{h}: counted far too much"
+            );
+        }
     }
 
     #[test]

@@ -7,7 +7,7 @@
 //! and `sample/INDEX`.
 
 use crate::app::{blocking, ApiError, AppState, UploadName};
-use crate::described::{release_freed_memory, Described};
+use crate::described::{described_size, release_freed_memory, Described, Turn};
 use crate::roots::plain_name;
 use crate::uploads::Upload;
 use axum::body::Body;
@@ -137,12 +137,23 @@ impl Source {
         ))
     }
 
-    /// The photo's pixels.
-    fn pixels(self, state: &AppState, photo: &PhotoRef) -> Result<RgbImage, ApiError> {
+    /// The photo's size from its file's header, without decoding it;
+    /// `None` for a dataset's sample, or a header that cannot be read
+    /// (decoding it says why).
+    fn header_size(&self) -> Option<(u32, u32)> {
         match self {
-            Source::File(file) => read_rgb(&file),
+            Source::File(file) => matseg_image::io::read_dimensions(file).ok(),
+            Source::Upload(upload) => matseg_image::io::read_dimensions(&upload.file).ok(),
+            Source::Sample(_) => None,
+        }
+    }
+
+    /// The photo's pixels.
+    fn pixels(&self, state: &AppState, photo: &PhotoRef) -> Result<RgbImage, ApiError> {
+        match self {
+            Source::File(file) => read_rgb(file),
             Source::Upload(upload) => read_rgb(&upload.file).map_err(|e| e.renamed(&photo.path)),
-            Source::Sample(index) => return Ok(sample(state, photo, index)?.image),
+            Source::Sample(index) => return Ok(sample(state, photo, *index)?.image),
         }
         .map_err(|e| ApiError::bad(e.to_string()))
     }
@@ -215,10 +226,15 @@ pub async fn upload(
         .uploads
         .receive(body, MAX_UPLOAD_BYTES, "upload")
         .await?;
+    // Checking it decodes it whole: a turn at the work on full pixels.
+    let turn = state.photo_work.turn(&shown).await?;
     let (width, height, extension) = blocking({
         let file = arrived.file.clone();
         let shown = shown.clone();
-        move || check_upload(&file, &shown)
+        move || {
+            let _turn = turn;
+            check_upload(&file, &shown)
+        }
     })
     .await?;
     let key = format!("{:016x}.{extension}", arrived.hash);
@@ -268,30 +284,90 @@ fn check_upload(file: &Path, name: &str) -> Result<(u32, u32, &'static str), Api
     Ok((width, height, extension))
 }
 
-/// The photo described, from the cache or now (off the async threads;
-/// the memory the description freed is given back after it).
+/// The photo described, from the cache or now: in a turn at the work on
+/// full pixels ([`crate::described::PhotoWork`]), off the async threads,
+/// counted against the cache's budget before it is made, and shrunk to
+/// [`described_size`] when it has more pixels than that (the memory the
+/// description freed is given back after it). A photo described now comes
+/// with its turn, for the answer to be made in it too: the request's
+/// whole working set is then one turn's, and the next description waits
+/// until this answer is made.
 pub async fn described(
     state: &Arc<AppState>,
     photo: &PhotoRef,
-) -> Result<Arc<Described>, ApiError> {
+) -> Result<(Arc<Described>, Option<Turn>), ApiError> {
     let (key, source) = Source::find(state, photo)?;
     if let Some(d) = state.described.get(&key) {
-        return Ok(d);
+        return Ok((d, None));
     }
+    let turn = state.photo_work.turn(&photo.path).await?;
     let state = state.clone();
     let photo = photo.clone();
-    let described = blocking(move || {
-        let image = source.pixels(&state, &photo)?;
+    // The turn goes with the work, which ends even if the request does
+    // not wait for it.
+    let (described, turn) = blocking(move || {
+        // Described by another request while this one waited.
+        if let Some(d) = state.described.get(&key) {
+            return Ok((d, turn));
+        }
+        let counted = |(w, h): (u32, u32)| state.model.described_bytes(described_size(w, h));
+        let early = source
+            .header_size()
+            .map(|size| (size, state.described.reserve(counted(size))));
+        let full = source.pixels(&state, &photo)?;
+        let size = full.dimensions();
+        let reservation = match early {
+            Some((header, reservation)) if header == size => reservation,
+            _ => state.described.reserve(counted(size)),
+        };
+        let image = as_described(full);
         let map = state.model.describe_click(&image);
-        let described = Arc::new(Described::new(image, map));
-        state
-            .described
-            .insert(key, described.clone(), described.bytes());
-        Ok(described)
+        let described = Arc::new(Described::new(image, map, size));
+        reservation.keep(key, described.clone());
+        Ok((described, turn))
     })
     .await?;
     tokio::task::spawn_blocking(release_freed_memory);
-    Ok(described)
+    Ok((described, Some(turn)))
+}
+
+/// A photo's pixels as they are described: shrunk by area averaging to
+/// [`described_size`] when it has more pixels than that, else as they are.
+fn as_described(full: RgbImage) -> RgbImage {
+    let (w, h) = full.dimensions();
+    let size = described_size(w, h);
+    if size == (w, h) {
+        return full;
+    }
+    image::imageops::thumbnail(&full, size.0, size.1)
+}
+
+/// The PNG answer `make` makes of a described photo, at the photo's own
+/// size, in `turn` (the request's, when it described the photo) or, for a
+/// photo described shrunk, whose answer is as large as the photo, in a
+/// turn of its own, off the async threads. Any other answer is made off
+/// them when `off_async` says so, else here.
+pub(crate) async fn photo_answer(
+    state: &Arc<AppState>,
+    (described, turn): (Arc<Described>, Option<Turn>),
+    what: &str,
+    off_async: bool,
+    make: impl FnOnce(&Described) -> Result<Vec<u8>, ApiError> + Send + 'static,
+) -> Result<Response, ApiError> {
+    let turn = match turn {
+        None if described.shrunk() => Some(state.photo_work.turn(what).await?),
+        turn => turn,
+    };
+    let bytes = if turn.is_some() || off_async {
+        blocking(move || {
+            let _turn = turn;
+            make(&described)
+        })
+        .await?
+    } else {
+        make(&described)?
+    };
+    Ok(png(bytes))
 }
 
 /// Points `x,y;x,y...` in photo pixels: one at least, at most `most`.
@@ -329,39 +405,66 @@ pub struct PointsQuery {
     radius: Option<f32>,
 }
 
-/// The photo described and the points checked against it.
+/// The photo described (with the turn it was described in, if it was
+/// now), the points checked against it and the radius, both where they
+/// lie on the photo as described.
 async fn described_with_points(
     state: &Arc<AppState>,
     query: &PointsQuery,
-) -> Result<(Arc<Described>, Vec<(f32, f32)>, f32), ApiError> {
+) -> Result<((Arc<Described>, Option<Turn>), Vec<(f32, f32)>, f32), ApiError> {
     let points = parse_points(&query.points, MAX_POINTS)?;
     let radius = checked_radius(query.radius)?;
     let photo = PhotoRef {
         root: query.root.clone(),
         path: query.path.clone(),
     };
-    let described = described(state, &photo).await?;
-    check_points(&described.photo, &points, &query.path)
-        .map_err(|e| ApiError::bad(e.to_string()))?;
-    Ok((described, points, radius))
+    let (described, turn) = described(state, &photo).await?;
+    let points = check_points_on(&described, &points, &query.path)?;
+    let radius = described.radius(radius);
+    Ok(((described, turn), points, radius))
+}
+
+/// Checks `points` (at most [`MAX_POINTS`], each inside the photo in its
+/// own pixels) as `matseg segment` checks them, and answers them where
+/// they lie on the photo as described.
+fn check_points_on(
+    described: &Described,
+    points: &[(f32, f32)],
+    label: &str,
+) -> Result<Vec<(f32, f32)>, ApiError> {
+    if !described.shrunk() {
+        check_points(&described.photo, points, label).map_err(|e| ApiError::bad(e.to_string()))?;
+        return Ok(points.to_vec());
+    }
+    let (w, h) = (described.width as f32, described.height as f32);
+    if let Some((x, y)) = points
+        .iter()
+        .find(|(x, y)| !(0.0..w).contains(x) || !(0.0..h).contains(y))
+    {
+        return Err(ApiError::bad(format!(
+            "point {x},{y}: outside {label} ({w}x{h})"
+        )));
+    }
+    Ok(points.iter().map(|&(x, y)| described.point(x, y)).collect())
 }
 
 fn png(bytes: Vec<u8>) -> Response {
     ([(header::CONTENT_TYPE, "image/png")], bytes).into_response()
 }
 
-/// A label map as an RGB PNG: red = label, green = how strongly the pixel
-/// belongs to it (0..255), blue = 0.
-fn label_png(photo: &RgbImage, labels: &[u32], strength: impl Fn(usize) -> u8) -> Response {
-    let (w, h) = photo.dimensions();
+/// A label map of a described photo as an RGB PNG at the photo's own
+/// size: red = label, green = how strongly the pixel belongs to it
+/// (0..255), blue = 0.
+fn label_png(described: &Described, labels: &[u32], strength: impl Fn(usize) -> u8) -> Vec<u8> {
     let raw = labels
         .iter()
         .enumerate()
         .flat_map(|(i, &l)| [l as u8, strength(i), 0])
         .collect();
-    png(encode_png_rgb(
-        &RgbImage::from_raw(w, h, raw).expect("one label per pixel"),
-    ))
+    let raw = described.at_photo_size(raw, 3);
+    encode_png_rgb(
+        &RgbImage::from_raw(described.width, described.height, raw).expect("one label per pixel"),
+    )
 }
 
 /// `GET /api/similarity`: the similarity map of the first point, cosine in
@@ -371,13 +474,16 @@ pub async fn similarity(
     Query(query): Query<PointsQuery>,
 ) -> Result<Response, ApiError> {
     let (described, points, radius) = described_with_points(&state, &query).await?;
-    let first = points
+    let first = *points
         .first()
         .ok_or_else(|| ApiError::bad("points: give one point"))?;
-    let maps = query_points(&described.map, &[*first], radius);
-    let grey = similarity_grey(&maps.similarity[0]);
-    let (w, h) = described.photo.dimensions();
-    Ok(png(encode_png_grey(w, h, &grey)))
+    photo_answer(&state, described, &query.path, false, move |described| {
+        let maps = query_points(&described.map, &[first], radius);
+        let grey = similarity_grey(&maps.similarity[0]);
+        let grey = described.at_photo_size(grey, 1);
+        Ok(encode_png_grey(described.width, described.height, &grey))
+    })
+    .await
 }
 
 /// `GET /api/segment`: the segmentation by two points or more, each pixel
@@ -391,11 +497,15 @@ pub async fn segment(
     if points.len() < 2 {
         return Err(ApiError::bad("points: give two points or more"));
     }
-    let maps = query_points(&described.map, &points, radius);
-    let labels = maps.labels.expect("two points or more");
-    let grey =
-        |i: usize| (maps.similarity[labels[i] as usize][i].clamp(0.0, 1.0) * 255.0).round() as u8;
-    Ok(label_png(&described.photo, &labels, grey))
+    photo_answer(&state, described, &query.path, false, move |described| {
+        let maps = query_points(&described.map, &points, radius);
+        let labels = maps.labels.expect("two points or more");
+        let grey = |i: usize| {
+            (maps.similarity[labels[i] as usize][i].clamp(0.0, 1.0) * 255.0).round() as u8
+        };
+        Ok(label_png(described, &labels, grey))
+    })
+    .await
 }
 
 /// A photo and a number of clusters.
@@ -424,9 +534,9 @@ pub async fn auto(
     };
     let described = described(&state, &photo).await?;
     let k = query.k;
-    blocking(move || {
+    photo_answer(&state, described, &photo.path, true, move |described| {
         let (labels, _) = cluster(&described.map, &ClusterOptions::new(k));
-        Ok(label_png(&described.photo, &labels, |_| 255))
+        Ok(label_png(described, &labels, |_| 255))
     })
     .await
 }

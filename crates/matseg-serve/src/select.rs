@@ -4,12 +4,11 @@
 //! `matseg_query::select` (its soft map and its own mask), or saved as
 //! `selection.json` (the clicks' descriptors) to apply to other photos.
 
-use crate::app::{blocking, ApiError, AppState};
-use crate::described::Described;
-use crate::photos::{checked_radius, described, PhotoRef};
+use crate::app::{ApiError, AppState};
+use crate::described::{Described, Turn};
+use crate::photos::{checked_radius, described, photo_answer, PhotoRef};
 use axum::extract::{Query, State};
-use axum::http::header;
-use axum::response::{IntoResponse, Response};
+use axum::response::Response;
 use axum::Json;
 use image::RgbImage;
 use matseg_image::io::encode_png_rgb;
@@ -66,9 +65,10 @@ fn clicks_of(query: &SelectQuery) -> Result<Vec<Click>, ApiError> {
         .collect())
 }
 
-/// The first click outside `photo`, as an error naming its argument.
-fn check_inside(clicks: &[Click], photo: &RgbImage, name: &str) -> Result<(), ApiError> {
-    let (w, h) = (photo.width() as f32, photo.height() as f32);
+/// The first click outside a photo of `size`, as an error naming its
+/// argument.
+fn check_inside(clicks: &[Click], size: (u32, u32), name: &str) -> Result<(), ApiError> {
+    let (w, h) = (size.0 as f32, size.1 as f32);
     match clicks
         .iter()
         .find(|c| !(0.0..w).contains(&c.x) || !(0.0..h).contains(&c.y))
@@ -83,26 +83,42 @@ fn check_inside(clicks: &[Click], photo: &RgbImage, name: &str) -> Result<(), Ap
     }
 }
 
-/// A selection as an RGB PNG of the photo's size: red = the soft map
-/// (0..1 as 0..255), green = 255 where the method's mask is set, blue =
-/// 0.
-pub fn selection_png(selection: &Selection) -> Vec<u8> {
-    let raw = selection
+/// A selection's pixels, row by row, as RGB: red = the soft map (0..1 as
+/// 0..255), green = 255 where the method's mask is set, blue = 0.
+fn selection_rgb(selection: &Selection) -> Vec<u8> {
+    selection
         .soft
         .iter()
         .zip(&selection.mask)
         .flat_map(|(&s, &m)| [(s.clamp(0.0, 1.0) * 255.0).round() as u8, 255 * m as u8, 0])
-        .collect();
+        .collect()
+}
+
+/// A selection as an RGB PNG of its size ([`selection_rgb`]).
+pub fn selection_png(selection: &Selection) -> Vec<u8> {
     let (w, h) = (selection.width as u32, selection.height as u32);
+    let raw = selection_rgb(selection);
     encode_png_rgb(&RgbImage::from_raw(w, h, raw).expect("one value per pixel"))
 }
 
-/// The photo a select request names, described, and its clicks, checked
-/// against it; the disc radius.
+/// A selection on a described photo as an RGB PNG of the photo's own size
+/// ([`selection_rgb`]).
+fn selection_png_on(selection: &Selection, described: &Described) -> Vec<u8> {
+    if !described.shrunk() {
+        return selection_png(selection);
+    }
+    let raw = described.at_photo_size(selection_rgb(selection), 3);
+    let (w, h) = (described.width, described.height);
+    encode_png_rgb(&RgbImage::from_raw(w, h, raw).expect("one value per pixel"))
+}
+
+/// The photo a select request names, described (with the turn it was
+/// described in, if it was now), and its clicks, checked against it; the
+/// disc radius.
 async fn described_clicks(
     state: &Arc<AppState>,
     query: SelectQuery,
-) -> Result<(Arc<Described>, Vec<Click>, f32), ApiError> {
+) -> Result<((Arc<Described>, Option<Turn>), Vec<Click>, f32), ApiError> {
     let clicks = clicks_of(&query)?;
     let radius = checked_radius(query.radius)?;
     let photo = PhotoRef {
@@ -110,12 +126,17 @@ async fn described_clicks(
         path: query.path,
     };
     let described = described(state, &photo).await?;
-    check_inside(&clicks, &described.photo, &photo.path)?;
+    check_inside(
+        &clicks,
+        (described.0.width, described.0.height),
+        &photo.path,
+    )?;
     Ok((described, clicks, radius))
 }
 
 /// A selector on `described` with `clicks` added (following the photo's
-/// edges and colours), sharing the photo's preparation.
+/// edges and colours), sharing the photo's preparation; the clicks and the
+/// radius are in the photo's own pixels.
 fn selector_with(
     described: &Described,
     clicks: Vec<Click>,
@@ -123,30 +144,33 @@ fn selector_with(
 ) -> Result<Selector<'_>, ApiError> {
     let bad = |e: matseg_query::select::SelectError| ApiError::bad(e.to_string());
     let photo = Some(&described.photo);
+    let radius = described.radius(radius);
     let mut selector =
         Selector::with_prep(&described.map, photo, radius, described.prep.clone()).map_err(bad)?;
     for click in clicks {
-        selector.add(click).map_err(bad)?;
+        let (x, y) = described.point(click.x, click.y);
+        selector.add(Click { x, y, ..click }).map_err(bad)?;
     }
     Ok(selector)
 }
 
 /// `GET /api/select?root=R&path=P&positive=X,Y;...&negative=X,Y;...[&radius=5]`:
-/// the selection the clicks make, as [`selection_png`].
+/// the selection the clicks make, as [`selection_png`], at the photo's own
+/// size.
 pub async fn selection(
     State(state): State<Arc<AppState>>,
     Query(query): Query<SelectQuery>,
 ) -> Result<Response, ApiError> {
+    let path = query.path.clone();
     let (described, clicks, radius) = described_clicks(&state, query).await?;
-    let png = blocking(move || {
-        let selector = selector_with(&described, clicks, radius)?;
+    photo_answer(&state, described, &path, true, move |described| {
+        let selector = selector_with(described, clicks, radius)?;
         let selection = selector
             .selection()
             .map_err(|e| ApiError::bad(e.to_string()))?;
-        Ok(selection_png(&selection))
+        Ok(selection_png_on(&selection, described))
     })
-    .await?;
-    Ok(([(header::CONTENT_TYPE, "image/png")], png).into_response())
+    .await
 }
 
 /// `GET /api/select/save?root=R&path=P&positive=X,Y;...&negative=X,Y;...[&radius=5]`:
@@ -156,7 +180,7 @@ pub async fn save(
     State(state): State<Arc<AppState>>,
     Query(query): Query<SelectQuery>,
 ) -> Result<Json<SavedSelection>, ApiError> {
-    let (described, clicks, radius) = described_clicks(&state, query).await?;
+    let ((described, _), clicks, radius) = described_clicks(&state, query).await?;
     let selector = selector_with(&described, clicks, radius)?;
     Ok(Json(selector.saved(state.model.name())))
 }
@@ -201,11 +225,10 @@ mod tests {
         assert!(refusal("NaN,2", "").contains("positive"));
         let many = vec!["1,1"; MAX_CLICKS].join(";");
         assert!(refusal(&many, "2,2").contains("256 clicks"));
-        let photo = RgbImage::new(10, 5);
         let outside = [Click::positive(1.0, 1.0), Click::negative(3.0, 5.0)];
-        let error = check_inside(&outside, &photo, "a.png").unwrap_err();
+        let error = check_inside(&outside, (10, 5), "a.png").unwrap_err();
         assert!(format!("{error:?}").contains("negative 3,5: outside a.png (10x5)"));
-        assert!(check_inside(&outside[..1], &photo, "a.png").is_ok());
+        assert!(check_inside(&outside[..1], (10, 5), "a.png").is_ok());
     }
 
     #[test]

@@ -4,9 +4,10 @@
 //! truncated and oversized uploads. Each must be refused with a 4xx status
 //! and a one-line JSON error, never a panic or a 5xx; nothing refused is
 //! kept, and no file outside changed; and the server goes on answering.
-//! Then what the router alone cannot show: an upload larger than the
-//! whole uploads bound, unusable tokens, and requests that name a second
-//! host (sent over a socket as raw HTTP).
+//! Then what the router alone cannot show: a photo of many pixels and
+//! few bytes described within the memory bound, an upload larger than
+//! the whole uploads bound, unusable tokens, and requests that name a
+//! second host (sent over a socket as raw HTTP).
 
 mod ffmpeg;
 mod router;
@@ -423,6 +424,125 @@ async fn annotation_names_that_leave_the_benchmark_change_and_show_nothing_outsi
     assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
     assert!(bench.join("data/balance/data.json").is_file());
     assert_eq!(snapshot(&elsewhere), outside);
+}
+
+/// A PNG of `width x height` (a few hundred KB): the left half one
+/// colour, the right half another.
+fn two_halves_png(width: u32, height: u32) -> Vec<u8> {
+    let photo = image::RgbImage::from_fn(width, height, |x, _| {
+        image::Rgb(if x < width / 2 {
+            [200, 50, 30]
+        } else {
+            [30, 80, 200]
+        })
+    });
+    matseg_image::io::encode_png_rgb(&photo)
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_photo_of_many_pixels_and_few_bytes_is_described_within_the_memory_bound() {
+    let photos = tempfile::tempdir().unwrap();
+    let (width, height) = (6000, 6000);
+    let png = two_halves_png(width, height);
+    assert!(png.len() < 2 << 20, "{} bytes", png.len());
+    std::fs::write(photos.path().join("halves.png"), &png).unwrap();
+    let bound_mib = 256;
+    let app_state = state(&matseg_serve::ServeOptions {
+        cache_mb: bound_mib,
+        ..options(vec![photos.path().into()], Vec::new())
+    })
+    .unwrap();
+    let app = router(app_state.clone());
+    // Clicks on the left half, near its far corner: answered in the
+    // photo's own pixels, the left half selected and not the right.
+    let select =
+        |x: u32, y: u32| format!("/api/select?root=data0&path=halves.png&positive={x},{y}");
+    let (status, _, body) = router::get(&app, &select(2500, 5990)).await;
+    assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
+    let selected = image::load_from_memory(&body).unwrap().to_rgb8();
+    assert_eq!(selected.dimensions(), (width, height));
+    for (x, y) in [(100, 300), (2500, 5990), (1500, 3000), (2700, 10)] {
+        assert_eq!(selected.get_pixel(x, y).0[1], 255, "{x},{y} selected");
+    }
+    for (x, y) in [(5999, 5999), (4500, 3000), (3300, 10)] {
+        assert_eq!(selected.get_pixel(x, y).0[1], 0, "{x},{y} not selected");
+    }
+    // The similarity map too, and a click outside the photo's own pixels.
+    let (status, _, body) = router::get(
+        &app,
+        "/api/similarity?root=data0&path=halves.png&points=5999,5999",
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK);
+    let grey = image::load_from_memory(&body).unwrap().to_luma8();
+    assert_eq!(grey.dimensions(), (width, height));
+    assert!(grey.get_pixel(5999, 5999).0[0] > grey.get_pixel(0, 0).0[0]);
+    let (status, _, body) = router::get(&app, &select(6000, 10)).await;
+    assert_eq!(status, StatusCode::BAD_REQUEST);
+    assert!(router::error_of(&body).contains("outside halves.png (6000x6000)"));
+    // What it holds: one description, at the capped size, within the bound.
+    let (_, _, answer) = router::get(&app, "/api/status").await;
+    let held = router::json(&answer);
+    let described_mib = held["described_mib"].as_f64().unwrap();
+    assert!(
+        described_mib > 0.0 && described_mib <= bound_mib as f64,
+        "{held}"
+    );
+    let capped = app_state
+        .model
+        .described_bytes(matseg_serve::described::described_size(width, height));
+    let uncapped = app_state.model.described_bytes((width, height));
+    assert!(app_state.described.bytes() <= capped);
+    assert!(capped < uncapped / 2, "{capped} of {uncapped} bytes");
+    assert_eq!(app_state.budget.held(), app_state.described.bytes());
+    // Uploaded, the same photo is taken and described the same way.
+    let (status, _, body) = router::post(&app, "/api/upload?name=halves.png", png).await;
+    assert_eq!(status, StatusCode::OK, "{}", String::from_utf8_lossy(&body));
+    let path = router::json(&body)["path"].as_str().unwrap().to_string();
+    let (status, _, body) = router::get(
+        &app,
+        &format!("/api/select?root=upload&path={path}&positive=10,10"),
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK);
+    let uploaded = image::load_from_memory(&body).unwrap().to_rgb8();
+    assert_eq!(uploaded.dimensions(), (width, height));
+    assert_eq!(uploaded.get_pixel(5999, 0).0[1], 0);
+    assert!(app_state.budget.held() <= bound_mib << 20);
+}
+
+#[tokio::test(flavor = "multi_thread")]
+async fn a_photo_within_the_cap_is_answered_as_the_library_selects_it() {
+    let app_state = state(&options(Vec::new(), Vec::new())).unwrap();
+    let app = router(app_state.clone());
+    let (status, _, served) = router::get(
+        &app,
+        "/api/select?root=photos&path=coffee.jpg&positive=290,130;300,150&negative=150,300&radius=7",
+    )
+    .await;
+    assert_eq!(status, StatusCode::OK);
+    let photo = matseg_image::io::read_rgb(
+        &matseg_pipeline::sources::assets_dir().join("photos/coffee.jpg"),
+    )
+    .unwrap();
+    let net =
+        matseg_net::infer::NetModel::load(std::path::Path::new("default"), Default::default())
+            .unwrap();
+    let map = matseg_pipeline::segment::describe(&net.lock(), &photo);
+    use matseg_query::select::{Click, Selector};
+    let mut selector = Selector::new(&map, Some(&photo), 7.0).unwrap();
+    for click in [
+        Click::positive(290.0, 130.0),
+        Click::positive(300.0, 150.0),
+        Click::negative(150.0, 300.0),
+    ] {
+        selector.add(click).unwrap();
+    }
+    let own = matseg_serve::select::selection_png(&selector.selection().unwrap());
+    assert!(
+        served == own,
+        "the served selection is the library's, byte for byte"
+    );
 }
 
 #[tokio::test(flavor = "multi_thread")]
