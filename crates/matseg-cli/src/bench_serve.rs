@@ -7,12 +7,15 @@
 //! (`matseg_serve::load`, `matseg_pipeline::bench::clock`). With
 //! `--while-evaluating BENCH`, an evaluation of that point benchmark runs
 //! in the server's background from the descriptor pass to the last round.
+//! With `--describe-at-once`, it measures memory instead: the first click
+//! on every photo sent at once, to a new server each run, and the server's
+//! memory before and at its peak.
 
 use anyhow::{bail, Context, Result};
 use matseg_pipeline::bench::clock::process_memory_mib;
 use matseg_serve::load::{
-    clicks, percentile, video_uploads, write_photos, ClickStats, Connection, ServerAddress,
-    UploadStats,
+    clicks, first_clicks_at_once, percentile, video_uploads, write_photos, AtOnceStats, ClickStats,
+    Connection, ServerAddress, UploadStats,
 };
 use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
@@ -42,6 +45,10 @@ pub struct Args {
     /// The model the server runs.
     #[arg(long, default_value = "default")]
     model: String,
+    /// The `matseg` program to start as the server (another build, to
+    /// compare): this one unless told otherwise.
+    #[arg(long, value_name = "PROGRAM")]
+    server: Option<std::path::PathBuf>,
     /// A point benchmark folder: its evaluation (the served model and the
     /// baselines the evaluate page ticks) runs in the server's background
     /// during the descriptor pass and every click round.
@@ -55,6 +62,14 @@ pub struct Args {
     /// The size of each upload, in MiB.
     #[arg(long, default_value_t = 500)]
     upload_size_mb: usize,
+    /// Instead of the click rounds: the first click on every photo sent
+    /// at once (the selection the segment page asks for), to a new server
+    /// each run, and the server's memory (RSS) before and at its peak.
+    #[arg(long)]
+    describe_at_once: bool,
+    /// Runs of --describe-at-once (the median is reported).
+    #[arg(long, default_value_t = 1)]
+    runs: usize,
     /// Print JSON instead of tables.
     #[arg(long)]
     json: bool,
@@ -68,7 +83,10 @@ struct Server {
 
 impl Server {
     fn start(data: &std::path::Path, args: &Args) -> Result<Self> {
-        let exe = std::env::current_exe().context("cannot find the matseg binary")?;
+        let exe = match &args.server {
+            Some(program) => program.clone(),
+            None => std::env::current_exe().context("cannot find the matseg binary")?,
+        };
         let mut child = Command::new(exe)
             .args(["serve", "--json", "--port", "0", "--model", &args.model])
             .arg("--cache-mb")
@@ -139,6 +157,9 @@ pub fn run(args: Args) -> Result<()> {
     }
     let dir = tempfile::tempdir().context("cannot make a folder for the photos")?;
     let photos = write_photos(dir.path(), args.photos, args.megapixels)?;
+    if args.describe_at_once {
+        return describe_at_once(dir.path(), &photos, &args);
+    }
     let server = Server::start(dir.path(), &args)?;
     let (_, idle_peak) = server.memory();
     let uploads = (args.uploads > 0)
@@ -249,6 +270,104 @@ pub fn run(args: Args) -> Result<()> {
             r.per_second
         );
     }
+    Ok(())
+}
+
+/// One run of `--describe-at-once`: the server's memory, MiB, and what
+/// the clicks got.
+struct AtOnceRun {
+    /// RSS once started (the model loaded), before any click.
+    rss_idle_mib: f64,
+    /// The highest RSS until every click was answered (VmHWM).
+    rss_peak_mib: f64,
+    /// RSS after.
+    rss_after_mib: f64,
+    /// Described photos kept, as the server counts them.
+    described_mib: f64,
+    clicks: AtOnceStats,
+}
+
+impl AtOnceRun {
+    /// The peak above the idle RSS, MiB.
+    fn growth(&self) -> f64 {
+        self.rss_peak_mib - self.rss_idle_mib
+    }
+
+    fn json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "rss_idle_mib": self.rss_idle_mib, "rss_peak_mib": self.rss_peak_mib,
+            "rss_after_mib": self.rss_after_mib, "growth_mib": self.growth(),
+            "described_mib": self.described_mib, "clicks": self.clicks,
+        })
+    }
+}
+
+/// `--describe-at-once`: each run, a new server and the first click on
+/// every photo sent at once; the server's memory per run and the median
+/// of its peak above its idle RSS, against the bound it should keep
+/// within (`--cache-mb` plus 300 MiB).
+fn describe_at_once(
+    dir: &std::path::Path,
+    photos: &[(String, u32, u32)],
+    args: &Args,
+) -> Result<()> {
+    if args.runs == 0 {
+        bail!("--runs must be positive");
+    }
+    let mut runs = Vec::new();
+    for _ in 0..args.runs {
+        let server = Server::start(dir, args)?;
+        let (rss_idle_mib, _) = server.memory();
+        let clicks = first_clicks_at_once(&server.address, photos);
+        let (rss_after_mib, rss_peak_mib) = server.memory();
+        let (_, status) = Connection::open(&server.address)?.get_body("/api/status")?;
+        let status: serde_json::Value = serde_json::from_slice(&status)?;
+        runs.push(AtOnceRun {
+            rss_idle_mib,
+            rss_peak_mib,
+            rss_after_mib,
+            described_mib: status["described_mib"].as_f64().unwrap_or(f64::NAN),
+            clicks,
+        });
+    }
+    let mut growth: Vec<f64> = runs.iter().map(AtOnceRun::growth).collect();
+    let median = percentile(&mut growth, 50.0);
+    let bound = args.cache_mb as f64 + 300.0;
+    let megapixels =
+        photos.iter().map(|(_, w, h)| (w * h) as f64).sum::<f64>() / photos.len() as f64 / 1e6;
+    if args.json {
+        let out = serde_json::json!({
+            "photos": photos.len(), "megapixels": megapixels, "cache_mb": args.cache_mb,
+            "runs": runs.iter().map(AtOnceRun::json).collect::<Vec<_>>(),
+            "median_growth_mib": median, "bound_mib": bound,
+        });
+        println!("{}", serde_json::to_string_pretty(&out)?);
+        return Ok(());
+    }
+    println!(
+        "{} photos of {megapixels:.1} MP, first clicks all at once, --cache-mb {}: {} runs",
+        photos.len(),
+        args.cache_mb,
+        runs.len()
+    );
+    println!("| run | idle RSS MiB | peak RSS MiB | peak - idle MiB | RSS after MiB | described MiB | statuses | seconds |");
+    println!("|---|---|---|---|---|---|---|---|");
+    for (i, r) in runs.iter().enumerate() {
+        println!(
+            "| {} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:?} | {:.1} |",
+            i + 1,
+            r.rss_idle_mib,
+            r.rss_peak_mib,
+            r.growth(),
+            r.rss_after_mib,
+            r.described_mib,
+            r.clicks.statuses,
+            r.clicks.seconds
+        );
+    }
+    println!(
+        "median peak above idle: {median:.0} MiB (the bound: --cache-mb + 300 = {bound:.0} MiB)"
+    );
     Ok(())
 }
 

@@ -190,6 +190,53 @@ pub fn click_path(photo: &str, x: u32, y: u32) -> String {
     format!("/api/similarity?root=data0&path={photo}&points={x},{y}")
 }
 
+/// The selection request of a click on a photo of the `data0` folder, as
+/// the segment page sends it.
+pub fn select_path(photo: &str, x: u32, y: u32) -> String {
+    format!("/api/select?root=data0&path={photo}&positive={x},{y}")
+}
+
+/// What first clicks on photos, all sent at once, got.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct AtOnceStats {
+    /// Each click's answer status (0: the request failed), in the order
+    /// of the photos.
+    pub statuses: Vec<u16>,
+    /// Each click's round trip, ms.
+    pub round_trip_ms: Vec<f64>,
+    /// Seconds until the last was answered.
+    pub seconds: f64,
+}
+
+/// A first click on the middle of each of `photos` (name, width, height;
+/// [`select_path`]), all sent at once, each on its own connection.
+pub fn first_clicks_at_once(server: &ServerAddress, photos: &[(String, u32, u32)]) -> AtOnceStats {
+    let started = Instant::now();
+    let answers: Vec<(u16, f64)> = std::thread::scope(|scope| {
+        let clients: Vec<_> = photos
+            .iter()
+            .map(|(name, w, h)| {
+                scope.spawn(move || {
+                    let path = select_path(name, w / 2, h / 2);
+                    match Connection::open(server).and_then(|mut c| c.get(&path)) {
+                        Ok(answer) => (answer.status, answer.round_trip_ms),
+                        Err(_) => (0, f64::NAN),
+                    }
+                })
+            })
+            .collect();
+        clients
+            .into_iter()
+            .map(|c| c.join().unwrap_or((0, f64::NAN)))
+            .collect()
+    });
+    AtOnceStats {
+        statuses: answers.iter().map(|a| a.0).collect(),
+        round_trip_ms: answers.iter().map(|a| a.1).collect(),
+        seconds: started.elapsed().as_secs_f64(),
+    }
+}
+
 /// Latencies of many clicks.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct ClickStats {
