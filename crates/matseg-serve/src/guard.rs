@@ -212,24 +212,35 @@ pub const MIN_TOKEN_CHARS: usize = 8;
 /// [`MIN_TOKEN_CHARS`] characters or more, each URL-safe (`A-Z a-z 0-9 .
 /// _ ~ -`), so that it goes into the printed address and a header as it
 /// is and is not guessed at once.
-pub fn check_token(token: &str) -> Result<(), String> {
-    const SAFE: &str = "A-Z a-z 0-9 . _ ~ -";
+pub fn check_token(token: &str) -> Result<(), TokenError> {
     if let Some(c) = token
         .chars()
         .find(|c| !(c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | '~' | '-')))
     {
-        return Err(format!(
-            "--token: {c:?} is not a URL-safe character; use only {SAFE}"
-        ));
+        return Err(TokenError::NotUrlSafe(c));
     }
     let chars = token.chars().count();
     if chars < MIN_TOKEN_CHARS {
-        return Err(format!(
-            "--token: too short ({chars} of at least {MIN_TOKEN_CHARS} characters from {SAFE})"
-        ));
+        return Err(TokenError::TooShort(chars));
     }
     Ok(())
 }
+
+/// Why a chosen token cannot be used.
+#[derive(Debug, PartialEq, Eq, thiserror::Error)]
+pub enum TokenError {
+    /// A character that does not go into an address as it is.
+    #[error("--token: {0:?} is not a URL-safe character; use only {SAFE_CHARACTERS}")]
+    NotUrlSafe(char),
+    /// Fewer characters than [`MIN_TOKEN_CHARS`].
+    #[error(
+        "--token: too short ({0} of at least {MIN_TOKEN_CHARS} characters from {SAFE_CHARACTERS})"
+    )]
+    TooShort(usize),
+}
+
+/// The characters a chosen token may hold, as the errors list them.
+const SAFE_CHARACTERS: &str = "A-Z a-z 0-9 . _ ~ -";
 
 /// A new per-run token: 128 random bits as 32 hex digits.
 pub fn new_token() -> Result<String, getrandom::Error> {
@@ -492,7 +503,7 @@ mod tests {
             ("abcd&efgh", "'&' is not a URL-safe character"),
             ("abcdéfgh", "'é' is not a URL-safe character"),
         ] {
-            let message = check_token(bad).unwrap_err();
+            let message = check_token(bad).unwrap_err().to_string();
             assert!(message.starts_with("--token: "), "{message}");
             assert!(message.contains(said), "{bad:?}: {message}");
             assert!(!message.contains('\n'));

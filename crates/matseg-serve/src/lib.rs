@@ -55,8 +55,8 @@ pub enum ServeError {
     #[error("--host {0}: serving beyond this machine needs a token (leave out --no-token)")]
     NoToken(String),
     /// A chosen token that cannot be used (too short, or not URL-safe).
-    #[error("{0}")]
-    Token(String),
+    #[error(transparent)]
+    Token(#[from] guard::TokenError),
     /// The server's temporary folder or token could not be made.
     #[error("cannot start: {0}")]
     Setup(String),
