@@ -14,6 +14,9 @@ use serde::Deserialize;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
+/// The optional file of an image's data folder that names its materials.
+const LABELS_FILE: &str = "labels.json";
+
 /// A `--bench` folder.
 pub struct BenchFolder {
     /// Its root name (`bench0`, `bench1`...).
@@ -79,6 +82,27 @@ impl BenchFolder {
             file,
             data_dir,
         })
+    }
+
+    /// The material names the image's `data/NAME/labels.json` gives its
+    /// groups by id (`{"1": "rusty iron", ...}`, as the real-photo
+    /// benchmarks carry); none when it has no such file, one that is not
+    /// such an object, or one outside the benchmark. Only shown: the
+    /// annotation saved is data.json's.
+    fn labels(&self, image: &BenchImage) -> serde_json::Map<String, serde_json::Value> {
+        inside(&self.folder, &image.data_dir.join(LABELS_FILE), &image.name)
+            .ok()
+            .and_then(|file| std::fs::read(file).ok())
+            .and_then(|bytes| {
+                serde_json::from_slice::<std::collections::BTreeMap<String, String>>(&bytes).ok()
+            })
+            .map(|names| {
+                names
+                    .into_iter()
+                    .map(|(id, name)| (id, name.into()))
+                    .collect()
+            })
+            .unwrap_or_default()
     }
 
     /// The annotation saved for `image` (no groups when there is none).
@@ -168,7 +192,7 @@ fn image_of(
 }
 
 /// `GET /api/annotation`: an image's annotation as saved (no groups when
-/// it has none yet).
+/// it has none yet), with the material names of its `labels.json`.
 pub async fn load(
     State(state): State<Arc<AppState>>,
     Query(query): Query<ImageQuery>,
@@ -177,6 +201,7 @@ pub async fn load(
         let bench = bench(&state, &query.root)?;
         let (image, width, height) = image_of(&state, bench, &query.name)?;
         let annotation = bench.annotation(&image)?;
+        let labels = bench.labels(&image);
         let path = image
             .file
             .strip_prefix(&bench.folder)
@@ -189,6 +214,7 @@ pub async fn load(
             "height": height,
             "groups": annotation.groups,
             "relations": annotation.relations,
+            "labels": labels,
         })))
     })
     .await
