@@ -61,7 +61,7 @@ pub struct AppState {
 }
 
 /// The pages and the files they load: name, content type, body.
-const STATIC_FILES: [(&str, &str, &str); 12] = [
+const STATIC_FILES: [(&str, &str, &str); 13] = [
     ("index.html", HTML, include_str!("static/index.html")),
     ("browse.html", HTML, include_str!("static/browse.html")),
     ("annotate.html", HTML, include_str!("static/annotate.html")),
@@ -74,10 +74,12 @@ const STATIC_FILES: [(&str, &str, &str); 12] = [
     ("evaluate.js", JS, include_str!("static/evaluate.js")),
     ("video.js", JS, include_str!("static/video.js")),
     ("style.css", CSS, include_str!("static/style.css")),
+    ("favicon.svg", SVG, include_str!("static/favicon.svg")),
 ];
 const HTML: &str = "text/html; charset=utf-8";
 const JS: &str = "text/javascript; charset=utf-8";
 const CSS: &str = "text/css; charset=utf-8";
+const SVG: &str = "image/svg+xml";
 
 /// The static file `name` (`/browse` stands for `browse.html`).
 fn static_file(name: &str) -> Response {
@@ -305,6 +307,7 @@ mod tests {
             ("browse", HTML),
             ("annotate.html", HTML),
             ("common.js", JS),
+            ("favicon.svg", SVG),
         ] {
             let response = static_file(name);
             assert_eq!(response.status(), StatusCode::OK, "{name}");
