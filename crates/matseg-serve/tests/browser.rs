@@ -10,7 +10,8 @@
 //! the segment page's refinement: a negative click shrinks the selection,
 //! undo, redo, removal and Esc restore exactly what was, the outline and
 //! greyed views, the automatic split's legend, a tall photo fitting the
-//! window.
+//! window. And on every page at 1280 x 800, the status bar in sight, after
+//! an error too, and Annotate's Save with seven groups.
 //!
 //! With `MATSEG_SCREENSHOTS=DIR`, a screenshot of each page is written
 //! there (a relative DIR from the workspace's root; docs/images holds the
@@ -116,6 +117,49 @@ fn assert_fits_the_window(browser: &mut Browser, page: &str) {
         scroll <= client,
         "{page}: {scroll} px wide in a window of {client}"
     );
+}
+
+/// Asserts that the page's status says something and is in sight: its box
+/// lies within the window and nothing covers it.
+fn assert_status_in_sight(browser: &mut Browser, page: &str) {
+    assert_in_sight(browser, "#status", page);
+    let text = browser.eval("document.getElementById('status').textContent");
+    assert!(
+        !text.as_str().unwrap().is_empty(),
+        "{page}: the status is empty"
+    );
+}
+
+/// Asserts that the element `selector` finds lies within the window and
+/// is the element shown at its middle.
+fn assert_in_sight(browser: &mut Browser, selector: &str, page: &str) {
+    let seen = browser.eval(&format!(
+        "(() => {{ const e = document.querySelector({selector:?}); const b = e.getBoundingClientRect();
+           const top = document.elementFromPoint(b.left + b.width / 2, b.top + b.height / 2);
+           return {{ box: [b.left, b.top, b.right, b.bottom], window: [innerWidth, innerHeight],
+                    shown: b.width > 0 && b.height > 0 && e.contains(top) }}; }})()"
+    ));
+    let number = |v: &serde_json::Value| v.as_f64().unwrap();
+    let [left, top, right, bottom] = [0, 1, 2, 3].map(|i| number(&seen["box"][i]));
+    let (width, height) = (number(&seen["window"][0]), number(&seen["window"][1]));
+    assert!(
+        left >= 0.0 && top >= 0.0 && right <= width && bottom <= height,
+        "{page}: {selector} at {left},{top}-{right},{bottom} in a window of {width} x {height}"
+    );
+    assert_eq!(seen["shown"], true, "{page}: {selector} is covered");
+}
+
+/// Asserts that the status says an error that says `said`, in sight.
+fn assert_error_in_sight(browser: &mut Browser, said: &str, page: &str) {
+    browser.wait_for(&format!(
+        "document.getElementById('status').textContent.includes({said:?})"
+    ));
+    assert_eq!(
+        browser.eval("document.getElementById('status').classList.contains('error')"),
+        true,
+        "{page}: shown as an error"
+    );
+    assert_status_in_sight(browser, page);
 }
 
 /// The body of `GET path` from the server (a plain HTTP/1.1 request).
@@ -340,19 +384,34 @@ fn video_page(browser: &mut Browser, server: &Served) {
         [0],
         "the grass is no clicked material"
     );
+    // The shown frame's labels as a picture: the wood in its colour, the
+    // grass black.
+    browser.click("#save-frame-colours");
+    let picture = downloaded(
+        &downloads
+            .path()
+            .join(format!("clip-labels-{last:06}-colours.png")),
+    );
+    let picture = image::load_from_memory(&picture).unwrap().to_rgba8();
+    assert_eq!(picture.dimensions(), labels.dimensions());
+    assert_eq!(
+        picture.get_pixel(x1, y1).0,
+        [PALETTE[0][0], PALETTE[0][1], PALETTE[0][2], 255]
+    );
+    assert_eq!(picture.get_pixel(x0, y0).0, [0, 0, 0, 255]);
+    assert_status_in_sight(browser, "video");
 
     // A corrupt video: refused in one line, and the server goes on.
     let broken = downloads.path().join("broken.mp4");
     std::fs::write(&broken, b"not a video at all").unwrap();
     browser.pick_files("#file", &[&broken]);
-    browser.wait_for(
-        "document.getElementById('status').textContent.startsWith('broken.mp4: not a readable video')",
-    );
+    assert_error_in_sight(browser, "broken.mp4: not a readable video", "video");
     assert!(http_get(server, "/api/videos").starts_with(b"{"));
 }
 
 /// A page opened without the token (a fresh browser, the bare address)
-/// says what to do, and takes the printed address.
+/// says what to do, takes the printed address and goes on; a wrong token
+/// in the address does not hide the kept one.
 fn without_the_token(browser: &mut Browser, server: &Served) {
     browser.open(
         &format!("{}/evaluate", server.base),
@@ -365,6 +424,7 @@ fn without_the_token(browser: &mut Browser, server: &Served) {
             .contains("open the address `matseg serve` printed"),
         "{said}"
     );
+    assert_in_sight(browser, "#access", "evaluate");
     // Another site's link cannot plant a token: one the server refuses is
     // not kept.
     browser.open(
@@ -375,16 +435,31 @@ fn without_the_token(browser: &mut Browser, server: &Served) {
         browser.eval("localStorage.getItem('matseg-token')"),
         serde_json::Value::Null
     );
+    // The printed address given: the page goes on by itself (the refused
+    // calls repeated) and the banner leaves.
     browser.eval(&format!(
         "document.querySelector('#access input').value = {:?}",
         server.page("/")
     ));
     browser.click("#access button");
-    browser.wait_for("document.querySelector('#access p').textContent.startsWith('Kept.')");
+    let loaded = "document.querySelectorAll('#baselines input').length > 0";
+    browser.wait_for(&format!(
+        "{loaded} && document.getElementById('access') === null"
+    ));
+    let kept = browser.eval("localStorage.getItem('matseg-token')");
+    assert_eq!(kept.as_str(), server.address.token.as_deref());
+    // A wrong token in the address (an old run's link) does not hide the
+    // kept one, which works.
     browser.open(
-        &format!("{}/evaluate", server.base),
-        "document.querySelectorAll('#baselines input').length > 0",
+        &format!("{}/evaluate?token=an-old-runs-token", server.base),
+        loaded,
     );
+    assert_eq!(
+        browser.eval("document.getElementById('access')"),
+        serde_json::Value::Null
+    );
+    assert_eq!(browser.eval("localStorage.getItem('matseg-token')"), kept);
+    browser.open(&format!("{}/evaluate", server.base), loaded);
     assert_eq!(
         browser.eval("document.getElementById('access')"),
         serde_json::Value::Null
@@ -404,6 +479,7 @@ fn segment_page(browser: &mut Browser, server: &Served) {
     // the red-brown photo (not red); the table's wood stays.
     browser.click_canvas(CANVAS, 290, 130, 0);
     browser.wait_for("document.getElementById('canvas').dataset.answered === '1'");
+    assert_status_in_sight(browser, "segment");
     let tinted_coffee = browser.canvas_pixel(CANVAS, 260, 150);
     let change = |a: &[i32; 3], b: &[i32; 3]| (0..3).map(|k| (a[k] - b[k]).abs()).sum::<i32>();
     assert!(
@@ -479,6 +555,14 @@ fn segment_page(browser: &mut Browser, server: &Served) {
     browser.wait_for(
         "document.getElementById('status').textContent.endsWith('not a PNG or JPEG image')",
     );
+    assert_error_in_sight(browser, "not a PNG or JPEG image", "segment");
+    // The page's icon is served.
+    let icon = http_get(server, "/favicon.svg");
+    assert!(icon.starts_with(b"<svg"), "an SVG icon");
+    assert_eq!(
+        browser.eval("document.querySelector('link[rel=icon]').href"),
+        format!("{}/favicon.svg", server.base)
+    );
 }
 
 fn browse_page(browser: &mut Browser, server: &Served) {
@@ -509,6 +593,20 @@ fn browse_page(browser: &mut Browser, server: &Served) {
     assert!(sidecar.as_str().unwrap().contains("\"seed\""), "{sidecar}");
     screenshot(browser, "browse");
     assert_fits_the_window(browser, "browse");
+    assert_status_in_sight(browser, "browse");
+    // A sample number out of range: said so, the sample shown kept.
+    browser.eval(
+        "{ const g = document.getElementById('goto'); g.value = '12'; g.dispatchEvent(new Event('change')) }",
+    );
+    assert_error_in_sight(
+        browser,
+        "Sample 12: no such sample; this dataset's are numbered 0 to 11.",
+        "browse",
+    );
+    assert_eq!(
+        browser.eval("document.getElementById('sample').dataset.index"),
+        "3"
+    );
 }
 
 fn annotate_page(browser: &mut Browser, server: &Served, bench: &Path) {
@@ -589,6 +687,7 @@ fn annotate_page(browser: &mut Browser, server: &Served, bench: &Path) {
     browser.wait_for(&image_is("coffee"));
     let status = browser.eval("document.getElementById('status').textContent");
     assert_eq!(status, "coffee: 2 groups, 4 points (saved)");
+    assert_status_in_sight(browser, "annotate");
     screenshot(browser, "annotate");
     assert_fits_the_window(browser, "annotate");
 }
@@ -598,8 +697,17 @@ fn evaluate_page(browser: &mut Browser, server: &Served) {
         &server.page("/evaluate"),
         "document.querySelectorAll('#baselines input').length > 0",
     );
+    // What the progress shows while it runs, each time it changes.
+    browser.eval(
+        "window.progressShown = [];
+         new MutationObserver(() => window.progressShown.push({
+             models: [...document.querySelectorAll('#models li')].map((li) => li.textContent),
+             scored: document.getElementById('scored').textContent }))
+           .observe(document.getElementById('progress'), { subtree: true, childList: true, characterData: true })",
+    );
     browser.click("#run");
     browser.wait_for("document.getElementById('scores').dataset.done === '1'");
+    assert_status_in_sight(browser, "evaluate");
     let models = browser.eval(
         "[...document.querySelectorAll('#scores tr td:first-child')].map((td) => td.textContent)",
     );
@@ -607,10 +715,59 @@ fn evaluate_page(browser: &mut Browser, server: &Served) {
         models,
         serde_json::json!(["rgb", "lab", "texture", "position", "default"])
     );
+    // The model's images counted apart from the baselines', and its
+    // images named as they are scored.
+    let shown = browser.eval("window.progressShown");
+    let shown = shown.as_array().unwrap();
+    assert!(!shown.is_empty(), "the progress was shown while it ran");
+    let listed = &shown.last().unwrap()["models"];
+    assert_eq!(listed.as_array().unwrap().len(), 5, "{listed}");
+    assert!(
+        listed[0].as_str().unwrap().starts_with("baseline rgb: ")
+            && listed[4]
+                .as_str()
+                .unwrap()
+                .starts_with("the model default: "),
+        "{listed}"
+    );
+    assert!(
+        shown.iter().all(|s| s["models"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|m| m.as_str().unwrap().ends_with(" of 1 images"))),
+        "one annotated image: {shown:?}"
+    );
+    assert!(
+        shown.iter().all(|s| {
+            let scored = s["scored"].as_str().unwrap();
+            scored.is_empty()
+                || scored.ends_with("describing the first image…")
+                || scored.ends_with(" has scored: coffee")
+        }),
+        "{shown:?}"
+    );
     browser.click("#images tr.pick");
     browser.wait_for("document.getElementById('canvas').dataset.image === 'coffee'");
     browser.click_canvas("#canvas", 292, 131, 0);
     browser.wait_for("document.getElementById('canvas').dataset.answered === '1'");
+    assert_status_in_sight(browser, "evaluate");
+    // The map in each of the segment page's views: each a picture of its
+    // own; greyed, the photo under the map is grey.
+    let mut pictures = vec![browser.eval(CANVAS_HASH)];
+    for view in ["red", "heat", "grey"] {
+        set_input(browser, "view-mode", view);
+        pictures.push(browser.eval(CANVAS_HASH));
+    }
+    let distinct: std::collections::HashSet<String> =
+        pictures.iter().map(|p| p.to_string()).collect();
+    assert_eq!(distinct.len(), 4, "{pictures:?}");
+    set_input(browser, "opacity", "0");
+    let [r, g, b] = browser.canvas_pixel("#canvas", 560, 95);
+    assert!(r == g && g == b, "grey: {r} {g} {b}");
+    set_input(browser, "opacity", "0.7");
+    set_input(browser, "view-mode", "solid");
+    assert_eq!(browser.eval(CANVAS_HASH), pictures[0]);
     screenshot(browser, "evaluate");
     assert_fits_the_window(browser, "evaluate");
 }
@@ -746,12 +903,32 @@ fn the_segment_page_refines_a_selection_by_clicks() {
     );
     let strong = browser.eval("Number(document.getElementById('canvas').dataset.selected)");
     assert!(strong.as_u64() < coffee_area.as_u64());
+    // The status says the share the threshold cuts, and keeps the time.
+    let share = |browser: &mut Browser| {
+        let said = browser.eval(
+            "document.getElementById('status').textContent.match(/([\\d.]+)% of the photo selected, \\d+ ms$/)?.[1]",
+        );
+        said.as_str().map(|s| s.parse::<f64>().unwrap())
+    };
+    let strong_share = share(browser).expect("a share and a time");
+    assert!(
+        (strong_share - strong.as_f64().unwrap() / 2400.0).abs() < 0.051,
+        "{strong_share}% for {strong} pixels"
+    );
     set_input(browser, "cut", "own");
+    let own_share = share(browser).expect("a share and a time");
+    assert!(
+        (own_share - coffee_area.as_f64().unwrap() / 2400.0).abs() < 0.051,
+        "{own_share}% for {coffee_area} pixels"
+    );
 
     // Esc clears the clicks: the photo as it was.
     browser.press_key("Escape", 0);
     browser.wait_for("document.getElementById('canvas').dataset.clicks === '0'");
     assert_eq!(browser.eval(CANVAS_HASH), photo);
+    // No selection: the map's download says why there is none.
+    browser.click("#save-map");
+    assert_error_in_sight(browser, "No map yet", "segment");
 
     // The automatic split: a legend of its K materials, their shares, and
     // each one's mask.
@@ -798,4 +975,105 @@ fn the_segment_page_refines_a_selection_by_clicks() {
          && document.scrollingElement.scrollHeight <= document.scrollingElement.clientHeight",
     );
     assert_eq!(fits, true, "the photo fits the window");
+}
+
+#[test]
+fn every_page_keeps_its_status_in_sight() {
+    // A benchmark of one photo whose labels.json names its materials, no
+    // dataset, no video.
+    let bench = tempfile::tempdir().unwrap();
+    std::fs::create_dir(bench.path().join("images")).unwrap();
+    std::fs::copy(
+        assets_dir().join("photos/coffee.jpg"),
+        bench.path().join("images/coffee.jpg"),
+    )
+    .unwrap();
+    std::fs::create_dir_all(bench.path().join("data/coffee")).unwrap();
+    std::fs::write(
+        bench.path().join("data/coffee/labels.json"),
+        r#"{"1": "black coffee", "2": "red saucer"}"#,
+    )
+    .unwrap();
+    let server = start_server(Vec::new(), bench.path().into());
+    let mut browser = Browser::start(1280, 800);
+    let browser = &mut browser;
+
+    // Segment: a negative click alone, and a map asked for with none.
+    browser.open(
+        &server.page("/?root=photos&path=coffee.jpg"),
+        "document.getElementById('canvas').dataset.described === '1'",
+    );
+    assert_status_in_sight(browser, "segment");
+    browser.right_click_canvas("#canvas", 150, 315);
+    assert_error_in_sight(browser, "A negative click needs a positive one", "segment");
+    browser.click("#save-map");
+    assert_error_in_sight(browser, "No map yet", "segment");
+
+    // Browse with no dataset.
+    browser.open(
+        &server.page("/browse"),
+        "document.getElementById('status').textContent !== ''",
+    );
+    assert_error_in_sight(browser, "No dataset", "browse");
+
+    // Evaluate with nothing annotated.
+    browser.open(
+        &server.page("/evaluate"),
+        "document.querySelectorAll('#baselines input').length > 0",
+    );
+    browser.click("#run");
+    assert_error_in_sight(browser, "no annotated image to evaluate", "evaluate");
+
+    // Annotate: the groups named by labels.json; seven groups, Save and
+    // "(saved)" in sight.
+    browser.open(
+        &server.page("/annotate"),
+        "document.getElementById('canvas').dataset.image === 'coffee'",
+    );
+    browser.click("#relate-round");
+    assert_error_in_sight(browser, "Tick two groups or more first.", "annotate");
+    for g in 0..7 {
+        if g > 0 {
+            browser.click("#new-group");
+        }
+        browser.click_canvas("#canvas", 60 + 60 * g, 200, 0);
+    }
+    let named =
+        browser.eval("[...document.querySelectorAll('#groups .name')].map((n) => n.placeholder)");
+    assert_eq!(
+        named,
+        serde_json::json!([
+            "black coffee",
+            "red saucer",
+            "name",
+            "name",
+            "name",
+            "name",
+            "name"
+        ])
+    );
+    assert_in_sight(browser, "#save", "annotate");
+    browser.click("#save");
+    browser.wait_for("document.getElementById('canvas').dataset.saved === '1'");
+    let said = browser.eval("document.getElementById('status').textContent");
+    assert!(
+        said.as_str()
+            .unwrap()
+            .starts_with("coffee: 7 groups, 7 points (saved)"),
+        "{said}"
+    );
+    assert_status_in_sight(browser, "annotate");
+    assert_in_sight(browser, "#save", "annotate");
+    assert_fits_the_window(browser, "annotate");
+
+    // Video with none to list, then a file that is not one.
+    browser.open(
+        &server.page("/video"),
+        "document.getElementById('status').textContent !== ''",
+    );
+    assert_status_in_sight(browser, "video");
+    let broken = bench.path().join("broken.mp4");
+    std::fs::write(&broken, b"not a video at all").unwrap();
+    browser.pick_files("#file", &[&broken]);
+    assert_error_in_sight(browser, "broken.mp4: not a readable video", "video");
 }

@@ -4,20 +4,22 @@
 // named and marked partly the same (0.6 or 0.3); undo steps back one edit.
 // Opening another image (or leaving) with unsaved points asks first.
 // Saving writes data/NAME/data.json and group_relations.txt, each file
-// whole, and reopening the image shows what was saved.
+// whole, and reopening the image shows what was saved. A group with no
+// name of its own shows the one the benchmark's data/NAME/labels.json
+// gives its id, when there is one.
 
-import { api, bitmap, ring, pointOf, PALETTE, listFolders } from "/common.js";
+import { api, bitmap, ring, pointOf, say, PALETTE, listFolders } from "/common.js";
 
 const canvas = document.getElementById("canvas");
 const context = canvas.getContext("2d");
-const status = document.getElementById("status");
-const state = { root: null, name: null, image: null, annotation: null, active: 0, history: [], saved: "" };
+// labels: the material names of the image's labels.json, by group id.
+const state = { root: null, name: null, image: null, annotation: null, labels: {}, active: 0, history: [], saved: "" };
 
 const snapshot = () => JSON.stringify(state.annotation);
 
 // Whether an image is open to annotate; says so when not.
 function opened() {
-  if (!state.annotation) status.textContent = "Open an image of a benchmark first.";
+  if (!state.annotation) say("Open an image of a benchmark first.", true);
   return state.annotation !== null;
 }
 
@@ -53,7 +55,12 @@ function render() {
     item.querySelector("span:last-child").textContent = `${group.points.length} pt`;
     item.querySelector(".swatch").style.background = `rgb(${colourOf(g).join(",")})`;
     const name = item.querySelector(".name");
-    name.value = group.name;
+    name.value = group.name ?? "";
+    const label = state.labels[group.id];
+    if (label) {
+      name.placeholder = label;
+      name.title = `${label} (labels.json)`;
+    }
     // A name is kept as typed, without redrawing the list (which would
     // take away the field the user moves to next).
     name.addEventListener("change", () => {
@@ -84,10 +91,10 @@ function render() {
 
 const unsaved = () => state.annotation !== null && snapshot() !== state.saved;
 
-function showStatus() {
+function showStatus(suffix = "") {
   const { groups } = state.annotation;
-  status.textContent = `${state.name}: ${groups.length} groups, ${groups.reduce((n, g) => n + g.points.length, 0)} points`
-    + (unsaved() ? " (not saved)" : " (saved)");
+  say(`${state.name}: ${groups.length} groups, ${groups.reduce((n, g) => n + g.points.length, 0)} points`
+    + (unsaved() ? " (not saved)" : " (saved)") + suffix);
 }
 
 // Leaving the page with unsaved points asks first.
@@ -101,8 +108,9 @@ function newGroup(annotation) {
   state.active = annotation.groups.length - 1;
 }
 
-canvas.addEventListener("click", (event) => {
-  if (!state.image) return;
+// Points are taken when the button goes down (the primary one).
+canvas.addEventListener("pointerdown", (event) => {
+  if (!state.image || event.button !== 0) return;
   const [x, y] = pointOf(canvas, event);
   if (event.altKey) {
     let nearest = null;
@@ -126,7 +134,7 @@ for (const [id, weight] of [["relate-square", 0.6], ["relate-round", 0.3]]) {
     const ids = [...document.querySelectorAll("#groups li")]
       .filter((item) => item.querySelector(".pick").checked).map((item) => item.dataset.id);
     if (ids.length < 2) {
-      status.textContent = "Tick two groups or more first.";
+      say("Tick two groups or more first.", true);
       return;
     }
     edit((a) => a.relations.push({ ids, weight }));
@@ -147,11 +155,11 @@ document.getElementById("save").addEventListener("click", async () => {
     state.annotation = annotation;
     state.saved = snapshot();
     render();
-    status.textContent += `: written to data/${state.name}/`;
+    showStatus(`: written to data/${state.name}/`);
     canvas.dataset.saved = String(Number(canvas.dataset.saved || 0) + 1);
     listImages();
   } catch (error) {
-    status.textContent = error.message;
+    say(error.message, true);
   }
 });
 
@@ -163,6 +171,7 @@ async function openImage(image) {
     state.image = await bitmap(await api("/api/photo", { root: state.root, path: saved.path }));
     state.name = image.name;
     state.annotation = { groups: saved.groups, relations: saved.relations };
+    state.labels = saved.labels ?? {};
     state.saved = snapshot();
     state.history = [];
     state.active = 0;
@@ -174,7 +183,7 @@ async function openImage(image) {
     }
     render();
   } catch (error) {
-    status.textContent = error.message;
+    say(error.message, true);
   }
 }
 
@@ -195,7 +204,7 @@ async function listImages() {
 const select = document.getElementById("bench");
 const { benches } = await (await api("/api/benches")).json();
 if (!benches.length) {
-  status.textContent = "No benchmark: start the server with --bench FOLDER (a folder with an images/ folder).";
+  say("No benchmark: start the server with --bench FOLDER (a folder with an images/ folder).", true);
 }
 listFolders(select, benches);
 async function openBench(root) {

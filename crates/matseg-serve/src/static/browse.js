@@ -3,13 +3,12 @@
 // one sample shows its image, the annotation over it, each material's soft
 // mask, the ROI and the sidecar (sources, licences, recipe values).
 
-import { api, apiUrl, PALETTE, listFolders } from "/common.js";
+import { api, apiUrl, say, PALETTE, listFolders } from "/common.js";
 
 const PAGE = 48;
 const select = document.getElementById("dataset");
 const grid = document.getElementById("grid");
 const detail = document.getElementById("sample");
-const status = document.getElementById("status");
 const state = { root: null, total: 0, offset: 0 };
 
 function figure(src, caption, colour) {
@@ -41,9 +40,9 @@ async function showPage(offset) {
       tile.addEventListener("click", () => showSample(sample.index));
       grid.append(tile);
     }
-    status.textContent = `samples ${state.offset}-${state.offset + page.samples.length - 1} of ${page.total}`;
+    say(`samples ${state.offset}-${state.offset + page.samples.length - 1} of ${page.total}`);
   } catch (error) {
-    status.textContent = error.message;
+    say(error.message, true);
   }
 }
 
@@ -67,14 +66,16 @@ async function showSample(index) {
     link.href = `/?${new URLSearchParams({ ...Object.fromEntries(new URLSearchParams(location.search)),
       root: state.root, path: `sample/${index}` })}`;
     detail.dataset.index = index;
+    say(`sample ${index} (of ${state.total}, numbered 0 to ${state.total - 1})`);
   } catch (error) {
-    status.textContent = error.message;
+    say(error.message, true);
   }
 }
 
 async function openDataset(dataset) {
   state.root = dataset.root;
   state.total = dataset.samples;
+  document.getElementById("goto").max = String(Math.max(0, dataset.samples - 1));
   document.getElementById("summary").textContent =
     `${dataset.folder}: ${dataset.samples} samples` + (dataset.incomplete ? `, ${dataset.incomplete} incomplete left out` : "");
   await showPage(0);
@@ -85,14 +86,22 @@ document.getElementById("next").addEventListener("click", () => {
   if (state.offset + PAGE < state.total) showPage(state.offset + PAGE);
 });
 document.getElementById("goto").addEventListener("change", (event) => {
-  const index = Number(event.target.value);
-  if (index >= 0 && index < state.total) showSample(index);
+  const text = event.target.value.trim();
+  const index = Number(text);
+  if (!state.root) {
+    say("No dataset to show a sample of.", true);
+  } else if (text === "" || !Number.isInteger(index) || index < 0 || index >= state.total) {
+    const range = state.total ? `0 to ${state.total - 1}` : "none: it is empty";
+    say(`Sample ${text || "(none)"}: no such sample; this dataset's are numbered ${range}.`, true);
+  } else {
+    showSample(index);
+  }
 });
 document.getElementById("back").addEventListener("click", () => showPage(state.offset));
 
 const { datasets } = await (await api("/api/datasets")).json();
 if (!datasets.length) {
-  status.textContent = "No dataset: start the server with --data FOLDER (MatSeg sample folders or .tar shards).";
+  say("No dataset: start the server with --data FOLDER (MatSeg sample folders or .tar shards).", true);
 }
 listFolders(select, datasets);
 select.addEventListener("change", () => openDataset(datasets.find((d) => d.root === select.value)));

@@ -1,8 +1,10 @@
 // What every page shares: the API helper (which carries the server's
 // token, taken from the address the server printed and kept for the
-// other pages), reading a PNG's pixels, the material palette (the same
-// colours as the command line's overlays), drawing a similarity map over
-// a photo, and downloads.
+// other pages), the status bar, reading a PNG's pixels, the material
+// palette (the same colours as the command line's overlays), overlays
+// drawn over a photo (each pixel's colour looked up in a table of 256,
+// put on a layer of their own once and composited by the browser), and
+// downloads.
 
 export const TEMPERATURE = 0.2;
 export const PALETTE = [
@@ -33,9 +35,15 @@ async function useToken(candidate) {
   return true;
 }
 
+// Resolved when the banner's address gives a token the server accepts:
+// the calls refused for want of it are then repeated.
+let tokenGiven = null;
+let giveToken = null;
+
 // A banner over the page when the server refuses it its API (no token, or
 // another run's): what happened, and a field for the address the server
-// printed, whose token is then kept.
+// printed. Once the server accepts its token, the token is kept, the
+// banner leaves and the refused calls are repeated: the page goes on.
 function showAccessProblem(message) {
   let banner = document.getElementById("access");
   if (!banner) {
@@ -44,26 +52,43 @@ function showAccessProblem(message) {
     banner.setAttribute("role", "alert");
     banner.innerHTML = `<p></p><label>Address <code>matseg serve</code> printed:
       <input type="text" size="60" placeholder="http://127.0.0.1:8080/?token=..."></label>
-      <button>Use it</button> <button hidden>Reload the page</button>`;
-    const [field, use, reload] = [banner.querySelector("input"), ...banner.querySelectorAll("button")];
-    use.addEventListener("click", async () => {
+      <button>Use it</button>`;
+    const [field, use] = [banner.querySelector("input"), banner.querySelector("button")];
+    const take = async () => {
       const text = field.value.trim();
       const candidate = URL.canParse(text) ? new URL(text).searchParams.get("token") : text;
       if (await useToken(candidate)) {
-        banner.querySelector("p").textContent = "Kept. Repeat what you were doing (Save again), or reload the page.";
-        reload.hidden = false;
+        banner.remove();
+        giveToken?.();
+        tokenGiven = giveToken = null;
       } else {
         banner.querySelector("p").textContent = "That is not this server's address or token: copy the whole address it printed.";
       }
+    };
+    use.addEventListener("click", take);
+    field.addEventListener("keydown", (event) => {
+      if (event.key === "Enter") take();
     });
-    reload.addEventListener("click", () => location.reload());
     document.body.prepend(banner);
   }
   banner.querySelector("p").textContent = message;
 }
 
+// The token refused: the banner says so, and the promise settles when the
+// user has given one the server accepts.
+function waitForToken(message) {
+  showAccessProblem(message);
+  tokenGiven ??= new Promise((resolve) => {
+    giveToken = resolve;
+  });
+  return tokenGiven;
+}
+
+// A token in the address is kept when the server accepts it; when it does
+// not, a kept token that works is used instead (an old bookmark must not
+// hide it), and only when there is none does the banner say so.
 const offered = new URLSearchParams(location.search).get("token");
-if (offered && offered !== token && !(await useToken(offered))) {
+if (offered && offered !== token && !(await useToken(offered)) && !(token && (await accepts(token)))) {
   showAccessProblem("The token in this page's address is not this server's (the server makes a new one each time it starts).");
 }
 
@@ -78,8 +103,8 @@ export function apiUrl(path, params = {}) {
 // Calls the API; a failed call throws the server's one-line error. A POST
 // is typed: JSON unless the caller says otherwise (uploads send their
 // bytes as application/octet-stream). A call the server refuses for want
-// of its token shows the banner that says what to do, and never settles:
-// the page waits there until the user gives the address, then repeats.
+// of its token shows the banner that says what to do, waits there until
+// the user gives the address, and is then repeated: the page goes on.
 export async function api(path, params = {}, init = {}) {
   const headers = new Headers(init.headers);
   if (token) headers.set("x-matseg-token", token);
@@ -88,27 +113,33 @@ export async function api(path, params = {}, init = {}) {
   if (!response.ok) {
     const body = await response.json().catch(() => ({ error: response.statusText }));
     if (response.status === 401) {
-      showAccessProblem(body.error);
-      return new Promise(() => {});
+      await waitForToken(body.error);
+      return api(path, params, init);
     }
     throw new Error(body.error);
   }
+  document.getElementById("access")?.remove();
   return response;
 }
 
-// The RGBA pixels of an image response.
-export async function pixels(response) {
-  const bitmap = await createImageBitmap(await response.blob(),
-    { colorSpaceConversion: "none", premultiplyAlpha: "none" });
-  const scratch = new OffscreenCanvas(bitmap.width, bitmap.height).getContext("2d");
-  scratch.drawImage(bitmap, 0, 0);
-  return scratch.getImageData(0, 0, bitmap.width, bitmap.height).data;
+// Says `text` in the page's status bar (fixed at the bottom of the
+// window, so always in sight); an error is marked as one.
+export function say(text, error = false) {
+  const status = document.getElementById("status");
+  status.textContent = text;
+  status.classList.toggle("error", error);
 }
 
-// The similarities of a grey similarity PNG (`/api/similarity`), 0..1.
-export async function similarities(response) {
-  const grey = await pixels(response);
-  return Float32Array.from({ length: grey.length / 4 }, (_, i) => grey[4 * i] / 255);
+// The pixels of an image response: its size and its RGBA bytes, as
+// stored (no colour conversion). The PNG is decoded off the page's thread.
+export async function readPixels(response) {
+  const bitmap = await createImageBitmap(await response.blob(),
+    { colorSpaceConversion: "none", premultiplyAlpha: "none" });
+  const { width, height } = bitmap;
+  const scratch = new OffscreenCanvas(width, height).getContext("2d", { willReadFrequently: true });
+  scratch.drawImage(bitmap, 0, 0);
+  bitmap.close();
+  return { width, height, bytes: scratch.getImageData(0, 0, width, height).data };
 }
 
 // An image response as a bitmap to draw.
@@ -129,20 +160,104 @@ export const COLOUR_MAPS = {
     Math.max(0, 3 * 255 * s - 510), 1],
 };
 
-// Blends `colour(i)` = [r, g, b, a] over the canvas's pixels, `opacity`
-// times; a = 0 leaves the photo.
-export function blend(context, colour, opacity) {
-  const { width, height } = context.canvas;
+// The table of 256 colours an overlay's pixels are looked up in:
+// `colour(v)` = [r, g, b, a] (a from 0 to 1) for each byte value v, as
+// the 32-bit words of RGBA bytes (in the machine's byte order).
+export function colourTable(colour) {
+  const table = new Uint32Array(256);
+  const bytes = new Uint8ClampedArray(table.buffer);
+  for (let v = 0; v < 256; v++) {
+    const [r, g, b, a] = colour(v);
+    bytes.set([r, g, b, 255 * a], 4 * v);
+  }
+  return table;
+}
+
+// The palette's colours by label (label 0 too: the caller's table can
+// start at any label).
+export const PALETTE_TABLE = colourTable((v) => [...PALETTE[v % PALETTE.length], 1]);
+
+// One RGBA word: the colour [r, g, b] with alpha a (0..1).
+export function word(r, g, b, a = 1) {
+  const one = new Uint32Array(1);
+  new Uint8ClampedArray(one.buffer).set([r, g, b, 255 * a]);
+  return one[0];
+}
+
+// An overlay: a layer of RGBA pixels the page fills (one 32-bit word a
+// pixel, from a colour table), put on a canvas of its own once, and
+// drawn over the photo with drawImage: the browser blends it (with the
+// opacity as the global alpha) and scales it with the canvas.
+export class Layer {
+  constructor() {
+    this.canvas = new OffscreenCanvas(1, 1);
+    this.context = this.canvas.getContext("2d");
+    this.frame = null;
+  }
+
+  // The layer's pixels at `width` x `height`, to fill (as left last time).
+  words(width, height) {
+    if (!this.frame || this.frame.width !== width || this.frame.height !== height) {
+      this.frame = new ImageData(width, height);
+      this.canvas.width = width;
+      this.canvas.height = height;
+    }
+    return new Uint32Array(this.frame.data.buffer);
+  }
+
+  // The pixels filled: put on the layer's canvas.
+  put() {
+    this.context.putImageData(this.frame, 0, 0);
+  }
+
+  // Draws the layer over `context`'s canvas, `opacity` times.
+  drawOver(context, opacity = 1) {
+    context.save();
+    context.globalAlpha = opacity;
+    context.drawImage(this.canvas, 0, 0, context.canvas.width, context.canvas.height);
+    context.restore();
+  }
+}
+
+// Fills `words` with each pixel's colour looked up by its red byte in
+// `table` (a map's value, a label): `bytes` are RGBA.
+export function paintByRed(bytes, words, table) {
+  for (let i = 0, j = 0; i < words.length; i++, j += 4) words[i] = table[bytes[j]];
+}
+
+// The photo greyed: each pixel its lightness, darkened, so that an
+// overlay drawn over it in a bright colour reads on any photo.
+export function greyCopy(image) {
+  const { width, height } = image;
+  const canvas = new OffscreenCanvas(width, height);
+  const context = canvas.getContext("2d", { willReadFrequently: true });
+  context.drawImage(image, 0, 0);
   const frame = context.getImageData(0, 0, width, height);
-  for (let i = 0; i < width * height; i++) {
-    const [r, g, b, a] = colour(i);
-    const k = a * opacity;
-    if (k <= 0) continue;
-    frame.data[4 * i] = frame.data[4 * i] * (1 - k) + r * k;
-    frame.data[4 * i + 1] = frame.data[4 * i + 1] * (1 - k) + g * k;
-    frame.data[4 * i + 2] = frame.data[4 * i + 2] * (1 - k) + b * k;
+  const d = frame.data;
+  for (let i = 0; i < d.length; i += 4) {
+    const v = 0.55 * (0.299 * d[i] + 0.587 * d[i + 1] + 0.114 * d[i + 2]);
+    d[i] = d[i + 1] = d[i + 2] = v;
   }
   context.putImageData(frame, 0, 0);
+  return canvas;
+}
+
+// The solid tints to choose from: the one farthest from the photo's mean
+// colour is used, so that an overlay shows on red and orange photos too.
+const SOLID_TINTS = [[255, 0, 0], [0, 255, 255], [255, 255, 0]];
+
+// The solid tint farthest from `image`'s mean colour.
+export function contrastingTint(image) {
+  const small = new OffscreenCanvas(16, 16).getContext("2d", { willReadFrequently: true });
+  small.drawImage(image, 0, 0, 16, 16);
+  const px = small.getImageData(0, 0, 16, 16).data;
+  const mean = [0, 1, 2].map((k) => {
+    let sum = 0;
+    for (let i = k; i < px.length; i += 4) sum += px[i];
+    return sum / (px.length / 4);
+  });
+  const distance = (t) => t.reduce((d, v, k) => d + (v - mean[k]) ** 2, 0);
+  return SOLID_TINTS.reduce((best, t) => (distance(t) > distance(best) ? t : best));
 }
 
 // A ring at (x, y) in `rgb`.
@@ -154,12 +269,14 @@ export function ring(context, x, y, rgb, radius = 6) {
   context.stroke();
 }
 
-// The image pixel under a mouse event on a canvas drawn at any size.
+// The image pixel under a pointer event on a canvas drawn at any size
+// (the one the pointer's exact position lies in: pointer events carry
+// fractions of a CSS pixel).
 export function pointOf(canvas, event) {
   const box = canvas.getBoundingClientRect();
   return [
-    Math.min(canvas.width - 1, Math.max(0, Math.round((event.clientX - box.left) * canvas.width / box.width))),
-    Math.min(canvas.height - 1, Math.max(0, Math.round((event.clientY - box.top) * canvas.height / box.height))),
+    Math.min(canvas.width - 1, Math.max(0, Math.floor((event.clientX - box.left) * canvas.width / box.width))),
+    Math.min(canvas.height - 1, Math.max(0, Math.floor((event.clientY - box.top) * canvas.height / box.height))),
   ];
 }
 
@@ -172,15 +289,21 @@ export function download(blob, name) {
   setTimeout(() => URL.revokeObjectURL(link.href), 1000);
 }
 
-// A PNG blob of grey values (one byte a pixel).
+// A PNG blob of grey values (`values`: one byte a pixel).
 export async function greyPng(values, width, height) {
-  const scratch = new OffscreenCanvas(width, height);
-  const context = scratch.getContext("2d");
-  const frame = context.createImageData(width, height);
-  values.forEach((v, i) => {
-    frame.data.set([v, v, v, 255], 4 * i);
+  const grey = colourTable((v) => [v, v, v, 1]);
+  return pngOf(width, height, (words) => {
+    for (let i = 0; i < words.length; i++) words[i] = grey[values[i]];
   });
-  context.putImageData(frame, 0, 0);
+}
+
+// An opaque PNG blob of `width` x `height` pixels that `fill(words)`
+// paints (one RGBA word a pixel).
+export async function pngOf(width, height, fill) {
+  const scratch = new OffscreenCanvas(width, height);
+  const frame = new ImageData(width, height);
+  fill(new Uint32Array(frame.data.buffer));
+  scratch.getContext("2d").putImageData(frame, 0, 0);
   return scratch.convertToBlob({ type: "image/png" });
 }
 
@@ -341,21 +464,22 @@ export function clickIndexAt(clicks, [x, y], radius) {
 
 // Points on `canvas`: a click adds a positive one, an alt-click or a
 // right-click (its menu kept closed) a negative one, and a click on a
-// marker removes its click. `ready()`, called first, says whether clicks
-// are taken (and may start a new choice).
+// marker removes its click. They are taken when the button goes down, so
+// that the answer is on its way before it comes up. `ready()`, called
+// first, says whether clicks are taken (and may start a new choice).
 export function takeClicks(canvas, clicks, ready = () => true) {
-  const take = (event, positive) => {
+  canvas.addEventListener("pointerdown", (event) => {
+    // The primary button (a Mac's Ctrl-click is a right-click), or the
+    // secondary one.
+    if (event.button !== 0 && event.button !== 2) return;
     if (!ready()) return;
+    const positive = event.button === 0 && !event.altKey && !event.ctrlKey;
     const [x, y] = pointOf(canvas, event);
     const hit = clickIndexAt(clicks.list, [x, y], markerRadius(canvas));
     if (hit >= 0) clicks.remove(hit);
     else clicks.add({ x, y, positive });
-  };
-  canvas.addEventListener("click", (event) => take(event, !event.altKey));
-  canvas.addEventListener("contextmenu", (event) => {
-    event.preventDefault();
-    take(event, false);
   });
+  canvas.addEventListener("contextmenu", (event) => event.preventDefault());
 }
 
 // Shows or hides the busy mark over `view` (a spinner and `text`, the
@@ -375,79 +499,65 @@ export function setBusy(view, text) {
 }
 
 // `mask` (one byte a pixel, non-zero set) grown by `radius` pixels in
-// every direction (a square), in two passes of running distances.
+// every direction (a square), in two passes of running distances (along
+// the rows, then down the columns, a row at a time).
 export function dilate(mask, width, height, radius) {
-  const pass = (input, count, length, at) => {
-    const out = new Uint8Array(input.length);
-    for (let line = 0; line < count; line++) {
-      let since = Infinity;
-      for (let k = 0; k < length; k++) {
-        since = input[at(line, k)] ? 0 : since + 1;
-        if (since <= radius) out[at(line, k)] = 1;
-      }
-      since = Infinity;
-      for (let k = length - 1; k >= 0; k--) {
-        since = input[at(line, k)] ? 0 : since + 1;
-        if (since <= radius) out[at(line, k)] = 1;
-      }
+  const rows = new Uint8Array(mask.length);
+  for (let y = 0; y < height; y++) {
+    const start = y * width;
+    let since = radius + 1;
+    for (let i = start; i < start + width; i++) {
+      since = mask[i] ? 0 : since + 1;
+      if (since <= radius) rows[i] = 1;
     }
-    return out;
-  };
-  const rows = pass(mask, height, width, (y, x) => y * width + x);
-  return pass(rows, width, height, (x, y) => y * width + x);
+    since = radius + 1;
+    for (let i = start + width - 1; i >= start; i--) {
+      since = mask[i] ? 0 : since + 1;
+      if (since <= radius) rows[i] = 1;
+    }
+  }
+  const out = new Uint8Array(mask.length);
+  const since = new Int32Array(width);
+  since.fill(radius + 1);
+  for (let y = 0, i = 0; y < height; y++) {
+    for (let x = 0; x < width; x++, i++) {
+      since[x] = rows[i] ? 0 : since[x] + 1;
+      if (since[x] <= radius) out[i] = 1;
+    }
+  }
+  since.fill(radius + 1);
+  for (let y = height - 1; y >= 0; y--) {
+    for (let x = 0, i = y * width; x < width; x++, i++) {
+      since[x] = rows[i] ? 0 : since[x] + 1;
+      if (since[x] <= radius) out[i] = 1;
+    }
+  }
+  return out;
 }
 
 // The pixels on the edge of a region map (`region[i]`: a region's number,
-// or -1 for none): those with a right or lower neighbour in another region.
+// one byte a pixel): those with a right or lower neighbour in another
+// region.
 export function edges(region, width, height) {
   const edge = new Uint8Array(width * height);
-  for (let y = 0; y < height; y++) {
-    for (let x = 0; x < width; x++) {
-      const i = y * width + x;
+  for (let y = 0, i = 0; y < height; y++) {
+    const last = y + 1 === height;
+    for (let x = 0; x < width; x++, i++) {
       const r = region[i];
-      if ((x + 1 < width && region[i + 1] !== r) || (y + 1 < height && region[i + width] !== r)) {
-        edge[i] = 1;
-      }
+      if ((x + 1 < width && region[i + 1] !== r) || (!last && region[i + width] !== r)) edge[i] = 1;
     }
   }
   return edge;
 }
 
-// Draws region edges over the canvas: a white line with a black border on
-// each side, `unit` image pixels thick each (so they read at any size).
-export function drawOutline(context, region, unit) {
-  const { width, height } = context.canvas;
-  const edge = edges(region, width, height);
-  const white = dilate(edge, width, height, unit);
+const WHITE = word(255, 255, 255);
+const BLACK = word(0, 0, 0);
+
+// Fills `words` with the region edges of `region`: a white line with a
+// black border on each side, `unit` image pixels thick each (so they read
+// at any size), and nothing elsewhere.
+export function paintOutline(region, width, height, unit, words) {
+  const white = dilate(edges(region, width, height), width, height, unit);
   const black = dilate(white, width, height, unit);
-  const frame = context.getImageData(0, 0, width, height);
-  for (let i = 0; i < width * height; i++) {
-    if (!black[i]) continue;
-    const v = white[i] ? 255 : 0;
-    frame.data.set([v, v, v], 4 * i);
-  }
-  context.putImageData(frame, 0, 0);
-}
-
-// Greys the canvas: each pixel its lightness, darkened, so that a
-// selection drawn over it in a bright colour reads on any photo.
-export function greyOut(context) {
-  const { width, height } = context.canvas;
-  const frame = context.getImageData(0, 0, width, height);
-  const d = frame.data;
-  for (let i = 0; i < d.length; i += 4) {
-    const v = 0.55 * (0.299 * d[i] + 0.587 * d[i + 1] + 0.114 * d[i + 2]);
-    d[i] = d[i + 1] = d[i + 2] = v;
-  }
-  context.putImageData(frame, 0, 0);
-}
-
-// An opaque RGB PNG blob of `rgb(i)` = [r, g, b] for each pixel.
-export async function rgbPng(rgb, width, height) {
-  const scratch = new OffscreenCanvas(width, height);
-  const context = scratch.getContext("2d");
-  const frame = context.createImageData(width, height);
-  for (let i = 0; i < width * height; i++) frame.data.set([...rgb(i), 255], 4 * i);
-  context.putImageData(frame, 0, 0);
-  return scratch.convertToBlob({ type: "image/png" });
+  for (let i = 0; i < words.length; i++) words[i] = white[i] ? WHITE : black[i] ? BLACK : 0;
 }

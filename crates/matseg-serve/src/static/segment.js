@@ -9,85 +9,150 @@
 // into K materials, each listed with its share and its mask. The server
 // describes a photo once (started as soon as it is opened) and answers
 // every click from its descriptors.
+//
+// Drawing an answer: the PNG is decoded off the page's thread, each
+// pixel's overlay colour looked up in a table of 256 (by its strength or
+// its label) into a layer of its own, and the browser draws the photo
+// and the layer over it onto the canvas. The view's controls redo the
+// layer from the answer kept; the opacity and the clicks' marks only
+// redraw the canvas.
 
-import { api, pixels, bitmap, blend, download, greyPng, rgbPng, takeFiles, uploadFile, COLOUR_MAPS, PALETTE,
-  Clicks, bindEditKeys, takeClicks, drawClick, markerRadius, pixelsPerCss, setBusy, drawOutline, greyOut }
+import { api, readPixels, bitmap, download, greyPng, pngOf, takeFiles, uploadFile, say, COLOUR_MAPS,
+  PALETTE, PALETTE_TABLE, colourTable, Layer, greyCopy, contrastingTint, paintOutline,
+  Clicks, bindEditKeys, takeClicks, drawClick, markerRadius, pixelsPerCss, setBusy }
   from "/common.js";
 
-// The solid tints to choose from: the one farthest from the photo's mean
-// colour is used, so that a selection shows on red and orange photos too.
-const SOLID_TINTS = [[255, 0, 0], [0, 255, 255], [255, 255, 0]];
 const canvas = document.getElementById("canvas");
-const context = canvas.getContext("2d", { willReadFrequently: true });
+const context = canvas.getContext("2d");
 const view = document.getElementById("view");
-const status = document.getElementById("status");
 const control = (id) => document.getElementById(id);
 const [opacity, threshold, colours, mode, cut] = ["opacity", "threshold", "colours", "view-mode", "cut"].map(control);
 const list = control("photos");
 const legend = control("legend");
 const clicks = new Clicks(update);
-// layer: {kind: "selection", soft, mask} (the strength 0..1 and the
-// method's own mask, 0 or 1, per pixel) or {kind: "auto", labels, k}.
+const layer = new Layer();
+// answer: the server's answer drawn, {kind: "selection" | "auto", width,
+// height, bytes (RGBA: a selection's strength in red and its own mask in
+// green, or each pixel's material in red), k, ms (from the click to its
+// picture)}; selected: the pixels in the selection shown (every pixel of
+// an automatic split); shares: an automatic split's pixels by material.
 // asked: the newest request (older answers are dropped); describing,
 // waiting: what the busy mark says.
-const state = { photo: null, name: "", image: null, layer: null, asked: 0, described: null,
-  describing: false, waiting: false, solid: SOLID_TINTS[0] };
+const state = { photo: null, name: "", image: null, grey: null, answer: null, selected: 0, shares: null,
+  asked: 0, described: null, describing: false, waiting: false, solid: [255, 0, 0] };
 
-// The solid tint farthest from `image`'s mean colour.
-function contrastingTint(image) {
-  const small = document.createElement("canvas");
-  small.width = small.height = 16;
-  const c = small.getContext("2d");
-  c.drawImage(image, 0, 0, 16, 16);
-  const px = c.getImageData(0, 0, 16, 16).data;
-  const mean = [0, 1, 2].map((k) => {
-    let sum = 0;
-    for (let i = k; i < px.length; i += 4) sum += px[i];
-    return sum / (px.length / 4);
-  });
-  const distance = (t) => t.reduce((d, v, k) => d + (v - mean[k]) ** 2, 0);
-  return SOLID_TINTS.reduce((best, t) => (distance(t) > distance(best) ? t : best));
-}
-
-// The tints of a selection: a strength 0..1 to [r, g, b, a].
-const TINTS = { solid: () => [...state.solid, 1], ...COLOUR_MAPS };
 // The colour of a selection over the greyed photo.
-const ON_GREY = [0, 255, 255, 1];
+const ON_GREY = colourTable(() => [0, 255, 255, 1]);
 
-// Each pixel's region: 0 selected, -1 not (a selection), or its material
-// (automatic).
-function regionsOf(layer) {
-  if (layer.kind === "auto") return Int16Array.from(layer.labels);
+// The table of a selection's colours by strength (0..255).
+function selectionColours() {
+  if (mode.value === "grey") return ON_GREY;
+  if (colours.value === "solid") return colourTable(() => [...state.solid, 1]);
+  const map = COLOUR_MAPS[colours.value];
+  return colourTable((v) => map(v / 255));
+}
+
+// Which strengths (0..255) the threshold keeps.
+function thresholdKeeps() {
   const cutAt = Number(threshold.value);
-  const own = cut.value === "own";
-  return Int16Array.from(layer.soft, (s, i) => ((own ? layer.mask[i] : s >= cutAt) ? 0 : -1));
+  return Uint8Array.from({ length: 256 }, (_, v) => v / 255 >= cutAt);
 }
 
-function colourOf(layer, region, i) {
-  if (layer.kind === "auto") return [...PALETTE[region[i] % PALETTE.length], 1];
-  return mode.value === "grey" ? ON_GREY : TINTS[colours.value](layer.soft[i]);
+// Each pixel's region of the answer, one byte a pixel: 1 selected, 0 not
+// (a selection), or its material (automatic).
+function regionsOf(answer) {
+  const { bytes } = answer;
+  const region = new Uint8Array(answer.width * answer.height);
+  if (answer.kind === "auto") {
+    for (let i = 0, j = 0; i < region.length; i++, j += 4) region[i] = bytes[j];
+  } else if (cut.value === "own") {
+    for (let i = 0, j = 1; i < region.length; i++, j += 4) region[i] = bytes[j] > 127 ? 1 : 0;
+  } else {
+    const keeps = thresholdKeeps();
+    for (let i = 0, j = 0; i < region.length; i++, j += 4) region[i] = keeps[bytes[j]];
+  }
+  return region;
 }
 
+// Redoes the layer from the answer and the view's controls, and redraws.
+function render() {
+  control("threshold-value").textContent = Number(threshold.value).toFixed(2);
+  const answer = state.answer;
+  if (answer) {
+    const { width, height, bytes } = answer;
+    const words = layer.words(width, height);
+    const n = words.length;
+    if (mode.value === "outline") {
+      const region = regionsOf(answer);
+      paintOutline(region, width, height, Math.max(1, Math.round(pixelsPerCss(canvas))), words);
+      state.selected = answer.kind === "auto" ? n : region.reduce((sum, r) => sum + r, 0);
+    } else if (answer.kind === "auto") {
+      for (let i = 0, j = 0; i < n; i++, j += 4) words[i] = PALETTE_TABLE[bytes[j]];
+      state.selected = n;
+    } else {
+      // The selection's pixels in their colours, the others clear; the
+      // method's own mask (green), or the strength (red) cut.
+      const table = selectionColours();
+      let selected = 0;
+      if (cut.value === "own") {
+        for (let i = 0, j = 0; i < n; i++, j += 4) {
+          if (bytes[j + 1] > 127) {
+            words[i] = table[bytes[j]];
+            selected++;
+          } else {
+            words[i] = 0;
+          }
+        }
+      } else {
+        const keeps = thresholdKeeps();
+        for (let i = 0, j = 0; i < n; i++, j += 4) {
+          const s = bytes[j];
+          if (keeps[s]) {
+            words[i] = table[s];
+            selected++;
+          } else {
+            words[i] = 0;
+          }
+        }
+      }
+      state.selected = selected;
+    }
+    layer.put();
+  }
+  draw();
+  showStatus();
+}
+
+// Draws the canvas: the photo (greyed in that view), the answer's layer
+// over it, the clicks' marks.
 function draw() {
   if (!state.image) return;
-  context.drawImage(state.image, 0, 0);
-  control("threshold-value").textContent = Number(threshold.value).toFixed(2);
-  const layer = state.layer;
-  if (layer) {
-    const region = regionsOf(layer);
-    if (mode.value === "outline") {
-      drawOutline(context, region, Math.max(1, Math.round(pixelsPerCss(canvas))));
-    } else {
-      if (mode.value === "grey") greyOut(context);
-      blend(context, (i) => (region[i] < 0 ? [0, 0, 0, 0] : colourOf(layer, region, i)), Number(opacity.value));
-    }
-    canvas.dataset.selected = String(region.reduce((n, r) => n + (r >= 0), 0));
+  const answer = state.answer;
+  const grey = answer && mode.value === "grey";
+  if (grey && !state.grey) state.grey = greyCopy(state.image);
+  context.drawImage(grey ? state.grey : state.image, 0, 0);
+  if (answer) {
+    layer.drawOver(context, mode.value === "outline" ? 1 : Number(opacity.value));
+    canvas.dataset.selected = String(state.selected);
   } else {
     delete canvas.dataset.selected;
   }
   const radius = markerRadius(canvas);
   for (const click of clicks.list) drawClick(context, click, radius);
   canvas.dataset.clicks = String(clicks.list.length);
+}
+
+// The status: the answer shown (the clicks, the share of the photo its
+// selection takes as now cut, the time from the click to its picture).
+function showStatus() {
+  const answer = state.answer;
+  if (!answer) return;
+  if (answer.kind === "auto") {
+    say(`${answer.k} materials: ${answer.ms} ms`);
+  } else {
+    const share = (100 * state.selected) / (answer.width * answer.height);
+    say(`${clicks.count(true)} + ${clicks.count(false)} −: ${share.toFixed(1)}% of the photo selected, ${answer.ms} ms`);
+  }
 }
 
 // The busy mark: while the photo is described, and while the newest
@@ -97,49 +162,26 @@ function showBusy() {
   setBusy(view, text);
 }
 
-// The selection layer of a selection PNG (red: strength; green: the mask).
-async function selectionLayer(response) {
-  const rgba = await pixels(response);
-  const n = rgba.length / 4;
-  const soft = new Float32Array(n);
-  const mask = new Uint8Array(n);
-  for (let i = 0; i < n; i++) {
-    soft[i] = rgba[4 * i] / 255;
-    mask[i] = rgba[4 * i + 1] > 127 ? 1 : 0;
-  }
-  return { kind: "selection", soft, mask };
-}
-
-// The automatic layer of a label PNG (red: the material's number).
-async function autoLayer(response, k) {
-  const rgba = await pixels(response);
-  return { kind: "auto", k, labels: Uint8Array.from({ length: rgba.length / 4 }, (_, i) => rgba[4 * i]) };
-}
-
-function describeLayer() {
-  const layer = state.layer;
-  if (layer.kind === "auto") return `${layer.k} materials:`;
-  const share = (100 * Number(canvas.dataset.selected)) / layer.soft.length;
-  return `${clicks.count(true)} + ${clicks.count(false)} −: ${share.toFixed(1)}% of the photo selected,`;
-}
-
-// Asks for a layer (`call()`, once the photo is described) as request
-// `asked`; only the newest request's answer is drawn.
-async function request(asked, call) {
-  const started = performance.now();
+// Asks for an answer (`call()`, once the photo is described) as request
+// `asked`, from a click at `started`; only the newest request's answer
+// is drawn.
+async function request(asked, started, call) {
   state.waiting = true;
   showBusy();
   try {
     await state.described;
-    const layer = await call();
+    const answer = await call();
     if (asked !== state.asked) return;
-    state.layer = layer;
-    draw();
+    if (answer.width !== canvas.width || answer.height !== canvas.height) {
+      throw new Error(`the answer is ${answer.width} x ${answer.height}, the photo ${canvas.width} x ${canvas.height}`);
+    }
+    answer.ms = Math.round(performance.now() - started);
+    state.answer = answer;
+    render();
     showLegend();
-    status.textContent = `${describeLayer()} ${Math.round(performance.now() - started)} ms`;
     canvas.dataset.answered = String(Number(canvas.dataset.answered || 0) + 1);
   } catch (error) {
-    if (asked === state.asked) status.textContent = error.message;
+    if (asked === state.asked) say(error.message, true);
   } finally {
     if (asked === state.asked) {
       state.waiting = false;
@@ -148,23 +190,26 @@ async function request(asked, call) {
   }
 }
 
-// The clicks changed: drawn at once, and the selection they make asked for.
+// The clicks changed: their marks drawn at once (over the answer shown
+// until the new one comes), and the selection they make asked for.
 function update() {
+  const started = performance.now();
   control("undo").disabled = !clicks.done.length;
   control("redo").disabled = !clicks.undone.length;
   const asked = ++state.asked;
   state.waiting = false;
   showBusy();
   if (!clicks.count(true)) {
-    state.layer = null;
+    state.answer = null;
     showLegend();
-    status.textContent = clicks.list.length ? "A negative click needs a positive one: click the material to select." : "";
+    say(clicks.list.length ? "A negative click needs a positive one: click the material to select." : "",
+      clicks.list.length > 0);
     draw();
     return;
   }
   draw();
   const params = { ...state.photo, positive: clicks.query(true), negative: clicks.query(false) };
-  request(asked, async () => selectionLayer(await api("/api/select", params)));
+  request(asked, started, async () => ({ kind: "selection", ...(await readPixels(await api("/api/select", params))) }));
 }
 
 // Describes the photo as soon as it is opened (the first answer takes a
@@ -188,7 +233,7 @@ function describe(photo) {
 async function open(photo, name) {
   for (const item of list.children) item.classList.toggle("open", item.dataset.key === `${photo.root}/${photo.path}`);
   state.asked++;
-  Object.assign(state, { photo, image: null, layer: null, waiting: false, described: null,
+  Object.assign(state, { photo, image: null, grey: null, answer: null, waiting: false, described: null,
     name: name.replace(/\.[^.]*$/, "").replace(/[^\w.-]+/g, "_") });
   clicks.forget();
   update();
@@ -197,13 +242,13 @@ async function open(photo, name) {
     state.image = await bitmap(await api("/api/photo", photo));
     state.solid = contrastingTint(state.image);
   } catch (error) {
-    status.textContent = error.message;
+    say(error.message, true);
     return;
   }
   if (state.photo !== photo) return;
   canvas.width = state.image.width;
   canvas.height = state.image.height;
-  status.textContent = `${name}: ${canvas.width} x ${canvas.height}`;
+  say(`${name}: ${canvas.width} x ${canvas.height}`);
   canvas.dataset.photo = `${photo.root}/${photo.path}`;
   draw();
   state.described = describe(photo);
@@ -214,37 +259,44 @@ bindEditKeys(clicks);
 control("undo").addEventListener("click", () => clicks.undo());
 control("redo").addEventListener("click", () => clicks.redo());
 control("clear").addEventListener("click", () => clicks.clear());
-for (const input of [opacity, colours, mode, cut]) input.addEventListener("input", draw);
+for (const input of [colours, mode, cut]) input.addEventListener("input", render);
+opacity.addEventListener("input", draw);
 threshold.addEventListener("input", () => {
   cut.value = "threshold";
-  draw();
+  render();
 });
-addEventListener("resize", draw);
+// The outline's width and the marks' size follow the photo's size on
+// the screen.
+addEventListener("resize", () => (mode.value === "outline" ? render() : draw()));
 
 control("auto").addEventListener("click", () => {
   if (!state.image) return;
+  const started = performance.now();
   const k = Number(control("k").value);
   clicks.forget();
   update();
-  request(state.asked, async () => autoLayer(await api("/api/auto", { ...state.photo, k }), k));
+  request(state.asked, started, async () =>
+    ({ kind: "auto", k, ...(await readPixels(await api("/api/auto", { ...state.photo, k }))) }));
 });
 
 // The automatic segmentation's legend: each material's colour, its share
 // of the photo, and its mask as a PNG.
 function showLegend() {
-  const layer = state.layer;
-  legend.hidden = layer?.kind !== "auto";
+  const answer = state.answer;
+  legend.hidden = answer?.kind !== "auto";
   if (legend.hidden) return legend.replaceChildren();
-  const counts = new Array(layer.k).fill(0);
-  for (const l of layer.labels) counts[l]++;
+  const counts = new Array(answer.k).fill(0);
+  const { bytes } = answer;
+  for (let j = 0; j < bytes.length; j += 4) counts[bytes[j]]++;
+  const pixels = answer.width * answer.height;
   legend.replaceChildren(...counts.map((count, k) => {
     const item = document.createElement("li");
     item.innerHTML = `<span class="swatch"></span> <span></span> <button title="this material's mask">PNG</button>`;
     item.querySelector(".swatch").style.background = `rgb(${PALETTE[k % PALETTE.length].join(",")})`;
-    item.children[1].textContent = `material ${k + 1}: ${((100 * count) / layer.labels.length).toFixed(1)}%`;
+    item.children[1].textContent = `material ${k + 1}: ${((100 * count) / pixels).toFixed(1)}%`;
     item.querySelector("button").addEventListener("click", async () => {
-      const bytes = Array.from(layer.labels, (l) => (l === k ? 255 : 0));
-      download(await greyPng(bytes, canvas.width, canvas.height), `${state.name}-material-${k + 1}.png`);
+      const mask = Uint8Array.from(regionsOf(answer), (l) => (l === k ? 255 : 0));
+      download(await greyPng(mask, answer.width, answer.height), `${state.name}-material-${k + 1}.png`);
     });
     return item;
   }));
@@ -254,48 +306,60 @@ function showLegend() {
 // grey, or the automatic materials in their colours); the mask (the
 // selection shown, 255 in it); the selection as `selection.json`.
 control("save-overlay").addEventListener("click", () => {
+  if (!state.image) {
+    say("Open a photo first.", true);
+    return;
+  }
   canvas.toBlob((blob) => download(blob, `${state.name}-overlay.png`), "image/png");
 });
 control("save-map").addEventListener("click", async () => {
-  const layer = state.layer;
-  if (!layer) return;
-  const { width, height } = canvas;
-  if (layer.kind === "auto") {
-    download(await rgbPng((i) => PALETTE[layer.labels[i] % PALETTE.length], width, height), `${state.name}-materials.png`);
+  const answer = state.answer;
+  if (!answer) {
+    say("No map yet: click a material (its strength is the map), or segment automatically (its materials).", true);
+    return;
+  }
+  const { width, height, bytes } = answer;
+  if (answer.kind === "auto") {
+    const png = await pngOf(width, height, (words) => {
+      for (let i = 0, j = 0; i < words.length; i++, j += 4) words[i] = PALETTE_TABLE[bytes[j]];
+    });
+    download(png, `${state.name}-materials.png`);
   } else {
-    download(await greyPng(Array.from(layer.soft, (s) => Math.round(s * 255)), width, height), `${state.name}-strength.png`);
+    const strength = new Uint8Array(width * height);
+    for (let i = 0, j = 0; i < strength.length; i++, j += 4) strength[i] = bytes[j];
+    download(await greyPng(strength, width, height), `${state.name}-strength.png`);
   }
 });
 control("save-mask").addEventListener("click", async () => {
-  const layer = state.layer;
-  if (layer?.kind !== "selection") {
-    status.textContent = "Click a material first (each automatic material's mask is in its legend).";
+  const answer = state.answer;
+  if (answer?.kind !== "selection") {
+    say("Click a material first (each automatic material's mask is in its legend).", true);
     return;
   }
-  const region = regionsOf(layer);
-  download(await greyPng(Array.from(region, (r) => (r >= 0 ? 255 : 0)), canvas.width, canvas.height), `${state.name}-mask.png`);
+  const mask = Uint8Array.from(regionsOf(answer), (r) => (r ? 255 : 0));
+  download(await greyPng(mask, answer.width, answer.height), `${state.name}-mask.png`);
 });
 control("save-selection").addEventListener("click", async () => {
   if (!clicks.count(true)) {
-    status.textContent = "Click a material first: the selection saved is its clicks' descriptors.";
+    say("Click a material first: the selection saved is its clicks' descriptors.", true);
     return;
   }
   try {
     const params = { ...state.photo, positive: clicks.query(true), negative: clicks.query(false) };
     download(await (await api("/api/select/save", params)).blob(), `${state.name}-selection.json`);
   } catch (error) {
-    status.textContent = error.message;
+    say(error.message, true);
   }
 });
 
 // Uploads: the file picker and drops on the drop zone or the photo.
 async function upload(file) {
-  status.textContent = `uploading ${file.name}...`;
+  say(`uploading ${file.name}...`);
   try {
     const photo = await uploadFile("/api/upload", file);
     await open({ root: photo.root, path: photo.path }, file.name);
   } catch (error) {
-    status.textContent = error.message;
+    say(error.message, true);
   }
 }
 takeFiles(control("file"), [control("drop"), canvas], upload);
@@ -323,4 +387,6 @@ if (asked.get("root") && asked.get("path")) {
   open({ root: asked.get("root"), path: asked.get("path") }, asked.get("path"));
 } else if (first.photos.length) {
   open(first.photos[0], first.photos[0].path);
+} else {
+  say("No photo to list: drop one here, or start the server with --data FOLDER.");
 }

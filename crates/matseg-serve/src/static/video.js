@@ -5,20 +5,22 @@
 // Ctrl+Shift+Z or Ctrl+Y, and Esc undo, redo and clear), and Track: the
 // server follows them through every frame (`matseg track`). Then the slider and Play scrub through the
 // tracked frames with each material tinted in its colour; the label PNGs
-// (a tar), the overlay video and one frame's labels can be downloaded.
+// (a tar), the overlay video and one frame's labels (the raw label PNG,
+// or a picture of them in the materials' colours) can be downloaded.
 
-import { api, apiUrl, pixels, bitmap, blend, download, takeFiles, uploadFile, PALETTE,
-  Clicks, bindEditKeys, takeClicks, drawClick, markerRadius } from "/common.js";
+import { api, apiUrl, readPixels, bitmap, download, pngOf, takeFiles, uploadFile, say, PALETTE,
+  colourTable, Layer, paintByRed, Clicks, bindEditKeys, takeClicks, drawClick, markerRadius } from "/common.js";
 
 const canvas = document.getElementById("canvas");
-const context = canvas.getContext("2d", { willReadFrequently: true });
-const status = document.getElementById("status");
+const context = canvas.getContext("2d");
 const slider = document.getElementById("frame");
 const opacity = document.getElementById("opacity");
 const list = document.getElementById("videos");
 const pointList = document.getElementById("points");
-const buttons = Object.fromEntries(["play", "track", "cancel", "save-labels", "save-overlay", "save-frame"]
-  .map((id) => [id, document.getElementById(id)]));
+const buttons = Object.fromEntries(["play", "track", "cancel", "save-labels", "save-overlay", "save-frame",
+  "save-frame-colours"].map((id) => [id, document.getElementById(id)]));
+// The downloads of a finished track.
+const TRACK_BUTTONS = ["play", "save-labels", "save-overlay", "save-frame", "save-frame-colours"];
 // job: the finished tracking job whose frames are shown (null: the video's
 // own frames, points being picked); labels: the shown frame's labels.
 const clicks = new Clicks(() => {
@@ -28,17 +30,18 @@ const clicks = new Clicks(() => {
 // A negative click's mark on a video: black, apart from the materials'
 // colours.
 const NEGATIVE_FILL = [20, 20, 20];
+// Each label's colour: none for 0, material k's for k + 1.
+const LABEL_COLOURS = colourTable((v) => (v ? [...PALETTE[(v - 1) % PALETTE.length], 1] : [0, 0, 0, 0]));
+// labels: the shown frame's label PNG's pixels (label in red), drawn
+// as `layer`.
+const layer = new Layer();
 const state = { video: null, name: "", info: null, clicked: 0, job: null,
   image: null, labels: null, shown: -1, playing: false, asked: 0 };
 
 function draw() {
   if (!state.image) return;
   context.drawImage(state.image, 0, 0, canvas.width, canvas.height);
-  const labels = state.labels;
-  if (labels) {
-    blend(context, (i) => labels[i] ? [...PALETTE[(labels[i] - 1) % PALETTE.length], 1] : [0, 0, 0, 0],
-      Number(opacity.value));
-  }
+  if (state.labels) layer.drawOver(context, Number(opacity.value));
   if (state.shown === state.clicked) {
     const radius = markerRadius(canvas);
     let material = 0;
@@ -73,23 +76,25 @@ async function show(n) {
   try {
     let image, labels = null;
     if (state.job) {
-      const [frame, label] = await Promise.all([
+      [image, labels] = await Promise.all([
         api("/api/track/frame", { job: state.job, frame: n }).then(bitmap),
-        api("/api/track/frame", { job: state.job, frame: n, part: "labels" }).then(pixels),
+        api("/api/track/frame", { job: state.job, frame: n, part: "labels" }).then(readPixels),
       ]);
-      image = frame;
-      labels = Uint8Array.from({ length: label.length / 4 }, (_, i) => label[4 * i]);
     } else {
       image = await bitmap(await api("/api/video/frame", { ...state.video, frame: n }));
     }
     if (asked !== state.asked) return;
     state.image = image;
     state.labels = labels;
+    if (labels) {
+      paintByRed(labels.bytes, layer.words(labels.width, labels.height), LABEL_COLOURS);
+      layer.put();
+    }
     state.shown = n;
     draw();
     canvas.dataset.frame = String(n);
   } catch (error) {
-    status.textContent = error.message;
+    say(error.message, true);
   }
 }
 
@@ -101,19 +106,19 @@ async function open(video, name) {
   clicks.forget();
   delete canvas.dataset.tracked;
   delete canvas.dataset.frame;
-  for (const id of ["play", "save-labels", "save-overlay", "save-frame"]) buttons[id].disabled = true;
+  for (const id of TRACK_BUTTONS) buttons[id].disabled = true;
   listPoints();
   try {
     state.info = await (await api("/api/video", video)).json();
   } catch (error) {
-    status.textContent = error.message;
+    say(error.message, true);
     return;
   }
   canvas.width = state.info.width;
   canvas.height = state.info.height;
   slider.max = String(Math.max(0, state.info.frames - 1));
   slider.value = "0";
-  status.textContent = `${name}: ${state.info.width} x ${state.info.height}, ${state.info.frames} frames at ${state.info.fps.toFixed(2)} fps`;
+  say(`${name}: ${state.info.width} x ${state.info.height}, ${state.info.frames} frames at ${state.info.fps.toFixed(2)} fps`);
   canvas.dataset.video = `${video.root}/${video.path}`;
   await show(0);
 }
@@ -128,7 +133,7 @@ takeClicks(canvas, clicks, () => {
     state.job = null;
     state.labels = null;
     delete canvas.dataset.tracked;
-    for (const id of ["play", "save-labels", "save-overlay", "save-frame"]) buttons[id].disabled = true;
+    for (const id of TRACK_BUTTONS) buttons[id].disabled = true;
   }
   state.clicked = state.shown;
   return true;
@@ -171,19 +176,19 @@ buttons.track.addEventListener("click", async () => {
         state.report = answer.report;
         break;
       }
-      status.textContent = `tracking: ${answer.done} of ${answer.total || "?"} frames`;
+      say(`tracking: ${answer.done} of ${answer.total || "?"} frames`);
       await sleep(300);
     }
     state.job = job;
     const seconds = (performance.now() - started) / 1000;
-    status.textContent = `${state.report.frames} frames tracked in ${seconds.toFixed(1)} s`;
-    for (const id of ["play", "save-labels", "save-overlay", "save-frame"]) buttons[id].disabled = false;
+    say(`${state.report.frames} frames tracked in ${seconds.toFixed(1)} s`);
+    for (const id of TRACK_BUTTONS) buttons[id].disabled = false;
     slider.max = String(state.report.frames - 1);
     slider.value = String(state.clicked);
     await show(state.clicked);
     canvas.dataset.tracked = String(job);
   } catch (error) {
-    status.textContent = error.message;
+    say(error.message, true);
   }
   buttons.cancel.hidden = true;
   buttons.track.disabled = !clicks.count(true);
@@ -221,20 +226,37 @@ buttons["save-overlay"].addEventListener("click", () => {
   link.href = apiUrl("/api/track/overlay", { job: state.job });
   link.click();
 });
+const frameName = () => `${state.name}-labels-${String(state.shown).padStart(6, "0")}`;
 buttons["save-frame"].addEventListener("click", async () => {
-  const labels = await api("/api/track/frame", { job: state.job, frame: state.shown, part: "labels" });
-  download(await labels.blob(), `${state.name}-labels-${String(state.shown).padStart(6, "0")}.png`);
+  try {
+    const labels = await api("/api/track/frame", { job: state.job, frame: state.shown, part: "labels" });
+    download(await labels.blob(), `${frameName()}.png`);
+  } catch (error) {
+    say(error.message, true);
+  }
+});
+// The shown frame's labels as a picture: each material in its colour,
+// the pixels of none black.
+const LABEL_PICTURE = colourTable((v) => (v ? [...PALETTE[(v - 1) % PALETTE.length], 1] : [0, 0, 0, 1]));
+buttons["save-frame-colours"].addEventListener("click", async () => {
+  const labels = state.labels;
+  if (!labels) {
+    say("Track the video first: the labels are the tracked frames'.", true);
+    return;
+  }
+  const png = await pngOf(labels.width, labels.height, (words) => paintByRed(labels.bytes, words, LABEL_PICTURE));
+  download(png, `${frameName()}-colours.png`);
 });
 
 // Uploads: the file picker and drops on the drop zone or the frame.
 async function upload(file) {
-  status.textContent = `uploading ${file.name}...`;
+  say(`uploading ${file.name}...`);
   try {
     const video = await uploadFile("/api/video/upload", file);
     await listVideos();
     await open({ root: video.root, path: video.path }, file.name);
   } catch (error) {
-    status.textContent = error.message;
+    say(error.message, true);
   }
 }
 takeFiles(document.getElementById("file"), [document.getElementById("drop"), canvas], upload);
@@ -258,5 +280,5 @@ if (asked.get("root") && asked.get("path")) {
 } else if (videos.length) {
   open(videos[0], videos[0].path);
 } else {
-  status.textContent = "No video in the served folders: upload one, or start the server with --data FOLDER.";
+  say("No video in the served folders: upload one, or start the server with --data FOLDER.");
 }
