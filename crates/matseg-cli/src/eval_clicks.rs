@@ -5,7 +5,10 @@
 
 use crate::eval::{models, score, ModelArgs};
 use anyhow::Result;
-use matseg_eval::clicks::{evaluate_clicks, evaluate_point_clicks, ClickOptions, REPORTED_CLICKS};
+use matseg_eval::clicks::{
+    evaluate_clicks, evaluate_point_clicks, ClickOptions, ClickReport, Targets, LARGE_DROP,
+    REPORTED_CLICKS,
+};
 use matseg_eval::{load_point_benchmark, scan_mask_benchmark};
 use std::path::PathBuf;
 
@@ -26,6 +29,10 @@ pub struct Args {
     /// Leave out masks smaller than this many pixels (at the evaluated size).
     #[arg(long, default_value_t = 100)]
     min_area: usize,
+    /// Also score targets of two materials: each pair of a photo's masks,
+    /// merged (mask benchmarks).
+    #[arg(long)]
+    unions: bool,
 }
 
 /// Runs `matseg eval clicks`.
@@ -38,6 +45,7 @@ pub fn run(args: Args) -> Result<()> {
         max_clicks: args.max_clicks,
         radius: args.radius,
         min_area: args.min_area,
+        targets: Targets::Masks,
     };
     let models = models(&args.model)?;
     let at = |map: &std::collections::BTreeMap<String, f64>, k: usize| {
@@ -78,10 +86,13 @@ pub fn run(args: Args) -> Result<()> {
         return Ok(());
     }
     let images = scan_mask_benchmark(&args.data)?;
-    let reports = models
-        .iter()
-        .map(|m| evaluate_clicks(m.as_ref(), &images, &options))
-        .collect::<Result<Vec<_>, _>>()?;
+    let score_all = |options: &ClickOptions| {
+        models
+            .iter()
+            .map(|m| evaluate_clicks(m.as_ref(), &images, options))
+            .collect::<Result<Vec<_>, _>>()
+    };
+    let reports = score_all(&options)?;
     if let Some(r) = reports.first().filter(|r| r.masks == 0) {
         anyhow::bail!(
             "{}: no mask could be scored: all {} are empty or smaller than --min-area {} pixels at the evaluated size (--max-side {}; masks are read as 8-bit grey, 128 and above inside)",
@@ -91,19 +102,56 @@ pub fn run(args: Args) -> Result<()> {
             options.max_side
         );
     }
+    let unions = if args.unions {
+        let unions = ClickOptions {
+            targets: Targets::Unions,
+            ..options.clone()
+        };
+        score_all(&unions)?
+    } else {
+        Vec::new()
+    };
     if args.model.json {
-        return print_json(&args.data, &options, serde_json::to_value(&reports)?);
+        let mut out = serde_json::json!({
+            "data": args.data,
+            "max_side": options.max_side,
+            "models": reports,
+        });
+        if args.unions {
+            out["unions"] = serde_json::to_value(&unions)?;
+        }
+        println!("{}", serde_json::to_string_pretty(&out)?);
+        return Ok(());
     }
+    print_mask_table(&args.data, "masks", &reports, &options);
+    if args.unions {
+        println!();
+        print_mask_table(&args.data, "unions of two masks", &unions, &options);
+    }
+    Ok(())
+}
+
+/// Prints the reports of one kind of target (`what`) as a table, with
+/// each model's drops below it.
+fn print_mask_table(
+    data: &std::path::Path,
+    what: &str,
+    reports: &[ClickReport],
+    options: &ClickOptions,
+) {
+    let at = |map: &std::collections::BTreeMap<String, f64>, k: usize| {
+        score(map.get(&k.to_string()).copied())
+    };
     println!(
-        "{}: {} masks clicked ({} too small), at most {} clicks each",
-        args.data.display(),
+        "{}: {} {what} clicked ({} too small), at most {} clicks each",
+        data.display(),
         reports.first().map_or(0, |r| r.masks),
         reports.first().map_or(0, |r| r.skipped_masks),
         options.max_clicks
     );
     println!("| model | NoC@85 | NoC@90 | IoU after 1 click | after 3 | after 5 | one click at the best threshold |");
     println!("|---|---|---|---|---|---|---|");
-    for r in &reports {
+    for r in reports {
         let m = &r.miou_at;
         println!(
             "| {} | {} | {} | {} | {} | {} | {} |",
@@ -116,7 +164,17 @@ pub fn run(args: Args) -> Result<()> {
             score(r.one_click_oracle)
         );
     }
-    Ok(())
+    for r in reports {
+        let d = &r.drops;
+        let largest = d.largest_at.as_ref().map_or(String::new(), |at| {
+            let with = at.with.map_or(String::new(), |o| format!("+{o}"));
+            format!(" ({} mask {}{with}, click {})", at.image, at.mask, at.click)
+        });
+        println!(
+            "{}: {} of {} clicks lowered the IoU, by {:.3} on average, {:.3} at most{largest}; {} runs lost more than {LARGE_DROP} from one click",
+            r.model, d.lowering, d.clicks, d.mean_drop, d.largest, d.runs_with_large
+        );
+    }
 }
 
 /// Prints the models' reports as `{"data", "max_side", "models": [...]}`.

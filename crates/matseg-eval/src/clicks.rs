@@ -27,6 +27,14 @@ pub const NOC_TARGETS: [f64; 2] = [0.85, 0.90];
 /// (points) is reported.
 pub const REPORTED_CLICKS: [usize; 3] = [1, 3, 5];
 
+/// A mask's run goes on to this many clicks at least, so that the IoU
+/// curve and its drops are measured over them for every mask.
+pub const CURVE_CLICKS: usize = 10;
+
+/// A drop in IoU from one click larger than this counts as ruining a
+/// selection.
+pub const LARGE_DROP: f64 = 0.10;
+
 /// How a click benchmark is run.
 #[derive(Clone, Debug)]
 pub struct ClickOptions {
@@ -39,6 +47,20 @@ pub struct ClickOptions {
     /// Masks with fewer pixels than this (in the evaluated image) are left
     /// out.
     pub min_area: usize,
+    /// What the targets are: each mask, or the union of two masks of a
+    /// photo.
+    pub targets: Targets,
+}
+
+/// What a click benchmark's targets are.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Targets {
+    /// Each mask of each photo.
+    Masks,
+    /// Each pair of masks of a photo, merged: a target of two materials
+    /// (an object of two parts).
+    Unions,
 }
 
 impl Default for ClickOptions {
@@ -48,6 +70,7 @@ impl Default for ClickOptions {
             max_clicks: 20,
             radius: 5.0,
             min_area: 100,
+            targets: Targets::Masks,
         }
     }
 }
@@ -57,6 +80,9 @@ impl Default for ClickOptions {
 pub struct MaskRun {
     /// Which mask of the image.
     pub mask: usize,
+    /// The other mask merged with it, for a union target.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub with: Option<usize>,
     /// The IoU after click 1, 2, ...
     pub ious: Vec<f64>,
     /// Clicks to IoU 0.85 (the most clicks when never).
@@ -88,6 +114,13 @@ pub struct ClickReport {
     pub noc90: Option<f64>,
     /// Mean IoU after 1, 3 and 5 clicks (keys "1", "3", "5").
     pub miou_at: BTreeMap<String, f64>,
+    /// Mean IoU after each click, 1 to the most clicks (a run that ended
+    /// early keeps its last IoU).
+    pub miou_curve: Vec<f64>,
+    /// How the protocol's clicks lowered the IoU.
+    pub drops: ClickDrops,
+    /// What the targets were.
+    pub targets: Targets,
     /// Mean IoU of one click at the best threshold (the oracle).
     pub one_click_oracle: Option<f64>,
     /// Masks scored.
@@ -96,6 +129,80 @@ pub struct ClickReport {
     pub skipped_masks: usize,
     /// Every image's runs.
     pub images: Vec<ImageRuns>,
+}
+
+/// How the clicks of a benchmark's runs lowered the IoU: each click after
+/// the first is compared with the one before it.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct ClickDrops {
+    /// Clicks after the first, over every run.
+    pub clicks: usize,
+    /// Those that lowered the IoU.
+    pub lowering: usize,
+    /// The mean IoU those lost (0 when none did).
+    pub mean_drop: f64,
+    /// The most IoU one click lost (0 when none did).
+    pub largest: f64,
+    /// Where it did, when one did.
+    pub largest_at: Option<DropAt>,
+    /// Clicks that lost more than [`LARGE_DROP`].
+    pub large: usize,
+    /// Runs that lost more than [`LARGE_DROP`] from one click.
+    pub runs_with_large: usize,
+}
+
+/// Which click of which run.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct DropAt {
+    /// The image.
+    pub image: String,
+    /// The mask (the first of a union's two).
+    pub mask: usize,
+    /// A union's second mask.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub with: Option<usize>,
+    /// The click, from 1.
+    pub click: usize,
+}
+
+impl ClickDrops {
+    /// The drops of every run of `images`.
+    pub fn of(images: &[ImageRuns]) -> Self {
+        let mut drops = ClickDrops::default();
+        let mut lost = 0.0;
+        for image in images {
+            for run in &image.masks {
+                let mut large = false;
+                for (k, pair) in run.ious.windows(2).enumerate() {
+                    drops.clicks += 1;
+                    let drop = pair[0] - pair[1];
+                    if drop <= 0.0 {
+                        continue;
+                    }
+                    drops.lowering += 1;
+                    lost += drop;
+                    if drop > LARGE_DROP {
+                        drops.large += 1;
+                        large = true;
+                    }
+                    if drop > drops.largest {
+                        drops.largest = drop;
+                        drops.largest_at = Some(DropAt {
+                            image: image.name.clone(),
+                            mask: run.mask,
+                            with: run.with,
+                            click: k + 2,
+                        });
+                    }
+                }
+                drops.runs_with_large += large as usize;
+            }
+        }
+        if drops.lowering > 0 {
+            drops.mean_drop = lost / drops.lowering as f64;
+        }
+        drops
+    }
 }
 
 /// The squared Euclidean distance of each pixel of `inside` to the nearest
@@ -284,8 +391,9 @@ pub fn clicks_to(ious: &[f64], target: f64, most: usize) -> usize {
         .map_or(most, |k| k + 1)
 }
 
-/// One mask's run on a photo: clicks until IoU 0.90 (and 5 clicks at
-/// least, for the reported means) or the most clicks.
+/// One mask's run on a photo: clicks until IoU 0.90 (and
+/// [`CURVE_CLICKS`] clicks at least, for the reported means and the
+/// curve) or the most clicks.
 fn mask_run(
     selector: &mut Selector<'_>,
     truth: &[bool],
@@ -306,14 +414,16 @@ fn mask_run(
         if first.is_none() {
             first = Some(selection.clone());
         }
-        if ious.len() >= options.max_clicks || (last >= NOC_TARGETS[1] && ious.len() >= 5) {
+        if ious.len() >= options.max_clicks
+            || (last >= NOC_TARGETS[1] && ious.len() >= CURVE_CLICKS)
+        {
             break;
         }
         match next_click(truth, &selection.mask, scored, w, h) {
             Some(next) => click = next,
             // Nothing left wrong: every later click would find the same.
             None => {
-                let done = ious.len().max(5).min(options.max_clicks);
+                let done = ious.len().max(CURVE_CLICKS).min(options.max_clicks);
                 ious.resize(done, last);
                 break;
             }
@@ -326,7 +436,9 @@ fn select_error(e: matseg_query::select::SelectError) -> BenchError {
     BenchError::new(std::path::Path::new("clicks"), None, e.to_string())
 }
 
-/// Scores `model` by clicks on the photos and masks of a mask benchmark.
+/// Scores `model` by clicks on the photos and masks of a mask benchmark:
+/// each mask, or each union of two masks of a photo (`options.targets`);
+/// a target with a mask smaller than `options.min_area` is left out.
 pub fn evaluate_clicks(
     model: &dyn DescriptorModel,
     images: &[MaskImage],
@@ -338,6 +450,9 @@ pub fn evaluate_clicks(
         noc85: None,
         noc90: None,
         miou_at: BTreeMap::new(),
+        miou_curve: Vec::new(),
+        drops: ClickDrops::default(),
+        targets: options.targets,
         one_click_oracle: None,
         masks: 0,
         skipped_masks: 0,
@@ -364,14 +479,25 @@ pub fn evaluate_clicks(
         };
         let map = model.describe(&pixels);
         let space = PixelSpace::new(&map, comparison);
+        let masks = image
+            .mask_paths
+            .iter()
+            .map(|path| inside(path))
+            .collect::<Result<Vec<_>, _>>()?;
+        let large: Vec<bool> = masks
+            .iter()
+            .map(|truth| (0..w * h).filter(|&i| truth[i] && scored[i]).count() >= options.min_area)
+            .collect();
         let mut runs = Vec::new();
-        for (k, path) in image.mask_paths.iter().enumerate() {
-            let truth = inside(path)?;
-            let area = (0..w * h).filter(|&i| truth[i] && scored[i]).count();
-            if area < options.min_area {
+        for (k, with) in targets(masks.len(), options.targets) {
+            if !large[k] || with.is_some_and(|o| !large[o]) {
                 report.skipped_masks += 1;
                 continue;
             }
+            let truth: Vec<bool> = match with {
+                None => masks[k].clone(),
+                Some(o) => (0..w * h).map(|i| masks[k][i] || masks[o][i]).collect(),
+            };
             let mut selector =
                 Selector::new(&space, Some(&pixels), options.radius).map_err(select_error)?;
             let (ious, first) = mask_run(&mut selector, &truth, &scored, (w, h), options)?;
@@ -386,6 +512,7 @@ pub fn evaluate_clicks(
             let oracle = best_iou(&scores, &truths).map_or(0.0, |b| b.iou);
             runs.push(MaskRun {
                 mask: k,
+                with,
                 noc85: clicks_to(&ious, NOC_TARGETS[0], options.max_clicks),
                 noc90: clicks_to(&ious, NOC_TARGETS[1], options.max_clicks),
                 ious,
@@ -405,12 +532,28 @@ pub fn evaluate_clicks(
     report.noc85 = mean(&|s| s.noc85 as f64);
     report.noc90 = mean(&|s| s.noc90 as f64);
     report.one_click_oracle = mean(&|s| s.one_click_oracle);
+    let after = |s: &MaskRun, k: usize| s.ious[(k - 1).min(s.ious.len() - 1)];
     for k in REPORTED_CLICKS {
-        if let Some(m) = mean(&|s| s.ious[(k - 1).min(s.ious.len() - 1)]) {
+        if let Some(m) = mean(&|s| after(s, k)) {
             report.miou_at.insert(k.to_string(), m);
         }
     }
+    report.miou_curve = (1..=options.max_clicks)
+        .filter_map(|k| mean(&|s| after(s, k)))
+        .collect();
+    report.drops = ClickDrops::of(&report.images);
     Ok(report)
+}
+
+/// The targets of a photo of `masks` masks: each mask (its index, no
+/// second), or each pair of masks.
+fn targets(masks: usize, targets: Targets) -> Vec<(usize, Option<usize>)> {
+    match targets {
+        Targets::Masks => (0..masks).map(|k| (k, None)).collect(),
+        Targets::Unions => (0..masks)
+            .flat_map(|a| (a + 1..masks).map(move |b| (a, Some(b))))
+            .collect(),
+    }
 }
 
 /// One target material's run on a point benchmark image: the
@@ -744,8 +887,59 @@ mod tests {
         let perfect = evaluate_clicks(&Halves { split: 16 }, &images, &options).unwrap();
         assert_eq!((perfect.noc85, perfect.noc90), (Some(1.0), Some(1.0)));
         assert_eq!(perfect.miou_at["1"], 1.0);
+        assert_eq!(perfect.miou_curve, vec![1.0; 20]);
+        assert_eq!(perfect.drops.clicks, 9, "runs go on to 10 clicks");
+        assert_eq!((perfect.drops.lowering, perfect.drops.largest), (0, 0.0));
         let constant = evaluate_clicks(&Halves { split: 0 }, &images, &options).unwrap();
         assert_eq!(constant.noc85, Some(20.0), "{:?}", constant.images);
         assert!(constant.miou_at["5"] < 0.85);
+        assert_eq!(constant.miou_curve.len(), 20);
+        let ious = &constant.images[0].masks[0].ious;
+        assert_eq!(constant.miou_curve[..ious.len()], ious[..]);
+        assert_eq!(constant.drops.clicks, ious.len() - 1);
+    }
+
+    #[test]
+    fn drops_count_every_click_that_lowers_the_iou() {
+        let run = |mask, ious: &[f64]| MaskRun {
+            mask,
+            with: None,
+            ious: ious.to_vec(),
+            noc85: 20,
+            noc90: 20,
+            one_click_oracle: 0.0,
+        };
+        let images = [ImageRuns {
+            name: "a".into(),
+            masks: vec![
+                run(0, &[0.5, 0.7, 0.55, 0.6]),
+                run(1, &[0.9, 0.95, 0.6, 0.65, 0.64]),
+            ],
+        }];
+        let drops = ClickDrops::of(&images);
+        assert_eq!(drops.clicks, 7);
+        assert_eq!(drops.lowering, 3);
+        assert!((drops.mean_drop - (0.15 + 0.35 + 0.01) / 3.0).abs() < 1e-12);
+        assert!((drops.largest - 0.35).abs() < 1e-12);
+        assert_eq!(
+            drops.largest_at,
+            Some(DropAt {
+                image: "a".into(),
+                mask: 1,
+                with: None,
+                click: 3
+            })
+        );
+        assert_eq!((drops.large, drops.runs_with_large), (2, 2));
+    }
+
+    #[test]
+    fn unions_are_every_pair_of_a_photos_masks() {
+        assert_eq!(targets(2, Targets::Masks), [(0, None), (1, None)]);
+        assert_eq!(
+            targets(3, Targets::Unions),
+            [(0, Some(1)), (0, Some(2)), (1, Some(2))]
+        );
+        assert!(targets(1, Targets::Unions).is_empty());
     }
 }
