@@ -11,16 +11,20 @@
 //!   it), and no negative click is as similar to it. Clicks after the
 //!   first reach less far: their similarity is lowered with the distance
 //!   from where they were clicked, so a correction takes its own
-//!   neighbourhood before the far side of the photo. The photo's other
-//!   materials (cells spread over its descriptors by farthest-point
-//!   sampling, those below the threshold) count as negative clicks the
-//!   user did not have to make;
+//!   neighbourhood before the far side of the photo, and they reach only
+//!   the cells very like them (cosine 0.85 at least), so a click on an
+//!   edge, whose disc mixes two materials, takes neither wholesale. The
+//!   photo's other materials (cells spread over its descriptors by
+//!   farthest-point sampling, those below the threshold) count as
+//!   negative clicks the user did not have to make, so a second positive
+//!   material does not bring in what lies between it and the first;
 //! - from the second click on, a linear classifier of the descriptors
 //!   and of the photo's colours ([`crate::colour_features`]; ridge
 //!   regression, the Gram matrix factorised once per photo) is fitted on
-//!   that decision (each cell) and on the clicks (each weighing as 500
-//!   cells), and decides instead, each pixel by its cell's descriptor and
-//!   its own colour: where the clicks and the similarities disagree it
+//!   that decision (each cell) and on the clicks (each positive one
+//!   weighing as 500 cells, each negative one as 150), and decides
+//!   instead, each pixel by its cell's descriptor and its own colour:
+//!   where the clicks and the similarities disagree it
 //!   finds the direction that tells the clicked materials apart, rather
 //!   than flipping every cell near one click;
 //! - the decision is brought to the photo's size, made to follow the
@@ -440,9 +444,24 @@ impl Selection {
 /// cell the photo's longer side away from it.
 const REACH: f32 = 0.2;
 
-/// The share of the photo a click weighs as when the classifier is
-/// fitted: 500 of the 23,000 cells of the net's grid over a 700 px photo.
+/// How like a click after the first a cell must be for the click to take
+/// it (or, a negative click, to leave it out), as a cosine similarity (or
+/// Otsu's threshold of the first click's map, when higher): a correcting
+/// click is often on an edge or a small patch, where its disc mixes two
+/// materials and is somewhat like much of the photo; at 0.85 it takes its
+/// own material, not all that (BENCHMARKS.md, "Clicks that make a
+/// selection worse").
+const CORRECTION_LEVEL: f32 = 0.85;
+
+/// The share of the photo a positive click weighs as when the classifier
+/// is fitted: 500 of the 23,000 cells of the net's grid over a 700 px
+/// photo.
 const CLICK_SHARE: f64 = 500.0 / 23_000.0;
+
+/// The share a negative click weighs as: less than a positive one, so that
+/// a negative click on an edge, whose disc is partly the material wanted,
+/// does not turn the classifier away from much of that material.
+const NEGATIVE_CLICK_SHARE: f64 = 150.0 / 23_000.0;
 
 /// The classifier's regularisation of its squared weights, as a share of
 /// the cells fitted (10 of 23,000).
@@ -804,27 +823,36 @@ impl<'a> Selector<'a> {
 
     /// The best similarity of every cell to the clicks of one kind, each
     /// click but the first positive one (query `first`) lowered with the
-    /// distance from where it was clicked ([`Selector::lowered`]): a
-    /// correcting click takes its own neighbourhood more readily than the
-    /// far side of the photo.
-    fn reach(&self, positive: bool, first: usize) -> Option<Vec<f32>> {
-        let mut best = None;
+    /// distance from where it was clicked ([`Selector::lowered`]) and
+    /// reaching only the cells at least `level` like it (none elsewhere):
+    /// a correcting click takes its own neighbourhood more readily than
+    /// the far side of the photo, and only what is its own material, not
+    /// whatever is somewhat like it.
+    fn reach(&self, positive: bool, first: usize, level: f32) -> Option<Vec<f32>> {
+        let mut best: Option<Vec<f32>> = None;
         for (k, query) in self.queries.iter().enumerate() {
             if query.positive != positive {
                 continue;
             }
-            let near = match &query.near {
-                Some(near) if k != first => near,
-                _ => &query.similarities,
-            };
-            best = Some(raised(best, near));
+            if k == first {
+                best = Some(raised(best, &query.similarities));
+                continue;
+            }
+            let near = query.near.as_ref().unwrap_or(&query.similarities);
+            let best = best.get_or_insert_with(|| vec![f32::NEG_INFINITY; near.len()]);
+            for (b, &n) in best.iter_mut().zip(near) {
+                if n >= level {
+                    *b = b.max(n);
+                }
+            }
         }
         best
     }
 
     /// The decision, at the photo's size, of a linear classifier fitted
     /// on `prior` (each cell's decision by similarity, weight 1 a cell)
-    /// and on the clicks ([`CLICK_SHARE`] of the photo each): where the
+    /// and on the clicks ([`CLICK_SHARE`] of the photo each positive one,
+    /// [`NEGATIVE_CLICK_SHARE`] each negative one): where the
     /// clicks and the similarities disagree, it finds the direction that
     /// tells the clicked materials apart. Its columns are the descriptors
     /// and, when every click has its colour, the colour features, which
@@ -858,7 +886,10 @@ impl<'a> Selector<'a> {
             .zip(&self.queries)
             .map(|(values, q)| WeightedRow {
                 values,
-                weight: CLICK_SHARE * cells.len() as f64,
+                weight: match q.positive {
+                    true => CLICK_SHARE,
+                    false => NEGATIVE_CLICK_SHARE,
+                } * cells.len() as f64,
                 target: if q.positive { 0.5 } else { -0.5 },
             })
             .collect();
@@ -907,8 +938,11 @@ impl<'a> Selector<'a> {
             .position(|q| q.positive)
             .ok_or(SelectError::NoPositive)?;
         let threshold = otsu_threshold(&self.queries[first].similarities);
-        let near_positive = self.reach(true, first).ok_or(SelectError::NoPositive)?;
-        let near_negative = self.reach(false, first);
+        let level = threshold.max(CORRECTION_LEVEL);
+        let near_positive = self
+            .reach(true, first, level)
+            .ok_or(SelectError::NoPositive)?;
+        let near_negative = self.reach(false, first, level);
         // The photo's materials unlike the positive clicks count, for the
         // decision, as negative clicks the user did not have to make.
         let mut against = near_negative;
@@ -1423,5 +1457,118 @@ mod tests {
         let t = otsu_threshold(&values);
         assert!(t > 0.1 && t < 0.9, "{t}");
         assert_eq!(otsu_threshold(&[0.5; 10]), 0.5);
+    }
+
+    /// The third material of [`bands`] far from the others: as near to A
+    /// as to B, and little like either (cosine 0.3).
+    const APART: [f32; 4] = [0.3015, 0.3015, 0.9045, 0.0];
+
+    /// The third material of [`bands`] somewhat like B (cosine 0.75) and
+    /// hardly like A: the target of a correcting click on B.
+    const NEAR_B: [f32; 4] = [0.05, 0.75, 0.66, 0.0];
+
+    /// A 64 x 16 map of four materials in vertical bands 16 pixels wide
+    /// (4-d descriptors, each pixel a little off its material's own): A,
+    /// a background D, B, and `third`; and a photo of one colour a
+    /// material.
+    fn bands(third: [f32; 4]) -> (DescriptorMap, RgbImage) {
+        let (w, h) = (64, 16);
+        let centres = [
+            [1.0, 0.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+            [0.0, 1.0, 0.0, 0.0],
+            third,
+        ];
+        let data = (0..w * h)
+            .flat_map(|i| {
+                let centre = centres[(i % w) / 16];
+                let wobble = 0.05 * (i as f32 * 0.7).sin();
+                let v = [centre[0] + wobble, centre[1], centre[2] - wobble, centre[3]];
+                let norm = v.iter().map(|a| a * a).sum::<f32>().sqrt();
+                v.map(|a| a / norm)
+            })
+            .collect();
+        let colours = [[200, 40, 40], [90, 70, 50], [40, 160, 60], [60, 60, 200]];
+        let photo = RgbImage::from_fn(w as u32, h as u32, |x, _| {
+            image::Rgb(colours[x as usize / 16])
+        });
+        (
+            DescriptorMap {
+                width: w,
+                height: h,
+                dim: 4,
+                data,
+            },
+            photo,
+        )
+    }
+
+    /// The pixels of band `band` of [`bands`].
+    fn band(band: usize) -> impl Fn(usize) -> bool {
+        move |i| (i % 64) / 16 == band
+    }
+
+    #[test]
+    fn a_second_positive_material_never_takes_what_lies_nearer_a_third() {
+        let (map, photo) = bands(NEAR_B);
+        let space = PixelSpace::new(&map, Comparison::Cosine);
+        let (a, b) = (Click::positive(8.0, 8.0), Click::positive(40.0, 8.0));
+        for photo in [None, Some(&photo)] {
+            let selection = select(&space, photo, &[a, b], 0.0).unwrap();
+            let near = |x: f32| {
+                map.similarity_map(
+                    &map.point_descriptor(x, 8.0, 0.0, Comparison::Cosine),
+                    Comparison::Cosine,
+                )
+            };
+            let (to_a, to_b, to_c) = (near(8.0), near(40.0), near(56.0));
+            for i in 0..map.width * map.height {
+                if selection.mask[i] {
+                    assert!(to_a[i].max(to_b[i]) >= to_c[i], "pixel {i} is nearer C");
+                }
+                assert_eq!(selection.mask[i], band(0)(i) || band(2)(i), "pixel {i}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_negative_click_never_adds_a_pixel() {
+        for third in [APART, NEAR_B] {
+            let (map, photo) = bands(third);
+            let space = PixelSpace::new(&map, Comparison::Cosine);
+            let starts = [
+                vec![Click::positive(8.0, 8.0)],
+                vec![Click::positive(8.0, 8.0), Click::positive(40.0, 8.0)],
+                vec![Click::positive(15.0, 8.0), Click::positive(56.0, 3.0)],
+            ];
+            for photo in [None, Some(&photo)] {
+                for start in &starts {
+                    let before = select(&space, photo, start, 0.0).unwrap();
+                    for x in [2.0, 14.0, 17.0, 30.0, 47.0, 60.0] {
+                        let mut clicks = start.clone();
+                        clicks.push(Click::negative(x, 8.0));
+                        let after = select(&space, photo, &clicks, 0.0).unwrap();
+                        let added = (0..after.mask.len())
+                            .filter(|&i| after.mask[i] && !before.mask[i])
+                            .count();
+                        assert_eq!(added, 0, "{start:?} then a negative click at {x}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn two_materials_apart_are_selected_as_the_union_of_their_own_selections() {
+        let (map, photo) = bands(APART);
+        let space = PixelSpace::new(&map, Comparison::Cosine);
+        let (a, b) = (Click::positive(8.0, 8.0), Click::positive(40.0, 8.0));
+        for photo in [None, Some(&photo)] {
+            let one = |clicks: &[Click]| select(&space, photo, clicks, 0.0).unwrap().mask;
+            let (only_a, only_b, both) = (one(&[a]), one(&[b]), one(&[a, b]));
+            let union: Vec<bool> = only_a.iter().zip(&only_b).map(|(&x, &y)| x || y).collect();
+            assert_eq!(both, union);
+            assert_eq!(only_a.iter().filter(|&&m| m).count(), 16 * 16);
+        }
     }
 }
