@@ -46,14 +46,17 @@ def test_selection_matches_matseg_segment_and_applies_as_saved(model, photo, mat
     cli = np.asarray(Image.open(out / "mask_0.png")) > 127
     assert (selection.mask == cli).mean() > 0.999
     assert selection.mask[120, 100] and not selection.mask[60, 400]
-    # The saved selection, applied to the same photo, makes nearly the same
-    # mask: it keeps the clicks' descriptors, not where they were clicked
-    # (which only changes how far a later click reaches).
+    # The saved selection, applied to the same photo, keeps the clicks'
+    # descriptors, not where they were clicked: a later click, which on its
+    # photo reached only the cells near it and very like it, reaches by its
+    # descriptor alone. The applied mask holds the clicked one, and may
+    # reach further.
     saved = tmp_path / "selection.json"
     saved.write_text(selection.saved)
     run([matseg_bin, "apply", saved, PHOTO, "--out", applied])
     again = np.asarray(Image.open(applied / "masks" / "astronaut.png")) > 127
-    assert (again == selection.mask).mean() > 0.97
+    assert (again & selection.mask).sum() > 0.98 * selection.mask.sum()
+    assert (again == selection.mask).mean() > 0.85
     # One click saved and applied: exactly the same mask.
     one = model.select(photo, [(100, 120)])
     saved.write_text(one.saved)
