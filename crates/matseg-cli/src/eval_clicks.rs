@@ -48,9 +48,6 @@ pub fn run(args: Args) -> Result<()> {
         targets: Targets::Masks,
     };
     let models = models(&args.model)?;
-    let at = |map: &std::collections::BTreeMap<String, f64>, k: usize| {
-        score(map.get(&k.to_string()).copied())
-    };
     if args.data.join("images").is_dir() && args.data.join("data").is_dir() {
         let bench = load_point_benchmark(&args.data, false)?;
         let reports = models
@@ -64,7 +61,7 @@ pub fn run(args: Args) -> Result<()> {
             );
         }
         if args.model.json {
-            return print_json(&args.data, &options, serde_json::to_value(&reports)?);
+            return print_json(&args.data, &options, serde_json::to_value(&reports)?, None);
         }
         println!(
             "{}: {} materials clicked; balanced accuracy of the points not clicked",
@@ -78,9 +75,9 @@ pub fn run(args: Args) -> Result<()> {
             println!(
                 "| {} | {} | {} | {} |",
                 r.model,
-                at(ba, 1),
-                at(ba, 3),
-                at(ba, 5)
+                score_at(ba, 1),
+                score_at(ba, 3),
+                score_at(ba, 5)
             );
         }
         return Ok(());
@@ -112,16 +109,13 @@ pub fn run(args: Args) -> Result<()> {
         Vec::new()
     };
     if args.model.json {
-        let mut out = serde_json::json!({
-            "data": args.data,
-            "max_side": options.max_side,
-            "models": reports,
-        });
-        if args.unions {
-            out["unions"] = serde_json::to_value(&unions)?;
-        }
-        println!("{}", serde_json::to_string_pretty(&out)?);
-        return Ok(());
+        let unions = Some(&unions[..]).filter(|_| args.unions);
+        return print_json(
+            &args.data,
+            &options,
+            serde_json::to_value(&reports)?,
+            unions,
+        );
     }
     print_mask_table(&args.data, "masks", &reports, &options);
     if args.unions {
@@ -139,9 +133,6 @@ fn print_mask_table(
     reports: &[ClickReport],
     options: &ClickOptions,
 ) {
-    let at = |map: &std::collections::BTreeMap<String, f64>, k: usize| {
-        score(map.get(&k.to_string()).copied())
-    };
     println!(
         "{}: {} {what} clicked ({} too small), at most {} clicks each",
         data.display(),
@@ -158,9 +149,9 @@ fn print_mask_table(
             r.model,
             score(r.noc85),
             score(r.noc90),
-            at(m, 1),
-            at(m, 3),
-            at(m, 5),
+            score_at(m, 1),
+            score_at(m, 3),
+            score_at(m, 5),
             score(r.one_click_oracle)
         );
     }
@@ -177,13 +168,24 @@ fn print_mask_table(
     }
 }
 
-/// Prints the models' reports as `{"data", "max_side", "models": [...]}`.
+/// The score under click count `k` of a report's per-click means.
+fn score_at(map: &std::collections::BTreeMap<String, f64>, k: usize) -> String {
+    score(map.get(&k.to_string()).copied())
+}
+
+/// Prints the models' reports as `{"data", "max_side", "models": [...]}`,
+/// with `"unions": [...]` when the unions were scored.
 fn print_json(
     data: &std::path::Path,
     options: &ClickOptions,
     models: serde_json::Value,
+    unions: Option<&[ClickReport]>,
 ) -> Result<()> {
-    let out = serde_json::json!({ "data": data, "max_side": options.max_side, "models": models });
+    let mut out =
+        serde_json::json!({ "data": data, "max_side": options.max_side, "models": models });
+    if let Some(unions) = unions {
+        out["unions"] = serde_json::to_value(unions)?;
+    }
     println!("{}", serde_json::to_string_pretty(&out)?);
     Ok(())
 }

@@ -1513,15 +1513,15 @@ mod tests {
         let (map, photo) = bands(NEAR_B);
         let space = PixelSpace::new(&map, Comparison::Cosine);
         let (a, b) = (Click::positive(8.0, 8.0), Click::positive(40.0, 8.0));
+        let near = |x: f32| {
+            map.similarity_map(
+                &map.point_descriptor(x, 8.0, 0.0, Comparison::Cosine),
+                Comparison::Cosine,
+            )
+        };
+        let (to_a, to_b, to_c) = (near(8.0), near(40.0), near(56.0));
         for photo in [None, Some(&photo)] {
             let selection = select(&space, photo, &[a, b], 0.0).unwrap();
-            let near = |x: f32| {
-                map.similarity_map(
-                    &map.point_descriptor(x, 8.0, 0.0, Comparison::Cosine),
-                    Comparison::Cosine,
-                )
-            };
-            let (to_a, to_b, to_c) = (near(8.0), near(40.0), near(56.0));
             for i in 0..map.width * map.height {
                 if selection.mask[i] {
                     assert!(to_a[i].max(to_b[i]) >= to_c[i], "pixel {i} is nearer C");
