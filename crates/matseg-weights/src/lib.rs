@@ -1,18 +1,21 @@
 //! Network weights without Python or libtorch: PyTorch checkpoints (the
 //! legacy format the registry-shipped ImageNet weights use, and the zip
-//! format) read into named tensors, and safetensors written and read.
+//! format) read into named tensors, safetensors written and read, and
+//! NumPy `.npy` arrays.
 
 #![warn(missing_docs)]
 
 pub mod arch;
 #[cfg(any(test, feature = "fixtures"))]
 pub mod fixtures;
+pub mod npy;
 pub mod pickle;
 pub mod safetensors;
 pub mod torch;
 pub mod zip;
 
 pub use arch::Arch;
+pub use npy::{read_npy, write_npy_f32};
 pub use safetensors::{read_safetensors, read_safetensors_metadata, write_safetensors};
 pub use torch::read_checkpoint;
 
