@@ -3,11 +3,16 @@
 
 use anyhow::Result;
 use clap::Subcommand;
-use matseg_eval::{evaluate_masks, scan_mask_benchmark, MaskEvalOptions, QueryOptions};
+use matseg_eval::external::MapFolder;
+use matseg_eval::template::{mask_template, point_template, write_template};
+use matseg_eval::{
+    evaluate_masks, load_point_benchmark, scan_mask_benchmark, Described, MaskEvalOptions,
+    QueryOptions, ScoredModel,
+};
+use matseg_image::outputs::StagedOutput;
 use matseg_image::progress::Silent;
 use matseg_pipeline::models::ModelChoice;
 use matseg_pipeline::point_bench::score_point_benchmark;
-use matseg_query::descriptor::DescriptorModel;
 use std::path::PathBuf;
 
 /// `matseg eval` subcommands.
@@ -25,6 +30,10 @@ pub enum Command {
     /// followed, IoU at the best threshold on every frame.
     #[cfg(feature = "net")]
     Track(crate::track::EvalArgs),
+    /// What a tool outside matseg must answer for `--maps`: each photo at
+    /// its scored size (photos/NAME.png) and the points asked about
+    /// (template.json), for a point or a mask benchmark.
+    MapsTemplate(TemplateArgs),
 }
 
 /// Options shared by both benchmarks.
@@ -40,6 +49,12 @@ pub struct ModelArgs {
     /// best.safetensors), or `none`; repeatable.
     #[arg(long = "model", num_args = 1.., default_value = crate::net_args::DEFAULT_NETS)]
     nets: Vec<PathBuf>,
+    /// Folders of maps a model matseg did not train computed for the
+    /// benchmark's photos: NAME.npy or NAME.safetensors per photo, and an
+    /// optional maps.json (docs/eval.md, "Scoring your own model");
+    /// repeatable.
+    #[arg(long = "maps", num_args = 1.., value_name = "DIR")]
+    maps: Vec<PathBuf>,
     /// Describe photos with the nets at this longer side at most (photos
     /// are scored at --max-side all the same), instead of each run's own
     /// setting (its run.json's inference_side); several sides (`320,256`)
@@ -76,6 +91,31 @@ pub struct MaskArgs {
     data: PathBuf,
     #[command(flatten)]
     model: ModelArgs,
+    #[command(flatten)]
+    queries: MaskQueryArgs,
+}
+
+/// Arguments of `matseg eval maps-template`.
+#[derive(clap::Args)]
+pub struct TemplateArgs {
+    /// A point benchmark (images/, data/) or a mask benchmark folder.
+    bench: PathBuf,
+    /// The folder to write (a new one, or one this command wrote).
+    #[arg(long)]
+    out: PathBuf,
+    /// Longer side of the evaluated images, in pixels (0: as they are);
+    /// the same as the evaluation's --max-side.
+    #[arg(long, default_value_t = matseg_eval::evaluate::DEFAULT_MAX_SIDE)]
+    max_side: u32,
+    /// For a mask benchmark: how query points are drawn, as `eval masks`
+    /// draws them.
+    #[command(flatten)]
+    queries: MaskQueryArgs,
+}
+
+/// How a mask benchmark's query points are drawn and scored.
+#[derive(clap::Args)]
+pub struct MaskQueryArgs {
     /// Query points per mask.
     #[arg(long, default_value_t = 10)]
     points: usize,
@@ -106,18 +146,29 @@ pub fn run(command: Command) -> Result<()> {
         Command::Clicks(args) => crate::eval_clicks::run(args),
         #[cfg(feature = "net")]
         Command::Track(args) => crate::track::eval(args),
+        Command::MapsTemplate(args) => maps_template(args),
     }
 }
 
 /// The models `args` choose.
-pub fn models(args: &ModelArgs) -> Result<Vec<Box<dyn DescriptorModel>>> {
+pub fn models(args: &ModelArgs) -> Result<Vec<Box<dyn ScoredModel>>> {
     let choice = ModelChoice {
         baselines: args.baselines.clone(),
         nets: args.nets.clone(),
         net_sides: args.net_side.clone(),
         device: crate::net_args::parse_device(&args.device)?,
     };
-    Ok(matseg_pipeline::models::models(&choice)?)
+    let mut models: Vec<Box<dyn ScoredModel>> = matseg_pipeline::models::models(&choice)?
+        .into_iter()
+        .map(|m| Box::new(Described(m)) as Box<dyn ScoredModel>)
+        .collect();
+    for dir in &args.maps {
+        models.push(Box::new(MapFolder::open(dir)?));
+    }
+    if models.is_empty() {
+        anyhow::bail!("no model to score: give --model, --baseline or --maps");
+    }
+    Ok(models)
 }
 
 /// A score with four decimals, `-` when there is none.
@@ -173,29 +224,36 @@ fn points(args: PointArgs) -> Result<()> {
     Ok(())
 }
 
+impl MaskQueryArgs {
+    /// The evaluation options these arguments give at `max_side`.
+    fn options(&self, max_side: u32) -> MaskEvalOptions {
+        MaskEvalOptions {
+            max_side,
+            queries: QueryOptions {
+                points_per_mask: self.points,
+                erosion: self.erode,
+                min_area: self.min_area,
+                seed: self.seed,
+            },
+            radius: self.radius,
+            grid_steps: self.grid,
+        }
+    }
+}
+
 fn masks(args: MaskArgs) -> Result<()> {
     let models = models(&args.model)?;
     let images = scan_mask_benchmark(&args.data)?;
-    let options = MaskEvalOptions {
-        max_side: args.model.max_side,
-        queries: QueryOptions {
-            points_per_mask: args.points,
-            erosion: args.erode,
-            min_area: args.min_area,
-            seed: args.seed,
-        },
-        radius: args.radius,
-        grid_steps: args.grid,
-    };
+    let options = args.queries.options(args.model.max_side);
     let reports = models
         .iter()
-        .map(|m| evaluate_masks(m.as_ref(), &images, &options))
+        .map(|m| evaluate_masks(m.as_ref(), &images, &options, &Silent))
         .collect::<Result<Vec<_>, _>>()?;
     if args.model.json {
         let out = serde_json::json!({
             "data": args.data,
             "max_side": args.model.max_side,
-            "threshold": args.grid.map_or("exact".to_string(), |s| format!("grid of {s} steps")),
+            "threshold": args.queries.grid.map_or("exact".to_string(), |s| format!("grid of {s} steps")),
             "models": reports,
         });
         println!("{}", serde_json::to_string_pretty(&out)?);
@@ -210,12 +268,39 @@ fn masks(args: MaskArgs) -> Result<()> {
         r0.skipped_masks,
         r0.queries,
         args.model.max_side,
-        args.grid.map_or("exact".to_string(), |s| format!("on a grid of {s} steps"))
+        args.queries.grid.map_or("exact".to_string(), |s| format!("on a grid of {s} steps"))
     );
     println!("| model | mean IoU at best threshold |");
     println!("|---|---|");
     for r in &reports {
         println!("| {} | {} |", r.model, score(r.mean_iou));
     }
+    Ok(())
+}
+
+fn maps_template(args: TemplateArgs) -> Result<()> {
+    let template = if args.bench.join("images").is_dir() && args.bench.join("data").is_dir() {
+        point_template(&load_point_benchmark(&args.bench, false)?, args.max_side)?
+    } else {
+        mask_template(
+            &scan_mask_benchmark(&args.bench)?,
+            &args.queries.options(args.max_side),
+        )?
+    };
+    let staged = StagedOutput::begin(&args.out, "eval maps-template", &[&args.bench])?;
+    write_template(staged.dir(), &template)?;
+    staged.finish()?;
+    println!(
+        "{}: {} photos of the {} benchmark {} at their scored size, {} points to answer",
+        args.out.display(),
+        template.images.len(),
+        template.protocol,
+        args.bench.display(),
+        template
+            .images
+            .iter()
+            .map(|i| i.points.len())
+            .sum::<usize>()
+    );
     Ok(())
 }

@@ -10,6 +10,7 @@ use matseg_eval::clicks::{
     REPORTED_CLICKS,
 };
 use matseg_eval::{load_point_benchmark, scan_mask_benchmark};
+use matseg_image::progress::Silent;
 use std::path::PathBuf;
 
 /// Arguments of `matseg eval clicks`.
@@ -52,7 +53,7 @@ pub fn run(args: Args) -> Result<()> {
         let bench = load_point_benchmark(&args.data, false)?;
         let reports = models
             .iter()
-            .map(|m| evaluate_point_clicks(m.as_ref(), &bench, &options))
+            .map(|m| evaluate_point_clicks(m.as_ref(), &bench, &options, &Silent))
             .collect::<Result<Vec<_>, _>>()?;
         if reports.first().is_some_and(|r| r.runs.is_empty()) {
             anyhow::bail!(
@@ -86,7 +87,7 @@ pub fn run(args: Args) -> Result<()> {
     let score_all = |options: &ClickOptions| {
         models
             .iter()
-            .map(|m| evaluate_clicks(m.as_ref(), &images, options))
+            .map(|m| evaluate_clicks(m.as_ref(), &images, options, &Silent))
             .collect::<Result<Vec<_>, _>>()
     };
     let reports = score_all(&options)?;

@@ -25,7 +25,9 @@ pub fn baseline(name: &str) -> Option<Box<dyn DescriptorModel>> {
 /// The colour space of a [`ColourBaseline`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ColourSpace {
-    /// R, G, B on 0..255.
+    /// R, G, B on 0..1 (each 8-bit level divided by 255 in `f32`, as
+    /// `numpy.float32(v) / 255` computes it, so a copy of the baseline
+    /// outside matseg gives the same values bit for bit).
     Rgb,
     /// CIE L*a*b* (D65): distances are CIE76 colour differences.
     Lab,
@@ -63,7 +65,7 @@ impl DescriptorModel for ColourBaseline {
 
     fn describe(&self, image: &RgbImage) -> DescriptorMap {
         let data = match self.space {
-            ColourSpace::Rgb => image.as_raw().iter().map(|&v| v as f32).collect(),
+            ColourSpace::Rgb => image.as_raw().iter().map(|&v| v as f32 / 255.0).collect(),
             ColourSpace::Lab => image.pixels().flat_map(|p| srgb_to_lab(p.0)).collect(),
         };
         DescriptorMap {

@@ -10,12 +10,14 @@
 //! the annotated point the selection gets most wrong, and the score is the
 //! balanced accuracy of the points not clicked.
 
-use crate::evaluate::{load_mask, resize_longer_side};
+use crate::evaluate::{check_cancelled, load_mask, resize_longer_side};
 use crate::iou::best_iou;
 use crate::masks::MaskImage;
+use crate::model::{descriptors_of, Question, ScoredModel};
 use crate::points::{flatten, BenchError, PointBenchmark};
 use matseg_image::io::read_rgb;
-use matseg_query::descriptor::DescriptorModel;
+use matseg_image::progress::Progress;
+use matseg_query::descriptor::{Comparison, DescriptorMap};
 use matseg_query::select::{Click, PixelSpace, Selection, Selector};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -432,6 +434,23 @@ fn mask_run(
     Ok((ious, first.expect("one click at least")))
 }
 
+/// `model`'s descriptor map of the photo `pixels` (the click protocol
+/// selects on descriptors), or why there is none.
+fn describe(
+    model: &dyn ScoredModel,
+    name: &str,
+    path: &std::path::Path,
+    pixels: &image::RgbImage,
+) -> Result<(DescriptorMap, Comparison), BenchError> {
+    let question = Question {
+        name,
+        path,
+        pixels,
+        points: &[],
+    };
+    descriptors_of(model.answer(&question)?, &question, "the click protocol")
+}
+
 fn select_error(e: matseg_query::select::SelectError) -> BenchError {
     BenchError::new(std::path::Path::new("clicks"), None, e.to_string())
 }
@@ -440,11 +459,11 @@ fn select_error(e: matseg_query::select::SelectError) -> BenchError {
 /// each mask, or each union of two masks of a photo (`options.targets`);
 /// a target with a mask smaller than `options.min_area` is left out.
 pub fn evaluate_clicks(
-    model: &dyn DescriptorModel,
+    model: &dyn ScoredModel,
     images: &[MaskImage],
     options: &ClickOptions,
+    progress: &dyn Progress,
 ) -> Result<ClickReport, BenchError> {
-    let comparison = model.comparison();
     let mut report = ClickReport {
         model: model.name().to_string(),
         noc85: None,
@@ -459,6 +478,7 @@ pub fn evaluate_clicks(
         images: Vec::new(),
     };
     for image in images {
+        check_cancelled(progress, &image.image_path)?;
         let photo = read_rgb(&image.image_path)?;
         let (w0, h0) = photo.dimensions();
         let (pixels, _) = resize_longer_side(photo, options.max_side);
@@ -477,7 +497,7 @@ pub fn evaluate_clicks(
             Some(path) => inside(path)?,
             None => vec![true; w * h],
         };
-        let map = model.describe(&pixels);
+        let (map, comparison) = describe(model, &image.name, &image.image_path, &pixels)?;
         let space = PixelSpace::new(&map, comparison);
         let masks = image
             .mask_paths
@@ -519,6 +539,7 @@ pub fn evaluate_clicks(
                 one_click_oracle: oracle,
             });
         }
+        progress.advance();
         report.masks += runs.len();
         report.images.push(ImageRuns {
             name: image.name.clone(),
@@ -587,16 +608,17 @@ pub struct PointClickReport {
 /// another material's point with the most); materials partly the same as
 /// the target (relations) are not scored.
 pub fn evaluate_point_clicks(
-    model: &dyn DescriptorModel,
+    model: &dyn ScoredModel,
     bench: &PointBenchmark,
     options: &ClickOptions,
+    progress: &dyn Progress,
 ) -> Result<PointClickReport, BenchError> {
-    let comparison = model.comparison();
     let most = *REPORTED_CLICKS.iter().max().expect("reported clicks");
     let mut runs = Vec::new();
     for image in &bench.images {
+        check_cancelled(progress, &image.image_path)?;
         let (pixels, scale) = resize_longer_side(read_rgb(&image.image_path)?, options.max_side);
-        let map = model.describe(&pixels);
+        let (map, comparison) = describe(model, &image.name, &image.image_path, &pixels)?;
         let space = PixelSpace::new(&map, comparison);
         let (w, h) = (pixels.width() as f32, pixels.height() as f32);
         let (points, material) = flatten(image);
@@ -685,6 +707,7 @@ pub fn evaluate_point_clicks(
                 balanced_accuracy: accuracies,
             });
         }
+        progress.advance();
     }
     let mut balanced_accuracy_at = BTreeMap::new();
     for k in REPORTED_CLICKS {
@@ -754,6 +777,8 @@ fn balanced_accuracy(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::Described;
+    use matseg_image::progress::Silent;
 
     #[test]
     fn distances_are_exact_to_the_boundary_and_the_edge() {
@@ -836,7 +861,7 @@ mod tests {
         split: u32,
     }
 
-    impl DescriptorModel for Halves {
+    impl matseg_query::descriptor::DescriptorModel for Halves {
         fn name(&self) -> &str {
             "halves"
         }
@@ -884,13 +909,20 @@ mod tests {
             max_side: 0,
             ..ClickOptions::default()
         };
-        let perfect = evaluate_clicks(&Halves { split: 16 }, &images, &options).unwrap();
+        let perfect = evaluate_clicks(
+            &Described(&Halves { split: 16 }),
+            &images,
+            &options,
+            &Silent,
+        )
+        .unwrap();
         assert_eq!((perfect.noc85, perfect.noc90), (Some(1.0), Some(1.0)));
         assert_eq!(perfect.miou_at["1"], 1.0);
         assert_eq!(perfect.miou_curve, vec![1.0; 20]);
         assert_eq!(perfect.drops.clicks, 9, "runs go on to 10 clicks");
         assert_eq!((perfect.drops.lowering, perfect.drops.largest), (0, 0.0));
-        let constant = evaluate_clicks(&Halves { split: 0 }, &images, &options).unwrap();
+        let constant =
+            evaluate_clicks(&Described(&Halves { split: 0 }), &images, &options, &Silent).unwrap();
         assert_eq!(constant.noc85, Some(20.0), "{:?}", constant.images);
         assert!(constant.miou_at["5"] < 0.85);
         assert_eq!(constant.miou_curve.len(), 20);

@@ -3,13 +3,13 @@
 
 use crate::iou::{best_iou, best_iou_on_grid};
 use crate::masks::{draw_mask_points, MaskImage, QueryOptions};
-use crate::points::{flatten, BenchError, PointBenchmark};
+use crate::model::{Question, ScoredModel};
+use crate::points::{flatten, BenchError, BenchImage, PointBenchmark};
 use crate::triplet::{score_image, ImageScores, PointScores};
 use image::{GrayImage, RgbImage};
 use matseg_image::io::{decode_grey, read_rgb};
 use matseg_image::progress::Progress;
 use matseg_image::Pyramid;
-use matseg_query::descriptor::DescriptorModel;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::path::Path;
@@ -80,55 +80,76 @@ pub struct PointCounts {
     pub soft_triplets: u64,
 }
 
+/// A query point's disc: centre `x`, `y` and radius, in scored pixels.
+pub type Disc = (f32, f32, f32);
+
+/// Image `image` of a point benchmark at the scored size (longer side
+/// `max_side`) and its points' discs `(x, y, r)` scaled alike, in the
+/// order of [`flatten`].
+pub fn point_queries(
+    image: &BenchImage,
+    max_side: u32,
+) -> Result<(RgbImage, Vec<Disc>), BenchError> {
+    let (pixels, scale) = resize_longer_side(read_rgb(&image.image_path)?, max_side);
+    let discs = flatten(image)
+        .0
+        .iter()
+        .map(|p| (p.x * scale, p.y * scale, p.r * scale))
+        .collect();
+    Ok((pixels, discs))
+}
+
 /// Scores `model` on every image of `bench`, evaluated with the longer side
 /// resized to `max_side` (points scaled alike). Each image scored is a step
 /// of `progress` (the caller starts and finishes it); when `progress` is
 /// cancelled, the images not yet begun are not scored and the answer is an
 /// error saying so.
 pub fn evaluate_points(
-    model: &dyn DescriptorModel,
+    model: &dyn ScoredModel,
     bench: &PointBenchmark,
     max_side: u32,
     progress: &dyn Progress,
 ) -> Result<PointReport, BenchError> {
-    let comparison = model.comparison();
     let mut counts = PointCounts::default();
     let mut images = Vec::new();
-    // Images are scored in parallel and gathered in benchmark order.
-    let scored: Vec<(NamedScores, usize)> = bench
-        .images
-        .par_iter()
-        .map(|image| -> Result<(NamedScores, usize), BenchError> {
-            if progress.cancelled() {
-                return Err(BenchError::new(
-                    &image.image_path,
-                    None,
-                    "not scored: the evaluation was cancelled",
-                ));
-            }
-            let (pixels, scale) = resize_longer_side(read_rgb(&image.image_path)?, max_side);
-            let map = model.describe(&pixels);
-            let (points, material) = flatten(image);
-            let descriptors: Vec<Vec<f32>> = points
-                .iter()
-                .map(|p| map.point_descriptor(p.x * scale, p.y * scale, p.r * scale, comparison))
-                .collect();
-            let scores = score_image(
-                &PointScores {
-                    material: &material,
-                    weight: &|a, b| image.weights[a][b],
-                    similarity: &|i, j| comparison.similarity(&descriptors[i], &descriptors[j]),
-                },
-                image.has_relations,
-            );
-            let named = NamedScores {
-                name: image.name.clone(),
-                scores,
-            };
-            progress.advance();
-            Ok((named, points.len()))
-        })
-        .collect::<Result<_, _>>()?;
+    let score = |image: &BenchImage| -> Result<(NamedScores, usize), BenchError> {
+        check_cancelled(progress, &image.image_path)?;
+        let (pixels, discs) = point_queries(image, max_side)?;
+        let (_, material) = flatten(image);
+        let asked: Vec<(f32, f32)> = discs.iter().map(|&(x, y, _)| (x, y)).collect();
+        let answer = model.answer(&Question {
+            name: &image.name,
+            path: &image.image_path,
+            pixels: &pixels,
+            points: &asked,
+        })?;
+        let similarity = answer.similarity_matrix(&discs);
+        let scores = score_image(
+            &PointScores {
+                material: &material,
+                weight: &|a, b| image.weights[a][b],
+                similarity: &|i, j| similarity[i][j],
+            },
+            image.has_relations,
+        );
+        let named = NamedScores {
+            name: image.name.clone(),
+            scores,
+        };
+        progress.advance();
+        Ok((named, discs.len()))
+    };
+    // Images are scored in parallel when the model allows it, and gathered
+    // in benchmark order.
+    let scored: Vec<(NamedScores, usize)> = if model.parallel() {
+        bench
+            .images
+            .par_iter()
+            .map(score)
+            .collect::<Result<_, _>>()?
+    } else {
+        bench.images.iter().map(score).collect::<Result<_, _>>()?
+    };
     for ((named, points), image) in scored.into_iter().zip(&bench.images) {
         counts.images += 1;
         counts.soft_images += image.has_relations as usize;
@@ -215,6 +236,18 @@ pub(crate) fn load_mask(path: &Path, w: u32, h: u32) -> Result<GrayImage, BenchE
     }
 }
 
+/// An error naming `photo` when `progress` was cancelled before it.
+pub(crate) fn check_cancelled(progress: &dyn Progress, photo: &Path) -> Result<(), BenchError> {
+    match progress.cancelled() {
+        true => Err(BenchError::new(
+            photo,
+            None,
+            "not scored: the evaluation was cancelled",
+        )),
+        false => Ok(()),
+    }
+}
+
 /// The values at the pixels inside `roi` (all of them without one).
 fn in_roi<T: Copy>(values: &[T], roi: Option<&[bool]>) -> Vec<T> {
     match roi {
@@ -228,13 +261,71 @@ fn in_roi<T: Copy>(values: &[T], roi: Option<&[bool]>) -> Vec<T> {
     }
 }
 
-/// Scores `model` on the photos and masks of a mask benchmark.
+/// A mask benchmark photo ready to be asked about: the photo at the scored
+/// size, its region of interest, each queried mask (restricted to the
+/// region: outside it nothing is predicted and nothing is true) with the
+/// range of its query points in `asked`, and the masks too small to query.
+pub struct MaskQueries {
+    /// The photo at the scored size.
+    pub pixels: RgbImage,
+    /// Its region of interest, when it has one.
+    pub roi: Option<Vec<bool>>,
+    /// Each queried mask inside the region, and its points in `asked`.
+    pub queried: Vec<(Vec<bool>, std::ops::Range<usize>)>,
+    /// Every query point `(x, y)` of the photo, mask after mask.
+    pub asked: Vec<(f32, f32)>,
+    /// Masks left out (eroded area too small).
+    pub skipped: usize,
+}
+
+/// The queries of photo `index` of a mask benchmark: its masks read and
+/// its query points drawn, before any model is asked (a model answering
+/// with similarity maps answers for these points).
+pub fn mask_queries(
+    image: &MaskImage,
+    index: usize,
+    options: &MaskEvalOptions,
+) -> Result<MaskQueries, BenchError> {
+    let photo = read_rgb(&image.image_path)?;
+    let (w0, h0) = photo.dimensions();
+    let (pixels, _) = resize_longer_side(photo, options.max_side);
+    let (w, h) = pixels.dimensions();
+    let inside = |path: &Path| -> Result<Vec<bool>, BenchError> {
+        let mask = load_mask(path, w0, h0)?;
+        let mask = image::imageops::resize(&mask, w, h, image::imageops::FilterType::Nearest);
+        Ok(mask.as_raw().iter().map(|&v| v >= 128).collect())
+    };
+    let roi = image.roi_path.as_deref().map(inside).transpose()?;
+    let (mut queried, mut asked, mut skipped) = (Vec::new(), Vec::new(), 0);
+    for (k, path) in image.mask_paths.iter().enumerate() {
+        let truth = inside(path)?;
+        let points = draw_mask_points(&truth, w as usize, h as usize, &options.queries, index, k);
+        if points.is_empty() {
+            skipped += 1;
+            continue;
+        }
+        let range = asked.len()..asked.len() + points.len();
+        asked.extend(points.iter().map(|&(x, y)| (x as f32, y as f32)));
+        queried.push((in_roi(&truth, roi.as_deref()), range));
+    }
+    Ok(MaskQueries {
+        pixels,
+        roi,
+        queried,
+        asked,
+        skipped,
+    })
+}
+
+/// Scores `model` on the photos and masks of a mask benchmark. Each photo
+/// scored is a step of `progress`, and a cancelled `progress` stops the
+/// scoring as [`evaluate_points`] does.
 pub fn evaluate_masks(
-    model: &dyn DescriptorModel,
+    model: &dyn ScoredModel,
     images: &[MaskImage],
     options: &MaskEvalOptions,
+    progress: &dyn Progress,
 ) -> Result<MaskReport, BenchError> {
-    let comparison = model.comparison();
     let mut report = MaskReport {
         model: model.name().to_string(),
         mean_iou: None,
@@ -246,42 +337,41 @@ pub fn evaluate_masks(
     };
     let mut total = 0.0;
     for (index, image) in images.iter().enumerate() {
-        let photo = read_rgb(&image.image_path)?;
-        let (w0, h0) = photo.dimensions();
-        let (pixels, _) = resize_longer_side(photo, options.max_side);
-        let (w, h) = pixels.dimensions();
-        let inside = |path: &Path| -> Result<Vec<bool>, BenchError> {
-            let mask = load_mask(path, w0, h0)?;
-            let mask = image::imageops::resize(&mask, w, h, image::imageops::FilterType::Nearest);
-            Ok(mask.as_raw().iter().map(|&v| v >= 128).collect())
-        };
-        let roi = image.roi_path.as_deref().map(inside).transpose()?;
-        let map = model.describe(&pixels);
+        check_cancelled(progress, &image.image_path)?;
+        let MaskQueries {
+            pixels,
+            roi,
+            queried,
+            asked,
+            skipped,
+        } = mask_queries(image, index, options)?;
+        report.skipped_masks += skipped;
+        report.masks += queried.len();
         let (mut sum, mut count) = (0.0, 0usize);
-        for (k, path) in image.mask_paths.iter().enumerate() {
-            let truth = inside(path)?;
-            let points =
-                draw_mask_points(&truth, w as usize, h as usize, &options.queries, index, k);
-            if points.is_empty() {
-                report.skipped_masks += 1;
-                continue;
-            }
-            report.masks += 1;
-            // Outside the ROI nothing is predicted and nothing is true.
-            let truth = in_roi(&truth, roi.as_deref());
-            for (x, y) in points {
-                let query = map.point_descriptor(x as f32, y as f32, options.radius, comparison);
-                let scores = in_roi(&map.similarity_map(&query, comparison), roi.as_deref());
-                let best = match options.grid_steps {
-                    Some(steps) => best_iou_on_grid(&scores, &truth, steps),
-                    None => best_iou(&scores, &truth),
-                };
-                if let Some(best) = best {
-                    sum += best.iou;
-                    count += 1;
+        // A photo with no queried mask is not asked about.
+        if !queried.is_empty() {
+            let answer = model.answer(&Question {
+                name: &image.name,
+                path: &image.image_path,
+                pixels: &pixels,
+                points: &asked,
+            })?;
+            for (truth, range) in queried {
+                for i in range {
+                    let map = answer.map_of(i, asked[i], options.radius);
+                    let scores = in_roi(&map, roi.as_deref());
+                    let best = match options.grid_steps {
+                        Some(steps) => best_iou_on_grid(&scores, &truth, steps),
+                        None => best_iou(&scores, &truth),
+                    };
+                    if let Some(best) = best {
+                        sum += best.iou;
+                        count += 1;
+                    }
                 }
             }
         }
+        progress.advance();
         report.images += 1;
         report.queries += count;
         total += sum;

@@ -8,8 +8,9 @@ use matseg_eval::points::BenchPoint;
 use matseg_eval::synthetic::{annotate_points, write_point_image, SyntheticOptions};
 use matseg_eval::{
     evaluate_masks, evaluate_points, load_point_benchmark, scan_mask_benchmark, Annotation,
-    MaskEvalOptions, QueryOptions,
+    Described, MaskEvalOptions, QueryOptions,
 };
+use matseg_image::progress::Silent;
 use matseg_image::Plane;
 use rand::SeedableRng;
 use std::path::Path;
@@ -137,7 +138,7 @@ fn flat_colours_score_one_with_the_rgb_baseline() {
     write_point_image(dir.path(), "bands", &img, &annotation).unwrap();
     let bench = load_point_benchmark(dir.path(), false).unwrap();
     let report = evaluate_points(
-        &ColourBaseline::RGB,
+        &Described(&ColourBaseline::RGB),
         &bench,
         0,
         &matseg_image::progress::Silent,
@@ -178,7 +179,8 @@ fn flat_colour_masks_are_found_exactly() {
         radius: 1.0,
         grid_steps: None,
     };
-    let report = evaluate_masks(&ColourBaseline::RGB, &images, &options).unwrap();
+    let report =
+        evaluate_masks(&Described(&ColourBaseline::RGB), &images, &options, &Silent).unwrap();
     assert_eq!((report.masks, report.queries), (2, 8));
     assert_eq!(report.mean_iou, Some(1.0));
     let grid = MaskEvalOptions {
@@ -186,7 +188,7 @@ fn flat_colour_masks_are_found_exactly() {
         ..options
     };
     assert!(
-        evaluate_masks(&ColourBaseline::RGB, &images, &grid)
+        evaluate_masks(&Described(&ColourBaseline::RGB), &images, &grid, &Silent)
             .unwrap()
             .mean_iou
             .unwrap()

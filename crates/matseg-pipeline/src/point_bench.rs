@@ -9,10 +9,9 @@ use crate::sources::Libraries;
 use matseg_data::{sample_rng, Dataset};
 use matseg_eval::overlay::draw_points;
 use matseg_eval::synthetic::{annotate_points, write_point_image, SyntheticOptions};
-use matseg_eval::{evaluate_points, load_point_benchmark, PointReport};
+use matseg_eval::{evaluate_points, load_point_benchmark, PointReport, ScoredModel};
 use matseg_image::io::{encode_jpeg, encode_png_grey, encode_png_rgb, read_rgb};
 use matseg_image::progress::Progress;
-use matseg_query::descriptor::DescriptorModel;
 use matseg_scene::{generate_2d, Recipe2d, Scene2d};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
@@ -39,7 +38,7 @@ pub struct PointEvaluation {
 /// cancelled, it stops the scoring.
 pub fn score_point_benchmark(
     dir: &Path,
-    models: &[Box<dyn DescriptorModel>],
+    models: &[Box<dyn ScoredModel + '_>],
     skip_bad: bool,
     max_side: u32,
     progress: &dyn Progress,

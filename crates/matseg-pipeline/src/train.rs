@@ -9,7 +9,7 @@ use crate::files::create_folder;
 use crate::sources::Libraries;
 use crate::weights::{imagenet_weights, read_weights};
 use matseg_data::Dataset;
-use matseg_eval::{evaluate_points, load_point_benchmark, PointBenchmark};
+use matseg_eval::{evaluate_points, load_point_benchmark, Described, PointBenchmark};
 use matseg_image::outputs::{Layout, SharedFolder, Sign};
 use matseg_image::progress::Silent;
 use matseg_net::colour::COLOUR_PART;
@@ -257,8 +257,13 @@ pub fn point_score(
     max_side: u32,
 ) -> Result<f64, NetError> {
     let invalid = |message: String| NetError::Validation { message };
-    let report = evaluate_points(&NetModel::new("net", net), bench, max_side, &Silent)
-        .map_err(|e| invalid(e.to_string()))?;
+    let report = evaluate_points(
+        &Described(&NetModel::new("net", net)),
+        bench,
+        max_side,
+        &Silent,
+    )
+    .map_err(|e| invalid(e.to_string()))?;
     report
         .all_by_material
         .ok_or_else(|| invalid("the benchmark has no triplets".into()))

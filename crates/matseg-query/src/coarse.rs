@@ -7,7 +7,7 @@
 //! centres). On a 1 MP photo that reads a sixteenth of the values a
 //! full-resolution map would, so each new point costs milliseconds.
 
-use crate::descriptor::{Comparison, DescriptorMap};
+use crate::descriptor::{bilinear_taps, Comparison, DescriptorMap};
 use rayon::prelude::*;
 
 /// Unit descriptors on a grid laid over a `width x height` photo.
@@ -78,17 +78,10 @@ impl CoarseDescriptors {
     /// A grid of values (one per cell) resized bilinearly to the photo.
     pub fn resize_to_photo(&self, cells: &[f32]) -> Vec<f32> {
         let (gw, gh) = (self.grid.width, self.grid.height);
-        let taps = |n: usize, grid: usize| -> Vec<(usize, usize, f32)> {
-            let scale = grid as f32 / n as f32;
-            (0..n)
-                .map(|i| {
-                    let g = ((i as f32 + 0.5) * scale - 0.5).clamp(0.0, (grid - 1) as f32);
-                    let lo = g.floor() as usize;
-                    (lo, (lo + 1).min(grid - 1), g - lo as f32)
-                })
-                .collect()
-        };
-        let (columns, rows) = (taps(self.width, gw), taps(self.height, gh));
+        let (columns, rows) = (
+            bilinear_taps(self.width, gw),
+            bilinear_taps(self.height, gh),
+        );
         let mut out = vec![0f32; self.width * self.height];
         out.par_chunks_mut(self.width)
             .zip(&rows)

@@ -74,23 +74,7 @@ impl DescriptorMap {
     /// centres within `r`, the nearest pixel at least), pooled as
     /// `comparison` asks.
     pub fn point_descriptor(&self, x: f32, y: f32, r: f32, comparison: Comparison) -> Vec<f32> {
-        let (w, h) = (self.width as i64, self.height as i64);
-        let (x0, x1) = ((x - r).floor() as i64, (x + r).ceil() as i64);
-        let (y0, y1) = ((y - r).floor() as i64, (y + r).ceil() as i64);
-        let mut disc: Vec<usize> = Vec::new();
-        for py in y0.max(0)..=y1.min(h - 1) {
-            for px in x0.max(0)..=x1.min(w - 1) {
-                let (dx, dy) = (px as f32 - x, py as f32 - y);
-                if dx * dx + dy * dy <= r * r {
-                    disc.push((py * w + px) as usize);
-                }
-            }
-        }
-        if disc.is_empty() {
-            let px = (x.round() as i64).clamp(0, w - 1);
-            let py = (y.round() as i64).clamp(0, h - 1);
-            disc.push((py * w + px) as usize);
-        }
+        let disc = disc_pixels(self.width, self.height, x, y, r);
         let mut sum = vec![0f64; self.dim];
         for &i in &disc {
             let d = self.at(i);
@@ -130,6 +114,79 @@ impl DescriptorMap {
             })
             .collect()
     }
+}
+
+/// The pixels (row-major indices) of a `width x height` image whose
+/// centres lie within `r` of `(x, y)`, the nearest pixel when none does:
+/// the disc a query point stands for.
+pub fn disc_pixels(width: usize, height: usize, x: f32, y: f32, r: f32) -> Vec<usize> {
+    let (w, h) = (width as i64, height as i64);
+    let (x0, x1) = ((x - r).floor() as i64, (x + r).ceil() as i64);
+    let (y0, y1) = ((y - r).floor() as i64, (y + r).ceil() as i64);
+    let mut disc: Vec<usize> = Vec::new();
+    for py in y0.max(0)..=y1.min(h - 1) {
+        for px in x0.max(0)..=x1.min(w - 1) {
+            let (dx, dy) = (px as f32 - x, py as f32 - y);
+            if dx * dx + dy * dy <= r * r {
+                disc.push((py * w + px) as usize);
+            }
+        }
+    }
+    if disc.is_empty() {
+        let px = (x.round() as i64).clamp(0, w - 1);
+        let py = (y.round() as i64).clamp(0, h - 1);
+        disc.push((py * w + px) as usize);
+    }
+    disc
+}
+
+/// Bilinear taps of `n` output pixels over `grid` input ones, pixel
+/// centres at half pixels in both (edges clamped): for each output pixel
+/// the lower input index, the upper one and the upper one's weight.
+pub fn bilinear_taps(n: usize, grid: usize) -> Vec<(usize, usize, f32)> {
+    let scale = grid as f32 / n as f32;
+    (0..n)
+        .map(|i| {
+            let g = ((i as f32 + 0.5) * scale - 0.5).clamp(0.0, (grid - 1) as f32);
+            let lo = g.floor() as usize;
+            (lo, (lo + 1).min(grid - 1), g - lo as f32)
+        })
+        .collect()
+}
+
+/// `values`, `dim` channels per pixel of a `width x height` grid (row by
+/// row, channels interleaved), resized bilinearly to `to_width x
+/// to_height` (half-pixel centres, as a net's output is resized to its
+/// photo). The same size gives the values back unchanged.
+pub fn resize_channels(
+    values: &[f32],
+    (width, height): (usize, usize),
+    dim: usize,
+    (to_width, to_height): (usize, usize),
+) -> Vec<f32> {
+    if (width, height) == (to_width, to_height) {
+        return values.to_vec();
+    }
+    let (columns, rows) = (
+        bilinear_taps(to_width, width),
+        bilinear_taps(to_height, height),
+    );
+    let mut out = vec![0f32; to_width * to_height * dim];
+    out.par_chunks_mut(to_width * dim)
+        .zip(&rows)
+        .for_each(|(line, &(y0, y1, fy))| {
+            let row = |y: usize| &values[y * width * dim..(y + 1) * width * dim];
+            let (top, bottom) = (row(y0), row(y1));
+            for (pixel, &(x0, x1, fx)) in line.chunks_mut(dim).zip(&columns) {
+                for (c, v) in pixel.iter_mut().enumerate() {
+                    let (a, b) = (x0 * dim + c, x1 * dim + c);
+                    let t = top[a] + (top[b] - top[a]) * fx;
+                    let d = bottom[a] + (bottom[b] - bottom[a]) * fx;
+                    *v = t + (d - t) * fy;
+                }
+            }
+        });
+    out
 }
 
 fn norm(v: &[f32]) -> f32 {

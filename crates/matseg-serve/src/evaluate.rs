@@ -14,6 +14,7 @@ use axum::extract::{Query, State};
 use axum::http::StatusCode;
 use axum::Json;
 use matseg_eval::evaluate::DEFAULT_MAX_SIDE;
+use matseg_eval::{Described, ScoredModel};
 use matseg_image::progress::Progress;
 use matseg_pipeline::models::{baselines, known_baselines, ModelChoice};
 use matseg_pipeline::point_bench::score_point_benchmark;
@@ -313,15 +314,15 @@ fn run(
     *matseg_image::sync::lock(&tally.models) =
         models.iter().map(|m| m.name().to_string()).collect();
     *matseg_image::sync::lock(&tally.done) = vec![0; models.len()];
-    let models: Vec<Box<dyn DescriptorModel>> = models
+    let models: Vec<Box<dyn ScoredModel>> = models
         .into_iter()
         .enumerate()
         .map(|(index, model)| {
-            Box::new(Counted {
+            Box::new(Described(Box::new(Counted {
                 model,
                 index,
                 tally: tally.clone(),
-            }) as Box<dyn DescriptorModel>
+            }))) as Box<dyn ScoredModel>
         })
         .collect();
     let evaluation = score_point_benchmark(folder, &models, true, DEFAULT_MAX_SIDE, progress)?;

@@ -362,9 +362,13 @@ async fn annotations_are_saved_in_the_benchmark_layout_and_evaluated() {
     assert_eq!(models[0]["counts"]["soft_images"], 1);
     assert_eq!(models[0]["counts"]["points"], 8);
     let rgb = matseg_eval::baselines::baseline("rgb").unwrap();
-    let direct =
-        matseg_eval::evaluate_points(rgb.as_ref(), &loaded, 700, &matseg_image::progress::Silent)
-            .unwrap();
+    let direct = matseg_eval::evaluate_points(
+        &matseg_eval::Described(rgb),
+        &loaded,
+        700,
+        &matseg_image::progress::Silent,
+    )
+    .unwrap();
     assert_eq!(
         models[0]["all_by_material"].as_f64(),
         direct.all_by_material

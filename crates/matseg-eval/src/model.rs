@@ -1,0 +1,150 @@
+//! What a benchmark asks of a model and what the model answers, whoever
+//! made it: matseg's own models describe a photo; models matseg did not
+//! train answer from files or from Python, with descriptor maps or with one
+//! similarity map per asked point.
+
+use crate::points::BenchError;
+use image::RgbImage;
+use matseg_query::descriptor::{disc_pixels, Comparison, DescriptorMap, DescriptorModel};
+use std::ops::Deref;
+use std::path::Path;
+
+/// One benchmark photo as a protocol asks a model about it.
+pub struct Question<'a> {
+    /// The photo's name in its benchmark.
+    pub name: &'a str,
+    /// The photo's file.
+    pub path: &'a Path,
+    /// The photo at the protocol's size.
+    pub pixels: &'a RgbImage,
+    /// The points the protocol will query, `(x, y)` in `pixels`: what a
+    /// model answering with similarity maps answers for, in order.
+    pub points: &'a [(f32, f32)],
+}
+
+/// A model's answer about one photo, at the photo's size.
+pub enum Answer {
+    /// A descriptor per pixel, compared as `comparison` says.
+    Descriptors {
+        /// The map, the photo's size.
+        map: DescriptorMap,
+        /// How its descriptors are pooled and compared.
+        comparison: Comparison,
+    },
+    /// One similarity map per asked point (higher is more alike), each
+    /// `width * height` values row by row.
+    Similarity {
+        /// The maps, in the order of the asked points.
+        maps: Vec<Vec<f32>>,
+        /// The photo's width.
+        width: usize,
+        /// The photo's height.
+        height: usize,
+    },
+}
+
+impl Answer {
+    /// How like each disc `(x, y, r)` is each other, `[i][j]`: for
+    /// descriptors, the comparison of the two discs' pooled descriptors;
+    /// for similarity maps (one per disc, in order), the mean of disc `i`'s
+    /// map over disc `j`.
+    pub fn similarity_matrix(&self, discs: &[(f32, f32, f32)]) -> Vec<Vec<f64>> {
+        match self {
+            Answer::Descriptors { map, comparison } => {
+                let pooled: Vec<Vec<f32>> = discs
+                    .iter()
+                    .map(|&(x, y, r)| map.point_descriptor(x, y, r, *comparison))
+                    .collect();
+                pooled
+                    .iter()
+                    .map(|a| pooled.iter().map(|b| comparison.similarity(a, b)).collect())
+                    .collect()
+            }
+            Answer::Similarity {
+                maps,
+                width,
+                height,
+            } => {
+                let pixels: Vec<Vec<usize>> = discs
+                    .iter()
+                    .map(|&(x, y, r)| disc_pixels(*width, *height, x, y, r))
+                    .collect();
+                maps.iter()
+                    .map(|map| {
+                        pixels
+                            .iter()
+                            .map(|disc| {
+                                disc.iter().map(|&p| map[p] as f64).sum::<f64>() / disc.len() as f64
+                            })
+                            .collect()
+                    })
+                    .collect()
+            }
+        }
+    }
+
+    /// The similarity map of asked point `i` (disc radius `r`), `width *
+    /// height` values.
+    pub fn map_of(&self, i: usize, (x, y): (f32, f32), r: f32) -> Vec<f32> {
+        match self {
+            Answer::Descriptors { map, comparison } => {
+                let query = map.point_descriptor(x, y, r, *comparison);
+                map.similarity_map(&query, *comparison)
+            }
+            Answer::Similarity { maps, .. } => maps[i].clone(),
+        }
+    }
+}
+
+/// A model as the benchmarks score it.
+pub trait ScoredModel: Sync {
+    /// Its name in tables and JSON.
+    fn name(&self) -> &str;
+
+    /// Its answer about `question`'s photo, or the problem (naming the
+    /// photo or the file at fault).
+    fn answer(&self, question: &Question) -> Result<Answer, BenchError>;
+
+    /// Whether photos may be asked about from several threads at once.
+    fn parallel(&self) -> bool {
+        true
+    }
+}
+
+/// A [`DescriptorModel`] (matseg's nets and baselines) as a scored model:
+/// `Described(&model)`, `Described(boxed)`.
+pub struct Described<D>(pub D);
+
+impl<D> ScoredModel for Described<D>
+where
+    D: Deref + Sync,
+    D::Target: DescriptorModel,
+{
+    fn name(&self) -> &str {
+        self.0.name()
+    }
+
+    fn answer(&self, question: &Question) -> Result<Answer, BenchError> {
+        Ok(Answer::Descriptors {
+            map: self.0.describe(question.pixels),
+            comparison: self.0.comparison(),
+        })
+    }
+}
+
+/// The descriptor map of `answer`, or an error saying `protocol` needs one
+/// (similarity maps answer only the points they were asked about).
+pub fn descriptors_of(
+    answer: Answer,
+    question: &Question,
+    protocol: &str,
+) -> Result<(DescriptorMap, Comparison), BenchError> {
+    match answer {
+        Answer::Descriptors { map, comparison } => Ok((map, comparison)),
+        Answer::Similarity { .. } => Err(BenchError::new(
+            question.path,
+            None,
+            format!("{protocol} needs a model that describes photos; this one answered with similarity maps"),
+        )),
+    }
+}
