@@ -8,6 +8,8 @@ material" in a photo.
     model = matseg.Model.load("default")
     maps = model.similarity(s["image"], [(40, 60)])
 
+`matseg.evaluate` scores any model (an object with `describe(image)` or
+`similarity(image, points)`) by matseg's benchmarks and protocols.
 `matseg.torch` (PyTorch data loading), `python -m matseg.train` (training
 under torchrun), `python -m matseg.export` (ONNX) and `python -m
 matseg.ray` (generation on a Ray cluster) import their heavy dependencies

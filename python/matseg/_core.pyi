@@ -4,7 +4,7 @@ Arrays come back as `Buffer`s, which `numpy.frombuffer` wraps without a
 copy; arrays going in are C-contiguous numpy arrays of the stated dtype.
 """
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from os import PathLike
 from typing import Any, final
 
@@ -121,6 +121,10 @@ def train_defaults() -> dict[str, Any]: ...
 def lr_schedule(options: str) -> list[float]: ...
 def plot_losses(metrics: _Path, png: _Path) -> None: ...
 def score_points(model: _Path, bench: _Path, max_side: int) -> float: ...
+def evaluate(
+    protocol: str, bench: _Path, ask: Callable[..., Any], name: str, kind: str, comparison: str | None,
+    options: str,
+) -> str: ...
 def read_safetensors(path: _Path) -> tuple[list[tuple[str, str, list[int], Buffer]], list[tuple[str, str]]]: ...
 def write_safetensors(
     path: _Path, tensors: Sequence[tuple[str, str, list[int], _BufferLike]], metadata: Sequence[tuple[str, str]]

@@ -7,6 +7,7 @@ mod batches;
 mod buffer;
 mod dataset;
 mod errors;
+mod evaluate;
 mod features;
 mod generator;
 mod model;
@@ -35,6 +36,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(model::lr_schedule, m)?)?;
     m.add_function(wrap_pyfunction!(model::plot_losses, m)?)?;
     m.add_function(wrap_pyfunction!(model::score_points, m)?)?;
+    m.add_function(wrap_pyfunction!(evaluate::evaluate, m)?)?;
     m.add_function(wrap_pyfunction!(weights::read_safetensors, m)?)?;
     m.add_function(wrap_pyfunction!(weights::write_safetensors, m)?)?;
     m.add("MatsegError", m.py().get_type::<errors::MatsegError>())?;

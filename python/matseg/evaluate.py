@@ -1,0 +1,124 @@
+"""matseg's benchmarks and protocols for any model, as `matseg eval`
+scores its own: the same protocols, the same scores, the same JSON.
+
+    import matseg.evaluate
+
+    class Colour:
+        comparison = "euclidean"
+        def describe(self, image):          # HxWx3 uint8 at the scored size
+            return image / np.float32(255)  # (h, w, d) at any size
+
+    report = matseg.evaluate.points("benchmarks/real-dev", Colour())
+    report["models"][0]["all_by_material"]
+
+A model answers one of two questions, whichever it can:
+
+- `describe(image) -> (h, w, d)` descriptors at any stride (resized
+  bilinearly to the photo, as matseg resizes its own), compared by cosine,
+  or by Euclidean distance when the model's `comparison` is "euclidean";
+- `similarity(image, points) -> (k, h, w)`: one map per (x, y) point of the
+  `k x 2` float32 array, higher where more alike (points and masks only).
+
+A plain function is taken as `describe`; a `matseg.Model` is scored as
+`matseg eval` scores it. Photos are asked about one at a time, in
+benchmark order, with a line per photo on stderr; Ctrl-C stops the
+evaluation. What the model raises, or an answer of the wrong shape or with
+NaN, stops it with a `MatsegError` naming the photo.
+"""
+
+import json
+import os
+import sys
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from . import _core
+from ._arrays import view
+from .model import Model
+
+#: The longer side benchmark photos are scored at, as `matseg eval`.
+DEFAULT_MAX_SIDE = 700
+
+Path = str | os.PathLike[str]
+
+
+def points(bench: Path, model: Any, *, name: str | None = None, max_side: int = DEFAULT_MAX_SIDE,
+           progress: bool = True) -> dict[str, Any]:
+    """`model` on a point benchmark (MatSeg layout): triplet accuracy (All,
+    Soft) and top-1, as `matseg eval points BENCH --json` reports them."""
+    return _evaluate("points", bench, model, name, progress, max_side=max_side)
+
+
+def masks(data: Path, model: Any, *, name: str | None = None, max_side: int = DEFAULT_MAX_SIDE,
+          points: int = 10, erode: int = 20, min_area: int = 400, radius: float = 5.0, seed: int = 0,
+          grid: int | None = None, progress: bool = True) -> dict[str, Any]:
+    """`model` on a mask benchmark: mean IoU at the best threshold of each
+    query point's similarity map, as `matseg eval masks DATA --json`."""
+    return _evaluate("masks", data, model, name, progress, max_side=max_side, points=points, erode=erode,
+                     min_area=min_area, radius=radius, seed=seed, grid=grid)
+
+
+def clicks(data: Path, model: Any, *, name: str | None = None, max_side: int = DEFAULT_MAX_SIDE,
+           max_clicks: int = 20, radius: float = 5.0, min_area: int = 100, unions: bool = False,
+           progress: bool = True) -> dict[str, Any]:
+    """The click protocol on a mask benchmark (NoC@85, NoC@90, IoU after
+    each click) or a point benchmark, with matseg's selection on the
+    model's descriptors, as `matseg eval clicks DATA --json`."""
+    return _evaluate("clicks", data, model, name, progress, max_side=max_side, max_clicks=max_clicks,
+                     radius=radius, min_area=min_area, unions=unions)
+
+
+def _evaluate(protocol: str, bench: Path, model: Any, name: str | None, progress: bool,
+              **options: Any) -> dict[str, Any]:
+    kind, answer, comparison = _question(model)
+    name = name or _name(model)
+    settings = {"max_side": 700, "points": 10, "erode": 20, "min_area": 400, "radius": 5.0, "seed": 0,
+                "grid": None, "max_clicks": 20, "unions": False}
+    settings.update(options)
+    asked = 0
+
+    def ask(buffer: _core.Buffer, height: int, width: int, photo: str,
+            asked_points: list[tuple[float, float]]) -> NDArray[np.float32]:
+        nonlocal asked
+        asked += 1
+        if progress:
+            print(f"matseg.evaluate.{protocol} {name}: photo {asked} {photo}", file=sys.stderr, flush=True)
+        image = view(buffer, np.uint8, (height, width, 3))
+        xy = np.asarray(asked_points, dtype=np.float32).reshape(-1, 2)
+        out = answer(image, xy) if kind == "similarity" else answer(image)
+        if not hasattr(out, "shape"):
+            what = "similarity" if kind == "similarity" else "describe"
+            raise TypeError(f"{what} returned {type(out).__name__}; expected a numpy array")
+        return np.ascontiguousarray(out, dtype=np.float32)
+
+    report = _core.evaluate(protocol, os.fspath(bench), ask, name, kind, comparison, json.dumps(settings))
+    result: dict[str, Any] = json.loads(report)
+    return result
+
+
+def _question(model: Any) -> tuple[str, Callable[..., Any], str | None]:
+    """What `model` answers: its kind, the function asked, its comparison."""
+    if isinstance(model, Model):
+        return "descriptors", lambda image: model.describe(image).transpose(1, 2, 0), "cosine"
+    comparison = getattr(model, "comparison", None)
+    if hasattr(model, "describe"):
+        return "descriptors", model.describe, comparison
+    if hasattr(model, "similarity"):
+        return "similarity", model.similarity, None
+    if callable(model):
+        return "descriptors", model, comparison
+    raise TypeError(f"model: a {type(model).__name__} has neither describe(image) nor similarity(image, points)")
+
+
+def _name(model: Any) -> str:
+    """The name tables give `model`: its `name`, else its class's or
+    function's."""
+    if isinstance(model, Model):
+        return os.path.basename(os.path.normpath(model.path))
+    given = getattr(model, "name", None)
+    if isinstance(given, str):
+        return given
+    return getattr(model, "__name__", type(model).__name__)

@@ -1,0 +1,183 @@
+"""matseg.evaluate: models written in Python, and maps written as files,
+scored by matseg's protocols exactly as `matseg eval` scores its own."""
+
+import json
+
+import numpy as np
+import pytest
+from conftest import ROOT, run
+
+import matseg
+import matseg.evaluate
+
+REAL_DEV = ROOT / "benchmarks" / "real-dev"
+REAL_MASKS = ROOT / "benchmarks" / "real-masks"
+F32 = np.float32
+
+
+def rgb(image):
+    """The built-in rgb baseline in numpy: R, G, B / 255."""
+    return image.astype(F32) / F32(255)
+
+
+def lab(image):
+    """The built-in lab baseline in numpy float32, operation by operation
+    as matseg_image::lab computes it (so every value is the same bit for
+    bit): sRGB levels to linear light, to XYZ over the D65 white, to L*a*b*."""
+    c = np.arange(256, dtype=F32) / F32(255)
+    with np.errstate(invalid="ignore"):
+        curve = np.power((c + F32(0.055)) / F32(1.055), F32(2.4))
+    table = np.where(c <= F32(0.04045), c / F32(12.92), curve).astype(F32)
+    r, g, b = (table[image[..., k]] for k in range(3))
+    m = np.array([[0.4124, 0.3576, 0.1805], [0.2126, 0.7152, 0.0722], [0.0193, 0.1192, 0.9505]], dtype=F32)
+    x = (m[0, 0] * r + m[0, 1] * g + m[0, 2] * b) / F32(0.95047)
+    y = m[1, 0] * r + m[1, 1] * g + m[1, 2] * b
+    z = (m[2, 0] * r + m[2, 1] * g + m[2, 2] * b) / F32(1.08883)
+    epsilon, kappa = F32(216.0) / F32(24389.0), F32(24389.0) / F32(27.0)
+
+    def f(t):
+        return np.where(t > epsilon, np.cbrt(t), (kappa * t + F32(16.0)) / F32(116.0)).astype(F32)
+
+    fx, fy, fz = f(x), f(y), f(z)
+    return np.stack([F32(116.0) * fy - F32(16.0), F32(500.0) * (fx - fy), F32(200.0) * (fy - fz)], axis=-1)
+
+
+class Colour:
+    """A colour baseline as a model object, compared by distance."""
+
+    comparison = "euclidean"
+
+    def __init__(self, name, describe):
+        self.name = name
+        self.describe = describe
+
+
+def cli(matseg_bin, *args):
+    return json.loads(run([matseg_bin, "eval", *args, "--json"]).stdout)
+
+
+def close(ours, theirs, fields):
+    for field in fields:
+        assert ours[field] == pytest.approx(theirs[field], abs=1e-6), field
+
+
+POINT_FIELDS = ["all_by_material", "all_by_point", "soft_by_material", "soft_by_point", "top1_by_material",
+                "top1_by_point"]
+
+
+def test_numpy_colour_baselines_score_what_the_built_in_ones_score(matseg_bin):
+    builtin = cli(matseg_bin, "points", REAL_DEV, "--baseline", "rgb", "lab", "--model", "none")["models"]
+    for ours, describe in zip(builtin, (rgb, lab), strict=True):
+        theirs = matseg.evaluate.points(REAL_DEV, Colour(ours["model"], describe), progress=False)
+        model = theirs["models"][0]
+        assert model["model"] == ours["model"]
+        assert model["counts"] == ours["counts"]
+        close(model, ours, POINT_FIELDS)
+        for a, b in zip(model["images"], ours["images"], strict=True):
+            close(a, b, POINT_FIELDS[:2])
+    builtin = cli(matseg_bin, "masks", REAL_MASKS, "--baseline", "rgb", "--model", "none")["models"][0]
+    theirs = matseg.evaluate.masks(REAL_MASKS, Colour("rgb", rgb), progress=False)["models"][0]
+    assert (theirs["queries"], theirs["masks"]) == (builtin["queries"], builtin["masks"])
+    close(theirs, builtin, ["mean_iou"])
+
+
+def test_maps_as_files_score_what_the_built_in_baseline_scores(matseg_bin, tmp_path):
+    """The rgb baseline written as .npy files for `--maps`, at the photos'
+    own size (--max-side 0), from the photos `maps-template` lists."""
+    template = tmp_path / "template"
+    run([matseg_bin, "eval", "maps-template", REAL_DEV, "--out", template, "--max-side", 0])
+    listed = json.loads((template / "template.json").read_text())
+    assert listed["protocol"] == "points" and len(listed["images"]) == 44
+    maps = tmp_path / "rgb-maps"
+    maps.mkdir()
+    for image in listed["images"]:
+        photo = matseg.read_image(template / "photos" / f"{image['name']}.png")
+        assert photo.shape == (image["height"], image["width"], 3)
+        np.save(maps / f"{image['name']}.npy", rgb(photo))
+    (maps / "maps.json").write_text('{"comparison": "euclidean"}')
+    both = cli(matseg_bin, "points", REAL_DEV, "--baseline", "rgb", "--model", "none", "--maps", maps,
+               "--max-side", 0)["models"]
+    assert [m["model"] for m in both] == ["rgb", "rgb-maps"]
+    close(both[1], both[0], POINT_FIELDS)
+
+
+def test_the_shipped_model_scores_what_matseg_eval_scores(matseg_bin, tmp_path):
+    """On six photos of real-dev (the net is slow in a test build)."""
+    for name in sorted(p.name for p in (REAL_DEV / "data").iterdir())[:6]:
+        (tmp_path / "data" / name).mkdir(parents=True)
+        for file in (REAL_DEV / "data" / name).iterdir():
+            (tmp_path / "data" / name / file.name).write_bytes(file.read_bytes())
+        (tmp_path / "images").mkdir(exist_ok=True)
+        photo = REAL_DEV / "images" / f"{name}.jpg"
+        (tmp_path / "images" / photo.name).write_bytes(photo.read_bytes())
+    model = matseg.Model.load("default")
+    ours = cli(matseg_bin, "points", tmp_path, "--model", "default")["models"][0]
+    theirs = matseg.evaluate.points(tmp_path, model, progress=False)["models"][0]
+    assert theirs["model"] == "default" and theirs["counts"]["images"] == 6
+    for field in POINT_FIELDS:
+        assert theirs[field] == ours[field], field
+
+
+def test_similarity_models_are_scored_on_their_maps():
+    """A model answering with similarity maps: minus the rgb distance to
+    each point scores as the rgb descriptors do (at a point's own pixel)."""
+
+    class Nearness:
+        def similarity(self, image, points):
+            colours = rgb(image)
+            picked = colours[points[:, 1].astype(int), points[:, 0].astype(int)]
+            return -np.linalg.norm(colours[None] - picked[:, None, None], axis=-1)
+
+    theirs = matseg.evaluate.masks(REAL_MASKS, Nearness(), radius=0.0, progress=False)["models"][0]
+    ours = matseg.evaluate.masks(REAL_MASKS, Colour("rgb", rgb), radius=0.0, progress=False)["models"][0]
+    assert theirs["model"] == "Nearness"
+    # numpy sums the squared differences in float32, matseg in float64.
+    assert theirs["mean_iou"] == pytest.approx(ours["mean_iou"], abs=1e-4)
+
+
+def first_photo_fails(answer):
+    calls = []
+
+    def describe(image):
+        calls.append(image.shape)
+        return answer(image)
+
+    with pytest.raises(matseg.MatsegError) as raised:
+        matseg.evaluate.points(REAL_DEV, describe, progress=False)
+    assert len(calls) == 1, "the first photo stops it"
+    return raised.value
+
+
+def test_wrong_answers_are_errors_naming_the_photo():
+    message = str(first_photo_fails(lambda image: rgb(image)[..., 0]))
+    assert "balance" in message and "shape [" in message and "expected (h, w, d) descriptors" in message, message
+    message = str(first_photo_fails(lambda image: np.full(image.shape, np.nan, F32)))
+    assert "value NaN at index 0 for photo balance" in message, message
+    message = str(first_photo_fails(lambda image: None))
+    assert "photo balance: the model raised TypeError: describe returned NoneType" in message, message
+
+    def raises(image):
+        raise ValueError("out of memory")
+
+    error = first_photo_fails(raises)
+    assert "photo balance: the model raised ValueError: out of memory" in str(error)
+    assert isinstance(error.__cause__, ValueError)
+
+    def interrupted(image):
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        matseg.evaluate.points(REAL_DEV, interrupted, progress=False)
+    with pytest.raises(TypeError, match="has neither describe"):
+        matseg.evaluate.points(REAL_DEV, object())
+
+
+def test_progress_names_each_photo(capfd, tmp_path):
+    photos = sorted(p.stem for p in REAL_MASKS.glob("*.jpg"))[:2]
+    for photo in photos:
+        for file in REAL_MASKS.glob(f"{photo}.*"):
+            (tmp_path / file.name).write_bytes(file.read_bytes())
+    report = matseg.evaluate.clicks(tmp_path, Colour("rgb", rgb), max_clicks=5, max_side=200)
+    assert report["models"][0]["masks"] > 0
+    lines = capfd.readouterr().err.splitlines()
+    assert lines == [f"matseg.evaluate.clicks rgb: photo {k + 1} {p}" for k, p in enumerate(photos)]
