@@ -109,7 +109,8 @@ pub fn evaluate(
 ) -> PyResult<String> {
     let options: Options = serde_json::from_str(options)
         .map_err(|e| PyValueError::new_err(format!("options: {e}")))?;
-    let kind = MapKind::parse(Some(kind), comparison).map_err(PyValueError::new_err)?;
+    let kind =
+        MapKind::parse(Some(kind), comparison).map_err(|e| PyValueError::new_err(e.to_string()))?;
     let model = PythonModel {
         name,
         kind,
@@ -122,7 +123,7 @@ pub fn evaluate(
         (Ok(json), _) => Ok(json),
         (Err(_), Some(error)) if error.is_instance_of::<PyKeyboardInterrupt>(py) => Err(error),
         (Err(message), Some(error)) => {
-            let named = matseg_error(message);
+            let named = matseg_error(message.to_string());
             named.set_cause(py, Some(error));
             Err(named)
         }
@@ -131,20 +132,23 @@ pub fn evaluate(
 }
 
 /// The JSON report of `model` on `bench` by `protocol`.
-fn score(protocol: &str, bench: &Path, model: &PythonModel, o: &Options) -> Result<String, String> {
-    let text = |e: &dyn std::fmt::Display| e.to_string();
+fn score(
+    protocol: &str,
+    bench: &Path,
+    model: &PythonModel,
+    o: &Options,
+) -> Result<String, Box<dyn std::error::Error>> {
     let is_point_bench = bench.join("images").is_dir() && bench.join("data").is_dir();
     let report = match protocol {
         "points" => {
             let models: [Box<dyn ScoredModel>; 1] = [Box::new(Borrowed(model))];
             let evaluation = matseg_pipeline::point_bench::score_point_benchmark(
                 bench, &models, false, o.max_side, &Silent,
-            )
-            .map_err(|e| text(&e))?;
-            serde_json::to_value(evaluation).map_err(|e| text(&e))?
+            )?;
+            serde_json::to_value(evaluation)?
         }
         "masks" => {
-            let images = scan_mask_benchmark(bench).map_err(|e| text(&e))?;
+            let images = scan_mask_benchmark(bench)?;
             let options = MaskEvalOptions {
                 max_side: o.max_side,
                 queries: QueryOptions {
@@ -156,7 +160,7 @@ fn score(protocol: &str, bench: &Path, model: &PythonModel, o: &Options) -> Resu
                 radius: o.radius,
                 grid_steps: o.grid,
             };
-            let report = evaluate_masks(model, &images, &options, &Silent).map_err(|e| text(&e))?;
+            let report = evaluate_masks(model, &images, &options, &Silent)?;
             json!({
                 "data": bench,
                 "max_side": o.max_side,
@@ -174,32 +178,25 @@ fn score(protocol: &str, bench: &Path, model: &PythonModel, o: &Options) -> Resu
             };
             let mut out = json!({ "data": bench, "max_side": o.max_side });
             if is_point_bench {
-                let points = load_point_benchmark(bench, false).map_err(|e| text(&e))?;
-                let report = evaluate_point_clicks(model, &points, &options, &Silent)
-                    .map_err(|e| text(&e))?;
+                let points = load_point_benchmark(bench, false)?;
+                let report = evaluate_point_clicks(model, &points, &options, &Silent)?;
                 out["models"] = json!([report]);
             } else {
-                let images = scan_mask_benchmark(bench).map_err(|e| text(&e))?;
-                let report =
-                    evaluate_clicks(model, &images, &options, &Silent).map_err(|e| text(&e))?;
+                let images = scan_mask_benchmark(bench)?;
+                let report = evaluate_clicks(model, &images, &options, &Silent)?;
                 out["models"] = json!([report]);
                 if o.unions {
                     let unions = ClickOptions {
                         targets: Targets::Unions,
                         ..options
                     };
-                    let report =
-                        evaluate_clicks(model, &images, &unions, &Silent).map_err(|e| text(&e))?;
+                    let report = evaluate_clicks(model, &images, &unions, &Silent)?;
                     out["unions"] = json!([report]);
                 }
             }
             out
         }
-        other => {
-            return Err(format!(
-                "protocol \"{other}\": give points, masks or clicks"
-            ))
-        }
+        other => return Err(format!("protocol \"{other}\": give points, masks or clicks").into()),
     };
     Ok(report.to_string())
 }

@@ -24,6 +24,11 @@ use matseg_weights::{read_npy, read_safetensors, DType, Tensor};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
+/// A `kind` or `comparison` of maps that is not known.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct MapKindError(String);
+
 /// What a model's arrays are.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MapKind {
@@ -36,22 +41,22 @@ pub enum MapKind {
 impl MapKind {
     /// The kind named by `kind` (`descriptors`, `similarity`) and
     /// `comparison` (`cosine`, `euclidean`; descriptors only).
-    pub fn parse(kind: Option<&str>, comparison: Option<&str>) -> Result<Self, String> {
+    pub fn parse(kind: Option<&str>, comparison: Option<&str>) -> Result<Self, MapKindError> {
         let comparison = match comparison {
             None | Some("cosine") => Comparison::Cosine,
             Some("euclidean") => Comparison::NegativeEuclidean,
             Some(other) => {
-                return Err(format!(
+                return Err(MapKindError(format!(
                     "comparison \"{other}\": give \"cosine\" or \"euclidean\""
-                ))
+                )))
             }
         };
         match kind {
             None | Some("descriptors") => Ok(MapKind::Descriptors(comparison)),
             Some("similarity") => Ok(MapKind::Similarity),
-            Some(other) => Err(format!(
+            Some(other) => Err(MapKindError(format!(
                 "kind \"{other}\": give \"descriptors\" or \"similarity\""
-            )),
+            ))),
         }
     }
 }
@@ -169,7 +174,7 @@ impl MapFolder {
             }
         };
         let kind = MapKind::parse(settings.kind.as_deref(), settings.comparison.as_deref())
-            .map_err(|m| BenchError::new(&settings_path, None, m))?;
+            .map_err(|m| BenchError::new(&settings_path, None, m.to_string()))?;
         let name = settings.name.unwrap_or_else(|| {
             std::fs::canonicalize(dir)
                 .ok()
