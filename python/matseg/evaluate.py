@@ -75,9 +75,6 @@ def _evaluate(protocol: str, bench: Path, model: Any, name: str | None, progress
               **options: Any) -> dict[str, Any]:
     kind, answer, comparison = _question(model)
     name = name or _name(model)
-    settings = {"max_side": 700, "points": 10, "erode": 20, "min_area": 400, "radius": 5.0, "seed": 0,
-                "grid": None, "max_clicks": 20, "unions": False}
-    settings.update(options)
     asked = 0
 
     def ask(buffer: _core.Buffer, height: int, width: int, photo: str,
@@ -94,7 +91,7 @@ def _evaluate(protocol: str, bench: Path, model: Any, name: str | None, progress
             raise TypeError(f"{what} returned {type(out).__name__}; expected a numpy array")
         return np.ascontiguousarray(out, dtype=np.float32)
 
-    report = _core.evaluate(protocol, os.fspath(bench), ask, name, kind, comparison, json.dumps(settings))
+    report = _core.evaluate(protocol, os.fspath(bench), ask, name, kind, comparison, json.dumps(options))
     result: dict[str, Any] = json.loads(report)
     return result
 

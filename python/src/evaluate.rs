@@ -6,18 +6,19 @@
 
 use crate::buffer::{contiguous, Buffer};
 use crate::errors::matseg_error;
-use matseg_eval::clicks::{evaluate_clicks, evaluate_point_clicks, ClickOptions, Targets};
+use matseg_eval::clicks::{
+    evaluate_clicks, evaluate_point_clicks, ClickEvaluation, ClickOptions, Targets,
+};
 use matseg_eval::external::{answer_from_array, MapKind};
 use matseg_eval::points::BenchError;
 use matseg_eval::{
-    evaluate_masks, load_point_benchmark, scan_mask_benchmark, Answer, MaskEvalOptions,
-    QueryOptions, Question, ScoredModel,
+    evaluate_masks, is_point_benchmark, load_point_benchmark, scan_mask_benchmark, Answer,
+    MaskEvalOptions, MaskEvaluation, QueryOptions, Question, ScoredModel,
 };
 use matseg_image::progress::Silent;
 use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
 use pyo3::prelude::*;
 use serde::Deserialize;
-use serde_json::json;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
@@ -72,10 +73,17 @@ impl ScoredModel for PythonModel {
     }
 }
 
-/// Options of every protocol, as `matseg.evaluate` passes them.
+/// `matseg.evaluate.points`' options.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
-struct Options {
+struct PointSettings {
+    max_side: u32,
+}
+
+/// `matseg.evaluate.masks`' options, as `matseg eval masks` names them.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MaskSettings {
     max_side: u32,
     points: usize,
     erode: usize,
@@ -83,14 +91,23 @@ struct Options {
     radius: f32,
     seed: u64,
     grid: Option<usize>,
+}
+
+/// `matseg.evaluate.clicks`' options, as `matseg eval clicks` names them.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ClickSettings {
+    max_side: u32,
     max_clicks: usize,
+    radius: f32,
+    min_area: usize,
     unions: bool,
 }
 
 /// Scores the model `ask` answers for (named `name`; `kind` `descriptors`
 /// or `similarity`, `comparison` `cosine` or `euclidean`) on the
 /// benchmark `bench` by `protocol` (`points`, `masks` or `clicks`), with
-/// `options` (JSON). Returns the JSON `matseg eval PROTOCOL --json`
+/// that protocol's `options` (JSON). Returns the JSON `matseg eval PROTOCOL --json`
 /// prints. What the model raised is the cause of a `MatsegError` naming
 /// the photo (a `KeyboardInterrupt` is raised again as it is); a wrong
 /// shape or a NaN is a `MatsegError` naming the photo.
@@ -107,8 +124,6 @@ pub fn evaluate(
     comparison: Option<&str>,
     options: &str,
 ) -> PyResult<String> {
-    let options: Options = serde_json::from_str(options)
-        .map_err(|e| PyValueError::new_err(format!("options: {e}")))?;
     let kind =
         MapKind::parse(Some(kind), comparison).map_err(|e| PyValueError::new_err(e.to_string()))?;
     let model = PythonModel {
@@ -117,7 +132,7 @@ pub fn evaluate(
         ask,
         raised: Mutex::new(None),
     };
-    let scored = score(protocol, &bench, &model, &options);
+    let scored = score(protocol, &bench, &model, options);
     let raised = matseg_image::sync::lock(&model.raised).take();
     match (scored, raised) {
         (Ok(json), _) => Ok(json),
@@ -131,23 +146,24 @@ pub fn evaluate(
     }
 }
 
-/// The JSON report of `model` on `bench` by `protocol`.
+/// The JSON report of `model` on `bench` by `protocol` with `options`.
 fn score(
     protocol: &str,
     bench: &Path,
     model: &PythonModel,
-    o: &Options,
+    options: &str,
 ) -> Result<String, Box<dyn std::error::Error>> {
-    let is_point_bench = bench.join("images").is_dir() && bench.join("data").is_dir();
-    let report = match protocol {
+    let json = match protocol {
         "points" => {
-            let models: [Box<dyn ScoredModel>; 1] = [Box::new(Borrowed(model))];
+            let o: PointSettings = serde_json::from_str(options)?;
+            let models: [Box<dyn ScoredModel + '_>; 1] = [Box::new(model)];
             let evaluation = matseg_pipeline::point_bench::score_point_benchmark(
                 bench, &models, false, o.max_side, &Silent,
             )?;
-            serde_json::to_value(evaluation)?
+            serde_json::to_string(&evaluation)?
         }
         "masks" => {
+            let o: MaskSettings = serde_json::from_str(options)?;
             let images = scan_mask_benchmark(bench)?;
             let options = MaskEvalOptions {
                 max_side: o.max_side,
@@ -160,15 +176,11 @@ fn score(
                 radius: o.radius,
                 grid_steps: o.grid,
             };
-            let report = evaluate_masks(model, &images, &options, &Silent)?;
-            json!({
-                "data": bench,
-                "max_side": o.max_side,
-                "threshold": o.grid.map_or("exact".to_string(), |s| format!("grid of {s} steps")),
-                "models": [report],
-            })
+            let reports = [evaluate_masks(model, &images, &options, &Silent)?];
+            serde_json::to_string(&MaskEvaluation::new(bench, &options, &reports))?
         }
         "clicks" => {
+            let o: ClickSettings = serde_json::from_str(options)?;
             let options = ClickOptions {
                 max_side: o.max_side,
                 max_clicks: o.max_clicks,
@@ -176,42 +188,37 @@ fn score(
                 min_area: o.min_area,
                 targets: Targets::Masks,
             };
-            let mut out = json!({ "data": bench, "max_side": o.max_side });
-            if is_point_bench {
+            if is_point_benchmark(bench) {
                 let points = load_point_benchmark(bench, false)?;
-                let report = evaluate_point_clicks(model, &points, &options, &Silent)?;
-                out["models"] = json!([report]);
+                let reports = [evaluate_point_clicks(model, &points, &options, &Silent)?];
+                serde_json::to_string(&ClickEvaluation {
+                    data: bench,
+                    max_side: o.max_side,
+                    models: &reports,
+                    unions: None,
+                })?
             } else {
                 let images = scan_mask_benchmark(bench)?;
-                let report = evaluate_clicks(model, &images, &options, &Silent)?;
-                out["models"] = json!([report]);
-                if o.unions {
-                    let unions = ClickOptions {
-                        targets: Targets::Unions,
-                        ..options
-                    };
-                    let report = evaluate_clicks(model, &images, &unions, &Silent)?;
-                    out["unions"] = json!([report]);
-                }
+                let reports = [evaluate_clicks(model, &images, &options, &Silent)?];
+                let unions = match o.unions {
+                    true => {
+                        let unions = ClickOptions {
+                            targets: Targets::Unions,
+                            ..options
+                        };
+                        Some([evaluate_clicks(model, &images, &unions, &Silent)?])
+                    }
+                    false => None,
+                };
+                serde_json::to_string(&ClickEvaluation {
+                    data: bench,
+                    max_side: o.max_side,
+                    models: &reports,
+                    unions: unions.as_ref().map(|u| &u[..]),
+                })?
             }
-            out
         }
         other => return Err(format!("protocol \"{other}\": give points, masks or clicks").into()),
     };
-    Ok(report.to_string())
-}
-
-/// A borrowed scored model, where a boxed one is asked for.
-struct Borrowed<'a>(&'a PythonModel);
-
-impl ScoredModel for Borrowed<'_> {
-    fn name(&self) -> &str {
-        self.0.name()
-    }
-    fn answer(&self, question: &Question) -> Result<Answer, BenchError> {
-        self.0.answer(question)
-    }
-    fn parallel(&self) -> bool {
-        false
-    }
+    Ok(json)
 }

@@ -6,8 +6,8 @@ use clap::Subcommand;
 use matseg_eval::external::MapFolder;
 use matseg_eval::template::{mask_template, point_template, write_template};
 use matseg_eval::{
-    evaluate_masks, load_point_benchmark, scan_mask_benchmark, Described, MaskEvalOptions,
-    QueryOptions, ScoredModel,
+    evaluate_masks, is_point_benchmark, load_point_benchmark, scan_mask_benchmark, Described,
+    MaskEvalOptions, MaskEvaluation, QueryOptions, ScoredModel,
 };
 use matseg_image::outputs::StagedOutput;
 use matseg_image::progress::Silent;
@@ -92,7 +92,15 @@ pub struct MaskArgs {
     #[command(flatten)]
     model: ModelArgs,
     #[command(flatten)]
-    queries: MaskQueryArgs,
+    draw: MaskDrawArgs,
+    /// Radius of a query point's disc, in pixels.
+    #[arg(long, default_value_t = 5.0, value_parser = crate::query_args::parse_radius, allow_negative_numbers = true)]
+    radius: f32,
+    /// Parity mode: the best IoU over STEPS + 1 thresholds evenly spread
+    /// over each similarity map's range (e.g. 100 or 1000) instead of the
+    /// exact best.
+    #[arg(long, value_name = "STEPS")]
+    grid: Option<usize>,
 }
 
 /// Arguments of `matseg eval maps-template`.
@@ -110,12 +118,12 @@ pub struct TemplateArgs {
     /// For a mask benchmark: how query points are drawn, as `eval masks`
     /// draws them.
     #[command(flatten)]
-    queries: MaskQueryArgs,
+    draw: MaskDrawArgs,
 }
 
-/// How a mask benchmark's query points are drawn and scored.
+/// How a mask benchmark's query points are drawn.
 #[derive(clap::Args)]
-pub struct MaskQueryArgs {
+pub struct MaskDrawArgs {
     /// Query points per mask.
     #[arg(long, default_value_t = 10)]
     points: usize,
@@ -125,17 +133,9 @@ pub struct MaskQueryArgs {
     /// Skip masks whose eroded area is smaller than this, in pixels.
     #[arg(long, default_value_t = 400)]
     min_area: usize,
-    /// Radius of a query point's disc, in pixels.
-    #[arg(long, default_value_t = 5.0, value_parser = crate::query_args::parse_radius, allow_negative_numbers = true)]
-    radius: f32,
     /// Seed of the query points.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Parity mode: the best IoU over STEPS + 1 thresholds evenly spread
-    /// over each similarity map's range (e.g. 100 or 1000) instead of the
-    /// exact best.
-    #[arg(long, value_name = "STEPS")]
-    grid: Option<usize>,
 }
 
 /// Runs `matseg eval`.
@@ -224,19 +224,14 @@ fn points(args: PointArgs) -> Result<()> {
     Ok(())
 }
 
-impl MaskQueryArgs {
-    /// The evaluation options these arguments give at `max_side`.
-    fn options(&self, max_side: u32) -> MaskEvalOptions {
-        MaskEvalOptions {
-            max_side,
-            queries: QueryOptions {
-                points_per_mask: self.points,
-                erosion: self.erode,
-                min_area: self.min_area,
-                seed: self.seed,
-            },
-            radius: self.radius,
-            grid_steps: self.grid,
+impl MaskDrawArgs {
+    /// The query draws these arguments ask for.
+    fn queries(&self) -> QueryOptions {
+        QueryOptions {
+            points_per_mask: self.points,
+            erosion: self.erode,
+            min_area: self.min_area,
+            seed: self.seed,
         }
     }
 }
@@ -244,19 +239,19 @@ impl MaskQueryArgs {
 fn masks(args: MaskArgs) -> Result<()> {
     let models = models(&args.model)?;
     let images = scan_mask_benchmark(&args.data)?;
-    let options = args.queries.options(args.model.max_side);
+    let options = MaskEvalOptions {
+        max_side: args.model.max_side,
+        queries: args.draw.queries(),
+        radius: args.radius,
+        grid_steps: args.grid,
+    };
     let reports = models
         .iter()
         .map(|m| evaluate_masks(m.as_ref(), &images, &options, &Silent))
         .collect::<Result<Vec<_>, _>>()?;
     if args.model.json {
-        let out = serde_json::json!({
-            "data": args.data,
-            "max_side": args.model.max_side,
-            "threshold": args.queries.grid.map_or("exact".to_string(), |s| format!("grid of {s} steps")),
-            "models": reports,
-        });
-        println!("{}", serde_json::to_string_pretty(&out)?);
+        let evaluation = MaskEvaluation::new(&args.data, &options, &reports);
+        println!("{}", serde_json::to_string_pretty(&evaluation)?);
         return Ok(());
     }
     let r0 = &reports[0];
@@ -268,7 +263,7 @@ fn masks(args: MaskArgs) -> Result<()> {
         r0.skipped_masks,
         r0.queries,
         args.model.max_side,
-        args.queries.grid.map_or("exact".to_string(), |s| format!("on a grid of {s} steps"))
+        args.grid.map_or("exact".to_string(), |s| format!("on a grid of {s} steps"))
     );
     println!("| model | mean IoU at best threshold |");
     println!("|---|---|");
@@ -279,12 +274,13 @@ fn masks(args: MaskArgs) -> Result<()> {
 }
 
 fn maps_template(args: TemplateArgs) -> Result<()> {
-    let template = if args.bench.join("images").is_dir() && args.bench.join("data").is_dir() {
+    let template = if is_point_benchmark(&args.bench) {
         point_template(&load_point_benchmark(&args.bench, false)?, args.max_side)?
     } else {
         mask_template(
             &scan_mask_benchmark(&args.bench)?,
-            &args.queries.options(args.max_side),
+            args.max_side,
+            &args.draw.queries(),
         )?
     };
     let staged = StagedOutput::begin(&args.out, "eval maps-template", &[&args.bench])?;

@@ -6,10 +6,10 @@
 use crate::eval::{models, score, ModelArgs};
 use anyhow::Result;
 use matseg_eval::clicks::{
-    evaluate_clicks, evaluate_point_clicks, ClickOptions, ClickReport, Targets, LARGE_DROP,
-    REPORTED_CLICKS,
+    evaluate_clicks, evaluate_point_clicks, ClickEvaluation, ClickOptions, ClickReport, Targets,
+    LARGE_DROP, REPORTED_CLICKS,
 };
-use matseg_eval::{load_point_benchmark, scan_mask_benchmark};
+use matseg_eval::{is_point_benchmark, load_point_benchmark, scan_mask_benchmark};
 use matseg_image::progress::Silent;
 use std::path::PathBuf;
 
@@ -49,7 +49,7 @@ pub fn run(args: Args) -> Result<()> {
         targets: Targets::Masks,
     };
     let models = models(&args.model)?;
-    if args.data.join("images").is_dir() && args.data.join("data").is_dir() {
+    if is_point_benchmark(&args.data) {
         let bench = load_point_benchmark(&args.data, false)?;
         let reports = models
             .iter()
@@ -62,7 +62,14 @@ pub fn run(args: Args) -> Result<()> {
             );
         }
         if args.model.json {
-            return print_json(&args.data, &options, serde_json::to_value(&reports)?, None);
+            let evaluation = ClickEvaluation {
+                data: &args.data,
+                max_side: options.max_side,
+                models: &reports,
+                unions: None,
+            };
+            println!("{}", serde_json::to_string_pretty(&evaluation)?);
+            return Ok(());
         }
         println!(
             "{}: {} materials clicked; balanced accuracy of the points not clicked",
@@ -110,13 +117,14 @@ pub fn run(args: Args) -> Result<()> {
         Vec::new()
     };
     if args.model.json {
-        let unions = Some(&unions[..]).filter(|_| args.unions);
-        return print_json(
-            &args.data,
-            &options,
-            serde_json::to_value(&reports)?,
-            unions,
-        );
+        let evaluation = ClickEvaluation {
+            data: &args.data,
+            max_side: options.max_side,
+            models: &reports,
+            unions: Some(&unions[..]).filter(|_| args.unions),
+        };
+        println!("{}", serde_json::to_string_pretty(&evaluation)?);
+        return Ok(());
     }
     print_mask_table(&args.data, "masks", &reports, &options);
     if args.unions {
@@ -172,21 +180,4 @@ fn print_mask_table(
 /// The score under click count `k` of a report's per-click means.
 fn score_at(map: &std::collections::BTreeMap<String, f64>, k: usize) -> String {
     score(map.get(&k.to_string()).copied())
-}
-
-/// Prints the models' reports as `{"data", "max_side", "models": [...]}`,
-/// with `"unions": [...]` when the unions were scored.
-fn print_json(
-    data: &std::path::Path,
-    options: &ClickOptions,
-    models: serde_json::Value,
-    unions: Option<&[ClickReport]>,
-) -> Result<()> {
-    let mut out =
-        serde_json::json!({ "data": data, "max_side": options.max_side, "models": models });
-    if let Some(unions) = unions {
-        out["unions"] = serde_json::to_value(unions)?;
-    }
-    println!("{}", serde_json::to_string_pretty(&out)?);
-    Ok(())
 }

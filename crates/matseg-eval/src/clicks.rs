@@ -77,6 +77,22 @@ impl Default for ClickOptions {
     }
 }
 
+/// A benchmark scored by the click protocol: what `matseg eval clicks
+/// --json` prints and `matseg.evaluate.clicks` returns. `R` is a mask
+/// benchmark's [`ClickReport`] or a point benchmark's [`PointClickReport`].
+#[derive(Serialize)]
+pub struct ClickEvaluation<'a, R: Serialize> {
+    /// The benchmark folder.
+    pub data: &'a std::path::Path,
+    /// The longer side the photos were scored at.
+    pub max_side: u32,
+    /// Each model's report, in the order given.
+    pub models: &'a [R],
+    /// Each model's report on unions of two masks, when they were scored.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unions: Option<&'a [ClickReport]>,
+}
+
 /// One mask's run: the IoU after each click.
 #[derive(Clone, Debug, Serialize)]
 pub struct MaskRun {

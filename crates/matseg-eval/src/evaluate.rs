@@ -3,7 +3,7 @@
 
 use crate::iou::{best_iou, best_iou_on_grid};
 use crate::masks::{draw_mask_points, MaskImage, QueryOptions};
-use crate::model::{Question, ScoredModel};
+use crate::model::{Disc, Question, ScoredModel};
 use crate::points::{flatten, BenchError, BenchImage, PointBenchmark};
 use crate::triplet::{score_image, ImageScores, PointScores};
 use image::{GrayImage, RgbImage};
@@ -80,23 +80,30 @@ pub struct PointCounts {
     pub soft_triplets: u64,
 }
 
-/// A query point's disc: centre `x`, `y` and radius, in scored pixels.
-pub type Disc = (f32, f32, f32);
+/// A point benchmark photo ready to be asked about.
+pub struct PointQueries {
+    /// The photo at the scored size.
+    pub pixels: RgbImage,
+    /// Its points' discs, scaled alike, in the order of [`flatten`].
+    pub discs: Vec<Disc>,
+    /// The material of each point (an index into the image's weights).
+    pub material: Vec<usize>,
+}
 
 /// Image `image` of a point benchmark at the scored size (longer side
-/// `max_side`) and its points' discs `(x, y, r)` scaled alike, in the
-/// order of [`flatten`].
-pub fn point_queries(
-    image: &BenchImage,
-    max_side: u32,
-) -> Result<(RgbImage, Vec<Disc>), BenchError> {
+/// `max_side`), its points and their materials.
+pub fn point_queries(image: &BenchImage, max_side: u32) -> Result<PointQueries, BenchError> {
     let (pixels, scale) = resize_longer_side(read_rgb(&image.image_path)?, max_side);
-    let discs = flatten(image)
-        .0
+    let (points, material) = flatten(image);
+    let discs = points
         .iter()
         .map(|p| (p.x * scale, p.y * scale, p.r * scale))
         .collect();
-    Ok((pixels, discs))
+    Ok(PointQueries {
+        pixels,
+        discs,
+        material,
+    })
 }
 
 /// Scores `model` on every image of `bench`, evaluated with the longer side
@@ -114,8 +121,11 @@ pub fn evaluate_points(
     let mut images = Vec::new();
     let score = |image: &BenchImage| -> Result<(NamedScores, usize), BenchError> {
         check_cancelled(progress, &image.image_path)?;
-        let (pixels, discs) = point_queries(image, max_side)?;
-        let (_, material) = flatten(image);
+        let PointQueries {
+            pixels,
+            discs,
+            material,
+        } = point_queries(image, max_side)?;
         let asked: Vec<(f32, f32)> = discs.iter().map(|&(x, y, _)| (x, y)).collect();
         let answer = model.answer(&Question {
             name: &image.name,
@@ -208,6 +218,34 @@ pub struct MaskReport {
     pub per_image: Vec<NamedIou>,
 }
 
+/// A mask benchmark scored by several models: what `matseg eval masks
+/// --json` prints and `matseg.evaluate.masks` returns.
+#[derive(Serialize)]
+pub struct MaskEvaluation<'a> {
+    /// The benchmark folder.
+    pub data: &'a Path,
+    /// The longer side the photos were scored at.
+    pub max_side: u32,
+    /// How the best threshold was found: `exact` or `grid of N steps`.
+    pub threshold: String,
+    /// Each model's scores, in the order given.
+    pub models: &'a [MaskReport],
+}
+
+impl<'a> MaskEvaluation<'a> {
+    /// The evaluation of `models` on `data` scored with `options`.
+    pub fn new(data: &'a Path, options: &MaskEvalOptions, models: &'a [MaskReport]) -> Self {
+        Self {
+            data,
+            max_side: options.max_side,
+            threshold: options
+                .grid_steps
+                .map_or("exact".to_string(), |s| format!("grid of {s} steps")),
+            models,
+        }
+    }
+}
+
 /// One image's mean IoU over its queries (`None` when none of its masks
 /// was queried).
 #[derive(Clone, Debug, Serialize)]
@@ -278,17 +316,19 @@ pub struct MaskQueries {
     pub skipped: usize,
 }
 
-/// The queries of photo `index` of a mask benchmark: its masks read and
-/// its query points drawn, before any model is asked (a model answering
+/// The queries of photo `index` of a mask benchmark scored at longer side
+/// `max_side`: its masks read and its query points drawn as `queries`
+/// says, before any model is asked (a model answering
 /// with similarity maps answers for these points).
 pub fn mask_queries(
     image: &MaskImage,
     index: usize,
-    options: &MaskEvalOptions,
+    max_side: u32,
+    queries: &QueryOptions,
 ) -> Result<MaskQueries, BenchError> {
     let photo = read_rgb(&image.image_path)?;
     let (w0, h0) = photo.dimensions();
-    let (pixels, _) = resize_longer_side(photo, options.max_side);
+    let (pixels, _) = resize_longer_side(photo, max_side);
     let (w, h) = pixels.dimensions();
     let inside = |path: &Path| -> Result<Vec<bool>, BenchError> {
         let mask = load_mask(path, w0, h0)?;
@@ -299,7 +339,7 @@ pub fn mask_queries(
     let (mut queried, mut asked, mut skipped) = (Vec::new(), Vec::new(), 0);
     for (k, path) in image.mask_paths.iter().enumerate() {
         let truth = inside(path)?;
-        let points = draw_mask_points(&truth, w as usize, h as usize, &options.queries, index, k);
+        let points = draw_mask_points(&truth, w as usize, h as usize, queries, index, k);
         if points.is_empty() {
             skipped += 1;
             continue;
@@ -344,7 +384,7 @@ pub fn evaluate_masks(
             queried,
             asked,
             skipped,
-        } = mask_queries(image, index, options)?;
+        } = mask_queries(image, index, options.max_side, &options.queries)?;
         report.skipped_masks += skipped;
         report.masks += queried.len();
         let (mut sum, mut count) = (0.0, 0usize);

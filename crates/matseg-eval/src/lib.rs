@@ -22,9 +22,13 @@ pub mod template;
 pub mod triplet;
 
 pub use annotation::{Annotation, AnnotationProblem, Group, Relation};
-pub use evaluate::{evaluate_masks, evaluate_points, MaskEvalOptions, MaskReport, PointReport};
+pub use evaluate::{
+    evaluate_masks, evaluate_points, MaskEvalOptions, MaskEvaluation, MaskReport, PointReport,
+};
 pub use iou::{best_iou, best_iou_on_grid, BestIou};
 pub use masks::{scan_mask_benchmark, MaskImage, QueryOptions};
 pub use model::{Answer, Described, Question, ScoredModel};
-pub use points::{load_point_benchmark, BenchError, BenchImage, PointBenchmark};
+pub use points::{
+    is_point_benchmark, load_point_benchmark, BenchError, BenchImage, PointBenchmark,
+};
 pub use triplet::{score_image, ImageScores, PointScores};

@@ -6,8 +6,12 @@
 use crate::points::BenchError;
 use image::RgbImage;
 use matseg_query::descriptor::{disc_pixels, Comparison, DescriptorMap, DescriptorModel};
+use std::borrow::Cow;
 use std::ops::Deref;
 use std::path::Path;
+
+/// A query point's disc: centre `x`, `y` and radius, in scored pixels.
+pub type Disc = (f32, f32, f32);
 
 /// One benchmark photo as a protocol asks a model about it.
 pub struct Question<'a> {
@@ -48,7 +52,7 @@ impl Answer {
     /// descriptors, the comparison of the two discs' pooled descriptors;
     /// for similarity maps (one per disc, in order), the mean of disc `i`'s
     /// map over disc `j`.
-    pub fn similarity_matrix(&self, discs: &[(f32, f32, f32)]) -> Vec<Vec<f64>> {
+    pub fn similarity_matrix(&self, discs: &[Disc]) -> Vec<Vec<f64>> {
         match self {
             Answer::Descriptors { map, comparison } => {
                 let pooled: Vec<Vec<f32>> = discs
@@ -84,14 +88,14 @@ impl Answer {
     }
 
     /// The similarity map of asked point `i` (disc radius `r`), `width *
-    /// height` values.
-    pub fn map_of(&self, i: usize, (x, y): (f32, f32), r: f32) -> Vec<f32> {
+    /// height` values: computed from descriptors, or the model's own.
+    pub fn map_of(&self, i: usize, (x, y): (f32, f32), r: f32) -> Cow<'_, [f32]> {
         match self {
             Answer::Descriptors { map, comparison } => {
                 let query = map.point_descriptor(x, y, r, *comparison);
-                map.similarity_map(&query, *comparison)
+                Cow::Owned(map.similarity_map(&query, *comparison))
             }
-            Answer::Similarity { maps, .. } => maps[i].clone(),
+            Answer::Similarity { maps, .. } => Cow::Borrowed(&maps[i]),
         }
     }
 }
@@ -108,6 +112,21 @@ pub trait ScoredModel: Sync {
     /// Whether photos may be asked about from several threads at once.
     fn parallel(&self) -> bool {
         true
+    }
+}
+
+/// A borrowed scored model, where an owned one (a box) is asked for.
+impl<M: ScoredModel + ?Sized> ScoredModel for &M {
+    fn name(&self) -> &str {
+        (**self).name()
+    }
+
+    fn answer(&self, question: &Question) -> Result<Answer, BenchError> {
+        (**self).answer(question)
+    }
+
+    fn parallel(&self) -> bool {
+        (**self).parallel()
     }
 }
 

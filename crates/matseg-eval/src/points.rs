@@ -87,6 +87,12 @@ pub struct PointBenchmark {
     pub skipped: Vec<String>,
 }
 
+/// Whether `dir` is laid out as a point benchmark (`images/` and `data/`)
+/// rather than a mask benchmark, for commands that take either.
+pub fn is_point_benchmark(dir: &Path) -> bool {
+    dir.join("images").is_dir() && dir.join("data").is_dir()
+}
+
 /// Loads the benchmark in `dir`. A malformed image (unreadable or missing
 /// file, bad JSON, a point outside the image, a bad relation line, an
 /// unknown material id) is an error, or with `skip_bad` a skipped image.

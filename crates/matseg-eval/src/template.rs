@@ -4,8 +4,8 @@
 //! needs only the photos; one that writes similarity maps answers one map
 //! per listed point.
 
-use crate::evaluate::{mask_queries, point_queries, MaskEvalOptions};
-use crate::masks::MaskImage;
+use crate::evaluate::{mask_queries, point_queries};
+use crate::masks::{MaskImage, QueryOptions};
 use crate::points::{BenchError, PointBenchmark};
 use image::RgbImage;
 use matseg_image::io::encode_png_rgb;
@@ -50,14 +50,14 @@ pub fn point_template(bench: &PointBenchmark, max_side: u32) -> Result<Template,
         .images
         .iter()
         .map(|image| {
-            let (pixels, discs) = point_queries(image, max_side)?;
+            let queries = point_queries(image, max_side)?;
             Ok(TemplateImage {
                 name: image.name.clone(),
                 source: image.image_path.clone(),
-                width: pixels.width(),
-                height: pixels.height(),
-                points: discs.iter().map(|&(x, y, _)| (x, y)).collect(),
-                pixels,
+                width: queries.pixels.width(),
+                height: queries.pixels.height(),
+                points: queries.discs.iter().map(|&(x, y, _)| (x, y)).collect(),
+                pixels: queries.pixels,
             })
         })
         .collect::<Result<_, BenchError>>()?;
@@ -67,15 +67,17 @@ pub fn point_template(bench: &PointBenchmark, max_side: u32) -> Result<Template,
     })
 }
 
-/// The questions of a mask benchmark scored as `options` say; photos with
-/// no mask large enough to query are not asked about and not listed.
+/// The questions of a mask benchmark scored at longer side `max_side`,
+/// its query points drawn as `draws` says; photos with no mask large
+/// enough to query are not asked about and not listed.
 pub fn mask_template(
     images: &[MaskImage],
-    options: &MaskEvalOptions,
+    max_side: u32,
+    draws: &QueryOptions,
 ) -> Result<Template, BenchError> {
     let mut listed = Vec::new();
     for (index, image) in images.iter().enumerate() {
-        let queries = mask_queries(image, index, options)?;
+        let queries = mask_queries(image, index, max_side, draws)?;
         if queries.queried.is_empty() {
             continue;
         }
