@@ -4,7 +4,7 @@
 use anyhow::Result;
 use clap::Subcommand;
 use matseg_eval::external::MapFolder;
-use matseg_eval::template::{mask_template, point_template, write_template};
+use matseg_eval::template::{write_mask_template, write_point_template};
 use matseg_eval::{
     evaluate_masks, is_point_benchmark, load_point_benchmark, scan_mask_benchmark, Described,
     MaskEvalOptions, MaskEvaluation, QueryOptions, ScoredModel,
@@ -274,17 +274,14 @@ fn masks(args: MaskArgs) -> Result<()> {
 }
 
 fn maps_template(args: TemplateArgs) -> Result<()> {
-    let template = if is_point_benchmark(&args.bench) {
-        point_template(&load_point_benchmark(&args.bench, false)?, args.max_side)?
-    } else {
-        mask_template(
-            &scan_mask_benchmark(&args.bench)?,
-            args.max_side,
-            &args.draw.queries(),
-        )?
-    };
     let staged = StagedOutput::begin(&args.out, "eval maps-template", &[&args.bench])?;
-    write_template(staged.dir(), &template)?;
+    let template = if is_point_benchmark(&args.bench) {
+        let bench = load_point_benchmark(&args.bench, false)?;
+        write_point_template(staged.dir(), &bench, args.max_side)?
+    } else {
+        let images = scan_mask_benchmark(&args.bench)?;
+        write_mask_template(staged.dir(), &images, args.max_side, &args.draw.queries())?
+    };
     staged.finish()?;
     println!(
         "{}: {} photos of the {} benchmark {} at their scored size, {} points to answer",

@@ -39,76 +39,102 @@ pub struct TemplateImage {
     pub height: u32,
     /// The points `[x, y]` asked about, in scored pixels.
     pub points: Vec<(f32, f32)>,
-    /// The photo at its scored size.
-    #[serde(skip)]
-    pub pixels: RgbImage,
 }
 
-/// The questions of a point benchmark scored at `max_side`.
-pub fn point_template(bench: &PointBenchmark, max_side: u32) -> Result<Template, BenchError> {
-    let images = bench
-        .images
-        .iter()
-        .map(|image| {
-            let queries = point_queries(image, max_side)?;
-            Ok(TemplateImage {
-                name: image.name.clone(),
-                source: image.image_path.clone(),
-                width: queries.pixels.width(),
-                height: queries.pixels.height(),
-                points: queries.discs.iter().map(|&(x, y, _)| (x, y)).collect(),
-                pixels: queries.pixels,
-            })
+/// A template written into a folder photo by photo, so no more than one
+/// photo is held at a time.
+struct TemplateWriter<'a> {
+    photos: PathBuf,
+    dir: &'a Path,
+    template: Template,
+}
+
+impl<'a> TemplateWriter<'a> {
+    fn new(dir: &'a Path, protocol: &'static str) -> Result<Self, BenchError> {
+        let photos = dir.join(PHOTOS_FOLDER);
+        std::fs::create_dir_all(&photos)
+            .map_err(|e| BenchError::new(&photos, None, format!("cannot create: {e}")))?;
+        Ok(Self {
+            photos,
+            dir,
+            template: Template {
+                protocol,
+                images: Vec::new(),
+            },
         })
-        .collect::<Result<_, BenchError>>()?;
-    Ok(Template {
-        protocol: "points",
-        images,
-    })
+    }
+
+    /// Writes photo `name` at its scored size and lists it with `points`.
+    fn add(
+        &mut self,
+        name: &str,
+        source: &Path,
+        pixels: &RgbImage,
+        points: Vec<(f32, f32)>,
+    ) -> Result<(), BenchError> {
+        let path = self.photos.join(format!("{name}.png"));
+        write(&path, &encode_png_rgb(pixels))?;
+        self.template.images.push(TemplateImage {
+            name: name.to_string(),
+            source: source.to_path_buf(),
+            width: pixels.width(),
+            height: pixels.height(),
+            points,
+        });
+        Ok(())
+    }
+
+    /// Writes `template.json`, last.
+    fn finish(self) -> Result<Template, BenchError> {
+        let json = serde_json::to_vec_pretty(&self.template).expect("plain JSON values");
+        write(&self.dir.join(TEMPLATE_FILE), &json)?;
+        Ok(self.template)
+    }
 }
 
-/// The questions of a mask benchmark scored at longer side `max_side`,
-/// its query points drawn as `draws` says; photos with no mask large
-/// enough to query are not asked about and not listed.
-pub fn mask_template(
+fn write(path: &Path, bytes: &[u8]) -> Result<(), BenchError> {
+    std::fs::write(path, bytes)
+        .map_err(|e| BenchError::new(path, None, format!("cannot write: {e}")))
+}
+
+/// Writes into the folder `dir` the questions of a point benchmark scored
+/// at `max_side`: `photos/NAME.png` at the scored size, then
+/// `template.json`.
+pub fn write_point_template(
+    dir: &Path,
+    bench: &PointBenchmark,
+    max_side: u32,
+) -> Result<Template, BenchError> {
+    let mut writer = TemplateWriter::new(dir, "points")?;
+    for image in &bench.images {
+        let queries = point_queries(image, max_side)?;
+        let points = queries.discs.iter().map(|&(x, y, _)| (x, y)).collect();
+        writer.add(&image.name, &image.image_path, &queries.pixels, points)?;
+    }
+    writer.finish()
+}
+
+/// Writes into the folder `dir` the questions of a mask benchmark scored at
+/// longer side `max_side`, its query points drawn as `draws` says, as
+/// [`write_point_template`] does; photos with no mask large enough to
+/// query are not asked about and not listed.
+pub fn write_mask_template(
+    dir: &Path,
     images: &[MaskImage],
     max_side: u32,
     draws: &QueryOptions,
 ) -> Result<Template, BenchError> {
-    let mut listed = Vec::new();
+    let mut writer = TemplateWriter::new(dir, "masks")?;
     for (index, image) in images.iter().enumerate() {
         let queries = mask_queries(image, index, max_side, draws)?;
-        if queries.queried.is_empty() {
-            continue;
+        if !queries.queried.is_empty() {
+            writer.add(
+                &image.name,
+                &image.image_path,
+                &queries.pixels,
+                queries.asked,
+            )?;
         }
-        listed.push(TemplateImage {
-            name: image.name.clone(),
-            source: image.image_path.clone(),
-            width: queries.pixels.width(),
-            height: queries.pixels.height(),
-            points: queries.asked,
-            pixels: queries.pixels,
-        });
     }
-    Ok(Template {
-        protocol: "masks",
-        images: listed,
-    })
-}
-
-/// Writes `template` into the folder `dir`: `template.json` and
-/// `photos/NAME.png`, each photo at its scored size.
-pub fn write_template(dir: &Path, template: &Template) -> Result<(), BenchError> {
-    let photos = dir.join(PHOTOS_FOLDER);
-    std::fs::create_dir_all(&photos)
-        .map_err(|e| BenchError::new(&photos, None, format!("cannot create: {e}")))?;
-    for image in &template.images {
-        let path = photos.join(format!("{}.png", image.name));
-        std::fs::write(&path, encode_png_rgb(&image.pixels))
-            .map_err(|e| BenchError::new(&path, None, format!("cannot write: {e}")))?;
-    }
-    let path = dir.join(TEMPLATE_FILE);
-    let json = serde_json::to_vec_pretty(template).expect("plain JSON values");
-    std::fs::write(&path, json)
-        .map_err(|e| BenchError::new(&path, None, format!("cannot write: {e}")))
+    writer.finish()
 }

@@ -155,8 +155,13 @@ fn similarity_maps_and_coarse_descriptors_are_scored_at_the_photo_size() {
     // The points each photo is asked about, from the template the tools
     // answer; each point's map: minus the rgb distance to its disc's mean.
     let options = mask_options();
-    let template =
-        matseg_eval::template::mask_template(&images, options.max_side, &options.queries).unwrap();
+    let template = matseg_eval::template::write_mask_template(
+        &dir.path().join("template"),
+        &images,
+        options.max_side,
+        &options.queries,
+    )
+    .unwrap();
     let sims = dir.path().join("similarity");
     std::fs::create_dir_all(&sims).unwrap();
     for image in &template.images {
