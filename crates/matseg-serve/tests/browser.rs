@@ -778,8 +778,21 @@ fn evaluate_page(browser: &mut Browser, server: &Served) {
         }),
         "{shown:?}"
     );
+    // In a window too short for the tables and the image, the image the
+    // page scrolls to lies whole above the status bar.
+    let window = |height: u32| serde_json::json!({ "width": 1280, "height": height, "deviceScaleFactor": 1, "mobile": false });
+    browser.call("Emulation.setDeviceMetricsOverride", window(500));
     browser.click("#images tr.pick");
     browser.wait_for("document.getElementById('canvas').dataset.image === 'coffee'");
+    let clear = browser.eval(
+        "document.getElementById('canvas').getBoundingClientRect().bottom
+         <= document.querySelector('.bar').getBoundingClientRect().top + 0.5",
+    );
+    assert_eq!(
+        clear, true,
+        "evaluate: the opened image runs under the status bar"
+    );
+    browser.call("Emulation.setDeviceMetricsOverride", window(800));
     browser.click_canvas("#canvas", 292, 131, 0);
     browser.wait_for("document.getElementById('canvas').dataset.answered === '1'");
     assert_status_in_sight(browser, "evaluate");
