@@ -22,6 +22,7 @@ use crate::points::BenchError;
 use matseg_query::descriptor::{resize_channels, Comparison, DescriptorMap};
 use matseg_weights::{read_npy, read_safetensors, DType, Tensor};
 use serde::Deserialize;
+use std::borrow::Cow;
 use std::path::{Path, PathBuf};
 
 /// A `kind` or `comparison` of maps that is not known.
@@ -114,14 +115,14 @@ pub fn answer_from_array(
                 width,
                 height,
                 dim: c,
-                data: resize_channels(&values, (b, a), c, (width, height)),
+                data: resize_channels(Cow::Owned(values), (b, a), c, (width, height)),
             },
             comparison,
         },
         MapKind::Similarity => Answer::Similarity {
             maps: values
                 .chunks_exact(b * c)
-                .map(|map| resize_channels(map, (c, b), 1, (width, height)))
+                .map(|map| resize_channels(Cow::Borrowed(map), (c, b), 1, (width, height)))
                 .collect(),
             width,
             height,

@@ -4,6 +4,7 @@
 
 use image::RgbImage;
 use rayon::prelude::*;
+use std::borrow::Cow;
 
 /// How two descriptors are compared.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -157,15 +158,16 @@ pub fn bilinear_taps(n: usize, grid: usize) -> Vec<(usize, usize, f32)> {
 /// `values`, `dim` channels per pixel of a `width x height` grid (row by
 /// row, channels interleaved), resized bilinearly to `to_width x
 /// to_height` (half-pixel centres, as a net's output is resized to its
-/// photo). The same size gives the values back unchanged.
+/// photo). The same size gives the values back unchanged (owned values
+/// without a copy).
 pub fn resize_channels(
-    values: &[f32],
+    values: Cow<'_, [f32]>,
     (width, height): (usize, usize),
     dim: usize,
     (to_width, to_height): (usize, usize),
 ) -> Vec<f32> {
     if (width, height) == (to_width, to_height) {
-        return values.to_vec();
+        return values.into_owned();
     }
     let (columns, rows) = (
         bilinear_taps(to_width, width),
