@@ -11,13 +11,22 @@ scores its own: the same protocols, the same scores, the same JSON.
     report = matseg.evaluate.points("benchmarks/real-dev", Colour())
     report["models"][0]["all_by_material"]
 
-A model answers one of two questions, whichever it can:
+A model answers one of three questions, whichever it can:
 
 - `describe(image) -> (h, w, d)` descriptors at any stride (resized
   bilinearly to the photo, as matseg resizes its own), compared by cosine,
   or by Euclidean distance when the model's `comparison` is "euclidean";
 - `similarity(image, points) -> (k, h, w)`: one map per (x, y) point of the
-  `k x 2` float32 array, higher where more alike (points and masks only).
+  `k x 2` float32 array, at any size, higher where more alike;
+- `select(image, positives, negatives) -> (H, W)`: its own selection for
+  the clicks so far (two `n x 2` float32 arrays), a mask or a soft map in
+  0..1 at the photo's size (0.5 or more is selected): the click protocol
+  only, asked after every click.
+
+In the click protocol a model with `select` is scored by its own
+selection; a `describe` model gets matseg's selection on its descriptors,
+and a `similarity` model gets matseg's composition of one map per click
+(docs/eval.md). `track` needs `describe`.
 
 A plain function is taken as `describe`; a `matseg.Model` is scored as
 `matseg eval` scores it. Photos are asked about one at a time, in
@@ -73,41 +82,66 @@ def clicks(data: Path, model: Any, *, name: str | None = None, max_side: int = D
 
 def _evaluate(protocol: str, bench: Path, model: Any, name: str | None, progress: bool,
               **options: Any) -> dict[str, Any]:
-    kind, answer, comparison = _question(model)
+    kind, answer, comparison, selects = _question(model)
     name = name or _name(model)
-    asked = 0
+    photos: list[str] = []
 
-    def ask(buffer: _core.Buffer, height: int, width: int, photo: str,
-            asked_points: list[tuple[float, float]]) -> NDArray[np.float32]:
-        nonlocal asked
-        asked += 1
-        if progress:
-            print(f"matseg.evaluate.{protocol} {name}: photo {asked} {photo}", file=sys.stderr, flush=True)
-        image = view(buffer, np.uint8, (height, width, 3))
-        xy = np.asarray(asked_points, dtype=np.float32).reshape(-1, 2)
-        out = answer(image, xy) if kind == "similarity" else answer(image)
+    def told(buffer: _core.Buffer, height: int, width: int, photo: str) -> NDArray[np.uint8]:
+        """The photo asked about, with a line on stderr the first time."""
+        if not photos or photos[-1] != photo:
+            photos.append(photo)
+            if progress:
+                print(f"matseg.evaluate.{protocol} {name}: photo {len(photos)} {photo}", file=sys.stderr,
+                      flush=True)
+        return view(buffer, np.uint8, (height, width, 3))
+
+    def array(out: Any, what: str) -> NDArray[np.float32]:
         if not hasattr(out, "shape"):
-            what = "similarity" if kind == "similarity" else "describe"
             raise TypeError(f"{what} returned {type(out).__name__}; expected a numpy array")
         return np.ascontiguousarray(out, dtype=np.float32)
 
-    report = _core.evaluate(protocol, os.fspath(bench), ask, name, kind, comparison, json.dumps(options))
+    def ask(buffer: _core.Buffer, height: int, width: int, photo: str,
+            asked_points: list[tuple[float, float]]) -> NDArray[np.float32]:
+        image = told(buffer, height, width, photo)
+        if kind == "similarity":
+            return array(answer(image, _points(asked_points)), "similarity")
+        return array(answer(image), "describe")
+
+    def select(buffer: _core.Buffer, height: int, width: int, photo: str,
+               positives: list[tuple[float, float]], negatives: list[tuple[float, float]]) -> NDArray[np.float32]:
+        image = told(buffer, height, width, photo)
+        return array(selects(image, _points(positives), _points(negatives)), "select")
+
+    report = _core.evaluate(protocol, os.fspath(bench), ask if answer else None, select if selects else None,
+                            name, kind, comparison, json.dumps(options))
     result: dict[str, Any] = json.loads(report)
     return result
 
 
-def _question(model: Any) -> tuple[str, Callable[..., Any], str | None]:
-    """What `model` answers: its kind, the function asked, its comparison."""
+def _points(points: list[tuple[float, float]]) -> NDArray[np.float32]:
+    """(x, y) points as the `n x 2` float32 array a model is given."""
+    return np.asarray(points, dtype=np.float32).reshape(-1, 2)
+
+
+def _question(model: Any) -> tuple[str, Callable[..., Any] | None, str | None, Callable[..., Any] | None]:
+    """What `model` answers: the kind of its maps, the function asked for
+    them (none for a model that only selects), its comparison, and its own
+    selection for clicks (when it has one)."""
     if isinstance(model, Model):
-        return "descriptors", lambda image: model.describe(image).transpose(1, 2, 0), "cosine"
+        return "descriptors", lambda image: model.describe(image).transpose(1, 2, 0), "cosine", None
     comparison = getattr(model, "comparison", None)
+    selects = getattr(model, "select", None)
+    selects = selects if callable(selects) else None
     if hasattr(model, "describe"):
-        return "descriptors", model.describe, comparison
+        return "descriptors", model.describe, comparison, selects
     if hasattr(model, "similarity"):
-        return "similarity", model.similarity, None
+        return "similarity", model.similarity, None, selects
+    if selects is not None:
+        return "descriptors", None, None, selects
     if callable(model):
-        return "descriptors", model, comparison
-    raise TypeError(f"model: a {type(model).__name__} has neither describe(image) nor similarity(image, points)")
+        return "descriptors", model, comparison, None
+    raise TypeError(f"model: a {type(model).__name__} has none of describe(image), similarity(image, points) "
+                    "or select(image, positives, negatives)")
 
 
 def _name(model: Any) -> str:

@@ -13,39 +13,53 @@ use matseg_eval::external::{answer_from_array, MapKind};
 use matseg_eval::points::BenchError;
 use matseg_eval::{
     evaluate_masks, is_point_benchmark, load_point_benchmark, scan_mask_benchmark, Answer,
-    MaskEvalOptions, MaskEvaluation, QueryOptions, Question, ScoredModel,
+    ClickAnswer, MaskEvalOptions, MaskEvaluation, QueryOptions, Question, ScoredModel,
 };
 use matseg_image::progress::Silent;
+use matseg_query::select::Click;
 use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
 use pyo3::prelude::*;
+use pyo3::types::PyTuple;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 /// A Python model: `ask(image, height, width, name, points)` returns its
 /// float32 array for the photo (descriptors or similarity maps, as `kind`
-/// says).
+/// says), and `select(image, height, width, name, positives, negatives)`,
+/// when it has one, its own selection for the click protocol.
 struct PythonModel {
     name: String,
     kind: MapKind,
-    ask: Py<PyAny>,
+    ask: Option<Py<PyAny>>,
+    select: Option<Py<PyAny>>,
     /// What the model raised, handed back to the caller as it was.
     raised: Mutex<Option<PyErr>>,
 }
 
-impl ScoredModel for PythonModel {
-    fn name(&self) -> &str {
-        &self.name
-    }
-
-    fn answer(&self, question: &Question) -> Result<Answer, BenchError> {
+impl PythonModel {
+    /// `function(image, height, width, name, *more)`'s array for
+    /// `question`'s photo: its shape and float32 values.
+    fn call(
+        &self,
+        function: &Py<PyAny>,
+        question: &Question,
+        more: Vec<Vec<(f32, f32)>>,
+    ) -> Result<(Vec<usize>, Vec<f32>), BenchError> {
         let asked = Python::attach(|py| -> PyResult<(Vec<usize>, Vec<f32>)> {
             py.check_signals()?;
             let (w, h) = question.pixels.dimensions();
             let pixels = Buffer::new(question.pixels.as_raw().clone());
-            let array = self
-                .ask
-                .call1(py, (pixels, h, w, question.name, question.points.to_vec()))?;
+            let mut arguments = vec![
+                pixels.into_pyobject(py)?.into_any(),
+                h.into_pyobject(py)?.into_any(),
+                w.into_pyobject(py)?.into_any(),
+                question.name.into_pyobject(py)?.into_any(),
+            ];
+            for points in more {
+                arguments.push(points.into_pyobject(py)?.into_any());
+            }
+            let array = function.call1(py, PyTuple::new(py, arguments)?)?;
             let array = array.bind(py);
             let shape: Vec<usize> = array.getattr("shape")?.extract()?;
             let values = contiguous::<f32>(
@@ -56,20 +70,74 @@ impl ScoredModel for PythonModel {
             )?;
             Ok((shape, values))
         });
-        match asked {
-            Ok((shape, values)) => {
-                answer_from_array(values, &shape, self.kind, question, Path::new(&self.name))
-            }
-            Err(e) => {
-                let message = format!("photo {}: the model raised {e}", question.name);
-                *matseg_image::sync::lock(&self.raised) = Some(e);
-                Err(BenchError::new(question.path, None, message))
-            }
-        }
+        asked.map_err(|e| {
+            let message = format!("photo {}: the model raised {e}", question.name);
+            *matseg_image::sync::lock(&self.raised) = Some(e);
+            BenchError::new(question.path, None, message)
+        })
+    }
+}
+
+impl ScoredModel for PythonModel {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn answer(&self, question: &Question) -> Result<Answer, BenchError> {
+        let Some(ask) = &self.ask else {
+            return Err(BenchError::new(
+                question.path,
+                None,
+                format!(
+                    "{} only selects from clicks: points and masks need describe(image) or similarity(image, points)",
+                    self.name
+                ),
+            ));
+        };
+        let (shape, values) = self.call(ask, question, vec![question.points.to_vec()])?;
+        answer_from_array(values, &shape, self.kind, question, Path::new(&self.name))
     }
 
     fn parallel(&self) -> bool {
         false
+    }
+
+    fn click_answer(&self) -> ClickAnswer {
+        match (&self.select, self.kind) {
+            (Some(_), _) => ClickAnswer::Selection,
+            (None, MapKind::Similarity) => ClickAnswer::SimilarityMaps,
+            (None, MapKind::Descriptors(_)) => ClickAnswer::Descriptors,
+        }
+    }
+
+    fn select(&self, question: &Question, clicks: &[Click]) -> Result<Vec<f32>, BenchError> {
+        let select = self.select.as_ref().ok_or_else(|| {
+            BenchError::new(
+                question.path,
+                None,
+                format!("{} does not select", self.name),
+            )
+        })?;
+        let side = |positive: bool| -> Vec<(f32, f32)> {
+            clicks
+                .iter()
+                .filter(|c| c.positive == positive)
+                .map(|c| (c.x, c.y))
+                .collect()
+        };
+        let (shape, values) = self.call(select, question, vec![side(true), side(false)])?;
+        let (w, h) = question.pixels.dimensions();
+        if shape != [h as usize, w as usize] {
+            return Err(BenchError::new(
+                Path::new(&self.name),
+                None,
+                format!(
+                    "shape {shape:?} for photo {}: select must return its ({h}, {w}) selection",
+                    question.name
+                ),
+            ));
+        }
+        Ok(values)
     }
 }
 
@@ -105,7 +173,8 @@ struct ClickSettings {
 }
 
 /// Scores the model `ask` answers for (named `name`; `kind` `descriptors`
-/// or `similarity`, `comparison` `cosine` or `euclidean`) on the
+/// or `similarity`, `comparison` `cosine` or `euclidean`), with its own
+/// selection `select` in the click protocol when given, on the
 /// benchmark `bench` by `protocol` (`points`, `masks` or `clicks`), with
 /// that protocol's `options` (JSON). Returns the JSON `matseg eval PROTOCOL --json`
 /// prints. What the model raised is the cause of a `MatsegError` naming
@@ -113,12 +182,13 @@ struct ClickSettings {
 /// shape or a NaN is a `MatsegError` naming the photo.
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (protocol, bench, ask, name, kind, comparison, options))]
+#[pyo3(signature = (protocol, bench, ask, select, name, kind, comparison, options))]
 pub fn evaluate(
     py: Python<'_>,
     protocol: &str,
     bench: PathBuf,
-    ask: Py<PyAny>,
+    ask: Option<Py<PyAny>>,
+    select: Option<Py<PyAny>>,
     name: String,
     kind: &str,
     comparison: Option<&str>,
@@ -130,6 +200,7 @@ pub fn evaluate(
         name,
         kind,
         ask,
+        select,
         raised: Mutex::new(None),
     };
     let scored = score(protocol, &bench, &model, options);

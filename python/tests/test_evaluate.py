@@ -121,13 +121,6 @@ def test_the_shipped_model_scores_what_matseg_eval_scores(matseg_bin, tmp_path):
 def test_similarity_models_are_scored_on_their_maps():
     """A model answering with similarity maps: minus the rgb distance to
     each point scores as the rgb descriptors do (at a point's own pixel)."""
-
-    class Nearness:
-        def similarity(self, image, points):
-            colours = rgb(image)
-            picked = colours[points[:, 1].astype(int), points[:, 0].astype(int)]
-            return -np.linalg.norm(colours[None] - picked[:, None, None], axis=-1)
-
     theirs = matseg.evaluate.masks(REAL_MASKS, Nearness(), radius=0.0, progress=False)["models"][0]
     ours = matseg.evaluate.masks(REAL_MASKS, Colour("rgb", rgb), radius=0.0, progress=False)["models"][0]
     assert theirs["model"] == "Nearness"
@@ -168,15 +161,73 @@ def test_wrong_answers_are_errors_naming_the_photo():
 
     with pytest.raises(KeyboardInterrupt):
         matseg.evaluate.points(REAL_DEV, interrupted, progress=False)
-    with pytest.raises(TypeError, match="has neither describe"):
+    with pytest.raises(TypeError, match="has none of describe"):
         matseg.evaluate.points(REAL_DEV, object())
 
 
-def test_progress_names_each_photo(capfd, tmp_path):
+def two_mask_photos(folder):
+    """The first two photos of real-masks, with their masks, in `folder`."""
     photos = sorted(p.stem for p in REAL_MASKS.glob("*.jpg"))[:2]
     for photo in photos:
         for file in REAL_MASKS.glob(f"{photo}.*"):
-            (tmp_path / file.name).write_bytes(file.read_bytes())
+            (folder / file.name).write_bytes(file.read_bytes())
+    return photos
+
+
+class Nearness:
+    """Similarity maps: minus the rgb distance to each point's colour."""
+
+    def __init__(self):
+        self.asked = []
+
+    def similarity(self, image, points):
+        self.asked.append(points.shape)
+        colours = rgb(image)
+        picked = colours[points[:, 1].astype(int), points[:, 0].astype(int)]
+        return -np.linalg.norm(colours[None] - picked[:, None, None], axis=-1)
+
+
+def test_similarity_and_selecting_models_are_scored_by_clicks(tmp_path):
+    two_mask_photos(tmp_path)
+    nearness = Nearness()
+    report = matseg.evaluate.clicks(tmp_path, nearness, max_clicks=5, max_side=200, progress=False)
+    model = report["models"][0]
+    assert model["masks"] > 0 and len(model["miou_curve"]) == 5
+    assert set(nearness.asked) == {(1, 2)}, "one map asked for at each click"
+    assert len(nearness.asked) >= model["masks"]
+
+    class Everything:
+        """Selects the whole photo whatever the clicks, and records them."""
+
+        def __init__(self):
+            self.clicks = []
+
+        def select(self, image, positives, negatives):
+            assert image.dtype == np.uint8 and image.shape[2] == 3 and max(image.shape) == 200
+            assert positives.dtype == np.float32 and positives.shape[1] == 2 and negatives.shape[1] == 2
+            self.clicks.append((len(positives), len(negatives)))
+            return np.ones(image.shape[:2], dtype=bool)
+
+    everything = Everything()
+    model = matseg.evaluate.clicks(tmp_path, everything, max_clicks=5, max_side=200, progress=False)["models"][0]
+    assert model["model"] == "Everything" and model["masks"] > 0
+    # The whole photo never gets better: the IoU stays the first click's,
+    # and each later click is the negative one on the largest spill.
+    assert model["miou_curve"] == [model["miou_at"]["1"]] * 5 and model["drops"]["lowering"] == 0
+    assert everything.clicks[:5] == [(1, 0), (1, 1), (1, 2), (1, 3), (1, 4)]
+    with pytest.raises(matseg.MatsegError, match="only selects from clicks"):
+        matseg.evaluate.masks(tmp_path, everything, progress=False)
+
+    class Flat(Everything):
+        def select(self, image, positives, negatives):
+            return np.ones(image.shape[:2][::-1], dtype=np.float32)
+
+    with pytest.raises(matseg.MatsegError, match=r"shape \[188, 200\] for photo balance: select must return its \(200, 188\) selection"):
+        matseg.evaluate.clicks(tmp_path, Flat(), max_clicks=5, max_side=200, progress=False)
+
+
+def test_progress_names_each_photo(capfd, tmp_path):
+    photos = two_mask_photos(tmp_path)
     report = matseg.evaluate.clicks(tmp_path, Colour("rgb", rgb), max_clicks=5, max_side=200)
     assert report["models"][0]["masks"] > 0
     lines = capfd.readouterr().err.splitlines()

@@ -10,15 +10,15 @@
 //! the annotated point the selection gets most wrong, and the score is the
 //! balanced accuracy of the points not clicked.
 
+use crate::click_selection::{ClickSelection, ClickedPhoto};
 use crate::evaluate::{check_cancelled, load_mask, resize_longer_side};
 use crate::iou::best_iou;
 use crate::masks::MaskImage;
-use crate::model::{descriptors_of, Question, ScoredModel};
+use crate::model::{Question, ScoredModel};
 use crate::points::{flatten, BenchError, PointBenchmark};
 use matseg_image::io::read_rgb;
 use matseg_image::progress::Progress;
-use matseg_query::descriptor::{Comparison, DescriptorMap};
-use matseg_query::select::{Click, PixelSpace, Selection, Selector};
+use matseg_query::select::{Click, Selection};
 use serde::Serialize;
 use std::collections::BTreeMap;
 
@@ -413,7 +413,7 @@ pub fn clicks_to(ious: &[f64], target: f64, most: usize) -> usize {
 /// [`CURVE_CLICKS`] clicks at least, for the reported means and the
 /// curve) or the most clicks.
 fn mask_run(
-    selector: &mut Selector<'_>,
+    selector: &mut dyn ClickSelection,
     truth: &[bool],
     scored: &[bool],
     (w, h): (usize, usize),
@@ -425,8 +425,8 @@ fn mask_run(
     let mut ious = Vec::new();
     let mut first = None;
     loop {
-        selector.add(click).map_err(select_error)?;
-        let selection = selector.selection().map_err(select_error)?;
+        selector.add(click)?;
+        let selection = selector.selection()?;
         ious.push(iou(&selection.mask, truth, scored));
         let last = *ious.last().expect("one at least");
         if first.is_none() {
@@ -448,27 +448,6 @@ fn mask_run(
         }
     }
     Ok((ious, first.expect("one click at least")))
-}
-
-/// `model`'s descriptor map of the photo `pixels` (the click protocol
-/// selects on descriptors), or why there is none.
-fn describe(
-    model: &dyn ScoredModel,
-    name: &str,
-    path: &std::path::Path,
-    pixels: &image::RgbImage,
-) -> Result<(DescriptorMap, Comparison), BenchError> {
-    let question = Question {
-        name,
-        path,
-        pixels,
-        points: &[],
-    };
-    descriptors_of(model.answer(&question)?, &question, "the click protocol")
-}
-
-fn select_error(e: matseg_query::select::SelectError) -> BenchError {
-    BenchError::new(std::path::Path::new("clicks"), None, e.to_string())
 }
 
 /// Scores `model` by clicks on the photos and masks of a mask benchmark:
@@ -513,8 +492,14 @@ pub fn evaluate_clicks(
             Some(path) => inside(path)?,
             None => vec![true; w * h],
         };
-        let (map, comparison) = describe(model, &image.name, &image.image_path, &pixels)?;
-        let space = PixelSpace::new(&map, comparison);
+        let question = Question {
+            name: &image.name,
+            path: &image.image_path,
+            pixels: &pixels,
+            points: &[],
+        };
+        let photo = ClickedPhoto::ask(model, question)?;
+        let space = photo.space();
         let masks = image
             .mask_paths
             .iter()
@@ -534,9 +519,8 @@ pub fn evaluate_clicks(
                 None => masks[k].clone(),
                 Some(o) => (0..w * h).map(|i| masks[k][i] || masks[o][i]).collect(),
             };
-            let mut selector =
-                Selector::new(&space, Some(&pixels), options.radius).map_err(select_error)?;
-            let (ious, first) = mask_run(&mut selector, &truth, &scored, (w, h), options)?;
+            let mut selection = photo.start(space.as_ref(), options.radius)?;
+            let (ious, first) = mask_run(selection.as_mut(), &truth, &scored, (w, h), options)?;
             let scores: Vec<f32> = (0..w * h)
                 .filter(|&i| scored[i])
                 .map(|i| first.soft[i])
@@ -634,8 +618,14 @@ pub fn evaluate_point_clicks(
     for image in &bench.images {
         check_cancelled(progress, &image.image_path)?;
         let (pixels, scale) = resize_longer_side(read_rgb(&image.image_path)?, options.max_side);
-        let (map, comparison) = describe(model, &image.name, &image.image_path, &pixels)?;
-        let space = PixelSpace::new(&map, comparison);
+        let question = Question {
+            name: &image.name,
+            path: &image.image_path,
+            pixels: &pixels,
+            points: &[],
+        };
+        let photo = ClickedPhoto::ask(model, question)?;
+        let space = photo.space();
         let (w, h) = (pixels.width() as f32, pixels.height() as f32);
         let (points, material) = flatten(image);
         let at = |i: usize| {
@@ -661,14 +651,13 @@ pub fn evaluate_point_clicks(
             else {
                 continue;
             };
-            let mut selector =
-                Selector::new(&space, Some(&pixels), options.radius).map_err(select_error)?;
+            let mut selector = photo.start(space.as_ref(), options.radius)?;
             let mut clicked = vec![first];
             let (x, y) = at(first);
-            selector.add(Click::positive(x, y)).map_err(select_error)?;
+            selector.add(Click::positive(x, y))?;
             let mut accuracies = Vec::new();
             while clicked.len() <= most {
-                let selection = selector.selection().map_err(select_error)?;
+                let selection = selector.selection()?;
                 let value = |i: usize| {
                     let (x, y) = at(i);
                     let p = y as usize * selection.width + x as usize;
@@ -707,7 +696,7 @@ pub fn evaluate_point_clicks(
                             y,
                             positive: material[i] == target,
                         };
-                        selector.add(click).map_err(select_error)?;
+                        selector.add(click)?;
                         clicked.push(i);
                     }
                     None => {
@@ -793,7 +782,7 @@ fn balanced_accuracy(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::Described;
+    use crate::model::{ClickAnswer, Described};
     use matseg_image::progress::Silent;
 
     #[test]
@@ -904,11 +893,9 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_perfect_model_needs_one_click_and_a_constant_one_never_gets_there() {
-        // A 40 x 30 photo, grey on the left and white on the right; the
-        // mask is the left 16 columns.
-        let dir = tempfile::tempdir().unwrap();
+    /// A mask benchmark of one 40 x 30 photo, grey on the left and white
+    /// on the right, whose one mask is the left 16 columns.
+    fn halves_benchmark(dir: &std::path::Path) -> Vec<MaskImage> {
         let photo = image::RgbImage::from_fn(40, 30, |x, _| {
             image::Rgb(if x < 16 {
                 [90, 90, 90]
@@ -916,11 +903,17 @@ mod tests {
                 [250, 250, 250]
             })
         });
-        photo.save(dir.path().join("p.png")).unwrap();
+        photo.save(dir.join("p.png")).unwrap();
         let mask =
             image::GrayImage::from_fn(40, 30, |x, _| image::Luma([if x < 16 { 255 } else { 0 }]));
-        mask.save(dir.path().join("p.mask0.png")).unwrap();
-        let images = crate::masks::scan_mask_benchmark(dir.path()).unwrap();
+        mask.save(dir.join("p.mask0.png")).unwrap();
+        crate::masks::scan_mask_benchmark(dir).unwrap()
+    }
+
+    #[test]
+    fn a_perfect_model_needs_one_click_and_a_constant_one_never_gets_there() {
+        let dir = tempfile::tempdir().unwrap();
+        let images = halves_benchmark(dir.path());
         let options = ClickOptions {
             max_side: 0,
             ..ClickOptions::default()
@@ -945,6 +938,98 @@ mod tests {
         let ious = &constant.images[0].masks[0].ious;
         assert_eq!(constant.miou_curve[..ious.len()], ious[..]);
         assert_eq!(constant.drops.clicks, ious.len() - 1);
+    }
+
+    /// A model answering clicks with a similarity map per click (`1` on
+    /// the clicked side of column 16, `0` on the other) or with its own
+    /// selection (the side of its first positive click, or values out of
+    /// range when `broken`), counting the points it is asked about.
+    struct Clicked {
+        answer: ClickAnswer,
+        broken: bool,
+        asked: std::sync::Mutex<Vec<usize>>,
+    }
+
+    impl Clicked {
+        fn new(answer: ClickAnswer, broken: bool) -> Self {
+            Self {
+                answer,
+                broken,
+                asked: Default::default(),
+            }
+        }
+
+        fn side_of(x: f32, w: usize, h: usize) -> Vec<f32> {
+            let left = x < 16.0;
+            (0..w * h)
+                .map(|i| if ((i % w) < 16) == left { 1.0 } else { 0.0 })
+                .collect()
+        }
+    }
+
+    impl ScoredModel for Clicked {
+        fn name(&self) -> &str {
+            "clicked"
+        }
+        fn answer(&self, question: &Question) -> Result<crate::Answer, BenchError> {
+            self.asked.lock().unwrap().push(question.points.len());
+            let (w, h) = question.pixels.dimensions();
+            let (w, h) = (w as usize, h as usize);
+            Ok(crate::Answer::Similarity {
+                maps: question
+                    .points
+                    .iter()
+                    .map(|&(x, _)| Self::side_of(x, w, h))
+                    .collect(),
+                width: w,
+                height: h,
+            })
+        }
+        fn click_answer(&self) -> ClickAnswer {
+            self.answer
+        }
+        fn select(&self, question: &Question, clicks: &[Click]) -> Result<Vec<f32>, BenchError> {
+            let (w, h) = question.pixels.dimensions();
+            let first = clicks.iter().find(|c| c.positive).unwrap();
+            let map = Self::side_of(first.x, w as usize, h as usize);
+            Ok(match self.broken {
+                true => map.iter().map(|v| v * 2.0).collect(),
+                false => map,
+            })
+        }
+    }
+
+    #[test]
+    fn similarity_and_selecting_models_are_scored_by_clicks() {
+        let dir = tempfile::tempdir().unwrap();
+        let images = halves_benchmark(dir.path());
+        let options = ClickOptions {
+            max_side: 0,
+            ..ClickOptions::default()
+        };
+        for answer in [ClickAnswer::SimilarityMaps, ClickAnswer::Selection] {
+            let model = Clicked::new(answer, false);
+            let report = evaluate_clicks(&model, &images, &options, &Silent).unwrap();
+            assert_eq!((report.noc85, report.noc90), (Some(1.0), Some(1.0)));
+            assert_eq!(report.miou_curve, vec![1.0; 20], "{answer:?}");
+            assert_eq!(report.one_click_oracle, Some(1.0));
+            let asked = model.asked.lock().unwrap().clone();
+            match answer {
+                // One map, for the one click: nothing is left wrong after it.
+                ClickAnswer::SimilarityMaps => assert_eq!(asked, vec![1]),
+                _ => assert!(asked.is_empty(), "{asked:?}"),
+            }
+        }
+        let broken = Clicked::new(ClickAnswer::Selection, true);
+        let error = evaluate_clicks(&broken, &images, &options, &Silent)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            error.contains(
+                "photo p: clicked's selection has the value 2: give a mask or soft map in 0..1"
+            ),
+            "{error}"
+        );
     }
 
     #[test]

@@ -9,6 +9,7 @@
 
 pub mod annotation;
 pub mod baselines;
+pub mod click_selection;
 pub mod clicks;
 pub mod evaluate;
 pub mod external;
@@ -27,7 +28,7 @@ pub use evaluate::{
 };
 pub use iou::{best_iou, best_iou_on_grid, BestIou};
 pub use masks::{scan_mask_benchmark, MaskImage, QueryOptions};
-pub use model::{Answer, Described, Question, ScoredModel};
+pub use model::{Answer, ClickAnswer, Described, Question, ScoredModel};
 pub use points::{
     is_point_benchmark, load_point_benchmark, BenchError, BenchImage, PointBenchmark,
 };

@@ -6,6 +6,7 @@
 use crate::points::BenchError;
 use image::RgbImage;
 use matseg_query::descriptor::{disc_pixels, Comparison, DescriptorMap, DescriptorModel};
+use matseg_query::select::Click;
 use std::borrow::Cow;
 use std::ops::Deref;
 use std::path::Path;
@@ -100,6 +101,20 @@ impl Answer {
     }
 }
 
+/// What a model answers when the click protocol clicks on a photo.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ClickAnswer {
+    /// Descriptors of the photo, asked once; matseg's own selection
+    /// decides on them.
+    Descriptors,
+    /// A similarity map for each click, asked click by click; matseg
+    /// composes them into a selection.
+    SimilarityMaps,
+    /// Its own selection for all the clicks so far, asked after each
+    /// click ([`ScoredModel::select`]).
+    Selection,
+}
+
 /// A model as the benchmarks score it.
 pub trait ScoredModel: Sync {
     /// Its name in tables and JSON.
@@ -112,6 +127,23 @@ pub trait ScoredModel: Sync {
     /// Whether photos may be asked about from several threads at once.
     fn parallel(&self) -> bool {
         true
+    }
+
+    /// What it answers in the click protocol.
+    fn click_answer(&self) -> ClickAnswer {
+        ClickAnswer::Descriptors
+    }
+
+    /// Its selection for `clicks` on `question`'s photo, `width * height`
+    /// values in 0..=1, row by row (a pixel at 0.5 or more is selected),
+    /// when it answers clicks with [`ClickAnswer::Selection`].
+    fn select(&self, question: &Question, clicks: &[Click]) -> Result<Vec<f32>, BenchError> {
+        let _ = clicks;
+        Err(BenchError::new(
+            question.path,
+            None,
+            format!("{} does not select from clicks", self.name()),
+        ))
     }
 }
 
@@ -127,6 +159,14 @@ impl<M: ScoredModel + ?Sized> ScoredModel for &M {
 
     fn parallel(&self) -> bool {
         (**self).parallel()
+    }
+
+    fn click_answer(&self) -> ClickAnswer {
+        (**self).click_answer()
+    }
+
+    fn select(&self, question: &Question, clicks: &[Click]) -> Result<Vec<f32>, BenchError> {
+        (**self).select(question, clicks)
     }
 }
 
