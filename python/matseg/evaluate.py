@@ -26,7 +26,7 @@ A model answers one of three questions, whichever it can:
 In the click protocol a model with `select` is scored by its own
 selection; a `describe` model gets matseg's selection on its descriptors,
 and a `similarity` model gets matseg's composition of one map per click
-(docs/eval.md). `track` needs `describe`.
+(docs/eval.md). `track` needs `describe` with cosine descriptors.
 
 A plain function is taken as `describe`; a `matseg.Model` is scored as
 `matseg eval` scores it. Photos are asked about one at a time, in
@@ -50,6 +50,9 @@ from .model import Model
 
 #: The longer side benchmark photos are scored at, as `matseg eval`.
 DEFAULT_MAX_SIDE = 700
+
+#: The longer side frames are described at, as `matseg eval track`.
+DEFAULT_TRACK_SIDE = _core.DEFAULT_TRACK_SIDE
 
 Path = str | os.PathLike[str]
 
@@ -80,8 +83,20 @@ def clicks(data: Path, model: Any, *, name: str | None = None, max_side: int = D
                      radius=radius, min_area=min_area, unions=unions)
 
 
+def track(bench: Path, model: Any, *, name: str | None = None, side: int = DEFAULT_TRACK_SIDE,
+          progress: bool = True) -> dict[str, Any]:
+    """`model` on generated sequences (`matseg generate --kind 3d --frames
+    F`): each material clicked on a sequence's first frame and followed
+    through its frames, with matseg's tracker on the model's descriptors
+    (compared by cosine), as `matseg eval track DATA --json`. Frames reach
+    the model at longer side `side` at most; a `matseg.Model` describes
+    them as `matseg eval track` does."""
+    native = model._native if isinstance(model, Model) else None
+    return _evaluate("track", bench, model, name, progress, native=native, side=side)
+
+
 def _evaluate(protocol: str, bench: Path, model: Any, name: str | None, progress: bool,
-              **options: Any) -> dict[str, Any]:
+              native: _core.Model | None = None, **options: Any) -> dict[str, Any]:
     kind, answer, comparison, selects = _question(model)
     name = name or _name(model)
     photos: list[str] = []
@@ -113,7 +128,7 @@ def _evaluate(protocol: str, bench: Path, model: Any, name: str | None, progress
         return array(selects(image, _points(positives), _points(negatives)), "select")
 
     report = _core.evaluate(protocol, os.fspath(bench), ask if answer else None, select if selects else None,
-                            name, kind, comparison, json.dumps(options))
+                            name, kind, comparison, json.dumps(options), native)
     result: dict[str, Any] = json.loads(report)
     return result
 

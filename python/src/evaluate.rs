@@ -6,16 +6,23 @@
 
 use crate::buffer::{contiguous, Buffer};
 use crate::errors::matseg_error;
+use crate::model::PyModel;
+use image::RgbImage;
 use matseg_eval::clicks::{
     evaluate_clicks, evaluate_point_clicks, ClickEvaluation, ClickOptions, Targets,
 };
-use matseg_eval::external::{answer_from_array, MapKind};
+use matseg_eval::evaluate::resize_longer_side;
+use matseg_eval::external::{answer_from_array, descriptor_grid, MapKind};
 use matseg_eval::points::BenchError;
 use matseg_eval::{
     evaluate_masks, is_point_benchmark, load_point_benchmark, scan_mask_benchmark, Answer,
     ClickAnswer, MaskEvalOptions, MaskEvaluation, QueryOptions, Question, ScoredModel,
 };
 use matseg_image::progress::Silent;
+use matseg_pipeline::error::PipelineError;
+use matseg_pipeline::track_bench::{eval_track, FrameDescriber, TrackBenchSettings};
+use matseg_query::coarse::CoarseDescriptors;
+use matseg_query::descriptor::Comparison;
 use matseg_query::select::Click;
 use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
 use pyo3::prelude::*;
@@ -141,6 +148,85 @@ impl ScoredModel for PythonModel {
     }
 }
 
+impl FrameDescriber for PythonModel {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn describe_frame(
+        &self,
+        frame: &RgbImage,
+        side: u32,
+        (sequence, index): (u64, usize),
+        path: &Path,
+    ) -> Result<CoarseDescriptors, PipelineError> {
+        let ask = match (&self.ask, self.kind) {
+            (Some(ask), MapKind::Descriptors(Comparison::Cosine)) => ask,
+            _ => {
+                return Err(PipelineError::file(
+                    &self.name,
+                    "track needs describe(image) with descriptors compared by cosine",
+                ))
+            }
+        };
+        let (width, height) = frame.dimensions();
+        let pixels = match width.max(height) > side {
+            true => resize_longer_side(frame.clone(), side).0,
+            false => frame.clone(),
+        };
+        let name = format!("sequence {sequence} frame {index}");
+        let question = Question {
+            name: &name,
+            path,
+            pixels: &pixels,
+            points: &[],
+        };
+        let (shape, values) = self.call(ask, &question, vec![Vec::new()])?;
+        let mut grid = descriptor_grid(values, &shape, &question, Path::new(&self.name))?;
+        for descriptor in grid.data.chunks_exact_mut(grid.dim) {
+            let norm = descriptor.iter().map(|v| v * v).sum::<f32>().sqrt();
+            descriptor
+                .iter_mut()
+                .for_each(|v| *v /= norm.max(f32::EPSILON));
+        }
+        Ok(CoarseDescriptors {
+            grid,
+            width: width as usize,
+            height: height as usize,
+        })
+    }
+}
+
+/// matseg's own net, handed over from Python as a `matseg.Model`, for the
+/// tracking benchmark: it describes frames as `matseg eval track` does.
+struct NativeNet<'a> {
+    name: String,
+    model: &'a PyModel,
+    /// Where a Ctrl-C between frames is kept, to be raised again.
+    raised: &'a Mutex<Option<PyErr>>,
+}
+
+impl FrameDescriber for NativeNet<'_> {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn describe_frame(
+        &self,
+        frame: &RgbImage,
+        side: u32,
+        at: (u64, usize),
+        path: &Path,
+    ) -> Result<CoarseDescriptors, PipelineError> {
+        Python::attach(|py| py.check_signals()).map_err(|e| {
+            let message = e.to_string();
+            *matseg_image::sync::lock(self.raised) = Some(e);
+            PipelineError::file(path.display(), message)
+        })?;
+        self.model.net.describe_frame(frame, side, at, path)
+    }
+}
+
 /// `matseg.evaluate.points`' options.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -161,6 +247,13 @@ struct MaskSettings {
     grid: Option<usize>,
 }
 
+/// `matseg.evaluate.track`'s options, as `matseg eval track` names them.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TrackSettings {
+    side: u32,
+}
+
 /// `matseg.evaluate.clicks`' options, as `matseg eval clicks` names them.
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -174,15 +267,16 @@ struct ClickSettings {
 
 /// Scores the model `ask` answers for (named `name`; `kind` `descriptors`
 /// or `similarity`, `comparison` `cosine` or `euclidean`), with its own
-/// selection `select` in the click protocol when given, on the
-/// benchmark `bench` by `protocol` (`points`, `masks` or `clicks`), with
-/// that protocol's `options` (JSON). Returns the JSON `matseg eval PROTOCOL --json`
+/// selection `select` in the click protocol when given, or matseg's own
+/// net `native` (track only), on the benchmark `bench` by `protocol`
+/// (`points`, `masks`, `clicks` or `track`), with that protocol's
+/// `options` (JSON). Returns the JSON `matseg eval PROTOCOL --json`
 /// prints. What the model raised is the cause of a `MatsegError` naming
 /// the photo (a `KeyboardInterrupt` is raised again as it is); a wrong
 /// shape or a NaN is a `MatsegError` naming the photo.
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (protocol, bench, ask, select, name, kind, comparison, options))]
+#[pyo3(signature = (protocol, bench, ask, select, name, kind, comparison, options, native=None))]
 pub fn evaluate(
     py: Python<'_>,
     protocol: &str,
@@ -193,6 +287,7 @@ pub fn evaluate(
     kind: &str,
     comparison: Option<&str>,
     options: &str,
+    native: Option<PyRef<'_, PyModel>>,
 ) -> PyResult<String> {
     let kind =
         MapKind::parse(Some(kind), comparison).map_err(|e| PyValueError::new_err(e.to_string()))?;
@@ -203,7 +298,12 @@ pub fn evaluate(
         select,
         raised: Mutex::new(None),
     };
-    let scored = score(protocol, &bench, &model, options);
+    let native = native.as_deref().map(|net| NativeNet {
+        name: model.name.clone(),
+        model: net,
+        raised: &model.raised,
+    });
+    let scored = score(protocol, &bench, &model, native.as_ref(), options);
     let raised = matseg_image::sync::lock(&model.raised).take();
     match (scored, raised) {
         (Ok(json), _) => Ok(json),
@@ -222,9 +322,22 @@ fn score(
     protocol: &str,
     bench: &Path,
     model: &PythonModel,
+    native: Option<&NativeNet>,
     options: &str,
 ) -> Result<String, Box<dyn std::error::Error>> {
     let json = match protocol {
+        "track" => {
+            let o: TrackSettings = serde_json::from_str(options)?;
+            let settings = TrackBenchSettings {
+                side: o.side,
+                ..TrackBenchSettings::default()
+            };
+            let describer: &dyn FrameDescriber = match native {
+                Some(net) => net,
+                None => model,
+            };
+            serde_json::to_string(&eval_track(describer, bench, &settings)?)?
+        }
         "points" => {
             let o: PointSettings = serde_json::from_str(options)?;
             let models: [Box<dyn ScoredModel + '_>; 1] = [Box::new(model)];
@@ -289,7 +402,9 @@ fn score(
                 })?
             }
         }
-        other => return Err(format!("protocol \"{other}\": give points, masks or clicks").into()),
+        other => {
+            return Err(format!("protocol \"{other}\": give points, masks, clicks or track").into())
+        }
     };
     Ok(json)
 }

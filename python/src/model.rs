@@ -167,7 +167,7 @@ pub fn plot_losses(metrics: PathBuf, png: PathBuf) -> PyResult<()> {
 /// A loaded net (on the CPU).
 #[pyclass(module = "matseg._core", name = "Model", frozen)]
 pub struct PyModel {
-    net: NetModel,
+    pub(crate) net: NetModel,
     /// The name it was loaded by, as a saved selection records it.
     name: String,
 }

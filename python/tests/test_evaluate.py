@@ -232,3 +232,48 @@ def test_progress_names_each_photo(capfd, tmp_path):
     assert report["models"][0]["masks"] > 0
     lines = capfd.readouterr().err.splitlines()
     assert lines == [f"matseg.evaluate.clicks rgb: photo {k + 1} {p}" for k, p in enumerate(photos)]
+
+
+@pytest.fixture(scope="module")
+def sequence(matseg_bin, tmp_path_factory):
+    """One generated sequence of 4 frames of a 128 px scene of two materials."""
+    folder = tmp_path_factory.mktemp("track")
+    recipe = folder / "recipe.toml"
+    recipe.write_text("p_single_object = 1.0\np_many_materials = 0.0\ndistinct_materials = true\n"
+                      "p_transmissive = 0.0\np_metal = 0.0\np_ground = 0.0\np_distractors = 0.0\n"
+                      "map_scale_log10 = [-0.3, 0.2]\n")
+    run([matseg_bin, "generate", "--kind", "3d", "--frames", 4, "-n", 1, "--seed", 6, "--size", 128, "--spp", 4,
+         "--config", recipe, "--threads", 2, "--out", folder / "seq"])
+    return folder / "seq"
+
+
+def test_tracking_scores_what_matseg_eval_track_scores(matseg_bin, sequence, capfd):
+    ours = json.loads(run([matseg_bin, "eval", "track", sequence, "--json"]).stdout)
+    theirs = matseg.evaluate.track(sequence, matseg.Model.load("default"), progress=False)
+    assert theirs == {**ours, "benchmark": str(sequence)} and theirs["model"] == "default"
+    assert theirs["frames"] == 4 and theirs["queries"] >= 1
+
+    class Colours:
+        """Unit rgb descriptors at a stride of 4, recording the frames."""
+
+        def __init__(self):
+            self.frames = []
+
+        def describe(self, image):
+            self.frames.append(image.shape)
+            return rgb(image)[2::4, 2::4] + F32(0.1)
+
+    colours = Colours()
+    report = matseg.evaluate.track(sequence, colours, side=64)
+    assert colours.frames == [(64, 64, 3)] * 4, "one call a frame, at the side asked"
+    assert report["model"] == "Colours" and report["side"] == 64
+    assert [q["point"] for q in report["per_query"]] == [q["point"] for q in ours["per_query"]]
+    for scores in (report["with_memory"], report["first_frame_only"]):
+        assert 0.0 < scores["mean_iou"] <= 1.0
+    lines = capfd.readouterr().err.splitlines()
+    assert lines == [f"matseg.evaluate.track Colours: photo {f + 1} sequence 0 frame {f}" for f in range(4)]
+
+    with pytest.raises(matseg.MatsegError, match="track needs describe"):
+        matseg.evaluate.track(sequence, Colour("rgb", rgb), progress=False)
+    with pytest.raises(matseg.MatsegError, match="value NaN at index 0 for photo sequence 0 frame 0"):
+        matseg.evaluate.track(sequence, lambda image: np.full(image.shape, np.nan, F32), progress=False)

@@ -6,6 +6,7 @@ use crate::common::BarProgress;
 use crate::net_args::parse_device;
 use crate::query_args::{parse_point, parse_radius};
 use anyhow::Result;
+use matseg_net::infer::NetModel;
 use matseg_pipeline::frames::FrameSource;
 use matseg_pipeline::segment::{Model, DEFAULT_RADIUS};
 use matseg_pipeline::track::{track_to_folder, TrackFiles, TrackSettings, DEFAULT_TRACK_SIDE};
@@ -154,7 +155,8 @@ pub struct EvalArgs {
 
 /// Runs `matseg eval track`.
 pub fn eval(args: EvalArgs) -> Result<()> {
-    let net = args.tracking.load()?;
+    let tracking = &args.tracking;
+    let net = NetModel::load(&tracking.model, parse_device(&tracking.device)?)?;
     let settings = TrackBenchSettings {
         side: args.tracking.side,
         options: args.tracking.tracker.options(),

@@ -73,35 +73,83 @@ pub fn answer_from_array(
     question: &Question,
     source: &Path,
 ) -> Result<Answer, BenchError> {
-    let fail = |m: String| BenchError::new(source, None, m);
     let (width, height) = (
         question.pixels.width() as usize,
         question.pixels.height() as usize,
     );
-    let asked = question.points.len();
-    let wanted = match kind {
-        MapKind::Descriptors(_) => "(h, w, d) descriptors".to_string(),
-        MapKind::Similarity => format!("({asked}, h, w): a similarity map per asked point"),
+    Ok(match kind {
+        MapKind::Descriptors(comparison) => {
+            let grid = descriptor_grid(values, shape, question, source)?;
+            Answer::Descriptors {
+                map: DescriptorMap {
+                    width,
+                    height,
+                    dim: grid.dim,
+                    data: resize_channels(
+                        Cow::Owned(grid.data),
+                        (grid.width, grid.height),
+                        grid.dim,
+                        (width, height),
+                    ),
+                },
+                comparison,
+            }
+        }
+        MapKind::Similarity => {
+            let asked = question.points.len();
+            let wanted = format!("({asked}, h, w): a similarity map per asked point");
+            let (k, h, w) = checked(&values, shape, question, source, &wanted)?;
+            if k != asked {
+                return Err(wrong_shape(shape, question, source, &wanted));
+            }
+            Answer::Similarity {
+                maps: values
+                    .chunks_exact(h * w)
+                    .map(|map| resize_channels(Cow::Borrowed(map), (w, h), 1, (width, height)))
+                    .collect(),
+                width,
+                height,
+            }
+        }
+    })
+}
+
+/// `values` of `shape` `(h, w, d)`, a model's descriptors of `question`'s
+/// photo coming from `source`, checked (finite, no side empty) and kept at
+/// their own size.
+pub fn descriptor_grid(
+    values: Vec<f32>,
+    shape: &[usize],
+    question: &Question,
+    source: &Path,
+) -> Result<DescriptorMap, BenchError> {
+    let (height, width, dim) = checked(&values, shape, question, source, "(h, w, d) descriptors")?;
+    Ok(DescriptorMap {
+        width,
+        height,
+        dim,
+        data: values,
+    })
+}
+
+/// The three sides of `shape`, checked against `values` (as many, all
+/// finite) and none of them 0.
+fn checked(
+    values: &[f32],
+    shape: &[usize],
+    question: &Question,
+    source: &Path,
+    wanted: &str,
+) -> Result<(usize, usize, usize), BenchError> {
+    let fail = |m: String| BenchError::new(source, None, m);
+    let &[a, b, c] = shape else {
+        return Err(wrong_shape(shape, question, source, wanted));
     };
-    let [a, b, c] = shape else {
-        return Err(fail(format!(
-            "shape {shape:?} for photo {}: expected {wanted}",
-            question.name
-        )));
-    };
-    let (a, b, c) = (*a, *b, *c);
     if values.len() != a * b * c {
         return Err(fail(format!("{} values for shape {shape:?}", values.len())));
     }
-    let empty = match kind {
-        MapKind::Descriptors(_) => a == 0 || b == 0 || c == 0,
-        MapKind::Similarity => a != asked || b == 0 || c == 0,
-    };
-    if empty {
-        return Err(fail(format!(
-            "shape {shape:?} for photo {} ({width}x{height}): expected {wanted}",
-            question.name
-        )));
+    if a == 0 || b == 0 || c == 0 {
+        return Err(wrong_shape(shape, question, source, wanted));
     }
     if let Some(i) = values.iter().position(|v| !v.is_finite()) {
         return Err(fail(format!(
@@ -109,25 +157,20 @@ pub fn answer_from_array(
             values[i], question.name
         )));
     }
-    Ok(match kind {
-        MapKind::Descriptors(comparison) => Answer::Descriptors {
-            map: DescriptorMap {
-                width,
-                height,
-                dim: c,
-                data: resize_channels(Cow::Owned(values), (b, a), c, (width, height)),
-            },
-            comparison,
-        },
-        MapKind::Similarity => Answer::Similarity {
-            maps: values
-                .chunks_exact(b * c)
-                .map(|map| resize_channels(Cow::Borrowed(map), (c, b), 1, (width, height)))
-                .collect(),
-            width,
-            height,
-        },
-    })
+    Ok((a, b, c))
+}
+
+/// The error for an answer of `shape` where `wanted` was expected.
+fn wrong_shape(shape: &[usize], question: &Question, source: &Path, wanted: &str) -> BenchError {
+    let (width, height) = question.pixels.dimensions();
+    BenchError::new(
+        source,
+        None,
+        format!(
+            "shape {shape:?} for photo {} ({width}x{height}): expected {wanted}",
+            question.name
+        ),
+    )
 }
 
 /// `maps.json` of a map folder.

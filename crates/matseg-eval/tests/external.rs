@@ -237,7 +237,7 @@ fn missing_and_malformed_map_files_are_errors_naming_them() {
     for (bytes, says) in [
         (
             write_npy_f32(&[0.5; W * H], &[H, W]),
-            "shape [40, 64] for photo scene1: expected (h, w, d) descriptors",
+            "shape [40, 64] for photo scene1 (64x40): expected (h, w, d) descriptors",
         ),
         (
             write_npy_f32(&[f32::NAN; 12], &[2, 2, 3]),

@@ -6,11 +6,15 @@
 //! frames; each frame is scored by IoU at the best threshold (as `eval
 //! masks`) inside the ROI, with the memory and with the clicked descriptor
 //! alone, so the memory's gain is measured on the same clicks.
+//!
+//! Any [`FrameDescriber`] can be scored: matseg's nets, and models written
+//! in Python (`matseg.evaluate.track`).
 
 use crate::error::PipelineError;
-use crate::segment::Model;
+use image::RgbImage;
 use matseg_data::{Dataset, FrameOf, Sample};
 use matseg_eval::iou::best_iou;
+use matseg_net::infer::NetModel;
 use matseg_query::coarse::CoarseDescriptors;
 use matseg_query::tracking::{MaterialTracker, TrackOptions};
 use serde::Serialize;
@@ -71,9 +75,47 @@ pub struct TrackScores {
     pub by_distance: Vec<f64>,
 }
 
+/// What the tracking benchmark asks of a model: each frame's unit
+/// descriptors on a grid over it (any stride), compared by cosine.
+pub trait FrameDescriber {
+    /// Its name in the report.
+    fn name(&self) -> &str;
+
+    /// The descriptors of `frame` (frame `index` of sequence `sequence`,
+    /// from the file `path`), described at longer side `side` at most.
+    fn describe_frame(
+        &self,
+        frame: &RgbImage,
+        side: u32,
+        frame_of: (u64, usize),
+        path: &Path,
+    ) -> Result<CoarseDescriptors, PipelineError>;
+}
+
+impl FrameDescriber for NetModel {
+    fn name(&self) -> &str {
+        matseg_query::descriptor::DescriptorModel::name(self)
+    }
+
+    fn describe_frame(
+        &self,
+        frame: &RgbImage,
+        side: u32,
+        _: (u64, usize),
+        _: &Path,
+    ) -> Result<CoarseDescriptors, PipelineError> {
+        let (w, h) = frame.dimensions();
+        Ok(self
+            .lock()
+            .describe_coarse_at(frame.as_raw(), w as usize, h as usize, side))
+    }
+}
+
 /// The benchmark's result.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct TrackBenchReport {
+    /// The model scored.
+    pub model: String,
     /// The dataset folder.
     pub benchmark: String,
     /// Sequences scored.
@@ -96,7 +138,7 @@ pub struct TrackBenchReport {
 
 /// Scores `model` on the sequences in `root`.
 pub fn eval_track(
-    model: &Model,
+    model: &dyn FrameDescriber,
     root: &Path,
     settings: &TrackBenchSettings,
 ) -> Result<TrackBenchReport, PipelineError> {
@@ -110,7 +152,11 @@ pub fn eval_track(
         if clicks.is_empty() {
             continue;
         }
-        let first_map = describe(model, &first, settings.side);
+        let describe = |sample: &Sample, f: usize| {
+            let path = root.join(dataset.key(indices.1[f]));
+            model.describe_frame(&sample.image, settings.side, (sequence, f), &path)
+        };
+        let first_map = describe(&first, 0)?;
         let start = |options| {
             clicks
                 .iter()
@@ -146,7 +192,7 @@ pub fn eval_track(
             let map = if f == 0 {
                 first_map.clone()
             } else {
-                describe(model, &sample, settings.side)
+                describe(&sample, f)?
             };
             frames += 1;
             for (q, query) in queries.iter_mut().enumerate() {
@@ -173,6 +219,7 @@ pub fn eval_track(
         ));
     }
     Ok(TrackBenchReport {
+        model: model.name().to_string(),
         benchmark: root.display().to_string(),
         sequences: sequences.len(),
         queries: per_query.len(),
@@ -232,12 +279,6 @@ fn read_sequences(root: &Path) -> Result<BTreeMap<u64, (Dataset, Vec<usize>)>, P
         );
     }
     Ok(sequences)
-}
-
-/// The model's descriptors of a sample's image at one longer side.
-fn describe(model: &Model, sample: &Sample, side: u32) -> CoarseDescriptors {
-    let (w, h) = sample.image.dimensions();
-    model.describe_coarse_at(sample.image.as_raw(), w as usize, h as usize, side)
 }
 
 /// Per pixel, its index and, inside the ROI, whether it is `material`
