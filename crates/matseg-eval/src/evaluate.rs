@@ -262,7 +262,11 @@ pub(crate) fn load_mask(path: &Path, w: u32, h: u32) -> Result<GrayImage, BenchE
         line: None,
         message: format!("cannot read: {e}"),
     })?;
-    let mask = decode_grey(&bytes, path)?;
+    let mut mask = decode_grey(&bytes, path)?;
+    // A mask of 0 and 1 (a label PNG) is read as 0 and 255.
+    if mask.iter().all(|&v| v <= 1) {
+        mask.iter_mut().for_each(|v| *v *= 255);
+    }
     if mask.dimensions() == (w, h) {
         Ok(mask)
     } else {

@@ -1,13 +1,25 @@
 //! Mask benchmarks (pipeline.md §9.3): photos with ground-truth masks, queried from
 //! points sampled inside each mask and scored by IoU at the best threshold.
 //!
-//! Layout, one image per name in one folder:
+//! matseg's layout, one image per name in one folder:
 //!
 //! ```text
 //! DATA_DIR/NAME.jpg (or .png)     the photo
 //! DATA_DIR/NAME.mask0.png, ...    one 8-bit mask per material (>= 128 is inside)
 //! DATA_DIR/NAME.roi.png           optional: only pixels >= 128 are scored
 //! ```
+//!
+//! or the layouts material-mask sets come in, photos and masks in two
+//! folders, one mask per material:
+//!
+//! ```text
+//! DATA_DIR/images/NAME.jpg (or .jpeg, .png)
+//! DATA_DIR/masks/NAME.png                 one material
+//! DATA_DIR/masks/NAME_1.png, NAME_2.png   one per material, numbered from 0 or 1
+//! DATA_DIR/masks/NAME/1.png, 2.png        the same, a folder per photo
+//! ```
+//!
+//! A mask of 0 and 1 only is read as 0 and 255.
 
 use crate::points::BenchError;
 use rand::{Rng, SeedableRng};
@@ -26,10 +38,176 @@ pub struct MaskImage {
     pub roi_path: Option<PathBuf>,
 }
 
-/// Finds the photos of a mask benchmark and their masks (sorted by name).
-/// A photo without `NAME.mask0.png` is an error, as is a gap in the mask
-/// numbers.
+/// Finds the photos of a mask benchmark and their masks (sorted by name),
+/// in either layout (the module's doc). A photo without masks is an error,
+/// as is a gap in the mask numbers, and a mask of no photo.
 pub fn scan_mask_benchmark(dir: &Path) -> Result<Vec<MaskImage>, BenchError> {
+    match dir.join(MASKS).is_dir() {
+        true => scan_mask_folders(dir),
+        false => scan_flat(dir),
+    }
+}
+
+/// The folder of masks in the two-folder layout.
+const MASKS: &str = "masks";
+
+/// The folder of photos in the two-folder layout.
+const IMAGES: &str = "images";
+
+/// The names in folder `dir`, sorted, with whether each is a folder.
+fn listed(dir: &Path) -> Result<Vec<(String, bool)>, BenchError> {
+    let fail = |m: String| BenchError::new(dir, None, m);
+    let mut names = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(|e| fail(format!("cannot list: {e}")))? {
+        let entry = entry.map_err(|e| fail(format!("cannot list: {e}")))?;
+        let name = entry.file_name();
+        let name = name
+            .to_str()
+            .ok_or_else(|| fail(format!("{name:?} is not UTF-8")))?;
+        names.push((name.to_string(), entry.path().is_dir()));
+    }
+    names.sort();
+    Ok(names)
+}
+
+/// Whether `file` is a photo by its extension.
+fn is_photo_file(file: &str) -> bool {
+    let lower = file.to_lowercase();
+    lower.ends_with(".jpg") || lower.ends_with(".jpeg") || lower.ends_with(".png")
+}
+
+/// `file`'s name without its extension.
+fn stem(file: &str) -> &str {
+    file.rsplit_once('.').map_or(file, |(n, _)| n)
+}
+
+/// The paths of masks `(number, path)` in number order, when they are
+/// numbered from 0 or 1 without gaps, or why not (`what` names them).
+fn numbered(mut numbers: Vec<(usize, PathBuf)>, what: &str) -> Result<Vec<PathBuf>, String> {
+    numbers.sort();
+    let first = numbers.first().map_or(0, |n| n.0);
+    let gapless = numbers
+        .iter()
+        .enumerate()
+        .all(|(i, (k, _))| *k == first + i);
+    if first > 1 || !gapless {
+        let found: Vec<String> = numbers.iter().map(|n| n.0.to_string()).collect();
+        return Err(format!(
+            "{what} are numbered {}: number them from 0 or 1 without gaps",
+            found.join(", ")
+        ));
+    }
+    Ok(numbers.into_iter().map(|n| n.1).collect())
+}
+
+/// The two-folder layout: `images/` and `masks/`.
+fn scan_mask_folders(dir: &Path) -> Result<Vec<MaskImage>, BenchError> {
+    let (images, masks) = (dir.join(IMAGES), dir.join(MASKS));
+    if !images.is_dir() {
+        return Err(BenchError::new(
+            &images,
+            None,
+            "missing: a benchmark with masks/ keeps its photos in images/",
+        ));
+    }
+    let photos: Vec<String> = listed(&images)?
+        .into_iter()
+        .filter(|(f, folder)| !folder && is_photo_file(f))
+        .map(|(f, _)| f)
+        .collect();
+    let names: std::collections::BTreeSet<&str> = photos.iter().map(|f| stem(f)).collect();
+    if names.len() != photos.len() {
+        return Err(BenchError::new(
+            &images,
+            None,
+            "two photos share a name (NAME.jpg and NAME.png)",
+        ));
+    }
+    // Each mask file, as (photo, number): NAME.png, NAME_K.png, NAME/K.png.
+    let mut found: std::collections::BTreeMap<&str, (Vec<PathBuf>, Vec<(usize, PathBuf)>)> =
+        names.iter().map(|n| (*n, Default::default())).collect();
+    for (file, folder) in listed(&masks)? {
+        let path = masks.join(&file);
+        let orphan = || {
+            BenchError::new(
+                &path,
+                None,
+                format!(
+                    "no photo of this mask in {}: masks are NAME.png, NAME_K.png or NAME/K.png for a photo images/NAME.jpg",
+                    images.display()
+                ),
+            )
+        };
+        if folder {
+            let entry = found.get_mut(file.as_str()).ok_or_else(orphan)?;
+            for (inner, inner_folder) in listed(&path)? {
+                let number = stem(&inner).parse::<usize>().ok();
+                match (inner_folder, number, inner.to_lowercase().ends_with(".png")) {
+                    (false, Some(k), true) => entry.1.push((k, path.join(&inner))),
+                    _ => return Err(BenchError::new(
+                        &path.join(&inner),
+                        None,
+                        "not a numbered mask: a photo's folder of masks holds 0.png, 1.png, ...",
+                    )),
+                }
+            }
+            continue;
+        }
+        if !file.to_lowercase().ends_with(".png") {
+            return Err(BenchError::new(&path, None, "not a PNG mask"));
+        }
+        let name = stem(&file);
+        if let Some(entry) = found.get_mut(name) {
+            entry.0.push(path);
+            continue;
+        }
+        let numbered_of = name
+            .rsplit_once('_')
+            .and_then(|(photo, k)| Some((photo, k.parse::<usize>().ok()?)));
+        match numbered_of.and_then(|(photo, k)| Some((found.get_mut(photo)?, k))) {
+            Some((entry, k)) => entry.1.push((k, path)),
+            None => return Err(orphan()),
+        }
+    }
+    let mut out = Vec::new();
+    for photo in &photos {
+        let name = stem(photo);
+        let image_path = images.join(photo);
+        let (single, many) = found.remove(name).expect("every photo listed");
+        let fail = |m: String| BenchError::new(&image_path, None, m);
+        let mask_paths = match (single.len(), many.len()) {
+            (0, 0) => {
+                return Err(fail(format!(
+                    "no mask: expected {MASKS}/{name}.png, {MASKS}/{name}_1.png, ... or {MASKS}/{name}/1.png, ..."
+                )))
+            }
+            (1, 0) => single,
+            (0, _) => numbered(many, &format!("the masks of {name}")).map_err(fail)?,
+            _ => {
+                return Err(fail(format!(
+                    "masks in two layouts: {MASKS}/{name}.png beside numbered masks"
+                )))
+            }
+        };
+        out.push(MaskImage {
+            name: name.to_string(),
+            image_path,
+            mask_paths,
+            roi_path: None,
+        });
+    }
+    if out.is_empty() {
+        return Err(BenchError::new(
+            &images,
+            None,
+            "no photos (.jpg, .jpeg or .png)",
+        ));
+    }
+    Ok(out)
+}
+
+/// matseg's layout: photos, masks and ROIs side by side.
+fn scan_flat(dir: &Path) -> Result<Vec<MaskImage>, BenchError> {
     let fail = |m: String| BenchError {
         path: dir.to_path_buf(),
         line: None,
@@ -41,18 +219,10 @@ pub fn scan_mask_benchmark(dir: &Path) -> Result<Vec<MaskImage>, BenchError> {
         .filter_map(|e| e.file_name().to_str().map(str::to_string))
         .collect();
     files.sort();
-    let is_photo = |f: &String| {
-        let lower = f.to_lowercase();
-        (lower.ends_with(".jpg") || lower.ends_with(".jpeg") || lower.ends_with(".png"))
-            && !f.contains(".mask")
-            && !f.contains(".roi.")
-    };
+    let is_photo = |f: &String| is_photo_file(f) && !f.contains(".mask") && !f.contains(".roi.");
     let mut images = Vec::new();
     for photo in files.iter().filter(|f| is_photo(f)) {
-        let name = photo
-            .rsplit_once('.')
-            .map_or(photo.as_str(), |(n, _)| n)
-            .to_string();
+        let name = stem(photo).to_string();
         let mut mask_paths = Vec::new();
         while files.contains(&format!("{name}.mask{}.png", mask_paths.len())) {
             mask_paths.push(dir.join(format!("{name}.mask{}.png", mask_paths.len())));
