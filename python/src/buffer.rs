@@ -149,6 +149,44 @@ pub fn contiguous<T: Element + Copy>(
     buffer.to_vec(py)
 }
 
+/// A C-contiguous float32 array handed in from Python, read where numpy
+/// keeps it rather than copied: a model's answer, hundreds of megabytes at
+/// full resolution. The buffer view keeps the memory alive and, while it
+/// is held, the array cannot be resized; the harness reads it before it
+/// asks the model anything else, and the model's contract is not to
+/// change an answer it has returned meanwhile.
+pub struct HeldArray(PyBuffer<f32>);
+
+impl HeldArray {
+    /// `data`'s values, `expected` of them; `what` names it in errors.
+    pub fn new(data: &Bound<'_, PyAny>, expected: usize, what: &str) -> PyResult<Self> {
+        let buffer = c_contiguous::<f32>(data, what)?;
+        if buffer.item_count() != expected {
+            return Err(PyValueError::new_err(format!(
+                "{what}: {} values, expected {expected}",
+                buffer.item_count()
+            )));
+        }
+        Ok(Self(buffer))
+    }
+}
+
+impl std::ops::Deref for HeldArray {
+    type Target = [f32];
+
+    fn deref(&self) -> &[f32] {
+        let count = self.0.item_count();
+        if count == 0 {
+            return &[];
+        }
+        // SAFETY: the view is of `count` C-contiguous, aligned f32 values
+        // (PyBuffer::get checked the format, item size and alignment), and
+        // it keeps the exporting object's memory alive until it is
+        // released with the view, after any borrow of `self` ends.
+        unsafe { std::slice::from_raw_parts(self.0.buf_ptr().cast::<f32>().cast_const(), count) }
+    }
+}
+
 /// An RGB image handed in as a C-contiguous `height x width x 3` uint8
 /// array, its size read from the array's own shape.
 pub struct Photo(pub RgbImage);

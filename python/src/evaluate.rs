@@ -4,7 +4,7 @@
 //! inside) the model's calls, and what the model raises reaches the caller
 //! with the photo named.
 
-use crate::buffer::{contiguous, Buffer};
+use crate::buffer::{Buffer, HeldArray};
 use crate::errors::matseg_error;
 use crate::model::PyModel;
 use image::RgbImage;
@@ -13,6 +13,7 @@ use matseg_eval::clicks::{
 };
 use matseg_eval::evaluate::resize_longer_side;
 use matseg_eval::external::{answer_from_array, descriptor_grid, MapKind};
+use matseg_eval::model::Values;
 use matseg_eval::points::BenchError;
 use matseg_eval::{
     evaluate_masks, is_point_benchmark, load_point_benchmark, scan_mask_benchmark, Answer,
@@ -52,8 +53,8 @@ impl PythonModel {
         function: &Py<PyAny>,
         question: &Question,
         more: Vec<Vec<(f32, f32)>>,
-    ) -> Result<(Vec<usize>, Vec<f32>), BenchError> {
-        let asked = Python::attach(|py| -> PyResult<(Vec<usize>, Vec<f32>)> {
+    ) -> Result<(Vec<usize>, Values), BenchError> {
+        let asked = Python::attach(|py| -> PyResult<(Vec<usize>, Values)> {
             py.check_signals()?;
             let (w, h) = question.pixels.dimensions();
             let pixels = Buffer::new(question.pixels.as_raw().clone());
@@ -69,13 +70,12 @@ impl PythonModel {
             let array = function.call1(py, PyTuple::new(py, arguments)?)?;
             let array = array.bind(py);
             let shape: Vec<usize> = array.getattr("shape")?.extract()?;
-            let values = contiguous::<f32>(
-                py,
+            let values = HeldArray::new(
                 array,
                 shape.iter().product(),
                 &format!("the model's answer for photo {}", question.name),
             )?;
-            Ok((shape, values))
+            Ok((shape, Values::Held(Box::new(values))))
         });
         asked.map_err(|e| {
             let message = format!("photo {}: the model raised {e}", question.name);
@@ -144,7 +144,7 @@ impl ScoredModel for PythonModel {
                 ),
             ));
         }
-        Ok(values)
+        Ok(values.into_vec())
     }
 }
 

@@ -394,12 +394,14 @@ pub fn evaluate_masks(
         let (mut sum, mut count) = (0.0, 0usize);
         // A photo with no queried mask is not asked about.
         if !queried.is_empty() {
-            let answer = model.answer(&Question {
-                name: &image.name,
-                path: &image.image_path,
-                pixels: &pixels,
-                points: &asked,
-            })?;
+            let answer = model
+                .answer(&Question {
+                    name: &image.name,
+                    path: &image.image_path,
+                    pixels: &pixels,
+                    points: &asked,
+                })?
+                .at_photo_size();
             for (truth, range) in queried {
                 for i in range {
                     let map = answer.map_of(i, asked[i], options.radius);

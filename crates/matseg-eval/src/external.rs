@@ -17,7 +17,7 @@
 //! the protocol asks about, in the order `matseg eval maps-template`
 //! lists them). `name` defaults to the folder's name.
 
-use crate::model::{Answer, Question, ScoredModel};
+use crate::model::{Answer, Question, ScoredModel, Values};
 use crate::points::BenchError;
 use matseg_query::descriptor::{resize_channels, Comparison, DescriptorMap};
 use matseg_weights::{read_npy, read_safetensors, DType, Tensor};
@@ -67,7 +67,7 @@ impl MapKind {
 /// question's photo: `(h, w, d)` descriptors or `(k, h, w)` similarity maps
 /// (`k` the asked points), finite values only.
 pub fn answer_from_array(
-    values: Vec<f32>,
+    values: Values,
     shape: &[usize],
     kind: MapKind,
     question: &Question,
@@ -79,19 +79,13 @@ pub fn answer_from_array(
     );
     Ok(match kind {
         MapKind::Descriptors(comparison) => {
-            let grid = descriptor_grid(values, shape, question, source)?;
-            Answer::Descriptors {
-                map: DescriptorMap {
-                    width,
-                    height,
-                    dim: grid.dim,
-                    data: resize_channels(
-                        Cow::Owned(grid.data),
-                        (grid.width, grid.height),
-                        grid.dim,
-                        (width, height),
-                    ),
-                },
+            let (h, w, dim) = checked(&values, shape, question, source, DESCRIPTORS)?;
+            Answer::Grid {
+                values,
+                width: w,
+                height: h,
+                dim,
+                photo: (width, height),
                 comparison,
             }
         }
@@ -114,21 +108,24 @@ pub fn answer_from_array(
     })
 }
 
+/// What a descriptor answer's shape must be.
+const DESCRIPTORS: &str = "(h, w, d) descriptors";
+
 /// `values` of `shape` `(h, w, d)`, a model's descriptors of `question`'s
 /// photo coming from `source`, checked (finite, no side empty) and kept at
 /// their own size.
 pub fn descriptor_grid(
-    values: Vec<f32>,
+    values: Values,
     shape: &[usize],
     question: &Question,
     source: &Path,
 ) -> Result<DescriptorMap, BenchError> {
-    let (height, width, dim) = checked(&values, shape, question, source, "(h, w, d) descriptors")?;
+    let (height, width, dim) = checked(&values, shape, question, source, DESCRIPTORS)?;
     Ok(DescriptorMap {
         width,
         height,
         dim,
-        data: values,
+        data: values.into_vec(),
     })
 }
 
@@ -151,13 +148,30 @@ fn checked(
     if a == 0 || b == 0 || c == 0 {
         return Err(wrong_shape(shape, question, source, wanted));
     }
-    if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+    if let Some(i) = first_not_finite(values) {
         return Err(fail(format!(
             "value {} at index {i} for photo {}: every value must be finite",
             values[i], question.name
         )));
     }
     Ok((a, b, c))
+}
+
+/// The index of the first value that is NaN or infinite: checked a block
+/// at a time without stopping inside one (which vectorises), then looked
+/// for in the block that has one.
+fn first_not_finite(values: &[f32]) -> Option<usize> {
+    const BLOCK: usize = 4096;
+    values.chunks(BLOCK).enumerate().find_map(|(b, block)| {
+        let finite = block.iter().fold(true, |all, v| all & v.is_finite());
+        match finite {
+            true => None,
+            false => block
+                .iter()
+                .position(|v| !v.is_finite())
+                .map(|i| b * BLOCK + i),
+        }
+    })
 }
 
 /// The error for an answer of `shape` where `wanted` was expected.
@@ -306,6 +320,12 @@ impl ScoredModel for MapFolder {
                 ),
             )
         })?;
-        answer_from_array(values, &tensor.shape, self.kind, question, &path)
+        answer_from_array(
+            Values::Owned(values),
+            &tensor.shape,
+            self.kind,
+            question,
+            &path,
+        )
     }
 }

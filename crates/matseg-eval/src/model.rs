@@ -5,7 +5,9 @@
 
 use crate::points::BenchError;
 use image::RgbImage;
-use matseg_query::descriptor::{disc_pixels, Comparison, DescriptorMap, DescriptorModel};
+use matseg_query::descriptor::{
+    disc_pixels, resize_channels, Comparison, DescriptorMap, DescriptorModel, ResizedGrid,
+};
 use matseg_query::select::Click;
 use std::borrow::Cow;
 use std::ops::Deref;
@@ -27,12 +29,73 @@ pub struct Question<'a> {
     pub points: &'a [(f32, f32)],
 }
 
-/// A model's answer about one photo, at the photo's size.
+/// The values of a model's answer: its own, or held in memory the model
+/// keeps (a numpy array the harness reads without copying).
+pub enum Values {
+    /// Values the harness owns.
+    Owned(Vec<f32>),
+    /// Values read where the model keeps them.
+    Held(Box<dyn Deref<Target = [f32]> + Send + Sync>),
+}
+
+impl Deref for Values {
+    type Target = [f32];
+
+    fn deref(&self) -> &[f32] {
+        match self {
+            Values::Owned(values) => values,
+            Values::Held(values) => values,
+        }
+    }
+}
+
+impl Values {
+    /// The values as a borrowed or owned slice, to resize.
+    fn as_cow(&self) -> Cow<'_, [f32]> {
+        Cow::Borrowed(self)
+    }
+
+    /// The values as a vector (held ones copied).
+    pub fn into_vec(self) -> Vec<f32> {
+        match self {
+            Values::Owned(values) => values,
+            Values::Held(values) => values.to_vec(),
+        }
+    }
+
+    /// The values resized from a `from` grid of `dim` channels to `to`, as
+    /// [`resize_channels`] resizes them (owned values of the same size are
+    /// kept, not copied).
+    fn resized(self, from: (usize, usize), dim: usize, to: (usize, usize)) -> Vec<f32> {
+        match self {
+            Values::Owned(values) => resize_channels(Cow::Owned(values), from, dim, to),
+            held => resize_channels(held.as_cow(), from, dim, to),
+        }
+    }
+}
+
+/// A model's answer about one photo.
 pub enum Answer {
     /// A descriptor per pixel, compared as `comparison` says.
     Descriptors {
         /// The map, the photo's size.
         map: DescriptorMap,
+        /// How its descriptors are pooled and compared.
+        comparison: Comparison,
+    },
+    /// Descriptors on a grid of their own size over the photo, resized
+    /// bilinearly to the photo where they are read.
+    Grid {
+        /// `width * height * dim` values, cell by cell.
+        values: Values,
+        /// The grid's width.
+        width: usize,
+        /// The grid's height.
+        height: usize,
+        /// Channels a cell.
+        dim: usize,
+        /// The photo's width and height.
+        photo: (usize, usize),
         /// How its descriptors are pooled and compared.
         comparison: Comparison,
     },
@@ -60,10 +123,22 @@ impl Answer {
                     .iter()
                     .map(|&(x, y, r)| map.point_descriptor(x, y, r, *comparison))
                     .collect();
-                pooled
+                compared(&pooled, *comparison)
+            }
+            Answer::Grid {
+                values,
+                width,
+                height,
+                dim,
+                photo,
+                comparison,
+            } => {
+                let grid = ResizedGrid::new(values, (*width, *height), *dim, *photo);
+                let pooled: Vec<Vec<f32>> = discs
                     .iter()
-                    .map(|a| pooled.iter().map(|b| comparison.similarity(a, b)).collect())
-                    .collect()
+                    .map(|&(x, y, r)| grid.point_descriptor(x, y, r, *comparison))
+                    .collect();
+                compared(&pooled, *comparison)
             }
             Answer::Similarity {
                 maps,
@@ -89,16 +164,67 @@ impl Answer {
     }
 
     /// The similarity map of asked point `i` (disc radius `r`), `width *
-    /// height` values: computed from descriptors, or the model's own.
+    /// height` values: computed from descriptors, or the model's own. A
+    /// grid is resized for each call: ask [`Answer::at_photo_size`]'s
+    /// answer for several maps.
     pub fn map_of(&self, i: usize, (x, y): (f32, f32), r: f32) -> Cow<'_, [f32]> {
         match self {
             Answer::Descriptors { map, comparison } => {
                 let query = map.point_descriptor(x, y, r, *comparison);
                 Cow::Owned(map.similarity_map(&query, *comparison))
             }
+            Answer::Grid {
+                values,
+                width,
+                height,
+                dim,
+                photo,
+                comparison,
+            } => {
+                let map = DescriptorMap {
+                    width: photo.0,
+                    height: photo.1,
+                    dim: *dim,
+                    data: resize_channels(values.as_cow(), (*width, *height), *dim, *photo),
+                };
+                let query = map.point_descriptor(x, y, r, *comparison);
+                Cow::Owned(map.similarity_map(&query, *comparison))
+            }
             Answer::Similarity { maps, .. } => Cow::Borrowed(&maps[i]),
         }
     }
+
+    /// The answer with its descriptors at the photo's size (a grid
+    /// resized), for reading many maps of it.
+    pub fn at_photo_size(self) -> Answer {
+        match self {
+            Answer::Grid {
+                values,
+                width,
+                height,
+                dim,
+                photo,
+                comparison,
+            } => Answer::Descriptors {
+                map: DescriptorMap {
+                    width: photo.0,
+                    height: photo.1,
+                    dim,
+                    data: values.resized((width, height), dim, photo),
+                },
+                comparison,
+            },
+            other => other,
+        }
+    }
+}
+
+/// How like each pooled descriptor is each other, `[i][j]`.
+fn compared(pooled: &[Vec<f32>], comparison: Comparison) -> Vec<Vec<f64>> {
+    pooled
+        .iter()
+        .map(|a| pooled.iter().map(|b| comparison.similarity(a, b)).collect())
+        .collect()
 }
 
 /// What a model answers when the click protocol clicks on a photo.
@@ -198,9 +324,9 @@ pub fn descriptors_of(
     question: &Question,
     protocol: &str,
 ) -> Result<(DescriptorMap, Comparison), BenchError> {
-    match answer {
+    match answer.at_photo_size() {
         Answer::Descriptors { map, comparison } => Ok((map, comparison)),
-        Answer::Similarity { .. } => Err(BenchError::new(
+        Answer::Grid { .. } | Answer::Similarity { .. } => Err(BenchError::new(
             question.path,
             None,
             format!("{protocol} needs a model that describes photos; this one answered with similarity maps"),

@@ -75,27 +75,12 @@ impl DescriptorMap {
     /// centres within `r`, the nearest pixel at least), pooled as
     /// `comparison` asks.
     pub fn point_descriptor(&self, x: f32, y: f32, r: f32, comparison: Comparison) -> Vec<f32> {
-        let disc = disc_pixels(self.width, self.height, x, y, r);
-        let mut sum = vec![0f64; self.dim];
-        for &i in &disc {
-            let d = self.at(i);
-            let scale = match comparison {
-                Comparison::Cosine => 1.0 / norm(d).max(1e-12) as f64,
-                Comparison::NegativeEuclidean => 1.0,
-            };
-            for (s, &v) in sum.iter_mut().zip(d) {
-                *s += v as f64 * scale;
-            }
-        }
-        let count = disc.len();
-        let pooled: Vec<f32> = sum.iter().map(|&s| (s / count as f64) as f32).collect();
-        match comparison {
-            Comparison::Cosine => {
-                let n = norm(&pooled).max(1e-12);
-                pooled.iter().map(|v| v / n).collect()
-            }
-            Comparison::NegativeEuclidean => pooled,
-        }
+        pool_disc(
+            (self.width, self.height, self.dim),
+            (x, y, r),
+            comparison,
+            |i| Cow::Borrowed(self.at(i)),
+        )
     }
 
     /// The similarity of every pixel to the point descriptor `query`
@@ -191,6 +176,101 @@ pub fn resize_channels(
     out
 }
 
+/// The disc of radius `r` around `(x, y)` on a `width x height` map of
+/// `dim`-long descriptors (pixel centres within `r`, the nearest pixel at
+/// least), pooled as `comparison` asks; `at(i)` is pixel `i`'s descriptor.
+fn pool_disc<'a>(
+    (width, height, dim): (usize, usize, usize),
+    (x, y, r): (f32, f32, f32),
+    comparison: Comparison,
+    at: impl Fn(usize) -> Cow<'a, [f32]>,
+) -> Vec<f32> {
+    let disc = disc_pixels(width, height, x, y, r);
+    let mut sum = vec![0f64; dim];
+    for &i in &disc {
+        let d = at(i);
+        let scale = match comparison {
+            Comparison::Cosine => 1.0 / norm(&d).max(1e-12) as f64,
+            Comparison::NegativeEuclidean => 1.0,
+        };
+        for (s, &v) in sum.iter_mut().zip(d.iter()) {
+            *s += v as f64 * scale;
+        }
+    }
+    let count = disc.len();
+    let pooled: Vec<f32> = sum.iter().map(|&s| (s / count as f64) as f32).collect();
+    match comparison {
+        Comparison::Cosine => {
+            let n = norm(&pooled).max(1e-12);
+            pooled.iter().map(|v| v / n).collect()
+        }
+        Comparison::NegativeEuclidean => pooled,
+    }
+}
+
+/// A grid of descriptors seen at a photo's size: each pixel's descriptor
+/// computed when asked, as [`resize_channels`] computes it (the same
+/// arithmetic, so the same values bit for bit), so that pooling a few
+/// discs reads a few pixels rather than resizing every channel.
+pub struct ResizedGrid<'a> {
+    values: &'a [f32],
+    width: usize,
+    dim: usize,
+    to_width: usize,
+    to_height: usize,
+    columns: Vec<(usize, usize, f32)>,
+    rows: Vec<(usize, usize, f32)>,
+}
+
+impl<'a> ResizedGrid<'a> {
+    /// `values`, `dim` channels per cell of a `width x height` grid (as
+    /// [`resize_channels`] takes them), seen at `to_width x to_height`.
+    pub fn new(
+        values: &'a [f32],
+        (width, height): (usize, usize),
+        dim: usize,
+        (to_width, to_height): (usize, usize),
+    ) -> Self {
+        Self {
+            values,
+            width,
+            dim,
+            to_width,
+            to_height,
+            columns: bilinear_taps(to_width, width),
+            rows: bilinear_taps(to_height, height),
+        }
+    }
+
+    /// The descriptor of photo pixel `i` (row-major index).
+    pub fn pixel(&self, i: usize) -> Vec<f32> {
+        let (x0, x1, fx) = self.columns[i % self.to_width];
+        let (y0, y1, fy) = self.rows[i / self.to_width];
+        let at = |x: usize, y: usize| {
+            let start = (y * self.width + x) * self.dim;
+            &self.values[start..start + self.dim]
+        };
+        let (ta, tb, ba, bb) = (at(x0, y0), at(x1, y0), at(x0, y1), at(x1, y1));
+        (0..self.dim)
+            .map(|c| {
+                let t = ta[c] + (tb[c] - ta[c]) * fx;
+                let d = ba[c] + (bb[c] - ba[c]) * fx;
+                t + (d - t) * fy
+            })
+            .collect()
+    }
+
+    /// As [`DescriptorMap::point_descriptor`] on the resized map.
+    pub fn point_descriptor(&self, x: f32, y: f32, r: f32, comparison: Comparison) -> Vec<f32> {
+        pool_disc(
+            (self.to_width, self.to_height, self.dim),
+            (x, y, r),
+            comparison,
+            |i| Cow::Owned(self.pixel(i)),
+        )
+    }
+}
+
 fn norm(v: &[f32]) -> f32 {
     v.iter().map(|x| x * x).sum::<f32>().sqrt()
 }
@@ -208,6 +288,34 @@ pub trait DescriptorModel: Send + Sync {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_resized_grid_pools_what_the_resized_map_pools() {
+        // A 5 x 3 grid of 4 channels seen at 23 x 11, and at its own size.
+        let values: Vec<f32> = (0..5 * 3 * 4)
+            .map(|i| ((i * 37 % 11) as f32 - 5.0) / 3.0)
+            .collect();
+        for to in [(23, 11), (5, 3)] {
+            let map = DescriptorMap {
+                width: to.0,
+                height: to.1,
+                dim: 4,
+                data: resize_channels(Cow::Borrowed(&values), (5, 3), 4, to),
+            };
+            let grid = ResizedGrid::new(&values, (5, 3), 4, to);
+            for i in 0..to.0 * to.1 {
+                assert_eq!(grid.pixel(i), map.at(i), "pixel {i} at {to:?}");
+            }
+            for comparison in [Comparison::Cosine, Comparison::NegativeEuclidean] {
+                for (x, y, r) in [(0.0, 0.0, 0.0), (4.2, 2.7, 3.0), (20.0, 9.5, 6.0)] {
+                    assert_eq!(
+                        grid.point_descriptor(x, y, r, comparison),
+                        map.point_descriptor(x, y, r, comparison)
+                    );
+                }
+            }
+        }
+    }
 
     #[test]
     fn radii_are_pixels_from_zero_to_the_most() {
