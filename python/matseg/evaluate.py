@@ -117,6 +117,7 @@ def _evaluate(protocol: str, bench: Path, model: Any, name: str | None, progress
 
     def ask(buffer: _core.Buffer, height: int, width: int, photo: str,
             asked_points: list[tuple[float, float]]) -> NDArray[np.float32]:
+        assert answer is not None, "asked only when the model answers"
         image = told(buffer, height, width, photo)
         if kind == "similarity":
             return array(answer(image, _points(asked_points)), "similarity")
@@ -124,6 +125,7 @@ def _evaluate(protocol: str, bench: Path, model: Any, name: str | None, progress
 
     def select(buffer: _core.Buffer, height: int, width: int, photo: str,
                positives: list[tuple[float, float]], negatives: list[tuple[float, float]]) -> NDArray[np.float32]:
+        assert selects is not None, "asked only when the model selects"
         image = told(buffer, height, width, photo)
         return array(selects(image, _points(positives), _points(negatives)), "select")
 

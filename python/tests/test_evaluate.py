@@ -1,6 +1,7 @@
 """matseg.evaluate: models written in Python, and maps written as files,
 scored by matseg's protocols exactly as `matseg eval` scores its own."""
 
+import importlib.util
 import json
 
 import numpy as np
@@ -81,6 +82,23 @@ def test_numpy_colour_baselines_score_what_the_built_in_ones_score(matseg_bin):
     close(theirs, builtin, ["mean_iou"])
 
 
+def test_numpy_baselines_score_what_the_built_in_ones_score_on_generated_benchmarks(matseg_bin, tmp_path):
+    """A generated point benchmark (with mixtures, so Soft is scored) and
+    the mask benchmark `bench-set masks` makes from generated scenes."""
+    points = tmp_path / "points"
+    run([matseg_bin, "bench-set", "make", "--out", points, "-n", 6, "--seed", 3])
+    builtin = cli(matseg_bin, "points", points, "--baseline", "rgb", "lab", "--model", "none")["models"]
+    for ours, describe in zip(builtin, (rgb, lab), strict=True):
+        theirs = matseg.evaluate.points(points, Colour(ours["model"], describe), progress=False)["models"][0]
+        close(theirs, ours, POINT_FIELDS)
+    masks = tmp_path / "masks"
+    run([matseg_bin, "bench-set", "masks", "--out", masks, "-n", 4, "--seed", 5])
+    builtin = cli(matseg_bin, "masks", masks, "--baseline", "rgb", "--model", "none")["models"][0]
+    theirs = matseg.evaluate.masks(masks, Colour("rgb", rgb), progress=False)["models"][0]
+    assert (theirs["queries"], theirs["masks"]) == (builtin["queries"], builtin["masks"]) and builtin["queries"] > 0
+    close(theirs, builtin, ["mean_iou"])
+
+
 def test_maps_as_files_score_what_the_built_in_baseline_scores(matseg_bin, tmp_path):
     """The rgb baseline written as .npy files for `--maps`, at the photos'
     own size (--max-side 0), from the photos `maps-template` lists."""
@@ -101,15 +119,20 @@ def test_maps_as_files_score_what_the_built_in_baseline_scores(matseg_bin, tmp_p
     close(both[1], both[0], POINT_FIELDS)
 
 
-def test_the_shipped_model_scores_what_matseg_eval_scores(matseg_bin, tmp_path):
-    """On six photos of real-dev (the net is slow in a test build)."""
+def six_real_dev_photos(folder):
+    """The first six photos of real-dev, with their points, in `folder`
+    (nets are slow in a test build)."""
     for name in sorted(p.name for p in (REAL_DEV / "data").iterdir())[:6]:
-        (tmp_path / "data" / name).mkdir(parents=True)
+        (folder / "data" / name).mkdir(parents=True)
         for file in (REAL_DEV / "data" / name).iterdir():
-            (tmp_path / "data" / name / file.name).write_bytes(file.read_bytes())
-        (tmp_path / "images").mkdir(exist_ok=True)
+            (folder / "data" / name / file.name).write_bytes(file.read_bytes())
+        (folder / "images").mkdir(exist_ok=True)
         photo = REAL_DEV / "images" / f"{name}.jpg"
-        (tmp_path / "images" / photo.name).write_bytes(photo.read_bytes())
+        (folder / "images" / photo.name).write_bytes(photo.read_bytes())
+
+
+def test_the_shipped_model_scores_what_matseg_eval_scores(matseg_bin, tmp_path):
+    six_real_dev_photos(tmp_path)
     model = matseg.Model.load("default")
     ours = cli(matseg_bin, "points", tmp_path, "--model", "default")["models"][0]
     theirs = matseg.evaluate.points(tmp_path, model, progress=False)["models"][0]
@@ -222,7 +245,8 @@ def test_similarity_and_selecting_models_are_scored_by_clicks(tmp_path):
         def select(self, image, positives, negatives):
             return np.ones(image.shape[:2][::-1], dtype=np.float32)
 
-    with pytest.raises(matseg.MatsegError, match=r"shape \[188, 200\] for photo balance: select must return its \(200, 188\) selection"):
+    wrong = r"shape \[188, 200\] for photo balance: select must return its \(200, 188\) selection"
+    with pytest.raises(matseg.MatsegError, match=wrong):
         matseg.evaluate.clicks(tmp_path, Flat(), max_clicks=5, max_side=200, progress=False)
 
 
@@ -277,3 +301,21 @@ def test_tracking_scores_what_matseg_eval_track_scores(matseg_bin, sequence, cap
         matseg.evaluate.track(sequence, Colour("rgb", rgb), progress=False)
     with pytest.raises(matseg.MatsegError, match="value NaN at index 0 for photo sequence 0 frame 0"):
         matseg.evaluate.track(sequence, lambda image: np.full(image.shape, np.nan, F32), progress=False)
+
+
+def test_the_worked_example_scores_near_the_built_in_imagenet_baseline(matseg_bin, tmp_path):
+    """examples/imagenet_features.py (torchvision's ImageNet MobileNetV2 in
+    plain PyTorch, joined on a stride-4 grid) against the built-in
+    `imagenet` baseline (the same blocks, joined at the photo's size), on
+    six real-dev photos."""
+    spec = importlib.util.spec_from_file_location("imagenet_features", ROOT / "examples" / "imagenet_features.py")
+    assert spec is not None and spec.loader is not None
+    example = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(example)
+    six_real_dev_photos(tmp_path)
+    ours = cli(matseg_bin, "points", tmp_path, "--baseline", "imagenet", "--model", "none")["models"][0]
+    model = example.model()
+    theirs = matseg.evaluate.points(tmp_path, model, progress=False)["models"][0]
+    assert theirs["model"] == model.name and theirs["counts"] == ours["counts"]
+    for field in ("all_by_material", "soft_by_material"):
+        assert theirs[field] == pytest.approx(ours[field], abs=0.03), field

@@ -1,0 +1,191 @@
+"""matseg's leaderboard: every built-in baseline, matseg's own models and
+any model written in Python, scored on the real and generated benchmarks
+by the same protocols, in one Markdown table.
+
+    .venv/bin/python scripts/leaderboard.py [--out docs/leaderboard.md] [--model default]
+        [--python examples/imagenet_features.py] [--matseg target/release/matseg]
+
+The built-in baselines and `--model` runs are scored by the `matseg`
+command (`matseg eval points|masks|clicks|track --json`); each `--python`
+file's `model()` is scored by `matseg.evaluate`. The generated point
+benchmark is made by `matseg bench-set make` into a temporary folder; the
+tracking benchmark is `benchmarks/video-gen/data` when
+`benchmarks/video-gen/make.sh` has made it (otherwise its column is
+empty). Each row names the commands that scored it, and the page lists
+them in full.
+"""
+
+import argparse
+import datetime
+import importlib.util
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from typing import Any
+
+import matseg.evaluate
+
+REAL_DEV = "benchmarks/real-dev"
+REAL_MASKS = "benchmarks/real-masks"
+TRACK = "benchmarks/video-gen/data"
+BASELINES = ["rgb", "lab", "texture", "imagenet"]
+#: The generated point benchmark's folder, in a temporary one (GENERATED
+#: in the commands listed).
+GENERATED_DIR = "generated-points"
+COLUMNS = ["real-dev All", "real-dev Soft", "generated All", "generated Soft", "real-masks IoU",
+           "clicks NoC@85", "clicks IoU@1", "track IoU"]
+
+
+class Board:
+    """Rows of scores by model, and the commands that made them."""
+
+    def __init__(self) -> None:
+        self.rows: dict[str, dict[str, float | None]] = {}
+        self.how: dict[str, list[str]] = {}
+        self.commands: list[str] = []
+
+    def put(self, model: str, column: str, value: float | None, how: str) -> None:
+        self.rows.setdefault(model, {})[column] = value
+        if how not in self.how.setdefault(model, []):
+            self.how[model].append(how)
+
+    def markdown(self, header: str) -> str:
+        lines = [header, "", "| model | " + " | ".join(COLUMNS) + " | scored by |",
+                 "|---|" + "---|" * (len(COLUMNS) + 1)]
+        best = {column: self.best(column) for column in COLUMNS}
+        for model, row in self.rows.items():
+            cells = []
+            for column in COLUMNS:
+                value = row.get(column)
+                cell = "" if value is None else f"{value:.2f}" if "NoC" in column else f"{value:.3f}"
+                cells.append(f"**{cell}**" if value is not None and value == best[column] else cell)
+            lines.append(f"| {model} | " + " | ".join(cells) + " | " + "; ".join(self.how[model]) + " |")
+        lines += ["", "Commands, in the order they ran:", "", "```sh", *self.commands, "```", ""]
+        return "\n".join(lines)
+
+
+    def best(self, column: str) -> float | None:
+        """The best value of `column` (the lowest for clicks needed)."""
+        values = [v for row in self.rows.values() if (v := row.get(column)) is not None]
+        if not values:
+            return None
+        return min(values) if "NoC" in column else max(values)
+
+
+def cli(board: Board, matseg_bin: str, *args: str) -> dict[str, Any]:
+    """`matseg eval ARGS --json`, recorded on the board."""
+    board.commands.append(" ".join(["matseg", "eval", *args, "--json"]).replace(GENERATED_DIR, "GENERATED"))
+    print(board.commands[-1], file=sys.stderr, flush=True)
+    done = subprocess.run([matseg_bin, "eval", *args, "--json"], check=True, capture_output=True, text=True)
+    result: dict[str, Any] = json.loads(done.stdout)
+    return result
+
+
+def built_in(board: Board, matseg_bin: str, models: list[str], generated: str) -> None:
+    """The baselines and matseg's own models, by the `matseg` command."""
+    chosen = ["--baseline", *BASELINES, "--model", *models] if models else ["--baseline", *BASELINES,
+                                                                           "--model", "none"]
+
+    def how(report: dict[str, Any], protocol: str) -> str:
+        flag = "--baseline" if report["model"] in BASELINES else "--model"
+        return f"`matseg eval {protocol} {flag} {report['model']}`"
+
+    for bench, prefix in [(REAL_DEV, "real-dev"), (generated, "generated")]:
+        for report in cli(board, matseg_bin, "points", bench, *chosen)["models"]:
+            board.put(report["model"], f"{prefix} All", report["all_by_material"], how(report, "points"))
+            board.put(report["model"], f"{prefix} Soft", report["soft_by_material"], how(report, "points"))
+    for report in cli(board, matseg_bin, "masks", REAL_MASKS, *chosen)["models"]:
+        board.put(report["model"], "real-masks IoU", report["mean_iou"], how(report, "masks"))
+    for report in cli(board, matseg_bin, "clicks", REAL_MASKS, *chosen)["models"]:
+        board.put(report["model"], "clicks NoC@85", report["noc85"], how(report, "clicks"))
+        board.put(report["model"], "clicks IoU@1", report["miou_at"]["1"], how(report, "clicks"))
+    if os.path.isdir(TRACK):
+        for model in models:
+            report = cli(board, matseg_bin, "track", TRACK, "--model", model)
+            board.put(report["model"], "track IoU", report["with_memory"]["mean_iou"], how(report, "track"))
+
+
+def from_python(board: Board, path: str, generated: str) -> None:
+    """The model `model()` of the file at `path` makes, by `matseg.evaluate`."""
+    spec = importlib.util.spec_from_file_location("scored", path)
+    if spec is None or spec.loader is None:
+        raise SystemExit(f"{path}: not a Python file")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    model = module.model()
+    how = f"`matseg.evaluate` on `{path}`"
+
+    def run(protocol: Callable[..., dict[str, Any]], bench: str) -> dict[str, Any]:
+        shown = "GENERATED" if bench.endswith(GENERATED_DIR) else repr(bench)
+        board.commands.append(f"matseg.evaluate.{protocol.__name__}({shown}, model())  # {path}")
+        print(board.commands[-1], file=sys.stderr, flush=True)
+        return protocol(bench, model, progress=False)
+
+    for bench, prefix in [(REAL_DEV, "real-dev"), (generated, "generated")]:
+        report = run(matseg.evaluate.points, bench)["models"][0]
+        board.put(report["model"], f"{prefix} All", report["all_by_material"], how)
+        board.put(report["model"], f"{prefix} Soft", report["soft_by_material"], how)
+    report = run(matseg.evaluate.masks, REAL_MASKS)["models"][0]
+    board.put(report["model"], "real-masks IoU", report["mean_iou"], how)
+    report = run(matseg.evaluate.clicks, REAL_MASKS)["models"][0]
+    board.put(report["model"], "clicks NoC@85", report["noc85"], how)
+    board.put(report["model"], "clicks IoU@1", report["miou_at"]["1"], how)
+    if os.path.isdir(TRACK) and getattr(model, "comparison", "cosine") == "cosine":
+        report = run(matseg.evaluate.track, TRACK)
+        board.put(report["model"], "track IoU", report["with_memory"]["mean_iou"], how)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--out", default="docs/leaderboard.md")
+    parser.add_argument("--model", action="append", default=None,
+                        help="a model `matseg eval --model` takes (default: default)")
+    parser.add_argument("--python", action="append", default=[],
+                        help="a Python file whose model() is scored by matseg.evaluate")
+    parser.add_argument("--matseg", default="target/release/matseg", help="the matseg command")
+    args = parser.parse_args()
+    models = args.model if args.model is not None else ["default"]
+    if os.path.exists(args.out) and not open(args.out).read().startswith("# Leaderboard"):
+        raise SystemExit(f"{args.out}: not a leaderboard this script wrote; give another --out")
+    board = Board()
+    started = time.time()
+    with tempfile.TemporaryDirectory() as scratch:
+        generated = os.path.join(scratch, GENERATED_DIR)
+        board.commands.append("matseg bench-set make --out GENERATED -n 20 --seed 0")
+        subprocess.run([args.matseg, "bench-set", "make", "--out", generated, "-n", "20", "--seed", "0"],
+                       check=True, capture_output=True)
+        built_in(board, args.matseg, models, generated)
+        for path in args.python:
+            from_python(board, path, generated)
+    machine = f"{platform.machine()}, {os.cpu_count()} cores"
+    header = "\n".join([
+        "# Leaderboard",
+        "",
+        "Every built-in baseline, matseg's shipped model and models matseg did not train, scored by the same",
+        "protocols (docs/eval.md): triplet accuracy by material (All, Soft) on `benchmarks/real-dev` and on a",
+        "generated point benchmark (`matseg bench-set make -n 20 --seed 0`), mean IoU at the best threshold on",
+        "`benchmarks/real-masks`, the click protocol on real-masks (NoC@85, lower is better; IoU after one",
+        "click) and tracking IoU with memory on `benchmarks/video-gen` (nets and Python models that describe",
+        "frames; `matseg eval track` has no baselines). Photos at longer side 700; the best of each column in",
+        "bold. Written by:",
+        "",
+        "```sh",
+        " ".join([".venv/bin/python", "scripts/leaderboard.py", *sys.argv[1:]]),
+        "```",
+        "",
+        f"on {datetime.date.today().isoformat()} ({machine}, {(time.time() - started) / 60:.0f} minutes).",
+    ])
+    partial = args.out + ".partial"
+    with open(partial, "w") as f:
+        f.write(board.markdown(header))
+    os.replace(partial, args.out)
+    print(f"{args.out}: {len(board.rows)} models", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()
