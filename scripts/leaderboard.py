@@ -48,6 +48,8 @@ class Board:
         self.rows: dict[str, dict[str, float | None]] = {}
         self.how: dict[str, list[str]] = {}
         self.commands: list[str] = []
+        #: Paths shown under another name in the commands listed.
+        self.aliases: dict[str, str] = {}
 
     def put(self, model: str, column: str, value: float | None, how: str) -> None:
         self.rows.setdefault(model, {})[column] = value
@@ -69,6 +71,13 @@ class Board:
         return "\n".join(lines)
 
 
+    def record(self, command: str) -> None:
+        """Lists `command` (its aliased paths by their names) and shows it on stderr."""
+        for path, name in self.aliases.items():
+            command = command.replace(path, name)
+        self.commands.append(command)
+        print(command, file=sys.stderr, flush=True)
+
     def best(self, column: str) -> float | None:
         """The best value of `column` (the lowest for clicks needed)."""
         values = [v for row in self.rows.values() if (v := row.get(column)) is not None]
@@ -79,8 +88,7 @@ class Board:
 
 def cli(board: Board, matseg_bin: str, *args: str) -> dict[str, Any]:
     """`matseg eval ARGS --json`, recorded on the board."""
-    board.commands.append(" ".join(["matseg", "eval", *args, "--json"]).replace(GENERATED_DIR, "GENERATED"))
-    print(board.commands[-1], file=sys.stderr, flush=True)
+    board.record(" ".join(["matseg", "eval", *args, "--json"]))
     done = subprocess.run([matseg_bin, "eval", *args, "--json"], check=True, capture_output=True, text=True)
     result: dict[str, Any] = json.loads(done.stdout)
     return result
@@ -121,9 +129,7 @@ def from_python(board: Board, path: str, generated: str) -> None:
     how = f"`matseg.evaluate` on `{path}`"
 
     def run(protocol: Callable[..., dict[str, Any]], bench: str) -> dict[str, Any]:
-        shown = "GENERATED" if bench.endswith(GENERATED_DIR) else repr(bench)
-        board.commands.append(f"matseg.evaluate.{protocol.__name__}({shown}, model())  # {path}")
-        print(board.commands[-1], file=sys.stderr, flush=True)
+        board.record(f"matseg.evaluate.{protocol.__name__}({bench!r}, model())  # {path}")
         return protocol(bench, model, progress=False)
 
     for bench, prefix in [(REAL_DEV, "real-dev"), (generated, "generated")]:
@@ -156,7 +162,8 @@ def main() -> None:
     started = time.time()
     with tempfile.TemporaryDirectory() as scratch:
         generated = os.path.join(scratch, GENERATED_DIR)
-        board.commands.append("matseg bench-set make --out GENERATED -n 20 --seed 0")
+        board.aliases = {repr(generated): "GENERATED", generated: "GENERATED"}
+        board.record(f"matseg bench-set make --out {generated} -n 20 --seed 0")
         subprocess.run([args.matseg, "bench-set", "make", "--out", generated, "-n", "20", "--seed", "0"],
                        check=True, capture_output=True)
         built_in(board, args.matseg, models, generated)
