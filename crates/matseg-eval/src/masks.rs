@@ -100,6 +100,15 @@ fn numbered(mut numbers: Vec<(usize, PathBuf)>, what: &str) -> Result<Vec<PathBu
     Ok(numbers.into_iter().map(|n| n.1).collect())
 }
 
+/// The masks found for one photo in the two-folder layout.
+#[derive(Default)]
+struct FoundMasks {
+    /// `masks/NAME.png`.
+    single: Vec<PathBuf>,
+    /// `masks/NAME_K.png` and `masks/NAME/K.png`, with their numbers.
+    numbered: Vec<(usize, PathBuf)>,
+}
+
 /// The two-folder layout: `images/` and `masks/`.
 fn scan_mask_folders(dir: &Path) -> Result<Vec<MaskImage>, BenchError> {
     let (images, masks) = (dir.join(IMAGES), dir.join(MASKS));
@@ -123,9 +132,9 @@ fn scan_mask_folders(dir: &Path) -> Result<Vec<MaskImage>, BenchError> {
             "two photos share a name (NAME.jpg and NAME.png)",
         ));
     }
-    // Each mask file, as (photo, number): NAME.png, NAME_K.png, NAME/K.png.
-    let mut found: std::collections::BTreeMap<&str, (Vec<PathBuf>, Vec<(usize, PathBuf)>)> =
-        names.iter().map(|n| (*n, Default::default())).collect();
+    // Each mask file, by photo: NAME.png, NAME_K.png, NAME/K.png.
+    let mut found: std::collections::BTreeMap<&str, FoundMasks> =
+        names.iter().map(|n| (*n, FoundMasks::default())).collect();
     for (file, folder) in listed(&masks)? {
         let path = masks.join(&file);
         let orphan = || {
@@ -143,7 +152,7 @@ fn scan_mask_folders(dir: &Path) -> Result<Vec<MaskImage>, BenchError> {
             for (inner, inner_folder) in listed(&path)? {
                 let number = stem(&inner).parse::<usize>().ok();
                 match (inner_folder, number, inner.to_lowercase().ends_with(".png")) {
-                    (false, Some(k), true) => entry.1.push((k, path.join(&inner))),
+                    (false, Some(k), true) => entry.numbered.push((k, path.join(&inner))),
                     _ => return Err(BenchError::new(
                         &path.join(&inner),
                         None,
@@ -158,14 +167,14 @@ fn scan_mask_folders(dir: &Path) -> Result<Vec<MaskImage>, BenchError> {
         }
         let name = stem(&file);
         if let Some(entry) = found.get_mut(name) {
-            entry.0.push(path);
+            entry.single.push(path);
             continue;
         }
         let numbered_of = name
             .rsplit_once('_')
             .and_then(|(photo, k)| Some((photo, k.parse::<usize>().ok()?)));
         match numbered_of.and_then(|(photo, k)| Some((found.get_mut(photo)?, k))) {
-            Some((entry, k)) => entry.1.push((k, path)),
+            Some((entry, k)) => entry.numbered.push((k, path)),
             None => return Err(orphan()),
         }
     }
@@ -173,7 +182,10 @@ fn scan_mask_folders(dir: &Path) -> Result<Vec<MaskImage>, BenchError> {
     for photo in &photos {
         let name = stem(photo);
         let image_path = images.join(photo);
-        let (single, many) = found.remove(name).expect("every photo listed");
+        let FoundMasks {
+            single,
+            numbered: many,
+        } = found.remove(name).expect("every photo listed");
         let fail = |m: String| BenchError::new(&image_path, None, m);
         let mask_paths = match (single.len(), many.len()) {
             (0, 0) => {

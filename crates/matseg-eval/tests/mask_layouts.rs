@@ -15,6 +15,13 @@ fn real_masks() -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../benchmarks/real-masks")
 }
 
+/// The name of mask `k` of photo `name` in a layout.
+type MaskName<'a> = &'a dyn Fn(&str, usize) -> String;
+
+/// A malformed benchmark: its name, how it is made in a folder, and what
+/// its error says.
+type Case<'a> = (&'a str, &'a dyn Fn(&Path), &'a str);
+
 /// Copies `from` to `to`, making its folder.
 fn copy(from: &Path, to: &Path) {
     std::fs::create_dir_all(to.parent().unwrap()).unwrap();
@@ -22,7 +29,7 @@ fn copy(from: &Path, to: &Path) {
 }
 
 /// The photos in the two-folder layout, mask `k` named by `mask(name, k)`.
-fn two_folders(dir: &Path, mask: &dyn Fn(&str, usize) -> String) {
+fn two_folders(dir: &Path, mask: MaskName) {
     for (name, masks) in PHOTOS {
         copy(
             &real_masks().join(format!("{name}.jpg")),
@@ -79,7 +86,7 @@ fn every_layout_reads_as_the_same_benchmark() {
     }
     let expected = mean_iou(&flat);
     assert_eq!(expected.0, 5, "the masks large enough at 300 px");
-    let layouts: [(&str, &dyn Fn(&str, usize) -> String); 3] = [
+    let layouts: [(&str, MaskName); 3] = [
         ("underscore-from-0", &|name, k| format!("{name}_{k}.png")),
         ("underscore-from-1", &|name, k| {
             format!("{name}_{}.png", k + 1)
@@ -124,7 +131,7 @@ fn every_layout_reads_as_the_same_benchmark() {
 #[test]
 fn anything_else_is_an_error_naming_the_file() {
     let dir = tempfile::tempdir().unwrap();
-    let cases: [(&str, &dyn Fn(&Path), &str); 7] = [
+    let cases: [Case; 7] = [
         (
             "gap",
             &|root| {
