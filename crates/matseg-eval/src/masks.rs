@@ -82,8 +82,9 @@ fn stem(file: &str) -> &str {
 }
 
 /// The paths of masks `(number, path)` in number order, when they are
-/// numbered from 0 or 1 without gaps, or why not (`what` names them).
-fn numbered(mut numbers: Vec<(usize, PathBuf)>, what: &str) -> Result<Vec<PathBuf>, String> {
+/// numbered from 0 or 1 without gaps; otherwise an error naming `photo`,
+/// whose masks they are.
+fn numbered(mut numbers: Vec<(usize, PathBuf)>, photo: &Path) -> Result<Vec<PathBuf>, BenchError> {
     numbers.sort();
     let first = numbers.first().map_or(0, |n| n.0);
     let gapless = numbers
@@ -92,9 +93,14 @@ fn numbered(mut numbers: Vec<(usize, PathBuf)>, what: &str) -> Result<Vec<PathBu
         .all(|(i, (k, _))| *k == first + i);
     if first > 1 || !gapless {
         let found: Vec<String> = numbers.iter().map(|n| n.0.to_string()).collect();
-        return Err(format!(
-            "{what} are numbered {}: number them from 0 or 1 without gaps",
-            found.join(", ")
+        let name = photo.file_stem().unwrap_or_default().to_string_lossy();
+        return Err(BenchError::new(
+            photo,
+            None,
+            format!(
+                "the masks of {name} are numbered {}: number them from 0 or 1 without gaps",
+                found.join(", ")
+            ),
         ));
     }
     Ok(numbers.into_iter().map(|n| n.1).collect())
@@ -194,7 +200,7 @@ fn scan_mask_folders(dir: &Path) -> Result<Vec<MaskImage>, BenchError> {
                 )))
             }
             (1, 0) => single,
-            (0, _) => numbered(many, &format!("the masks of {name}")).map_err(fail)?,
+            (0, _) => numbered(many, &image_path)?,
             _ => {
                 return Err(fail(format!(
                     "masks in two layouts: {MASKS}/{name}.png beside numbered masks"
