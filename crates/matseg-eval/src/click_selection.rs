@@ -38,9 +38,21 @@ pub struct ClickedPhoto<'a> {
 }
 
 impl<'a> ClickedPhoto<'a> {
-    /// `question`'s photo for `model`, described now when the model
-    /// answers clicks with descriptors.
-    pub fn ask(model: &'a dyn ScoredModel, question: Question<'a>) -> Result<Self, BenchError> {
+    /// The photo `pixels` (benchmark photo `name`, from the file `path`)
+    /// for `model`, described now when the model answers clicks with
+    /// descriptors.
+    pub fn ask(
+        model: &'a dyn ScoredModel,
+        name: &'a str,
+        path: &'a std::path::Path,
+        pixels: &'a image::RgbImage,
+    ) -> Result<Self, BenchError> {
+        let question = Question {
+            name,
+            path,
+            pixels,
+            points: &[],
+        };
         let described = match model.click_answer() {
             ClickAnswer::Descriptors => Some(descriptors_of(
                 model.answer(&question)?,
@@ -124,8 +136,8 @@ impl ClickSelection for DescribedSelection<'_> {
 struct ComposedSelection<'a> {
     photo: &'a ClickedPhoto<'a>,
     clicks: Vec<Click>,
-    /// Each click's map, stretched to 0..1.
-    maps: Vec<Vec<f32>>,
+    /// Each click's map, stretched to 0..1, with its Otsu threshold.
+    maps: Vec<(Vec<f32>, f32)>,
 }
 
 impl ClickSelection for ComposedSelection<'_> {
@@ -148,7 +160,9 @@ impl ClickSelection for ComposedSelection<'_> {
                 ))
             }
         };
-        self.maps.push(stretched(maps.remove(0)));
+        let map = stretched(maps.remove(0));
+        let threshold = otsu_threshold(&map);
+        self.maps.push((map, threshold));
         self.clicks.push(click);
         Ok(())
     }
@@ -160,7 +174,7 @@ impl ClickSelection for ComposedSelection<'_> {
                 .iter()
                 .zip(&self.maps)
                 .filter(|(c, _)| c.positive == positive)
-                .map(|(_, m)| (&m[..], otsu_threshold(m)))
+                .map(|(_, (map, threshold))| (&map[..], *threshold))
                 .collect()
         };
         let (positive, negative) = (side(true), side(false));
@@ -297,13 +311,7 @@ mod tests {
     #[test]
     fn a_negative_click_takes_back_what_is_nearer_to_it() {
         let pixels = image::RgbImage::new(40, 3);
-        let question = Question {
-            name: "p",
-            path: std::path::Path::new("p.png"),
-            pixels: &pixels,
-            points: &[],
-        };
-        let photo = ClickedPhoto::ask(&Ramp, question).unwrap();
+        let photo = ClickedPhoto::ask(&Ramp, "p", std::path::Path::new("p.png"), &pixels).unwrap();
         assert!(photo.space().is_none());
         let mut selection = photo.start(None, 5.0).unwrap();
         assert!(selection.selection().is_err(), "no positive click yet");

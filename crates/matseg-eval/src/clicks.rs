@@ -14,7 +14,7 @@ use crate::click_selection::{ClickSelection, ClickedPhoto};
 use crate::evaluate::{check_cancelled, load_mask, resize_longer_side};
 use crate::iou::best_iou;
 use crate::masks::MaskImage;
-use crate::model::{Question, ScoredModel};
+use crate::model::ScoredModel;
 use crate::points::{flatten, BenchError, PointBenchmark};
 use matseg_image::io::read_rgb;
 use matseg_image::progress::Progress;
@@ -492,13 +492,7 @@ pub fn evaluate_clicks(
             Some(path) => inside(path)?,
             None => vec![true; w * h],
         };
-        let question = Question {
-            name: &image.name,
-            path: &image.image_path,
-            pixels: &pixels,
-            points: &[],
-        };
-        let photo = ClickedPhoto::ask(model, question)?;
+        let photo = ClickedPhoto::ask(model, &image.name, &image.image_path, &pixels)?;
         let space = photo.space();
         let masks = image
             .mask_paths
@@ -618,13 +612,7 @@ pub fn evaluate_point_clicks(
     for image in &bench.images {
         check_cancelled(progress, &image.image_path)?;
         let (pixels, scale) = resize_longer_side(read_rgb(&image.image_path)?, options.max_side);
-        let question = Question {
-            name: &image.name,
-            path: &image.image_path,
-            pixels: &pixels,
-            points: &[],
-        };
-        let photo = ClickedPhoto::ask(model, question)?;
+        let photo = ClickedPhoto::ask(model, &image.name, &image.image_path, &pixels)?;
         let space = photo.space();
         let (w, h) = (pixels.width() as f32, pixels.height() as f32);
         let (points, material) = flatten(image);
@@ -782,7 +770,7 @@ fn balanced_accuracy(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::{ClickAnswer, Described};
+    use crate::model::{ClickAnswer, Described, Question};
     use matseg_image::progress::Silent;
 
     #[test]

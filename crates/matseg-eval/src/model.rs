@@ -50,26 +50,11 @@ impl Deref for Values {
 }
 
 impl Values {
-    /// The values as a borrowed or owned slice, to resize.
-    fn as_cow(&self) -> Cow<'_, [f32]> {
-        Cow::Borrowed(self)
-    }
-
     /// The values as a vector (held ones copied).
     pub fn into_vec(self) -> Vec<f32> {
         match self {
             Values::Owned(values) => values,
             Values::Held(values) => values.to_vec(),
-        }
-    }
-
-    /// The values resized from a `from` grid of `dim` channels to `to`, as
-    /// [`resize_channels`] resizes them (owned values of the same size are
-    /// kept, not copied).
-    fn resized(self, from: (usize, usize), dim: usize, to: (usize, usize)) -> Vec<f32> {
-        match self {
-            Values::Owned(values) => resize_channels(Cow::Owned(values), from, dim, to),
-            held => resize_channels(held.as_cow(), from, dim, to),
         }
     }
 }
@@ -118,13 +103,9 @@ impl Answer {
     /// map over disc `j`.
     pub fn similarity_matrix(&self, discs: &[Disc]) -> Vec<Vec<f64>> {
         match self {
-            Answer::Descriptors { map, comparison } => {
-                let pooled: Vec<Vec<f32>> = discs
-                    .iter()
-                    .map(|&(x, y, r)| map.point_descriptor(x, y, r, *comparison))
-                    .collect();
-                compared(&pooled, *comparison)
-            }
+            Answer::Descriptors { map, comparison } => compared(discs, *comparison, |x, y, r| {
+                map.point_descriptor(x, y, r, *comparison)
+            }),
             Answer::Grid {
                 values,
                 width,
@@ -134,11 +115,9 @@ impl Answer {
                 comparison,
             } => {
                 let grid = ResizedGrid::new(values, (*width, *height), *dim, *photo);
-                let pooled: Vec<Vec<f32>> = discs
-                    .iter()
-                    .map(|&(x, y, r)| grid.point_descriptor(x, y, r, *comparison))
-                    .collect();
-                compared(&pooled, *comparison)
+                compared(discs, *comparison, |x, y, r| {
+                    grid.point_descriptor(x, y, r, *comparison)
+                })
             }
             Answer::Similarity {
                 maps,
@@ -168,11 +147,12 @@ impl Answer {
     /// grid is resized for each call: ask [`Answer::at_photo_size`]'s
     /// answer for several maps.
     pub fn map_of(&self, i: usize, (x, y): (f32, f32), r: f32) -> Cow<'_, [f32]> {
+        let similarity_to_point = |map: &DescriptorMap, comparison: Comparison| {
+            let query = map.point_descriptor(x, y, r, comparison);
+            Cow::Owned(map.similarity_map(&query, comparison))
+        };
         match self {
-            Answer::Descriptors { map, comparison } => {
-                let query = map.point_descriptor(x, y, r, *comparison);
-                Cow::Owned(map.similarity_map(&query, *comparison))
-            }
+            Answer::Descriptors { map, comparison } => similarity_to_point(map, *comparison),
             Answer::Grid {
                 values,
                 width,
@@ -180,16 +160,10 @@ impl Answer {
                 dim,
                 photo,
                 comparison,
-            } => {
-                let map = DescriptorMap {
-                    width: photo.0,
-                    height: photo.1,
-                    dim: *dim,
-                    data: resize_channels(values.as_cow(), (*width, *height), *dim, *photo),
-                };
-                let query = map.point_descriptor(x, y, r, *comparison);
-                Cow::Owned(map.similarity_map(&query, *comparison))
-            }
+            } => similarity_to_point(
+                &photo_map(Cow::Borrowed(values), (*width, *height), *dim, *photo),
+                *comparison,
+            ),
             Answer::Similarity { maps, .. } => Cow::Borrowed(&maps[i]),
         }
     }
@@ -205,26 +179,51 @@ impl Answer {
                 dim,
                 photo,
                 comparison,
-            } => Answer::Descriptors {
-                map: DescriptorMap {
-                    width: photo.0,
-                    height: photo.1,
-                    dim,
-                    data: values.resized((width, height), dim, photo),
-                },
-                comparison,
-            },
+            } => {
+                // Owned values of the photo's size are kept, not copied.
+                let map = match values {
+                    Values::Owned(owned) => {
+                        photo_map(Cow::Owned(owned), (width, height), dim, photo)
+                    }
+                    Values::Held(held) => {
+                        photo_map(Cow::Borrowed(&held), (width, height), dim, photo)
+                    }
+                };
+                Answer::Descriptors { map, comparison }
+            }
             other => other,
         }
     }
 }
 
-/// How like each pooled descriptor is each other, `[i][j]`.
-fn compared(pooled: &[Vec<f32>], comparison: Comparison) -> Vec<Vec<f64>> {
+/// How like each disc's descriptor (`pool(x, y, r)`) is each other's,
+/// `[i][j]`, as `comparison` compares them.
+fn compared(
+    discs: &[Disc],
+    comparison: Comparison,
+    pool: impl Fn(f32, f32, f32) -> Vec<f32>,
+) -> Vec<Vec<f64>> {
+    let pooled: Vec<Vec<f32>> = discs.iter().map(|&(x, y, r)| pool(x, y, r)).collect();
     pooled
         .iter()
         .map(|a| pooled.iter().map(|b| comparison.similarity(a, b)).collect())
         .collect()
+}
+
+/// A `grid` of `dim` channels resized to the photo's size as
+/// [`resize_channels`] resizes it.
+fn photo_map(
+    grid: Cow<'_, [f32]>,
+    grid_size: (usize, usize),
+    dim: usize,
+    photo: (usize, usize),
+) -> DescriptorMap {
+    DescriptorMap {
+        width: photo.0,
+        height: photo.1,
+        dim,
+        data: resize_channels(grid, grid_size, dim, photo),
+    }
 }
 
 /// What a model answers when the click protocol clicks on a photo.
