@@ -131,6 +131,7 @@ def write_safetensors(
 ) -> None: ...
 
 DEFAULT_CACHE_MB: int
+DEFAULT_MAX_SIDE: int
 DEFAULT_RADIUS: float
 DEFAULT_TRACK_SIDE: int
 DEFAULT_TRACKER: tuple[int, int, float, float, float]

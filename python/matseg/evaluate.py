@@ -46,13 +46,10 @@ from numpy.typing import NDArray
 
 from . import _core
 from ._arrays import view
-from .model import Model
+from .model import DEFAULT_TRACK_SIDE, Model
 
 #: The longer side benchmark photos are scored at, as `matseg eval`.
-DEFAULT_MAX_SIDE = 700
-
-#: The longer side frames are described at, as `matseg eval track`.
-DEFAULT_TRACK_SIDE = _core.DEFAULT_TRACK_SIDE
+DEFAULT_MAX_SIDE = _core.DEFAULT_MAX_SIDE
 
 Path = str | os.PathLike[str]
 

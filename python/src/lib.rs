@@ -45,6 +45,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
         matseg_pipeline::sources::DEFAULT_CACHE_MB,
     )?;
     m.add("DEFAULT_RADIUS", matseg_pipeline::segment::DEFAULT_RADIUS)?;
+    m.add("DEFAULT_MAX_SIDE", matseg_eval::evaluate::DEFAULT_MAX_SIDE)?;
     m.add(
         "DEFAULT_TRACK_SIDE",
         matseg_pipeline::track::DEFAULT_TRACK_SIDE,
