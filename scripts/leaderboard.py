@@ -94,6 +94,22 @@ def cli(board: Board, matseg_bin: str, *args: str) -> dict[str, Any]:
     return result
 
 
+def put(board: Board, protocol: str, report: dict[str, Any], how: str, bench: str = "") -> None:
+    """The scores of one model's `report` by `protocol` on the board
+    (`bench` names the point benchmark's columns)."""
+    model = report["model"]
+    if protocol == "points":
+        board.put(model, f"{bench} All", report["all_by_material"], how)
+        board.put(model, f"{bench} Soft", report["soft_by_material"], how)
+    elif protocol == "masks":
+        board.put(model, "real-masks IoU", report["mean_iou"], how)
+    elif protocol == "clicks":
+        board.put(model, "clicks NoC@85", report["noc85"], how)
+        board.put(model, "clicks IoU@1", report["miou_at"]["1"], how)
+    else:
+        board.put(model, "track IoU", report["with_memory"]["mean_iou"], how)
+
+
 def built_in(board: Board, matseg_bin: str, models: list[str], generated: str) -> None:
     """The baselines and matseg's own models, by the `matseg` command."""
     chosen = ["--baseline", *BASELINES, "--model", *models] if models else ["--baseline", *BASELINES,
@@ -105,17 +121,14 @@ def built_in(board: Board, matseg_bin: str, models: list[str], generated: str) -
 
     for bench, prefix in [(REAL_DEV, "real-dev"), (generated, "generated")]:
         for report in cli(board, matseg_bin, "points", bench, *chosen)["models"]:
-            board.put(report["model"], f"{prefix} All", report["all_by_material"], how(report, "points"))
-            board.put(report["model"], f"{prefix} Soft", report["soft_by_material"], how(report, "points"))
-    for report in cli(board, matseg_bin, "masks", REAL_MASKS, *chosen)["models"]:
-        board.put(report["model"], "real-masks IoU", report["mean_iou"], how(report, "masks"))
-    for report in cli(board, matseg_bin, "clicks", REAL_MASKS, *chosen)["models"]:
-        board.put(report["model"], "clicks NoC@85", report["noc85"], how(report, "clicks"))
-        board.put(report["model"], "clicks IoU@1", report["miou_at"]["1"], how(report, "clicks"))
+            put(board, "points", report, how(report, "points"), prefix)
+    for protocol in ["masks", "clicks"]:
+        for report in cli(board, matseg_bin, protocol, REAL_MASKS, *chosen)["models"]:
+            put(board, protocol, report, how(report, protocol))
     if os.path.isdir(TRACK):
         for model in models:
             report = cli(board, matseg_bin, "track", TRACK, "--model", model)
-            board.put(report["model"], "track IoU", report["with_memory"]["mean_iou"], how(report, "track"))
+            put(board, "track", report, how(report, "track"))
 
 
 def from_python(board: Board, path: str, generated: str) -> None:
@@ -133,17 +146,11 @@ def from_python(board: Board, path: str, generated: str) -> None:
         return protocol(bench, model, progress=False)
 
     for bench, prefix in [(REAL_DEV, "real-dev"), (generated, "generated")]:
-        report = run(matseg.evaluate.points, bench)["models"][0]
-        board.put(report["model"], f"{prefix} All", report["all_by_material"], how)
-        board.put(report["model"], f"{prefix} Soft", report["soft_by_material"], how)
-    report = run(matseg.evaluate.masks, REAL_MASKS)["models"][0]
-    board.put(report["model"], "real-masks IoU", report["mean_iou"], how)
-    report = run(matseg.evaluate.clicks, REAL_MASKS)["models"][0]
-    board.put(report["model"], "clicks NoC@85", report["noc85"], how)
-    board.put(report["model"], "clicks IoU@1", report["miou_at"]["1"], how)
+        put(board, "points", run(matseg.evaluate.points, bench)["models"][0], how, prefix)
+    put(board, "masks", run(matseg.evaluate.masks, REAL_MASKS)["models"][0], how)
+    put(board, "clicks", run(matseg.evaluate.clicks, REAL_MASKS)["models"][0], how)
     if os.path.isdir(TRACK) and getattr(model, "comparison", "cosine") == "cosine":
-        report = run(matseg.evaluate.track, TRACK)
-        board.put(report["model"], "track IoU", report["with_memory"]["mean_iou"], how)
+        put(board, "track", run(matseg.evaluate.track, TRACK), how)
 
 
 def main() -> None:
@@ -187,10 +194,11 @@ def main() -> None:
         "",
         f"on {datetime.date.today().isoformat()} ({machine}, {(time.time() - started) / 60:.0f} minutes).",
     ])
-    partial = args.out + ".partial"
-    with open(partial, "w") as f:
+    # Written beside the page under a name of its own, then put in its place.
+    with tempfile.NamedTemporaryFile("w", dir=os.path.dirname(os.path.abspath(args.out)), prefix=".leaderboard-",
+                                     suffix=".md", delete=False) as f:
         f.write(board.markdown(header))
-    os.replace(partial, args.out)
+    os.replace(f.name, args.out)
     print(f"{args.out}: {len(board.rows)} models", file=sys.stderr)
 
 
