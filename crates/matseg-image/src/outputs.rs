@@ -305,7 +305,51 @@ fn replace_refusal(out: &Path, command: &str) -> Option<String> {
 /// Makes the staging folder `staging` of `command`: an earlier one is
 /// removed only when it carries matseg's marker and its writer has ended.
 fn make_staging(staging: &Path, command: &str) -> Result<(), OutputError> {
-    let failed = |e: std::io::Error| OutputError::new(staging, format!("cannot write: {e}"));
+    clear_staging(staging)?;
+    std::fs::create_dir(staging).map_err(|e| cannot_write(staging, e))?;
+    own_marker(command).write(staging)
+}
+
+/// As [`make_staging`], the folder marked from the moment it has its name:
+/// made under a new name beside it, marked there and renamed, so a run
+/// killed in between leaves no unmarked folder in its place to block the
+/// next run (what it leaves beside it is in no one's way).
+fn make_staging_marked(staging: &Path, command: &str) -> Result<(), OutputError> {
+    clear_staging(staging)?;
+    let begun = (0u32..)
+        .map(|n| {
+            let mut name = temporary_path(staging).into_os_string();
+            name.push(format!(".{}.{n}", std::process::id()));
+            PathBuf::from(name)
+        })
+        .find_map(|begun| match std::fs::create_dir(&begun) {
+            // A name already there is never written into.
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => None,
+            made => Some(made.map(|()| begun)),
+        })
+        .expect("a new name")
+        .map_err(|e| cannot_write(staging, e))?;
+    own_marker(command).write(&begun)?;
+    std::fs::rename(&begun, staging).map_err(|e| cannot_write(staging, e))
+}
+
+/// This process's marker of `command`.
+fn own_marker(command: &str) -> Marker {
+    Marker {
+        command: command.to_string(),
+        writer: Some(std::process::id()),
+        files: Vec::new(),
+    }
+}
+
+fn cannot_write(path: &Path, e: std::io::Error) -> OutputError {
+    OutputError::new(path, format!("cannot write: {e}"))
+}
+
+/// Clears the way for the staging folder `staging`: an earlier one is
+/// removed only when it carries matseg's marker and its writer has ended;
+/// the folder it goes in is made when missing.
+fn clear_staging(staging: &Path) -> Result<(), OutputError> {
     if staging.symlink_metadata().is_ok() {
         match Marker::read(staging) {
             Some(marker) if marker.writer_running() && marker.writer != Some(std::process::id()) => {
@@ -317,7 +361,9 @@ fn make_staging(staging: &Path, command: &str) -> Result<(), OutputError> {
                     ),
                 ))
             }
-            Some(_) if staging.is_dir() => std::fs::remove_dir_all(staging).map_err(failed)?,
+            Some(_) if staging.is_dir() => {
+                std::fs::remove_dir_all(staging).map_err(|e| cannot_write(staging, e))?
+            }
             _ => {
                 return Err(OutputError::new(
                     staging,
@@ -330,13 +376,7 @@ fn make_staging(staging: &Path, command: &str) -> Result<(), OutputError> {
         std::fs::create_dir_all(parent)
             .map_err(|e| OutputError::new(parent, format!("cannot create: {e}")))?;
     }
-    std::fs::create_dir(staging).map_err(failed)?;
-    Marker {
-        command: command.to_string(),
-        writer: Some(std::process::id()),
-        files: Vec::new(),
-    }
-    .write(staging)
+    Ok(())
 }
 
 /// An output folder of one command written whole: the command writes into
@@ -363,7 +403,7 @@ impl StagedOutput {
             return Err(OutputError::new(&out, why));
         }
         let staging = partial_folder(&out);
-        make_staging(&staging, command)?;
+        make_staging_marked(&staging, command)?;
         Ok(Self {
             out,
             staging,
