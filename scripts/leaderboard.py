@@ -153,6 +153,24 @@ def from_python(board: Board, path: str, generated: str) -> None:
         put(board, "track", run(matseg.evaluate.track, TRACK), how)
 
 
+#: The first lines of every page this script writes: a file at --out that
+#: does not begin with them is someone else's.
+OPENING = ["# Leaderboard", "",
+           "Every built-in baseline, matseg's shipped model and models matseg did not train, scored by the same"]
+
+
+def refuse_foreign(out: str) -> None:
+    """Stops, before any work, when `out` is a folder or a file this
+    script did not write."""
+    if os.path.isdir(out):
+        raise SystemExit(f"{out}: a folder; give --out a file name")
+    if os.path.exists(out):
+        opening = "\n".join(OPENING).encode()
+        with open(out, "rb") as f:
+            if f.read(len(opening)) != opening:
+                raise SystemExit(f"{out}: not a leaderboard this script wrote; give another --out")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", default="docs/leaderboard.md")
@@ -163,8 +181,7 @@ def main() -> None:
     parser.add_argument("--matseg", default="target/release/matseg", help="the matseg command")
     args = parser.parse_args()
     models = args.model if args.model is not None else ["default"]
-    if os.path.exists(args.out) and not open(args.out).read().startswith("# Leaderboard"):
-        raise SystemExit(f"{args.out}: not a leaderboard this script wrote; give another --out")
+    refuse_foreign(args.out)
     board = Board()
     started = time.time()
     with tempfile.TemporaryDirectory() as scratch:
@@ -178,9 +195,7 @@ def main() -> None:
             from_python(board, path, generated)
     machine = f"{platform.machine()}, {os.cpu_count()} cores"
     header = "\n".join([
-        "# Leaderboard",
-        "",
-        "Every built-in baseline, matseg's shipped model and models matseg did not train, scored by the same",
+        *OPENING,
         "protocols (docs/eval.md): triplet accuracy by material (All, Soft) on `benchmarks/real-dev` and on a",
         "generated point benchmark (`matseg bench-set make -n 20 --seed 0`), mean IoU at the best threshold on",
         "`benchmarks/real-masks`, the click protocol on real-masks (NoC@85, lower is better; IoU after one",
