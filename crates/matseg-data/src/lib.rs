@@ -3,12 +3,14 @@
 
 #![warn(missing_docs)]
 
+pub mod augment;
 pub mod encode;
 pub mod folders;
 pub mod generate;
 pub mod maker;
 pub mod reader;
 pub mod seed;
+pub mod training;
 pub mod wds;
 
 pub use encode::{encode_sample, encode_scene, EncodedSample, SampleMeta};

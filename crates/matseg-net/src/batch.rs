@@ -3,38 +3,9 @@
 
 use crate::loss::ImageTargets;
 use crate::net::{normalise_input, rgb8_to_tensor};
-use matseg_data::Sample;
 use tch::{Device, Tensor};
 
-/// One training image with its ground truth, all at the same resolution.
-#[derive(Clone, Debug)]
-pub struct TrainingSample {
-    /// Interleaved 8-bit RGB, `width * height * 3` bytes.
-    pub rgb: Vec<u8>,
-    /// Width in pixels.
-    pub width: usize,
-    /// Height in pixels.
-    pub height: usize,
-    /// Per-material weights, `width * height` each (pipeline.md §7.1: mask / sum).
-    pub weights: Vec<Vec<f32>>,
-    /// 1 inside the ROI, 0 outside, `width * height`.
-    pub roi: Vec<f32>,
-}
-
-impl TrainingSample {
-    /// A stored sample as training reads it (pipeline.md §7.1).
-    pub fn from_sample(sample: Sample) -> Self {
-        let (width, height) = sample.image.dimensions();
-        let targets = sample.targets();
-        Self {
-            rgb: sample.image.into_raw(),
-            width: width as usize,
-            height: height as usize,
-            weights: targets.weights.into_iter().map(|p| p.data).collect(),
-            roi: targets.roi.data,
-        }
-    }
-}
+pub use matseg_data::training::TrainingSample;
 
 /// A batch on a device: normalised images `[B, 3, H, W]` and their targets.
 #[derive(Debug)]

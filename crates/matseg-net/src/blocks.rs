@@ -1,5 +1,6 @@
 //! Small building blocks shared by the PSP module and the decoder.
 
+pub use matseg_model::input::nearest_multiple_of_32;
 use tch::nn;
 use tch::Tensor;
 
@@ -46,10 +47,4 @@ pub fn resize_bilinear(x: &Tensor, height: i64, width: i64) -> Tensor {
 pub fn l2_normalise(x: &Tensor, dim: i64) -> Tensor {
     let norm = x.norm_scalaropt_dim(2, [dim], true).clamp_min(1e-12);
     x / norm
-}
-
-/// The multiple of 32 nearest to `n` (at least 32): the side an image is
-/// resized to before an encoder, so that every stride's grid divides it.
-pub fn nearest_multiple_of_32(n: usize) -> i64 {
-    ((n as f64 / 32.0).round() as i64).max(1) * 32
 }

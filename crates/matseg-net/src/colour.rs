@@ -9,10 +9,8 @@
 
 use crate::net::denormalise_input;
 use matseg_image::lab::{D65_WHITE_XZ, LAB_EPSILON, LAB_KAPPA, LINEAR_SRGB_TO_XYZ};
+pub use matseg_model::config::COLOUR_FEATURES;
 use tch::{nn, Tensor};
-
-/// Random Fourier features of a cell's colour.
-pub const COLOUR_FEATURES: i64 = 128;
 
 /// The kernel's bandwidth before training, in L*a*b* units.
 pub const INITIAL_BANDWIDTH: f64 = 15.0;

@@ -7,36 +7,13 @@
 //! checkpoints, converted to safetensors, load by name.
 
 use crate::encoder::Taps;
-use serde::{Deserialize, Serialize};
+pub use matseg_model::ConvNextConfig;
 use tch::nn;
 use tch::Tensor;
 
-/// LayerNorm epsilon of the reference implementation.
-const LAYER_NORM_EPS: f64 = 1e-6;
+use matseg_model::config::CONVNEXT_LAYER_NORM_EPS as LAYER_NORM_EPS;
 /// Initial layer-scale value of the reference implementation.
 const LAYER_SCALE_INIT: f64 = 1e-6;
-
-/// Depths and widths of the four stages.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub struct ConvNextConfig {
-    /// Blocks per stage.
-    pub depths: [i64; 4],
-    /// Channels per stage (strides 4, 8, 16, 32).
-    pub dims: [i64; 4],
-}
-
-impl ConvNextConfig {
-    /// ConvNeXt-T: 28 M parameters.
-    pub const TINY: Self = Self {
-        depths: [3, 3, 9, 3],
-        dims: [96, 192, 384, 768],
-    };
-    /// ConvNeXt-B, the paper's encoder: 88 M parameters.
-    pub const BASE: Self = Self {
-        depths: [3, 3, 27, 3],
-        dims: [128, 256, 512, 1024],
-    };
-}
 
 /// LayerNorm over the channels of an NCHW tensor.
 #[derive(Debug)]

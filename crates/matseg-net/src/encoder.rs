@@ -1,9 +1,9 @@
 //! The encoders the net can use, behind one interface: an image in, feature
 //! taps at strides 4, 8, 16 and 32 out.
 
-use crate::convnext::{ConvNext, ConvNextConfig};
+use crate::convnext::ConvNext;
 use crate::mobilenet_v2::MobileNetV2;
-use serde::{Deserialize, Serialize};
+pub use matseg_model::EncoderConfig;
 use tch::nn;
 use tch::Tensor;
 
@@ -28,16 +28,6 @@ impl Taps {
             .unwrap_or_else(|v: Vec<Tensor>| panic!("{} encoder taps, expected 4", v.len()));
         Self { s4, s8, s16, s32 }
     }
-}
-
-/// Which encoder, with its shape: stored in every checkpoint's config.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "kebab-case")]
-pub enum EncoderConfig {
-    /// ConvNeXt with the given depths and widths.
-    Convnext(ConvNextConfig),
-    /// torchvision's MobileNetV2 (width 1).
-    MobilenetV2,
 }
 
 /// An encoder with its parameters.

@@ -2,17 +2,20 @@
 //! descriptor map of a photo, and the net as an evaluated model
 //! ([`DescriptorModel`]) for the point and mask benchmarks.
 
-use crate::blocks::nearest_multiple_of_32;
 use crate::net::{normalise_input, rgb8_to_tensor, MaterialNet};
-use crate::train::{read_run_config, Trainer, MODEL_FILE, RUN_FILE};
+use crate::train::{read_run_config, Trainer};
 use crate::weights::load_tensors;
 use crate::{torch_device, NetError};
 use image::imageops::FilterType;
 use image::RgbImage;
 use matseg_image::device::ComputeDevice;
+use matseg_model::input::net_size;
+use matseg_model::RUN_FILE;
+pub use matseg_model::{default_model_dir, resolve_model, run_files, DEFAULT_MODEL};
 use matseg_query::coarse::CoarseDescriptors;
 use matseg_query::descriptor::{Comparison, DescriptorMap, DescriptorModel};
-use std::path::{Path, PathBuf};
+use matseg_query::net::{DescriptorNet, PhotoGrid};
+use std::path::Path;
 use std::sync::{Mutex, MutexGuard, PoisonError};
 use tch::{nn, Device, Tensor};
 
@@ -25,59 +28,6 @@ pub struct TrainedNet {
     /// Further longer sides it runs at, the descriptors of all averaged
     /// (see `RunConfig::extra_inference_sides`).
     pub extra_inference_sides: Vec<u32>,
-}
-
-/// The run folder and the weights file `model` names: a run folder and
-/// its `model.safetensors`, or a weights file and the folder it is in.
-pub fn run_files(model: &Path) -> (&Path, PathBuf) {
-    if model.is_dir() {
-        (model, model.join(MODEL_FILE))
-    } else {
-        (
-            model.parent().unwrap_or(Path::new(".")),
-            model.to_path_buf(),
-        )
-    }
-}
-
-/// What `--model default` names: the model shipped in the repository's
-/// `models/default/`.
-pub const DEFAULT_MODEL: &str = "default";
-
-/// The folder of the shipped default model: `$MATSEG_DEFAULT_MODEL` when
-/// set, else `models/default/` of the checkout this was built from, else
-/// `models/default/` under the current folder; `None` when none of them
-/// holds a run.
-pub fn default_model_dir() -> Option<PathBuf> {
-    let built_from = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/default");
-    std::env::var_os("MATSEG_DEFAULT_MODEL")
-        .map(PathBuf::from)
-        .into_iter()
-        .chain([built_from, PathBuf::from("models/default")])
-        .find(|dir| dir.join(RUN_FILE).is_file())
-}
-
-/// The model a `--model` argument names: [`DEFAULT_MODEL`] is the shipped
-/// one ([`default_model_dir`]), anything else a run folder or weights file.
-pub fn resolve_model(name: &Path) -> Result<PathBuf, NetError> {
-    if name != Path::new(DEFAULT_MODEL) {
-        return Ok(name.to_path_buf());
-    }
-    default_model_dir().ok_or_else(|| NetError::File {
-        file: "models/default".into(),
-        message: "the shipped default model is not here (set MATSEG_DEFAULT_MODEL to its folder, or give --model RUN)".into(),
-    })
-}
-
-/// The size the net sees a `width x height` image at: shrunk to fit a
-/// longer side of `side` (`None`: as it is; never enlarged), each side then
-/// the nearest multiple of 32.
-fn net_size(width: u32, height: u32, side: Option<u32>) -> (u32, u32) {
-    let shrink = side.map_or(1.0, |side| {
-        (side as f64 / width.max(height) as f64).min(1.0)
-    });
-    let fit = |n: u32| nearest_multiple_of_32((n as f64 * shrink).round() as usize) as u32;
-    (fit(width), fit(height))
 }
 
 impl TrainedNet {
@@ -206,17 +156,6 @@ impl TrainedNet {
         }
     }
 
-    /// The part of [`PixelDescriptors::descriptor_map`] that needs the
-    /// net: `photo`'s grid. [`pixel_map`] makes the map from it without
-    /// the net, so a shared net is held only for this part.
-    pub fn photo_grid(&self, photo: &RgbImage) -> Tensor {
-        self.grid(
-            photo.as_raw(),
-            photo.width() as usize,
-            photo.height() as usize,
-        )
-    }
-
     /// Unit descriptors `[D, height, width]` of an interleaved RGB image on
     /// the CPU: the net's grid resized to the image and normalised.
     pub fn describe(&self, rgb: &[u8], width: usize, height: usize) -> Tensor {
@@ -293,13 +232,6 @@ fn unit_at(grid: &Tensor, width: usize, height: usize) -> Tensor {
     crate::blocks::l2_normalise(&d, 1).squeeze_dim(0)
 }
 
-/// The descriptor map of a `width x height` photo from its grid
-/// ([`TrainedNet::photo_grid`]): the grid resized to the photo and
-/// normalised, the same map [`PixelDescriptors::descriptor_map`] gives.
-pub fn pixel_map(grid: &Tensor, width: usize, height: usize) -> DescriptorMap {
-    tensor_to_map(&unit_at(grid, width, height))
-}
-
 /// A `[D, H, W]` float tensor on the CPU as a [`DescriptorMap`].
 fn tensor_to_map(d: &Tensor) -> DescriptorMap {
     let (dim, height, width) = d.size3().expect("a [D, H, W] tensor");
@@ -371,5 +303,57 @@ impl<T: PixelDescriptors + Send> DescriptorModel for TorchModel<T> {
 
     fn describe(&self, image: &RgbImage) -> DescriptorMap {
         self.lock().descriptor_map(image)
+    }
+}
+
+/// The trained net on libtorch as the queries use it (on CUDA, or on the
+/// CPU where asked; the pure-Rust engine of matseg-infer is the CPU's
+/// default).
+impl DescriptorNet for NetModel {
+    fn output_dim(&self) -> usize {
+        self.lock().output_dim() as usize
+    }
+
+    fn inference_side(&self) -> Option<u32> {
+        self.lock().inference_side
+    }
+
+    fn set_inference_sides(&mut self, main: Option<u32>, extra: Vec<u32>) {
+        let net = self.model_mut();
+        net.inference_side = main;
+        net.extra_inference_sides = extra;
+    }
+
+    fn photo_grid(&self, photo: &RgbImage) -> PhotoGrid {
+        let grid = self.lock().grid(
+            photo.as_raw(),
+            photo.width() as usize,
+            photo.height() as usize,
+        );
+        photo_grid(&grid)
+    }
+
+    fn own_size_grid(&self, photo: &RgbImage) -> PhotoGrid {
+        photo_grid(&self.lock().grid_at(photo, None))
+    }
+
+    fn describe_frame(&self, photo: &RgbImage, side: u32) -> CoarseDescriptors {
+        self.lock().describe_coarse_at(
+            photo.as_raw(),
+            photo.width() as usize,
+            photo.height() as usize,
+            side,
+        )
+    }
+}
+
+/// A grid `[1, D, h, w]` as a [`PhotoGrid`].
+fn photo_grid(grid: &Tensor) -> PhotoGrid {
+    let map = tensor_to_map(&grid.squeeze_dim(0));
+    PhotoGrid {
+        values: map.data,
+        width: map.width,
+        height: map.height,
+        dim: map.dim,
     }
 }

@@ -7,13 +7,13 @@
 
 #![warn(missing_docs)]
 
-pub mod augment;
 pub mod batch;
 pub mod blocks;
 pub mod checkpoint_keys;
 pub mod colour;
 pub mod convnext;
-pub mod data;
+/// Where training batches come from (matseg-data's, re-exported).
+pub use matseg_data::training as data;
 pub mod decoder;
 pub mod encoder;
 pub mod features;
@@ -68,6 +68,9 @@ pub enum NetError {
         /// What is wrong.
         message: String,
     },
+    /// A model's file that cannot be found or read.
+    #[error(transparent)]
+    Model(#[from] matseg_model::ModelError),
     /// libtorch failed.
     #[error("{file}: {source}")]
     Torch {

@@ -13,8 +13,7 @@
 use crate::blocks::l2_normalise;
 use tch::{Kind, Tensor};
 
-/// Softmax temperature of the cosine similarities.
-pub const TEMPERATURE: f64 = 0.2;
+pub use matseg_model::config::TEMPERATURE;
 /// A pixel belongs to a material's region where its weight exceeds this.
 pub const REGION_THRESHOLD: f64 = 0.5;
 

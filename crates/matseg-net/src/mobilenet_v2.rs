@@ -9,26 +9,14 @@ use crate::encoder::Taps;
 use tch::nn;
 use tch::Tensor;
 
-/// (expansion t, output channels c, repeats n, first stride s) per group,
-/// from the paper's Table 2.
-const INVERTED_RESIDUALS: [(i64, i64, usize, i64); 7] = [
-    (1, 16, 1, 1),
-    (6, 24, 2, 2),
-    (6, 32, 3, 2),
-    (6, 64, 4, 2),
-    (6, 96, 3, 1),
-    (6, 160, 3, 2),
-    (6, 320, 1, 1),
-];
-/// Stem output channels.
-const STEM_CHANNELS: i64 = 32;
+/// Channels of the taps at strides 4, 8, 16 and 32.
+pub use matseg_model::config::MOBILENET_V2_TAP_CHANNELS as TAP_CHANNELS;
+use matseg_model::config::{
+    MOBILENET_V2_BLOCKS as INVERTED_RESIDUALS, MOBILENET_V2_STEM_CHANNELS as STEM_CHANNELS,
+    MOBILENET_V2_TAP_LAYERS as TAP_LAYERS,
+};
 /// Channels of the last 1x1 conv (`features.18`).
-const LAST_CHANNELS: i64 = 1280;
-/// The `features` indices whose outputs are the taps at strides 4, 8 and 16
-/// (the stride-32 tap is the last layer, `features.18`).
-const TAP_LAYERS: [usize; 3] = [3, 6, 13];
-/// Channels of those taps.
-pub const TAP_CHANNELS: [i64; 4] = [24, 32, 96, LAST_CHANNELS];
+const LAST_CHANNELS: i64 = TAP_CHANNELS[3];
 /// ImageNet classes of the classifier.
 pub const IMAGENET_CLASSES: i64 = 1000;
 

@@ -3,89 +3,14 @@
 //! L2 normalisation.
 
 use crate::blocks::{l2_normalise, resize_bilinear};
-use crate::colour::{cell_lab, ColourPart, COLOUR_FEATURES};
-use crate::convnext::ConvNextConfig;
+use crate::colour::{cell_lab, ColourPart};
 use crate::decoder::Decoder;
-use crate::encoder::{Encoder, EncoderConfig, Taps};
+use crate::encoder::{Encoder, Taps};
 use crate::psp::Psp;
-use serde::{Deserialize, Serialize};
+pub use matseg_model::input::{INPUT_MEAN, INPUT_SCALE};
+pub use matseg_model::{NetConfig, DESCRIPTOR_DIM, PRESETS};
 use tch::nn;
 use tch::Tensor;
-
-/// Per-channel mean subtracted from 0..255 RGB input (pipeline.md §8).
-pub const INPUT_MEAN: [f64; 3] = [123.68, 116.78, 103.94];
-/// Divisor of the mean-subtracted input (pipeline.md §8).
-pub const INPUT_SCALE: f64 = 65.0;
-/// Descriptor channels of the paper's net.
-pub const DESCRIPTOR_DIM: i64 = 128;
-
-/// The shape of a net: stored with every checkpoint.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub struct NetConfig {
-    /// The encoder.
-    pub encoder: EncoderConfig,
-    /// Output channels of each PSP branch.
-    pub psp_branch: i64,
-    /// Output channels of the PSP module.
-    pub psp_out: i64,
-    /// Output channels of the three decoder steps (strides 16, 8, 4).
-    pub decoder: [i64; 3],
-    /// Descriptor channels of the learned head.
-    pub descriptor_dim: i64,
-    /// Whether the encoder's own features at strides 4, 8 and 16 join the
-    /// learned descriptor: each part (the head's output and the three
-    /// taps) resized to the stride-4 grid, L2-normalised, weighted by a
-    /// learned factor (all 1 at first: with an ImageNet encoder, the taps
-    /// are then close to the `imagenet` baseline's features), then
-    /// concatenated, resized to the input and normalised again.
-    #[serde(default)]
-    pub encoder_features: bool,
-    /// Whether each stride-4 cell's mean colour joins the descriptor as a
-    /// further part ([`ColourPart`]: a learned Gaussian kernel of L*a*b*
-    /// distance, with a learned weight); the learned descriptor is then
-    /// normalised on the grid as the other parts are.
-    #[serde(default)]
-    pub colour_features: bool,
-}
-
-/// The named configurations `--encoder` accepts.
-pub const PRESETS: [&str; 3] = ["mobilenet-v2", "convnext-tiny", "convnext-base"];
-
-impl NetConfig {
-    /// A named configuration (see [`PRESETS`]). ConvNeXt widths follow the
-    /// paper's rule (PSP branches C32/2, PSP out C32, decoder C16, C8, 128:
-    /// exactly the paper's 512/1024/512/256/128 for ConvNeXt-B).
-    /// MobileNetV2's last features have 1280 channels but are a mobile
-    /// encoder's: the head stays light (branches 128, PSP 256, decoder 128).
-    pub fn preset(name: &str) -> Option<Self> {
-        let convnext = |c: ConvNextConfig| {
-            let [_, c8, c16, c32] = c.dims;
-            Self {
-                encoder: EncoderConfig::Convnext(c),
-                psp_branch: c32 / 2,
-                psp_out: c32,
-                decoder: [c16, c8, DESCRIPTOR_DIM],
-                descriptor_dim: DESCRIPTOR_DIM,
-                encoder_features: false,
-                colour_features: false,
-            }
-        };
-        match name {
-            "mobilenet-v2" => Some(Self {
-                encoder: EncoderConfig::MobilenetV2,
-                psp_branch: 128,
-                psp_out: 256,
-                decoder: [128, 128, 128],
-                descriptor_dim: DESCRIPTOR_DIM,
-                encoder_features: false,
-                colour_features: false,
-            }),
-            "convnext-tiny" => Some(convnext(ConvNextConfig::TINY)),
-            "convnext-base" => Some(convnext(ConvNextConfig::BASE)),
-            _ => None,
-        }
-    }
-}
 
 /// The net with its parameters (held by the `VarStore` it was built in).
 #[derive(Debug)]
@@ -141,16 +66,7 @@ impl MaterialNet {
 
     /// Channels of the descriptors [`MaterialNet::forward_t`] returns.
     pub fn output_dim(&self) -> i64 {
-        let taps = self.encoder.channels();
-        let encoder_parts = match self.part_log_weights {
-            Some(_) => taps[0] + taps[1] + taps[2],
-            None => 0,
-        };
-        let colour = match self.colour {
-            Some(_) => COLOUR_FEATURES,
-            None => 0,
-        };
-        self.config.descriptor_dim + encoder_parts + colour
+        self.config.output_dim()
     }
 
     /// Descriptors `[N, D, H/4, W/4]` on the stride-4 grid, not yet

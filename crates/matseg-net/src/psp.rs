@@ -6,8 +6,7 @@ use crate::blocks::{resize_bilinear, ConvBnGelu};
 use tch::nn;
 use tch::Tensor;
 
-/// The branch scales.
-pub const PSP_SCALES: [f64; 4] = [1.0, 0.5, 0.25, 0.125];
+pub use matseg_model::config::PSP_SCALES;
 
 /// The pyramid pooling module.
 #[derive(Debug)]

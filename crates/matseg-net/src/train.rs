@@ -371,10 +371,7 @@ impl Trainer {
     }
 }
 
-/// The run's settings file.
-pub const RUN_FILE: &str = "run.json";
-/// The weights for inference.
-pub const MODEL_FILE: &str = "model.safetensors";
+pub use matseg_model::{MODEL_FILE, RUN_FILE};
 /// The weights of the checkpoint that scored best on the point benchmark
 /// (`--val-points`), written whenever a checkpoint beats the best so far.
 pub const BEST_MODEL_FILE: &str = "best.safetensors";

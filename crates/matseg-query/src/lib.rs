@@ -14,6 +14,7 @@ pub mod colour_features;
 pub mod colours;
 pub mod descriptor;
 pub mod edges;
+pub mod net;
 pub mod ridge;
 pub mod select;
 pub mod tracking;

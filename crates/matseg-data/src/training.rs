@@ -4,21 +4,50 @@
 //! sees the very batches the interrupted one would have.
 
 use crate::augment::augment;
-use crate::batch::TrainingSample;
+use crate::{sample_rng, Dataset, Sample};
 use image::imageops::{self, FilterType};
 use image::{ImageBuffer, Luma, RgbImage};
-use matseg_data::{sample_rng, Dataset, Sample};
 use matseg_scene::{generate_2d, quantise_weights, Recipe2d, Sources};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
+
+/// One training image with its ground truth, all at the same resolution.
+#[derive(Clone, Debug)]
+pub struct TrainingSample {
+    /// Interleaved 8-bit RGB, `width * height * 3` bytes.
+    pub rgb: Vec<u8>,
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+    /// Per-material weights, `width * height` each (pipeline.md §7.1: mask / sum).
+    pub weights: Vec<Vec<f32>>,
+    /// 1 inside the ROI, 0 outside, `width * height`.
+    pub roi: Vec<f32>,
+}
+
+impl TrainingSample {
+    /// A stored sample as training reads it (pipeline.md §7.1).
+    pub fn from_sample(sample: Sample) -> Self {
+        let (width, height) = sample.image.dimensions();
+        let targets = sample.targets();
+        Self {
+            rgb: sample.image.into_raw(),
+            width: width as usize,
+            height: height as usize,
+            weights: targets.weights.into_iter().map(|p| p.data).collect(),
+            roi: targets.roi.data,
+        }
+    }
+}
 
 /// Why a training sample or batch could not be had.
 #[derive(Debug, thiserror::Error)]
 pub enum DataError {
     /// A stored sample could not be read.
     #[error(transparent)]
-    Read(#[from] matseg_data::ReadError),
+    Read(#[from] crate::ReadError),
     /// The generator could not compose a scene.
     #[error(transparent)]
     Compose(#[from] matseg_scene::ComposeError),
@@ -397,7 +426,7 @@ mod tests {
     impl SampleSource for Tagged {
         fn sample(&self, index: u64) -> Result<TrainingSample, DataError> {
             if self.count.is_some_and(|n| index >= n) {
-                return Err(DataError::Read(matseg_data::ReadError::Io {
+                return Err(DataError::Read(crate::ReadError::Io {
                     path: format!("sample {index}").into(),
                     reason: "past the end".into(),
                 }));

@@ -2,7 +2,7 @@
 //! truth), blur, brightness x U(0.5, 1.15), partial or full greyscale and
 //! Gaussian noise, each drawn independently.
 
-use crate::batch::TrainingSample;
+use crate::training::TrainingSample;
 use image::imageops;
 use image::RgbImage;
 use rand::Rng;
