@@ -1,8 +1,13 @@
-//! Embeds libtorch's lib folder (exported by matseg-net's build script) as
-//! the rpath of this crate's tests, so they run without LD_LIBRARY_PATH.
+//! Embeds libtorch's lib folder as the rpath of this crate's tests: in a
+//! workspace build with the CLI's `net` feature, matseg-pipeline links
+//! libtorch into them (this crate itself needs none). LIBTORCH comes from
+//! the workspace's .cargo/config.toml, as for matseg-net.
 
 fn main() {
-    if let Ok(dir) = std::env::var("DEP_MATSEG_LIBTORCH_LIB_DIR") {
-        println!("cargo:rustc-link-arg=-Wl,-rpath,{dir}");
+    println!("cargo:rerun-if-env-changed=LIBTORCH");
+    if let Some(libtorch) = std::env::var_os("LIBTORCH") {
+        if let Ok(lib) = std::path::Path::new(&libtorch).join("lib").canonicalize() {
+            println!("cargo:rustc-link-arg-tests=-Wl,-rpath,{}", lib.display());
+        }
     }
 }

@@ -6,7 +6,7 @@ use crate::net_args::parse_device;
 use anyhow::{bail, Result};
 use matseg_image::io::{find_files, IMAGE_EXTENSIONS};
 use matseg_image::outputs::StagedOutput;
-use matseg_pipeline::segment::Model;
+use matseg_pipeline::segment::load_model;
 use matseg_pipeline::select::{apply_to_folder, read_selection};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -56,12 +56,12 @@ pub fn run(args: Args) -> Result<()> {
     let staged = StagedOutput::begin(&args.out, "apply", &inputs)?;
     let device = parse_device(&args.device)?;
     let net = match &args.model {
-        Some(_) => Model::load(&model, device)?,
-        None => Model::load(&model, device)
+        Some(_) => load_model(&model, device)?,
+        None => load_model(&model, device)
             .map_err(|e| anyhow::anyhow!("{}", named(&format!("its model: {e}"))))?,
     };
     saved
-        .check(net.output_dim() as usize)
+        .check(net.net().output_dim())
         .map_err(|e| anyhow::anyhow!("{}", named(&e.to_string())))?;
     let started = Instant::now();
     let total = photos.len();

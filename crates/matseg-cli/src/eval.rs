@@ -28,7 +28,7 @@ pub enum Command {
     Clicks(crate::eval_clicks::Args),
     /// Generated 3D sequences: materials clicked on the first frame and
     /// followed, IoU at the best threshold on every frame.
-    #[cfg(feature = "net")]
+    #[cfg(feature = "infer")]
     Track(crate::track::EvalArgs),
     /// What a tool outside matseg must answer for `--maps`: each photo at
     /// its scored size (photos/NAME.png) and the points asked about
@@ -144,7 +144,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Points(args) => points(args),
         Command::Masks(args) => masks(args),
         Command::Clicks(args) => crate::eval_clicks::run(args),
-        #[cfg(feature = "net")]
+        #[cfg(feature = "infer")]
         Command::Track(args) => crate::track::eval(args),
         Command::MapsTemplate(args) => maps_template(args),
     }

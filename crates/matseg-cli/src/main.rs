@@ -4,14 +4,14 @@
 #![warn(missing_docs)]
 
 mod allocator;
-#[cfg(feature = "net")]
+#[cfg(feature = "infer")]
 mod apply;
 mod assets;
 mod bench;
 #[cfg(feature = "net")]
 mod bench_net;
 mod bench_render;
-#[cfg(feature = "net")]
+#[cfg(feature = "infer")]
 mod bench_serve;
 mod bench_set;
 mod common;
@@ -28,12 +28,12 @@ mod pbr_mix;
 mod query_args;
 mod recipe;
 mod render;
-#[cfg(feature = "net")]
+#[cfg(feature = "infer")]
 mod segment;
-#[cfg(feature = "net")]
+#[cfg(feature = "infer")]
 mod serve;
 mod textures;
-#[cfg(feature = "net")]
+#[cfg(feature = "infer")]
 mod track;
 #[cfg(feature = "net")]
 mod train;
@@ -94,22 +94,22 @@ enum Command {
     #[cfg(feature = "net")]
     Train(train::Args),
     /// Similarity maps, masks and segmentation of a photo, from positive and negative clicks or by clustering (pipeline.md §8).
-    #[cfg(feature = "net")]
+    #[cfg(feature = "infer")]
     Segment(segment::Args),
     /// Apply a selection saved from clicks on one photo to other photos: a mask each and areas.csv.
-    #[cfg(feature = "net")]
+    #[cfg(feature = "infer")]
     Apply(apply::Args),
     /// Follow the material under clicked points through a video or a frame folder (pipeline.md §8.2).
-    #[cfg(feature = "net")]
+    #[cfg(feature = "infer")]
     Track(track::Args),
     /// The local web app: click a point on a photo, see where else its material is.
-    #[cfg(feature = "net")]
+    #[cfg(feature = "infer")]
     Serve(serve::Args),
     /// Measure the net's forward and training-step time on one batch size.
     #[cfg(feature = "net")]
     BenchNet(bench_net::Args),
     /// Measure the web app under load: descriptor pass, click latency with concurrent clients, memory.
-    #[cfg(feature = "net")]
+    #[cfg(feature = "infer")]
     BenchServe(bench_serve::Args),
     /// Print a default recipe (--kind 2d or 3d) as TOML (edit it and pass it as --config).
     Recipe(recipe::Args),
@@ -122,9 +122,9 @@ fn main() -> ExitCode {
     };
     // The server is long-running and bounds its memory by its cache; it
     // gives freed memory back itself (matseg_serve::described).
-    #[cfg(feature = "net")]
+    #[cfg(feature = "infer")]
     let batch_job = !matches!(cli.command, Command::Serve(_));
-    #[cfg(not(feature = "net"))]
+    #[cfg(not(feature = "infer"))]
     let batch_job = true;
     if batch_job {
         allocator::keep_freed_blocks();
@@ -147,17 +147,17 @@ fn main() -> ExitCode {
         Command::Features(args) => features::run(args),
         #[cfg(feature = "net")]
         Command::Train(args) => train::run(args),
-        #[cfg(feature = "net")]
+        #[cfg(feature = "infer")]
         Command::Segment(args) => segment::run(args),
-        #[cfg(feature = "net")]
+        #[cfg(feature = "infer")]
         Command::Apply(args) => apply::run(args),
-        #[cfg(feature = "net")]
+        #[cfg(feature = "infer")]
         Command::Track(args) => track::run(args),
-        #[cfg(feature = "net")]
+        #[cfg(feature = "infer")]
         Command::Serve(args) => serve::run(args),
         #[cfg(feature = "net")]
         Command::BenchNet(args) => bench_net::run(args),
-        #[cfg(feature = "net")]
+        #[cfg(feature = "infer")]
         Command::BenchServe(args) => bench_serve::run(args),
         Command::Recipe(args) => recipe::run(args),
     };

@@ -6,11 +6,11 @@ use matseg_image::device::ComputeDevice;
 
 /// The nets `matseg eval` scores when none is named: the shipped model,
 /// or none in a build without the net.
-#[cfg(feature = "net")]
+#[cfg(feature = "infer")]
 pub const DEFAULT_NETS: &str = "default";
 /// The nets `matseg eval` scores when none is named: the shipped model,
 /// or none in a build without the net.
-#[cfg(not(feature = "net"))]
+#[cfg(not(feature = "infer"))]
 pub const DEFAULT_NETS: &str = "none";
 
 /// The device named on the command line (`cpu`, `cuda`, `cuda:N`), refused

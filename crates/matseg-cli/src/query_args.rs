@@ -6,7 +6,7 @@ use matseg_query::descriptor::check_radius;
 
 /// A point `X,Y` in pixels (a negative coordinate is taken as a value, and
 /// refused later as outside the photo, rather than as an unknown option).
-#[cfg(feature = "net")]
+#[cfg(feature = "infer")]
 pub fn parse_point(s: &str) -> Result<(f32, f32), String> {
     let (x, y) = s
         .split_once(',')
@@ -23,7 +23,7 @@ pub fn parse_point(s: &str) -> Result<(f32, f32), String> {
 
 /// A point of a material `[GROUP:]X,Y`: points that share a group
 /// number are one material; a point without one is a material of its own.
-#[cfg(feature = "net")]
+#[cfg(feature = "infer")]
 pub fn parse_grouped_point(s: &str) -> Result<(Option<u32>, (f32, f32)), String> {
     match s.split_once(':') {
         None => Ok((None, parse_point(s)?)),
@@ -50,7 +50,7 @@ pub fn parse_radius(s: &str) -> Result<f32, String> {
 mod tests {
     use super::*;
 
-    #[cfg(feature = "net")]
+    #[cfg(feature = "infer")]
     #[test]
     fn points_are_two_finite_numbers() {
         assert_eq!(parse_point("3,4.5"), Ok((3.0, 4.5)));

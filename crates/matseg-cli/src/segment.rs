@@ -9,7 +9,9 @@ use crate::query_args::{parse_grouped_point, parse_point, parse_radius};
 use anyhow::Result;
 use matseg_image::io::read_rgb;
 use matseg_image::outputs::StagedOutput;
-use matseg_pipeline::segment::{describe, write_clusters, write_point_maps, Model, DEFAULT_RADIUS};
+use matseg_pipeline::segment::{
+    describe, load_model, write_clusters, write_point_maps, DEFAULT_RADIUS,
+};
 use matseg_pipeline::select::MaterialClicks;
 use matseg_query::ClusterOptions;
 use std::path::PathBuf;
@@ -60,7 +62,7 @@ pub fn run(args: Args) -> Result<()> {
         clicks.check(&photo, &args.image.display().to_string())?;
     }
     let staged = StagedOutput::begin(&args.out, "segment", &[&args.image])?;
-    let net = Model::load(&args.model, parse_device(&args.device)?)?;
+    let net = load_model(&args.model, parse_device(&args.device)?)?;
     let started = Instant::now();
     let map = describe(&net, &photo);
     let described = started.elapsed().as_secs_f64();

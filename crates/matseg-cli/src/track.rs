@@ -6,9 +6,8 @@ use crate::common::BarProgress;
 use crate::net_args::parse_device;
 use crate::query_args::{parse_point, parse_radius};
 use anyhow::Result;
-use matseg_net::infer::NetModel;
 use matseg_pipeline::frames::FrameSource;
-use matseg_pipeline::segment::{Model, DEFAULT_RADIUS};
+use matseg_pipeline::segment::{load_model, Model, DEFAULT_RADIUS};
 use matseg_pipeline::track::{track_to_folder, TrackFiles, TrackSettings, DEFAULT_TRACK_SIDE};
 use matseg_pipeline::track_bench::{eval_track, TrackBenchSettings};
 use matseg_query::tracking::TrackOptions;
@@ -64,7 +63,7 @@ pub struct TrackingArgs {
 impl TrackingArgs {
     /// The model, loaded on its device.
     fn load(&self) -> Result<Model> {
-        Ok(Model::load(&self.model, parse_device(&self.device)?)?)
+        Ok(load_model(&self.model, parse_device(&self.device)?)?)
     }
 }
 
@@ -156,7 +155,7 @@ pub struct EvalArgs {
 /// Runs `matseg eval track`.
 pub fn eval(args: EvalArgs) -> Result<()> {
     let tracking = &args.tracking;
-    let net = NetModel::load(&tracking.model, parse_device(&tracking.device)?)?;
+    let net = load_model(&tracking.model, parse_device(&tracking.device)?)?;
     let settings = TrackBenchSettings {
         side: args.tracking.side,
         options: args.tracking.tracker.options(),

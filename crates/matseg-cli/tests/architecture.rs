@@ -89,12 +89,14 @@ fn every_workspace_member_is_listed_and_depends_only_on_crates_above_it() {
 }
 
 #[test]
-fn matseg_image_is_under_every_crate_but_the_checkpoint_reader() {
+fn matseg_image_is_under_every_crate_but_the_checkpoint_reader_and_the_model_description() {
     for (folder, _) in layout() {
         let dependencies = matseg_dependencies(&folder);
         match folder.as_str() {
             "crates/matseg-image" => {}
-            "crates/matseg-weights" => assert!(dependencies.is_empty(), "{dependencies:?}"),
+            "crates/matseg-weights" | "crates/matseg-model" => {
+                assert!(dependencies.is_empty(), "{folder}: {dependencies:?}")
+            }
             _ => assert!(dependencies.contains("matseg-image"), "{folder}"),
         }
     }

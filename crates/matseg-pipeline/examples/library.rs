@@ -4,7 +4,7 @@
 
 use matseg_data::{generate_dataset, GenerateOptions};
 use matseg_image::{device::ComputeDevice, io::read_rgb, progress::Silent, LicenceFilter};
-use matseg_pipeline::segment::{describe, write_point_maps, Model, DEFAULT_RADIUS};
+use matseg_pipeline::segment::{describe, load_model, write_point_maps, DEFAULT_RADIUS};
 use matseg_pipeline::select::MaterialClicks;
 use matseg_pipeline::sources::{assets_dir, Defaults, Libraries};
 use matseg_pipeline::train::{start, TrainConfig, TrainData, TrainInputs};
@@ -29,7 +29,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         println!("step {}: loss {:?}", m.step, m.loss)
     })?;
     // Where else in the photo is the material under this point?
-    let model = Model::load(&run.model_file(), ComputeDevice::Cpu)?;
+    let model = load_model(&run.model_file(), ComputeDevice::Cpu)?;
     let photo = read_rgb(&assets_dir().join("photos/coffee.jpg"))?;
     let map = describe(&model, &photo);
     let clicks = MaterialClicks::group(&[(None, (290.0, 130.0))], Vec::new());

@@ -59,6 +59,9 @@ pub enum PipelineError {
     #[cfg(feature = "net")]
     #[error(transparent)]
     Net(#[from] matseg_net::NetError),
+    /// A trained model whose files cannot be found, read or run.
+    #[error(transparent)]
+    Model(#[from] matseg_model::ModelError),
     /// A file or folder that cannot be read, written or used.
     #[error("{file}: {message}")]
     File {

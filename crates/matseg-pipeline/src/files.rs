@@ -21,7 +21,7 @@ pub(crate) fn write_file(path: &Path, bytes: &[u8]) -> Result<(), PipelineError>
 /// `inputs`, whole or not at all (matseg_image::outputs::StagedOutput):
 /// `work` fills the staging folder it is given, which is put in place
 /// when `work` succeeds and removed when it fails.
-#[cfg(feature = "net")]
+#[cfg(feature = "infer")]
 pub(crate) fn write_folder<T>(
     out: &Path,
     command: &str,

@@ -96,23 +96,22 @@ pub fn imagenet_baseline(
 }
 
 /// The chosen trained nets.
-#[cfg(feature = "net")]
+#[cfg(feature = "infer")]
 fn nets(choice: &ModelChoice) -> Result<Vec<Box<dyn DescriptorModel>>, PipelineError> {
     let mut nets: Vec<Box<dyn DescriptorModel>> = Vec::new();
     for path in choice.nets.iter().filter(|p| p.as_os_str() != "none") {
-        let mut net = matseg_net::infer::NetModel::load(path, choice.device)?;
+        let mut net = crate::nets::load_net(path, choice.device)?;
         if let Some((&main, extra)) = choice.net_sides.split_first() {
-            let net = net.model_mut();
-            net.inference_side = Some(main);
-            net.extra_inference_sides = extra.to_vec();
+            net.net_mut()
+                .set_inference_sides(Some(main), extra.to_vec());
         }
         nets.push(Box::new(net));
     }
     Ok(nets)
 }
 
-/// No trained nets in a build without the net: naming one is refused.
-#[cfg(not(feature = "net"))]
+/// No trained nets in a build without inference: naming one is refused.
+#[cfg(not(feature = "infer"))]
 fn nets(choice: &ModelChoice) -> Result<Vec<Box<dyn DescriptorModel>>, PipelineError> {
     match choice.nets.iter().find(|p| p.as_os_str() != "none") {
         Some(path) => Err(PipelineError::setting(

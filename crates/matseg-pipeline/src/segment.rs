@@ -9,7 +9,7 @@ use crate::files::{create_folder, write_file};
 use crate::select::{select_materials, write_selection, MaterialClicks};
 use image::RgbImage;
 use matseg_image::io::{encode_png_grey, encode_png_rgb};
-use matseg_net::TEMPERATURE;
+use matseg_model::config::TEMPERATURE;
 use matseg_query::coarse::CoarseDescriptors;
 use matseg_query::descriptor::check_radius;
 use matseg_query::{cluster_descriptors, ClusterOptions};
@@ -17,9 +17,10 @@ use matseg_scene::{blend_annotation_colour, PALETTE};
 use std::path::Path;
 use std::time::Instant;
 
-/// A trained model: `Model::load("default")`, a run folder or a weights
-/// file, on a device.
-pub use matseg_net::infer::TrainedNet as Model;
+pub use crate::nets::load_net as load_model;
+/// A trained model, loaded by [`load_model`]: `default`, a run folder or
+/// a weights file, on a device.
+pub use matseg_query::net::NamedNet as Model;
 
 /// Radius of a query point's disc, in pixels, unless a caller says otherwise.
 pub const DEFAULT_RADIUS: f32 = 5.0;
@@ -30,11 +31,7 @@ pub const MAX_POINTS: usize = 255;
 /// The model's descriptors of `photo`, on a coarse grid that answers any
 /// number of points.
 pub fn describe(model: &Model, photo: &RgbImage) -> CoarseDescriptors {
-    model.describe_coarse(
-        photo.as_raw(),
-        photo.width() as usize,
-        photo.height() as usize,
-    )
+    model.net().describe_coarse(photo)
 }
 
 /// Checks that there are at most [`MAX_POINTS`] points and each lies

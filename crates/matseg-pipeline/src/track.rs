@@ -90,18 +90,7 @@ pub trait FrameDescriber {
 
 impl FrameDescriber for Model {
     fn describe_frame(&self, frame: &RgbImage, side: u32) -> CoarseDescriptors {
-        self.describe_coarse_at(
-            frame.as_raw(),
-            frame.width() as usize,
-            frame.height() as usize,
-            side,
-        )
-    }
-}
-
-impl FrameDescriber for matseg_net::infer::NetModel {
-    fn describe_frame(&self, frame: &RgbImage, side: u32) -> CoarseDescriptors {
-        self.lock().describe_frame(frame, side)
+        self.net().describe_frame(frame, side)
     }
 }
 

@@ -11,10 +11,10 @@
 //! in Python (`matseg.evaluate.track`).
 
 use crate::error::PipelineError;
+use crate::segment::Model;
 use image::RgbImage;
 use matseg_data::{Dataset, FrameOf, Sample};
 use matseg_eval::iou::best_iou;
-use matseg_net::infer::NetModel;
 use matseg_query::coarse::CoarseDescriptors;
 use matseg_query::tracking::{MaterialTracker, TrackOptions};
 use serde::Serialize;
@@ -92,7 +92,7 @@ pub trait FrameDescriber {
     ) -> Result<CoarseDescriptors, PipelineError>;
 }
 
-impl FrameDescriber for NetModel {
+impl FrameDescriber for Model {
     fn name(&self) -> &str {
         matseg_query::descriptor::DescriptorModel::name(self)
     }
@@ -104,10 +104,7 @@ impl FrameDescriber for NetModel {
         _: (u64, usize),
         _: &Path,
     ) -> Result<CoarseDescriptors, PipelineError> {
-        let (w, h) = frame.dimensions();
-        Ok(self
-            .lock()
-            .describe_coarse_at(frame.as_raw(), w as usize, h as usize, side))
+        Ok(self.net().describe_frame(frame, side))
     }
 }
 

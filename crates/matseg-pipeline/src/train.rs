@@ -6,12 +6,12 @@
 
 use crate::error::PipelineError;
 use crate::files::create_folder;
+use crate::nets::point_score;
 use crate::sources::Libraries;
 use crate::weights::{imagenet_weights, read_weights};
 use matseg_data::Dataset;
-use matseg_eval::{evaluate_points, load_point_benchmark, Described, PointBenchmark};
+use matseg_eval::load_point_benchmark;
 use matseg_image::outputs::{Layout, SharedFolder, Sign};
-use matseg_image::progress::Silent;
 use matseg_net::colour::COLOUR_PART;
 use matseg_net::data::{BatchPlan, DatasetSource, GeneratorSource, MixedSource, SampleSource};
 use matseg_net::features::{encoder_digest, CacheManifest, FeatureCache};
@@ -248,26 +248,6 @@ const ENCODER_PREFIX: &str = "encoder.";
 /// Validation scenes come from the generator under this seed offset, apart
 /// from the online training scenes.
 pub const VALIDATION_GENERATOR_SEED: u64 = 0x5eed;
-
-/// The score `--val-points` records for a checkpoint: the net's triplet
-/// accuracy (All, by material) on `bench` with photos at `max_side`.
-pub fn point_score(
-    net: TrainedNet,
-    bench: &PointBenchmark,
-    max_side: u32,
-) -> Result<f64, NetError> {
-    let invalid = |message: String| NetError::Validation { message };
-    let report = evaluate_points(
-        &Described(&NetModel::new("net", net)),
-        bench,
-        max_side,
-        &Silent,
-    )
-    .map_err(|e| invalid(e.to_string()))?;
-    report
-        .all_by_material
-        .ok_or_else(|| invalid("the benchmark has no triplets".into()))
-}
 
 /// A run being trained: its folder and its net, optimiser and step.
 pub struct TrainingRun {
@@ -510,7 +490,10 @@ impl TrainingRun {
         };
         let score_points = |trainer: &Trainer| -> Result<f64, NetError> {
             let bench = bench.as_ref().expect("only called with a benchmark");
-            point_score(TrainedNet::snapshot(trainer)?, bench, inputs.val_max_side)
+            let net = NetModel::new("net", TrainedNet::snapshot(trainer)?);
+            point_score(&net, bench, inputs.val_max_side).map_err(|e| NetError::Validation {
+                message: e.to_string(),
+            })
         };
         let validation = Validation {
             samples: Some(&held_out),

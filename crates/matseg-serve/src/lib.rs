@@ -40,7 +40,7 @@ use described::DescribedCache;
 pub use guard::TokenChoice;
 use guard::{new_token, Access};
 use matseg_image::MemoryBudget;
-use matseg_net::infer::NetModel;
+use matseg_pipeline::segment::load_model;
 use roots::Roots;
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -73,7 +73,7 @@ pub enum ServeError {
     Listing(#[from] matseg_image::LibraryError),
     /// The model could not be loaded.
     #[error(transparent)]
-    Model(#[from] matseg_net::NetError),
+    Model(#[from] matseg_pipeline::error::PipelineError),
     /// The address could not be bound or served.
     #[error("{address}: {message}")]
     Bind {
@@ -207,7 +207,7 @@ pub fn state(options: &ServeOptions) -> Result<Arc<AppState>, ServeError> {
     let served = || roots.iter().filter(|(name, _)| photo_root(name));
     let photos = roots::files_under(served(), &photos::PHOTO_EXTENSIONS)?;
     let videos = roots::files_under(served(), &video::VIDEO_EXTENSIONS)?;
-    let model = NetModel::load(&options.model, options.device)?;
+    let model = load_model(&options.model, options.device)?;
     let folder = tempfile::Builder::new()
         .prefix("matseg-serve-")
         .tempdir()

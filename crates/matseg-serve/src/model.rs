@@ -1,25 +1,29 @@
 //! The served model, shared by the pages' clicks and the background jobs
-//! (evaluations, tracks): clicks go first. A click that needs a photo
-//! described is counted while it waits for the model and while it holds
-//! it; a background job takes the model for its next image or frame only
-//! when no click is counted, so a click waits for at most the one image a
-//! job is describing, not for every image the job would take in a row
-//! (the model's lock alone lets the job take it again before the woken
-//! click runs). A job holds the model only for the net's pass, not while
-//! the pass is made into a map at the photo's size.
+//! (evaluations, tracks): clicks go first. The net makes one pass at a
+//! time (its lock), so concurrent requests hold one pass's memory, not
+//! one per request. A click that needs a photo described is counted while
+//! it waits for the lock and while it holds it; a background job takes the
+//! lock for its next image or frame only when no click is counted, so a
+//! click waits for at most the one image a job is describing, not for
+//! every image the job would take in a row (the lock alone lets the job
+//! take it again before the woken click runs). A job holds the lock only
+//! for the net's pass, not while the pass is made into a map at the
+//! photo's size.
 
 use image::RgbImage;
-use matseg_net::infer::{pixel_map, NetModel};
-use matseg_pipeline::segment::describe;
+use matseg_pipeline::segment::{describe, Model};
 use matseg_pipeline::track::FrameDescriber;
 use matseg_query::coarse::CoarseDescriptors;
 use matseg_query::descriptor::{Comparison, DescriptorMap, DescriptorModel};
 use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
 use std::time::Duration;
 
 /// The model and the clicks waiting for it.
 pub struct ServedModel {
-    net: NetModel,
+    net: Model,
+    /// Held for each pass of the net.
+    pass: Mutex<()>,
     clicks: AtomicUsize,
     /// The longest side the net sees a photo at (`None`: as it is).
     side: Option<u32>,
@@ -29,13 +33,11 @@ pub struct ServedModel {
 
 impl ServedModel {
     /// `net`, served.
-    pub fn new(net: NetModel) -> Self {
-        let (side, dim) = {
-            let net = net.lock();
-            (net.inference_side, net.output_dim() as usize)
-        };
+    pub fn new(net: Model) -> Self {
+        let (side, dim) = (net.net().inference_side(), net.net().output_dim());
         Self {
             net,
+            pass: Mutex::new(()),
             clicks: AtomicUsize::new(0),
             side,
             dim,
@@ -64,7 +66,10 @@ impl ServedModel {
     /// `photo` described for a click, ahead of the background jobs.
     pub fn describe_click(&self, photo: &RgbImage) -> CoarseDescriptors {
         self.clicks.fetch_add(1, Ordering::SeqCst);
-        let described = describe(&self.net.lock(), photo);
+        let described = {
+            let _pass = matseg_image::sync::lock(&self.pass);
+            describe(&self.net, photo)
+        };
         self.clicks.fetch_sub(1, Ordering::SeqCst);
         described
     }
@@ -90,9 +95,12 @@ impl DescriptorModel for ServedModel {
 
     fn describe(&self, image: &RgbImage) -> DescriptorMap {
         self.let_clicks_pass();
-        let grid = self.net.lock().photo_grid(image);
+        let grid = {
+            let _pass = matseg_image::sync::lock(&self.pass);
+            self.net.net().photo_grid(image)
+        };
         // Made into a map at the photo's size without holding the net.
-        pixel_map(&grid, image.width() as usize, image.height() as usize)
+        grid.pixel_map(image.width() as usize, image.height() as usize)
     }
 }
 
@@ -101,6 +109,7 @@ impl DescriptorModel for ServedModel {
 impl FrameDescriber for ServedModel {
     fn describe_frame(&self, frame: &RgbImage, side: u32) -> CoarseDescriptors {
         self.let_clicks_pass();
+        let _pass = matseg_image::sync::lock(&self.pass);
         self.net.describe_frame(frame, side)
     }
 }
@@ -112,7 +121,11 @@ mod tests {
     use std::sync::Arc;
 
     fn served() -> ServedModel {
-        let net = NetModel::load(std::path::Path::new("default"), Default::default()).unwrap();
+        let net = matseg_pipeline::segment::load_model(
+            std::path::Path::new("default"),
+            Default::default(),
+        )
+        .unwrap();
         ServedModel::new(net)
     }
 

@@ -526,9 +526,9 @@ async fn a_photo_within_the_cap_is_answered_as_the_library_selects_it() {
     )
     .unwrap();
     let net =
-        matseg_net::infer::NetModel::load(std::path::Path::new("default"), Default::default())
+        matseg_pipeline::segment::load_model(std::path::Path::new("default"), Default::default())
             .unwrap();
-    let map = matseg_pipeline::segment::describe(&net.lock(), &photo);
+    let map = matseg_pipeline::segment::describe(&net, &photo);
     use matseg_query::select::{Click, Selector};
     let mut selector = Selector::new(&map, Some(&photo), 7.0).unwrap();
     for click in [

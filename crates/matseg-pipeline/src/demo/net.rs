@@ -9,7 +9,9 @@ use super::DemoTraining;
 use crate::error::PipelineError;
 use crate::files::{write_file, write_folder};
 use crate::progress::Progress;
-use crate::segment::{describe, write_clusters, write_point_maps, Model, DEFAULT_RADIUS};
+use crate::segment::{
+    describe, load_model, write_clusters, write_point_maps, Model, DEFAULT_RADIUS,
+};
 use crate::select::MaterialClicks;
 use crate::sources::{assets_dir, Defaults, Libraries};
 use crate::train::{resume, start, TrainConfig, TrainData, TrainInputs};
@@ -68,7 +70,7 @@ pub fn net_page(
     let mut commands = Vec::new();
     let shipped = match default_model_dir() {
         Some(dir) => {
-            let net = Model::load(&dir, ComputeDevice::Cpu)?;
+            let net = load_model(&dir, ComputeDevice::Cpu)?;
             let rows = segmentation_rows(&net, DEFAULT_MODEL, "net/default", out, &mut commands)?;
             format!(
                 r#"<h2>The shipped model</h2>
@@ -173,7 +175,7 @@ fn training_demonstration(
     let summary = training.train(&TrainInputs::new(&libraries), |_| progress.advance())?;
     progress.finish();
     commands.push(format!("matseg train {arguments} {run_arg}"));
-    let net = Model::load(&run, ComputeDevice::Cpu)?;
+    let net = load_model(&run, ComputeDevice::Cpu)?;
     let rows = segmentation_rows(&net, &run_arg, "net/demo-run", out, commands)?;
     let section = format!(
         r#"<h2>A training demonstration</h2>
