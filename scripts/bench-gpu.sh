@@ -3,7 +3,8 @@
 # docs/scale-out.md), in one run on a GPU machine from two files built on
 # any x86-64 Linux machine, with nothing to compile or download there:
 #   scripts/bench-gpu.sh WHEEL MATSEG [PART...]
-# WHEEL   the Python package: `.venv/bin/pip wheel --no-deps ./python -w DIR`;
+# WHEEL   the Python package built with libtorch:
+#         `MATURIN_PEP517_ARGS="--features torch" .venv/bin/pip wheel --no-deps ./python -w DIR`;
 # MATSEG  `cargo build --release -p matseg-cli --features cuda` (docs/gpu.md).
 # The machine's python3 (PYTHON) must hold torch 2.11 with CUDA and numpy;
 # the wheel goes into a temporary folder on PYTHONPATH and both programs

@@ -10,7 +10,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/python-env.sh
 if ! .venv/bin/python -c 'import matseg.net' 2>/dev/null; then
-    .venv/bin/pip install --quiet --disable-pip-version-check ./python
+    MATURIN_PEP517_ARGS="--features torch" .venv/bin/pip install --quiet --disable-pip-version-check ./python
 fi
 while read -r line; do
     # shellcheck disable=SC2086

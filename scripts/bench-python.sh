@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Rates of the Python front ends (docs/scale-out.md), with the matseg
-# package installed in .venv (`.venv/bin/pip install ./python`, a release
+# package installed in .venv (`MATURIN_PEP517_ARGS="--features torch" .venv/bin/pip install ./python`, a release
 # build), RUNS times each, printing each run and the median:
 #   - `python -m matseg.ray generate`: SAMPLES 2D samples in WebDataset
 #     shards of SHARD_SIZE, as 2 Ray tasks of one CPU on a local cluster of

@@ -6,7 +6,8 @@
 # once done.
 #
 # The package itself is built and installed by `.ci/run` after the Rust
-# tests (`pip install ./python`, reusing their build folder).
+# tests (`pip install ./python` with its `torch` feature, reusing their
+# build folder).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/torch-env.sh --cuda

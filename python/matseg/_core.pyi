@@ -131,6 +131,8 @@ def write_safetensors(
 ) -> None: ...
 
 DEFAULT_CACHE_MB: int
+#: Whether this build has what needs libtorch (its `torch` feature).
+WITH_TORCH: bool
 DEFAULT_MAX_SIDE: int
 DEFAULT_RADIUS: float
 DEFAULT_TRACK_SIDE: int

@@ -6,6 +6,10 @@ second moments of each parameter), `optim.steps` (updates taken),
 the stream: next_step times the processes that trained; absent in
 `matseg train`'s, which trains one batch a step)."""
 
+from . import _requires
+
+_requires.torch("matseg.checkpoint")
+
 import os
 from typing import Any
 

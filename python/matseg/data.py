@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from . import _core
+from . import _core, _requires
 from ._arrays import view
 
 #: A folder or file name.
@@ -283,6 +283,7 @@ class FeatureCache:
     def _open(self, root: str) -> None:
         if not os.path.exists(root):
             raise FileNotFoundError(f"{root}: no such folder")
+        _requires.libtorch_build("matseg.FeatureCache")
         self.root = root
         self._native = _core.FeatureCache(root)
         self.manifest: dict[str, Any] = json.loads(self._native.manifest())

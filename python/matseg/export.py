@@ -10,6 +10,10 @@ large photos to the model's inference side and averages several sizes;
 a host program does that around the graph (docs/python.md).
 """
 
+from . import _requires
+
+_requires.torch("python -m matseg.export")
+
 import argparse
 import os
 import sys

@@ -6,6 +6,10 @@ as `matseg train`, and computes the same descriptors (tested to 1e-4).
     d = net(net.normalise(rgb))                 # rgb: Bx3xHxW 0..255, sides multiples of 32
 """
 
+from . import _requires
+
+_requires.torch("matseg.net")
+
 import hashlib
 import json
 import math

@@ -18,6 +18,10 @@ start + r, start + r + world_size, ... in order, whatever its number of
 workers (so a run's first n steps on W ranks used indices start..start+nW-1).
 """
 
+from . import _requires
+
+_requires.torch("matseg.streams")
+
 from collections.abc import Iterator
 from typing import Any
 

@@ -15,6 +15,10 @@ of one process.
     torchrun --nproc_per_node 8 -m matseg.train --resume runs/a --device cuda
 """
 
+from . import _requires
+
+_requires.torch("python -m matseg.train")
+
 import argparse
 import hashlib
 import json

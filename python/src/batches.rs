@@ -1,10 +1,10 @@
 //! Training batches as `matseg train` draws them (the batch plan: one
 //! random size per batch, samples fitted and augmented), for PyTorch.
 
-use crate::buffer::{contiguous, Buffer};
+use crate::buffer::Buffer;
 use crate::dataset::PyDataset;
 use crate::errors::matseg_error;
-use matseg_net::data::{batch_samples, BatchPlan, MixedSource, SampleSource};
+use matseg_data::training::{batch_samples, BatchPlan, MixedSource, SampleSource};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
@@ -80,6 +80,7 @@ pub fn batch_list<'py>(
 /// float32 arrays):
 /// the reference other implementations (the PyTorch trainer) are tested
 /// against. `None` when the batch has fewer than two materials.
+#[cfg(feature = "torch")]
 #[pyfunction]
 #[pyo3(signature = (descriptors, weights, roi, shape, materials))]
 pub fn matseg_loss(
@@ -90,6 +91,7 @@ pub fn matseg_loss(
     shape: (usize, usize, usize, usize),
     materials: usize,
 ) -> PyResult<Option<f64>> {
+    use crate::buffer::contiguous;
     use matseg_net::{matseg_loss, ImageTargets};
     use tch::Tensor;
     let (b, d, h, w) = shape;

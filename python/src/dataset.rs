@@ -4,8 +4,8 @@
 use crate::batches::{batch_list, MixedDataset};
 use crate::errors::matseg_error;
 use crate::samples::sample_dict;
+use matseg_data::training::DatasetSource;
 use matseg_data::Dataset;
-use matseg_net::data::DatasetSource;
 use pyo3::exceptions::PyIndexError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};

@@ -4,11 +4,11 @@
 use crate::batches::{batch_list, MixedDataset};
 use crate::errors::matseg_error;
 use crate::samples::sample_dict;
+use matseg_data::training::GeneratorSource;
 use matseg_data::{
     decode_encoded, generate_with, EncodedSample, Format, GenerateOptions, JobSlice,
 };
 use matseg_image::LicenceFilter;
-use matseg_net::data::GeneratorSource;
 use matseg_pipeline::files3d::recipe_3d;
 use matseg_pipeline::progress::{Progress, Silent};
 use matseg_pipeline::scenes::{SceneFolders, SceneRecipe, SceneSources};

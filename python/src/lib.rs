@@ -8,6 +8,7 @@ mod buffer;
 mod dataset;
 mod errors;
 mod evaluate;
+#[cfg(feature = "torch")]
 mod features;
 mod generator;
 mod model;
@@ -22,24 +23,32 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<buffer::Buffer>()?;
     m.add_class::<generator::PyGenerator>()?;
     m.add_class::<dataset::PyDataset>()?;
+    #[cfg(feature = "torch")]
     m.add_class::<features::PyFeatureCache>()?;
     m.add_class::<model::PyModel>()?;
     m.add_class::<model::PyTracker>()?;
     m.add_function(wrap_pyfunction!(batches::default_plan, m)?)?;
+    #[cfg(feature = "torch")]
     m.add_function(wrap_pyfunction!(batches::matseg_loss, m)?)?;
     m.add_function(wrap_pyfunction!(model::resolve_model, m)?)?;
     m.add_function(wrap_pyfunction!(model::run_files, m)?)?;
     m.add_function(wrap_pyfunction!(samples::read_rgb, m)?)?;
+    #[cfg(feature = "torch")]
     m.add_function(wrap_pyfunction!(model::net_constants, m)?)?;
     m.add_function(wrap_pyfunction!(model::net_preset, m)?)?;
+    #[cfg(feature = "torch")]
     m.add_function(wrap_pyfunction!(model::train_defaults, m)?)?;
+    #[cfg(feature = "torch")]
     m.add_function(wrap_pyfunction!(model::lr_schedule, m)?)?;
+    #[cfg(feature = "torch")]
     m.add_function(wrap_pyfunction!(model::plot_losses, m)?)?;
     m.add_function(wrap_pyfunction!(model::score_points, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate::evaluate, m)?)?;
     m.add_function(wrap_pyfunction!(weights::read_safetensors, m)?)?;
     m.add_function(wrap_pyfunction!(weights::write_safetensors, m)?)?;
     m.add("MatsegError", m.py().get_type::<errors::MatsegError>())?;
+    // Whether this build has what needs libtorch (the `torch` feature).
+    m.add("WITH_TORCH", cfg!(feature = "torch"))?;
     m.add(
         "DEFAULT_CACHE_MB",
         matseg_pipeline::sources::DEFAULT_CACHE_MB,

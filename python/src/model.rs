@@ -4,20 +4,21 @@
 use crate::buffer::{Buffer, Photo};
 use crate::errors::matseg_error;
 use matseg_image::device::ComputeDevice;
-use matseg_net::infer::resolve_model as resolve;
-use matseg_net::infer::NetModel;
-use matseg_pipeline::segment::{check_points, cluster, describe, query_points, Model, MAX_POINTS};
+use matseg_model::resolve_model as resolve;
+use matseg_pipeline::segment::{
+    check_points, cluster, describe, load_model, query_points, Model, MAX_POINTS,
+};
 use matseg_pipeline::select::{select_materials, MaterialClicks};
 use matseg_pipeline::track::{TrackSettings, Tracking};
-use matseg_query::descriptor::check_radius;
+use matseg_query::descriptor::{check_radius, DescriptorMap, DescriptorModel};
 use matseg_query::tracking::TrackOptions;
 use matseg_query::ClusterOptions;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+#[cfg(feature = "torch")]
 use pyo3::types::PyDict;
 use std::path::{Path, PathBuf};
-use std::sync::{Mutex, MutexGuard};
-use tch::Tensor;
+use std::sync::Mutex;
 
 /// The folder or weights file a model name stands for (`default`: the
 /// shipped model).
@@ -31,13 +32,14 @@ pub fn resolve_model(name: PathBuf) -> PyResult<PathBuf> {
 #[pyfunction]
 pub fn run_files(name: PathBuf) -> PyResult<(PathBuf, PathBuf)> {
     let model = resolve(&name).map_err(matseg_error)?;
-    let (folder, weights) = matseg_net::infer::run_files(&model);
+    let (folder, weights) = matseg_model::run_files(&model);
     Ok((folder.to_path_buf(), weights))
 }
 
 /// The numbers the net's PyTorch copy (`matseg.net`) shares with this
 /// one, so the two cannot drift apart: input normalisation, loss
 /// temperature and region threshold, the colour part's L*a*b* conversion.
+#[cfg(feature = "torch")]
 #[pyfunction]
 pub fn net_constants(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     use matseg_image::lab::{D65_WHITE_XZ, LAB_EPSILON, LAB_KAPPA, LINEAR_SRGB_TO_XYZ};
@@ -85,7 +87,7 @@ pub fn net_constants(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
 /// with or without the encoder's and the colour features.
 #[pyfunction]
 pub fn net_preset(name: &str, encoder_features: bool, colour_features: bool) -> PyResult<String> {
-    use matseg_net::net::{NetConfig, PRESETS};
+    use matseg_model::{NetConfig, PRESETS};
     let config = NetConfig::preset(name).ok_or_else(|| {
         PyValueError::new_err(format!(
             "encoder: '{name}': expected one of {}",
@@ -101,6 +103,7 @@ pub fn net_preset(name: &str, encoder_features: bool, colour_features: bool) -> 
 }
 
 /// `matseg train`'s defaults, for `python -m matseg.train`.
+#[cfg(feature = "torch")]
 #[pyfunction]
 pub fn train_defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     use matseg_net::optim::AdamWConfig;
@@ -127,6 +130,7 @@ pub fn train_defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
 
 /// The learning rate of each step of a run with `options` (run.json's
 /// "options", as JSON), as `matseg train` schedules it.
+#[cfg(feature = "torch")]
 #[pyfunction]
 pub fn lr_schedule(options: &str) -> PyResult<Vec<f64>> {
     let options: matseg_net::train::TrainOptions = serde_json::from_str(options)
@@ -146,18 +150,18 @@ pub fn score_points(
     max_side: u32,
 ) -> PyResult<f64> {
     use matseg_eval::load_point_benchmark;
-    use matseg_net::infer::TrainedNet;
-    use matseg_pipeline::train::point_score;
+    use matseg_pipeline::nets::point_score;
     py.detach(|| {
         let points = load_point_benchmark(&bench, false).map_err(|e| e.to_string())?;
-        let net = TrainedNet::load(&model, ComputeDevice::Cpu).map_err(|e| e.to_string())?;
-        point_score(net, &points, max_side).map_err(|e| format!("{}: {e}", bench.display()))
+        let net = load_model(&model, ComputeDevice::Cpu).map_err(|e| e.to_string())?;
+        point_score(&net, &points, max_side).map_err(|e| format!("{}: {e}", bench.display()))
     })
     .map_err(matseg_error)
 }
 
 /// Draws a run's loss curve (`matseg train`'s `loss.png`) from its
 /// `metrics.jsonl` into `png` (atomically).
+#[cfg(feature = "torch")]
 #[pyfunction]
 pub fn plot_losses(metrics: PathBuf, png: PathBuf) -> PyResult<()> {
     let history = matseg_net::train::read_metrics(&metrics, u64::MAX);
@@ -167,15 +171,22 @@ pub fn plot_losses(metrics: PathBuf, png: PathBuf) -> PyResult<()> {
 /// A loaded net (on the CPU).
 #[pyclass(module = "matseg._core", name = "Model", frozen)]
 pub struct PyModel {
-    pub(crate) net: NetModel,
+    pub(crate) net: Model,
     /// The name it was loaded by, as a saved selection records it.
     name: String,
 }
 
-/// `t`'s values as little-endian f32.
-fn tensor_buffer(t: &Tensor) -> PyResult<Buffer> {
-    let values = Vec::<f32>::try_from(t.contiguous().flatten(0, -1)).map_err(matseg_error)?;
-    Ok(Buffer::f32s(&values))
+/// A map's descriptors as little-endian f32 `[D, height, width]`: plane
+/// by plane, as numpy takes them.
+fn planes_buffer(map: &DescriptorMap) -> Buffer {
+    let pixels = map.width * map.height;
+    let mut planes = vec![0f32; map.data.len()];
+    for (i, descriptor) in map.data.chunks_exact(map.dim).enumerate() {
+        for (c, &v) in descriptor.iter().enumerate() {
+            planes[c * pixels + i] = v;
+        }
+    }
+    Buffer::f32s(&planes)
 }
 
 /// Labels as little-endian i32.
@@ -188,19 +199,13 @@ fn label_buffer(labels: &[u32]) -> Buffer {
     )
 }
 
-impl PyModel {
-    fn net(&self) -> MutexGuard<'_, Model> {
-        self.net.lock()
-    }
-}
-
 #[pymethods]
 impl PyModel {
     /// Loads `name`: `default`, a run folder or a weights file.
     #[new]
     fn new(py: Python<'_>, name: PathBuf) -> PyResult<Self> {
         let net = py
-            .detach(|| NetModel::load(Path::new(&name), ComputeDevice::Cpu))
+            .detach(|| load_model(Path::new(&name), ComputeDevice::Cpu))
             .map_err(matseg_error)?;
         Ok(Self {
             net,
@@ -209,17 +214,16 @@ impl PyModel {
     }
 
     /// Descriptor channels.
-    fn dim(&self) -> i64 {
-        self.net().output_dim()
+    fn dim(&self) -> usize {
+        self.net.net().output_dim()
     }
 
     /// Unit descriptors `[D, height, width]` (f32 bytes) as `matseg
     /// segment` computes them: at the model's inference sizes, resized back.
     fn describe(&self, py: Python<'_>, image: Photo) -> PyResult<Buffer> {
         let Photo(photo) = image;
-        let (w, h) = (photo.width() as usize, photo.height() as usize);
-        let d = py.detach(|| self.net().describe(photo.as_raw(), w, h));
-        tensor_buffer(&d)
+        let map = py.detach(|| self.net.describe(&photo));
+        Ok(planes_buffer(&map))
     }
 
     /// Unit descriptors `[D, height, width]` of the net alone at the
@@ -227,10 +231,13 @@ impl PyModel {
     fn describe_at_own_size(&self, py: Python<'_>, image: Photo) -> PyResult<Buffer> {
         let Photo(photo) = image;
         let (w, h) = (photo.width() as usize, photo.height() as usize);
-        let d = py
-            .detach(|| self.net().describe_at_own_size(photo.as_raw(), w, h))
-            .map_err(|e| PyValueError::new_err(e.to_string()))?;
-        tensor_buffer(&d)
+        if !w.is_multiple_of(32) || !h.is_multiple_of(32) {
+            return Err(PyValueError::new_err(format!(
+                "image: is {w}x{h}; the net alone takes sides that are multiples of 32"
+            )));
+        }
+        let map = py.detach(|| self.net.net().own_size_grid(&photo).pixel_map(w, h));
+        Ok(planes_buffer(&map))
     }
 
     /// Each point's similarity map `[K, height, width]` (f32 bytes) and,
@@ -246,7 +253,7 @@ impl PyModel {
         check_points(&photo, &points, "the image")
             .map_err(|e| PyValueError::new_err(e.to_string()))?;
         check_radius(radius).map_err(|e| PyValueError::new_err(e.to_string()))?;
-        let maps = py.detach(|| query_points(&describe(&self.net(), &photo), &points, radius));
+        let maps = py.detach(|| query_points(&describe(&self.net, &photo), &points, radius));
         let flat: Vec<f32> = maps.similarity.concat();
         Ok((Buffer::f32s(&flat), maps.labels.map(|l| label_buffer(&l))))
     }
@@ -273,13 +280,7 @@ impl PyModel {
         let name = &self.name;
         let mut selections = py
             .detach(|| {
-                select_materials(
-                    &describe(&self.net(), &photo),
-                    &photo,
-                    &clicks,
-                    radius,
-                    name,
-                )
+                select_materials(&describe(&self.net, &photo), &photo, &clicks, radius, name)
             })
             .map_err(refused)?;
         let selection = selections.remove(0);
@@ -307,7 +308,7 @@ impl PyModel {
             seed,
             ..ClusterOptions::new(k)
         };
-        let (labels, n) = py.detach(|| cluster(&describe(&self.net(), &photo), &options));
+        let (labels, n) = py.detach(|| cluster(&describe(&self.net, &photo), &options));
         Ok((label_buffer(&labels), n))
     }
 }

@@ -308,6 +308,7 @@ def test_the_worked_example_scores_near_the_built_in_imagenet_baseline(matseg_bi
     plain PyTorch, joined on a stride-4 grid) against the built-in
     `imagenet` baseline (the same blocks, joined at the photo's size), on
     six real-dev photos."""
+    pytest.importorskip("torch", reason="the worked example is written in PyTorch")
     spec = importlib.util.spec_from_file_location("imagenet_features", ROOT / "examples" / "imagenet_features.py")
     assert spec is not None and spec.loader is not None
     example = importlib.util.module_from_spec(spec)
