@@ -40,7 +40,7 @@ impl Encoder {
     pub(crate) fn load(weights: &Weights, config: EncoderConfig) -> Result<Self, ModelError> {
         Ok(match config {
             EncoderConfig::MobilenetV2 => {
-                Encoder::MobilenetV2(Box::new(MobileNetV2::load(weights)?))
+                Encoder::MobilenetV2(Box::new(MobileNetV2::load(weights, "encoder.features")?))
             }
             EncoderConfig::Convnext(c) => Encoder::Convnext(ConvNext::load(weights, c)?),
         })
@@ -63,8 +63,9 @@ struct InvertedResidual {
     residual: bool,
 }
 
-/// MobileNetV2 as torchvision builds it (`encoder.features.N`), its
-/// BatchNorms folded into the convolutions.
+/// MobileNetV2 as torchvision builds it (`PREFIX.N`: `encoder.features.N`
+/// in a net, `features.N` in torchvision's checkpoints), its BatchNorms
+/// folded into the convolutions.
 pub(crate) struct MobileNetV2 {
     stem: Conv,
     blocks: Vec<InvertedResidual>,
@@ -72,8 +73,9 @@ pub(crate) struct MobileNetV2 {
 }
 
 impl MobileNetV2 {
-    fn load(weights: &Weights) -> Result<Self, ModelError> {
-        let f = |i: usize| format!("encoder.features.{i}");
+    /// The encoder whose layers are named `prefix.N`.
+    pub(crate) fn load(weights: &Weights, prefix: &str) -> Result<Self, ModelError> {
+        let f = |i: usize| format!("{prefix}.{i}");
         let stem_channels = MOBILENET_V2_STEM_CHANNELS as usize;
         let stem = Conv::folded(
             weights,
@@ -145,7 +147,8 @@ impl MobileNetV2 {
         Ok(Self { stem, blocks, last })
     }
 
-    fn forward(&self, pool: &BufferPool, x: &Tensor<f32>) -> Taps {
+    /// The four taps of an input `[1, 3, H, W]`.
+    pub(crate) fn forward(&self, pool: &BufferPool, x: &Tensor<f32>) -> Taps {
         let mut outputs = Vec::with_capacity(4);
         let mut x = self.stem.forward(pool, x);
         for (i, block) in self.blocks.iter().enumerate() {

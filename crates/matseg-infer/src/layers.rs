@@ -165,6 +165,24 @@ pub(crate) fn activate(x: &mut Tensor<f32>, activation: Activation) {
     }
 }
 
+/// An interleaved RGB image of `width x height` pixels as a tensor
+/// `[1, 3, height, width]` of `value(channel, level)`.
+pub(crate) fn rgb_planes(
+    rgb: &[u8],
+    width: usize,
+    height: usize,
+    value: impl Fn(usize, u8) -> f32,
+) -> Tensor<f32> {
+    let n = width * height;
+    let mut planes = vec![0f32; 3 * n];
+    for (i, pixel) in rgb.chunks_exact(3).enumerate() {
+        for (c, &level) in pixel.iter().enumerate() {
+            planes[c * n + i] = value(c, level);
+        }
+    }
+    Tensor::from_data(&[1, 3, height, width], planes)
+}
+
 /// `a + b`, of one shape.
 pub(crate) fn add(pool: &BufferPool, a: &Tensor<f32>, b: &Tensor<f32>) -> Tensor<f32> {
     ops::add(pool, a.view(), b.view()).expect("two tensors of one shape")

@@ -117,12 +117,12 @@ impl InferNet {
 }
 
 /// Runs `f` in rten's thread pool with a pool of buffers for its operators.
-fn run<R: Send>(f: impl FnOnce(&BufferPool) -> R + Send) -> R {
+pub(crate) fn run<R: Send>(f: impl FnOnce(&BufferPool) -> R + Send) -> R {
     rten::thread_pool().run(|| f(&BufferPool::new()))
 }
 
 /// A `[1, D, h, w]` grid with its channels interleaved, cell by cell.
-fn to_photo_grid(grid: &Tensor<f32>) -> PhotoGrid {
+pub(crate) fn to_photo_grid(grid: &Tensor<f32>) -> PhotoGrid {
     let s = grid.shape();
     let (dim, height, width) = (s[1], s[2], s[3]);
     let values = grid.view().permuted(&[0, 2, 3, 1]).to_tensor().into_data();

@@ -4,7 +4,9 @@
 
 use crate::colour::ColourPart;
 use crate::encoder::{Encoder, Taps};
-use crate::layers::{adaptive_average_pool, normalise_pixels, resize, Activation, Conv, ConvShape};
+use crate::layers::{
+    adaptive_average_pool, normalise_pixels, resize, rgb_planes, Activation, Conv, ConvShape,
+};
 use crate::weights::Weights;
 use matseg_model::config::PSP_SCALES;
 use matseg_model::input::{INPUT_MEAN, INPUT_SCALE};
@@ -192,12 +194,7 @@ impl Net {
 /// The net's input `[1, 3, H, W]` of an interleaved RGB image:
 /// `(level - INPUT_MEAN) / INPUT_SCALE` per channel.
 fn input_tensor(rgb: &[u8], width: usize, height: usize) -> Tensor<f32> {
-    let n = width * height;
-    let mut planes = vec![0f32; 3 * n];
-    for (i, pixel) in rgb.chunks_exact(3).enumerate() {
-        for (c, &level) in pixel.iter().enumerate() {
-            planes[c * n + i] = ((f64::from(level) - INPUT_MEAN[c]) / INPUT_SCALE) as f32;
-        }
-    }
-    Tensor::from_data(&[1, 3, height, width], planes)
+    rgb_planes(rgb, width, height, |c, level| {
+        ((f64::from(level) - INPUT_MEAN[c]) / INPUT_SCALE) as f32
+    })
 }

@@ -29,10 +29,15 @@ impl Weights {
             file: e.file,
             message: e.message,
         })?;
-        Ok(Self {
+        Ok(Self::from_tensors(tensors, file))
+    }
+
+    /// Tensors already read; `file` names them in errors.
+    pub(crate) fn from_tensors(tensors: Vec<matseg_weights::Tensor>, file: String) -> Self {
+        Self {
             tensors: tensors.into_iter().map(|t| (t.name.clone(), t)).collect(),
             file,
-        })
+        }
     }
 
     /// An error about this file.

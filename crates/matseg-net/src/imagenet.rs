@@ -16,8 +16,7 @@ use crate::weights::load_named;
 use crate::NetError;
 use tch::{nn, Device, Tensor};
 
-/// The name of this baseline in result tables and on the command line.
-pub const IMAGENET_BASELINE: &str = "imagenet";
+pub use matseg_model::config::IMAGENET_BASELINE;
 
 /// Channels of the descriptor: the three taps side by side.
 pub const IMAGENET_DIM: i64 = TAP_CHANNELS[0] + TAP_CHANNELS[1] + TAP_CHANNELS[2];

@@ -158,9 +158,7 @@ pub struct MobileNetV2Classifier {
     classifier: nn::Linear,
 }
 
-/// Per-channel mean and standard deviation of torchvision's ImageNet
-/// preprocessing, for RGB in [0, 1].
-pub const IMAGENET_MEAN_STD: [(f64, f64); 3] = [(0.485, 0.229), (0.456, 0.224), (0.406, 0.225)];
+pub use matseg_model::config::IMAGENET_MEAN_STD;
 
 impl MobileNetV2Classifier {
     /// Creates the parameters under `p` (`features...`, `classifier.1`).

@@ -25,15 +25,16 @@ pub struct ModelChoice {
 }
 
 /// Baseline names, in table order: the colour and texture statistics, then
-/// (in a build with the net) the ImageNet features.
+/// (in a build with inference) the ImageNet features.
 pub fn known_baselines() -> Vec<&'static str> {
     [BASELINES.as_slice(), NET_BASELINES].concat()
 }
 
-/// The baselines that need the net (none in a build without it).
-#[cfg(feature = "net")]
-const NET_BASELINES: &[&str] = &[matseg_net::imagenet::IMAGENET_BASELINE];
-#[cfg(not(feature = "net"))]
+/// The baselines that need an inference engine (none in a build without
+/// one).
+#[cfg(feature = "infer")]
+const NET_BASELINES: &[&str] = &[matseg_model::config::IMAGENET_BASELINE];
+#[cfg(not(feature = "infer"))]
 const NET_BASELINES: &[&str] = &[];
 
 /// The chosen baselines (in table order), then the nets (each named after
@@ -69,30 +70,13 @@ pub fn baselines(choice: &ModelChoice) -> Result<Vec<Box<dyn DescriptorModel>>, 
     for name in known.iter().filter(|b| wanted.contains(b)) {
         match baseline(name) {
             Some(model) => models.push(model),
-            #[cfg(feature = "net")]
-            None => models.push(Box::new(imagenet_baseline(choice.device)?)),
-            #[cfg(not(feature = "net"))]
+            #[cfg(feature = "infer")]
+            None => models.push(crate::nets::imagenet_baseline(choice.device)?),
+            #[cfg(not(feature = "infer"))]
             None => unreachable!("every known baseline is built"),
         }
     }
     Ok(models)
-}
-
-/// The ImageNet MobileNetV2 feature baseline on `device`, with the
-/// registry's weights (fetched into the cache the first time).
-#[cfg(feature = "net")]
-pub fn imagenet_baseline(
-    device: ComputeDevice,
-) -> Result<matseg_net::imagenet::ImagenetBaseline, PipelineError> {
-    use matseg_net::imagenet::{ImagenetBaseline, ImagenetFeatures};
-    let path = crate::weights::imagenet_weights(matseg_weights::Arch::MobilenetV2, None)?.path;
-    let label = path.display().to_string();
-    let (tensors, _) = crate::weights::read_weights(&path)?;
-    Ok(ImagenetBaseline::imagenet(ImagenetFeatures::new(
-        &tensors,
-        &label,
-        matseg_net::torch_device(device),
-    )?))
 }
 
 /// The chosen trained nets.

@@ -32,48 +32,79 @@ pub fn net_name(model: &Path) -> String {
 /// libtorch").
 pub const ENGINE_VARIABLE: &str = "MATSEG_ENGINE";
 
-/// Whether [`ENGINE_VARIABLE`] asks for libtorch on the CPU.
-fn libtorch_on_cpu() -> Result<bool, PipelineError> {
-    match std::env::var(ENGINE_VARIABLE).as_deref() {
-        Err(_) | Ok("rust") => Ok(false),
-        Ok("libtorch") if cfg!(feature = "net") => Ok(true),
-        Ok("libtorch") => Err(PipelineError::setting(
-            ENGINE_VARIABLE,
-            Some("libtorch"),
-            "this build has no libtorch (cargo feature `net`)",
-        )),
-        Ok(other) => Err(PipelineError::setting(
-            ENGINE_VARIABLE,
-            Some(other),
-            "the engines are rust and libtorch",
-        )),
+/// The engine a model runs on.
+enum Engine {
+    /// matseg-infer, on the CPU.
+    Rust,
+    /// libtorch (matseg-net), on its device.
+    #[cfg(feature = "net")]
+    Libtorch,
+}
+
+/// The engine for `device`: libtorch on CUDA, the pure-Rust one on the CPU
+/// unless [`ENGINE_VARIABLE`] asks for libtorch; refused where this build
+/// has no libtorch.
+fn engine(device: ComputeDevice) -> Result<Engine, PipelineError> {
+    let asked = std::env::var(ENGINE_VARIABLE);
+    let libtorch = match asked.as_deref() {
+        Err(_) | Ok("rust") => matches!(device, ComputeDevice::Cuda(_)),
+        Ok("libtorch") => true,
+        Ok(other) => {
+            return Err(PipelineError::setting(
+                ENGINE_VARIABLE,
+                Some(other),
+                "the engines are rust and libtorch",
+            ))
+        }
+    };
+    match libtorch {
+        false => Ok(Engine::Rust),
+        #[cfg(feature = "net")]
+        true => Ok(Engine::Libtorch),
+        #[cfg(not(feature = "net"))]
+        true => Err(match device {
+            ComputeDevice::Cuda(_) => PipelineError::setting(
+                "device",
+                Some(device),
+                "this build runs nets on the CPU only (CUDA needs the build with libtorch, docs/gpu.md)",
+            ),
+            ComputeDevice::Cpu => PipelineError::setting(
+                ENGINE_VARIABLE,
+                Some("libtorch"),
+                "this build has no libtorch (cargo feature `net`)",
+            ),
+        }),
     }
 }
 
 /// Loads `model` (`default`, a run folder, or a weights file with its
 /// run's `run.json` beside it) to describe photos on `device`.
 pub fn load_net(model: &Path, device: ComputeDevice) -> Result<NamedNet, PipelineError> {
-    let net: Box<dyn DescriptorNet> = match device {
+    let net: Box<dyn DescriptorNet> = match engine(device)? {
+        Engine::Rust => Box::new(InferNet::load(model)?),
         #[cfg(feature = "net")]
-        ComputeDevice::Cpu if libtorch_on_cpu()? => {
-            Box::new(matseg_net::infer::NetModel::load(model, device)?)
-        }
-        ComputeDevice::Cpu => {
-            libtorch_on_cpu()?;
-            Box::new(InferNet::load(model)?)
-        }
-        #[cfg(feature = "net")]
-        ComputeDevice::Cuda(_) => Box::new(matseg_net::infer::NetModel::load(model, device)?),
-        #[cfg(not(feature = "net"))]
-        ComputeDevice::Cuda(_) => {
-            return Err(PipelineError::setting(
-                "device",
-                Some(device),
-                "this build runs nets on the CPU only (CUDA needs the build with libtorch, docs/gpu.md)",
-            ))
-        }
+        Engine::Libtorch => Box::new(matseg_net::infer::NetModel::load(model, device)?),
     };
     Ok(NamedNet::new(net_name(model), net))
+}
+
+/// The ImageNet MobileNetV2 feature baseline on the engine for `device`,
+/// with the registry's weights (fetched into the cache the first time).
+pub fn imagenet_baseline(device: ComputeDevice) -> Result<Box<dyn DescriptorModel>, PipelineError> {
+    let engine = engine(device)?;
+    let path = crate::weights::imagenet_weights(matseg_weights::Arch::MobilenetV2, None)?.path;
+    let label = path.display().to_string();
+    let (tensors, _) = crate::weights::read_weights(&path)?;
+    Ok(match engine {
+        Engine::Rust => Box::new(matseg_infer::ImagenetBaseline::new(tensors, &label)?),
+        #[cfg(feature = "net")]
+        Engine::Libtorch => {
+            use matseg_net::imagenet::{ImagenetBaseline, ImagenetFeatures};
+            let device = matseg_net::torch_device(device);
+            let features = ImagenetFeatures::new(&tensors, &label, device)?;
+            Box::new(ImagenetBaseline::imagenet(features))
+        }
+    })
 }
 
 /// The score `matseg train --val-points` records for a checkpoint: the
