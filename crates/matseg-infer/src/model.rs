@@ -117,8 +117,22 @@ impl InferNet {
 }
 
 /// Runs `f` in rten's thread pool with a pool of buffers for its operators.
+///
+/// A caller that is itself a worker of a rayon pool (an evaluation
+/// describing photos in parallel) waits on a plain thread that hands `f`
+/// over: a rayon worker waiting for another pool runs its own pool's jobs
+/// meanwhile, so it would start one net pass after another inside the
+/// first (each holding its memory), and one needing a lock the first holds
+/// would never end.
 pub(crate) fn run<R: Send>(f: impl FnOnce(&BufferPool) -> R + Send) -> R {
-    rten::thread_pool().run(|| f(&BufferPool::new()))
+    let pass = || rten::thread_pool().run(|| f(&BufferPool::new()));
+    if rayon::current_thread_index().is_none() {
+        return pass();
+    }
+    std::thread::scope(|scope| match scope.spawn(pass).join() {
+        Ok(result) => result,
+        Err(panic) => std::panic::resume_unwind(panic),
+    })
 }
 
 /// A `[1, D, h, w]` grid with its channels interleaved, cell by cell.
