@@ -314,10 +314,14 @@ export async function uploadFile(path, file) {
 }
 
 // Calls `upload(file)` with the file picked in `input` or dropped on any
-// of `zones`.
+// of `zones`. The field is emptied once the file is handed over, so it
+// never shows the name of a file the server refused (and the same file
+// can be picked again).
 export function takeFiles(input, zones, upload) {
   input.addEventListener("change", (event) => {
-    if (event.target.files.length) upload(event.target.files[0]);
+    const files = [...event.target.files];
+    event.target.value = "";
+    if (files.length) upload(files[0]);
   });
   for (const zone of zones) {
     zone.addEventListener("dragover", (event) => event.preventDefault());

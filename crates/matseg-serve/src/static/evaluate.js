@@ -50,6 +50,7 @@ function showReport(report) {
   const c = models[0].counts;
   say(`${c.images} images (${c.soft_images} with relations), ${c.points} points`
     + (report.skipped.length ? `; skipped: ${report.skipped.join("; ")}` : ""));
+  document.getElementById("scores-heading").hidden = false;
   document.getElementById("scores").dataset.done = "1";
 }
 

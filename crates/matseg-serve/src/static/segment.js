@@ -357,6 +357,7 @@ async function upload(file) {
   say(`uploading ${file.name}...`);
   try {
     const photo = await uploadFile("/api/upload", file);
+    list.prepend(listItem({ root: photo.root, path: photo.path }, `uploaded: ${file.name}`, file.name));
     await open({ root: photo.root, path: photo.path }, file.name);
   } catch (error) {
     say(error.message, true);
@@ -364,17 +365,21 @@ async function upload(file) {
 }
 takeFiles(control("file"), [control("drop"), canvas], upload);
 
+// A photo's entry in the list, shown as `label`: a click opens it under
+// `name` (what downloads are named after).
+function listItem(photo, label, name = photo.path) {
+  const item = document.createElement("li");
+  item.textContent = label;
+  item.dataset.key = `${photo.root}/${photo.path}`;
+  item.addEventListener("click", () => open(photo, name));
+  return item;
+}
+
 // The photo list, a page at a time.
 let listed = 0;
 async function listMore() {
   const page = await (await api("/api/photos", { offset: listed, limit: 200 })).json();
-  for (const photo of page.photos) {
-    const item = document.createElement("li");
-    item.textContent = `${photo.root}: ${photo.path}`;
-    item.dataset.key = `${photo.root}/${photo.path}`;
-    item.addEventListener("click", () => open(photo, photo.path));
-    list.append(item);
-  }
+  for (const photo of page.photos) list.append(listItem(photo, `${photo.root}: ${photo.path}`));
   listed += page.photos.length;
   control("more").hidden = listed >= page.total;
   return page;
