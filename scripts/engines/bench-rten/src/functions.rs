@@ -1,5 +1,5 @@
 //! The net on rten's ops-as-functions API (`rten::ops::{conv, resize, concat,
-//! matmul, add}`; these "may be removed from the public API", rten #911).
+//! matmul, add}`; rten's `ops` module says these "may be removed from the public API").
 //! rten exports no activation functions: ReLU6 is a plain clamp loop and
 //! GELU uses rten-vecmath's vectorised `Gelu` (both parallel over chunks in
 //! rten's thread pool). Adaptive average pooling: none in rten, so two
