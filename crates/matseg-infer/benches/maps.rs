@@ -8,6 +8,9 @@
 //! left out). Cargo runs it in crates/matseg-infer: give absolute paths.
 //! scripts/bench-engines.py runs it on every benchmark.
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 use matseg_image::device::ComputeDevice;
 use matseg_infer::InferNet;
 use matseg_net::infer::NetModel;
@@ -37,17 +40,6 @@ fn photos(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
     Ok(found)
 }
 
-/// The cosine of two descriptors, in f64.
-fn cosine(x: &[f32], y: &[f32]) -> f64 {
-    let dot: f64 = x
-        .iter()
-        .zip(y)
-        .map(|(p, q)| f64::from(*p) * f64::from(*q))
-        .sum();
-    let norm = |v: &[f32]| v.iter().map(|p| f64::from(*p).powi(2)).sum::<f64>().sqrt();
-    dot / (norm(x) * norm(y)).max(1e-12)
-}
-
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let folders: Vec<String> = std::env::args()
         .skip(1)
@@ -70,7 +62,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .chunks(a.grid.dim)
                 .zip(b.grid.data.chunks(b.grid.dim))
             {
-                let similarity = cosine(x, y);
+                let similarity = common::cosine(x, y);
                 worst = worst.min(similarity);
                 sum += similarity;
                 cells += 1;

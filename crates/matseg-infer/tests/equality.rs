@@ -3,6 +3,8 @@
 //! at each of its inference sizes and merged, and for nets of other shapes
 //! (ConvNeXt, no descriptor parts) with random weights.
 
+mod common;
+
 use image::RgbImage;
 use matseg_image::device::ComputeDevice;
 use matseg_infer::InferNet;
@@ -30,15 +32,7 @@ fn least_cosine(a: &DescriptorMap, b: &DescriptorMap) -> f64 {
     a.data
         .chunks(a.dim)
         .zip(b.data.chunks(b.dim))
-        .map(|(x, y)| {
-            let dot: f64 = x
-                .iter()
-                .zip(y)
-                .map(|(p, q)| f64::from(*p) * f64::from(*q))
-                .sum();
-            let norm = |v: &[f32]| v.iter().map(|p| f64::from(*p).powi(2)).sum::<f64>().sqrt();
-            dot / (norm(x) * norm(y)).max(1e-12)
-        })
+        .map(|(x, y)| common::cosine(x, y))
         .fold(f64::INFINITY, f64::min)
 }
 
